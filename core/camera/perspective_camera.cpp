@@ -1,0 +1,55 @@
+#include "core/camera/perspective_camera.h"
+
+#include <cmath>
+
+#include "core/math/constants.h"
+
+namespace render {
+
+PerspectiveCamera::PerspectiveCamera(const Transform& to_world, float fov_degrees, char fov_axis,
+                                     int width, int height)
+    : to_world_(to_world), to_camera_(to_world.inverse()), width_(width), height_(height) {
+    float tan_half = std::tan(0.5f * fov_degrees * kPi / 180.0f);
+    float aspect = float(width) / float(height);
+    if (fov_axis == 'y') {
+        tan_half_y_ = tan_half;
+        tan_half_x_ = tan_half * aspect;
+    } else {
+        tan_half_x_ = tan_half;
+        tan_half_y_ = tan_half / aspect;
+    }
+    image_plane_area_ = 4.0f * tan_half_x_ * tan_half_y_;
+    position_ = to_world.apply_point(Vec3(0, 0, 0));
+    forward_ = normalize(to_world.apply_vector(Vec3(0, 0, 1)));
+}
+
+Ray PerspectiveCamera::generate_ray(Vec2 raster) const {
+    // Raster x grows to the right, which is camera -x; raster y grows downward (camera -y).
+    float cx = (1.0f - 2.0f * raster.x / float(width_)) * tan_half_x_;
+    float cy = (1.0f - 2.0f * raster.y / float(height_)) * tan_half_y_;
+    Vec3 dir = normalize(to_world_.apply_vector(Vec3(cx, cy, 1.0f)));
+    return Ray(position_, dir);
+}
+
+std::optional<Vec2> PerspectiveCamera::raster_position(const Vec3& p) const {
+    Vec3 local = to_camera_.apply_point(p);
+    if (local.z <= 0) return std::nullopt;
+    float cx = local.x / local.z, cy = local.y / local.z;
+    Vec2 raster((1.0f - cx / tan_half_x_) * 0.5f * float(width_),
+                (1.0f - cy / tan_half_y_) * 0.5f * float(height_));
+    if (!(raster.x >= 0 && raster.x < float(width_) && raster.y >= 0 && raster.y < float(height_)))
+        return std::nullopt;
+    return raster;
+}
+
+float PerspectiveCamera::direction_pdf(const Vec3& dir) const {
+    // Camera-space direction without the translation; to_camera may scale, so renormalise.
+    Vec3 local = normalize(to_camera_.apply_vector(dir));
+    if (local.z <= 0) return 0.0f;
+    float cx = local.x / local.z, cy = local.y / local.z;
+    if (std::abs(cx) > tan_half_x_ || std::abs(cy) > tan_half_y_) return 0.0f;
+    float cos_theta = local.z;
+    return 1.0f / (image_plane_area_ * cos_theta * cos_theta * cos_theta);
+}
+
+}  // namespace render

@@ -1,0 +1,86 @@
+#pragma once
+
+// The BSDF interface. All directions are unit vectors in the local *shading* frame (z = shading
+// normal) and point away from the surface: `wo` toward where the path came from, `wi` toward
+// where it continues. Which of the two carries light depends on the transport mode:
+//   Radiance   (eye paths):   light flows wi -> wo.
+//   Importance (light paths): light flows wo -> wi (the path was traced from the light).
+// Conversions to world space, geometric-normal checks and the shading-normal correction of
+// adjoint transport live in SurfaceBsdf (surface_bsdf.h), not in each model.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "core/math/vec.h"
+
+namespace render {
+
+enum class TransportMode { Radiance, Importance };
+
+// Lobe kinds a BSDF may contain (bit flags).
+enum BsdfLobe : uint32_t {
+    kLobeNone = 0,
+    kLobeDiffuseReflection = 1u << 0,
+    kLobeGlossyReflection = 1u << 1,
+    kLobeDeltaReflection = 1u << 2,
+    kLobeDiffuseTransmission = 1u << 3,
+    kLobeGlossyTransmission = 1u << 4,
+    kLobeDeltaTransmission = 1u << 5,
+    kLobeDelta = kLobeDeltaReflection | kLobeDeltaTransmission,
+    kLobeTransmission = kLobeDiffuseTransmission | kLobeGlossyTransmission | kLobeDeltaTransmission,
+    kLobeNonDelta = kLobeDiffuseReflection | kLobeGlossyReflection | kLobeDiffuseTransmission |
+                    kLobeGlossyTransmission,
+};
+
+// Both directional densities of one pair of directions, in solid angle:
+// forward = p(wi | wo), the density with which sample(wo) produces wi;
+// reverse = p(wo | wi), the density with which sample(wi) would produce wo.
+// Bidirectional MIS needs both; they differ for every non-symmetric sampling scheme.
+struct BsdfPdf {
+    float forward = 0;
+    float reverse = 0;
+};
+
+struct BsdfSample {
+    Vec3 wi;
+    // f(wo, wi) * |cos(wi)| / pdf.forward, including the lobe selection probability. For a delta
+    // lobe it is the lobe's throughput divided by its selection probability.
+    Rgb weight;
+    // Densities as in BsdfPdf. For delta lobes these are the discrete lobe selection
+    // probabilities (the convention of SmallVCM), and `delta` is true.
+    BsdfPdf pdf;
+    bool delta = false;
+    uint32_t lobe = kLobeNone;
+    // Relative IOR along the sampled direction (eta_inside/eta_outside when entering), 1 for
+    // reflection. Used by Russian roulette and by radiance scaling diagnostics.
+    float eta = 1.0f;
+};
+
+class Bsdf {
+public:
+    virtual ~Bsdf() = default;
+
+    // f(wo, wi) without the cosine factor. Zero for delta lobes.
+    virtual Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const = 0;
+
+    // Directional densities of sample() for the non-delta lobes. Zero for delta lobes.
+    virtual BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const = 0;
+
+    // Samples wi given wo. `u_lobe` picks a lobe, `u` samples within it. Returns nothing when
+    // the sample is invalid (below the surface, total internal reflection with zero weight...).
+    virtual std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
+                                             TransportMode mode) const = 0;
+
+    // Union of the lobes this BSDF has.
+    virtual uint32_t lobes() const = 0;
+
+    bool is_delta() const { return (lobes() & kLobeNonDelta) == 0; }
+    bool has_non_delta() const { return (lobes() & kLobeNonDelta) != 0; }
+
+    // A short description for logs and error messages.
+    virtual std::string to_string() const = 0;
+};
+
+}  // namespace render

@@ -1,0 +1,31 @@
+#pragma once
+
+#include "core/math/frame.h"
+#include "core/math/vec.h"
+
+namespace render {
+
+class Bsdf;
+class Light;
+class Shape;
+
+// A ray's hit on a surface, in world space.
+struct SurfaceInteraction {
+    Vec3 p;              // hit point
+    Vec3 geometric_normal;  // unit; the side the shape's winding/orientation calls "outside"
+    Frame shading;       // shading frame; shading.n is the interpolated (or geometric) normal
+    Vec2 uv;
+    float t = 0;         // ray distance
+    const Shape* shape = nullptr;
+    const Bsdf* bsdf = nullptr;    // never null for a hit (absorbing black if the file had none)
+    const Light* emitter = nullptr;  // area light attached to the shape, if any
+};
+
+// A point sampled on a shape's surface by area.
+struct ShapeSample {
+    Vec3 p;
+    Vec3 n;              // unit geometric normal at p (facing the shape's outside)
+    float pdf_area = 0;  // density with respect to surface area
+};
+
+}  // namespace render

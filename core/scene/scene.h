@@ -1,0 +1,98 @@
+#pragma once
+
+// The renderable scene: geometry in one Embree scene, materials, lights, camera, and the render
+// settings the scene file carried. Built once (commit()), immutable and thread-safe afterwards.
+
+#include <embree3/rtcore.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/camera/perspective_camera.h"
+#include "core/lights/light.h"
+#include "core/materials/bsdf.h"
+#include "core/math/ray.h"
+#include "core/sampling/distribution.h"
+#include "core/scene/interaction.h"
+#include "core/scene/shape.h"
+
+namespace render {
+
+// Settings a scene file carries (integrator, sampler, film). Command-line options override them.
+struct SceneSettings {
+    std::string integrator = "path";
+    int max_depth = -1;        // Mitsuba's meaning: -1 = unbounded; 1 = directly visible emitters
+    int rr_depth = 5;          // Russian roulette starts at this path depth
+    int sample_count = 16;     // sampler sample_count (iterations, one sample per pixel each)
+};
+
+class Scene {
+public:
+    Scene();
+    ~Scene();
+    Scene(const Scene&) = delete;
+    Scene& operator=(const Scene&) = delete;
+
+    // --- building (single-threaded, before commit) ---
+    // Keeps a BSDF alive for the scene's lifetime and returns the stable pointer.
+    const Bsdf* add_bsdf(std::shared_ptr<const Bsdf> bsdf);
+    // Adds a shape; `bsdf` may be null (gets an absorbing black diffuse). `emitter` may be null.
+    Shape* add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf);
+    // Adds a light (area lights must already be attached to their shape via shape->emitter).
+    const Light* add_light(std::unique_ptr<Light> light);
+    void set_camera(const PerspectiveCamera& camera) { camera_ = camera; }
+    SceneSettings settings;
+    std::string source_file;  // for messages and EXR metadata
+
+    // Builds the Embree BVH, the scene bounding sphere and the light selection distribution.
+    // Throws SceneError for a scene that cannot be rendered (e.g. no camera).
+    void commit();
+
+    // --- queries (thread-safe after commit) ---
+    // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit.
+    bool intersect(const Ray& ray, SurfaceInteraction& si) const;
+    // True if anything blocks the open segment (ray.t_min, ray.t_max).
+    bool occluded(const Ray& ray) const;
+
+    // Ray leaving surface point p (normal n) in direction d, offset so it cannot re-hit the
+    // surface it starts on. The offset scales with the scene size and |p|.
+    Ray spawn_ray(const Vec3& p, const Vec3& n, const Vec3& d) const;
+    // Shadow ray from surface point p (normal n) to point `target` (normal n_target, or zero
+    // vector for a point light), offset at both ends.
+    Ray spawn_ray_to(const Vec3& p, const Vec3& n, const Vec3& target, const Vec3& n_target) const;
+    // Shadow ray from surface point p toward direction d to infinity (for infinite lights).
+    Ray spawn_ray_to_infinity(const Vec3& p, const Vec3& n, const Vec3& d) const;
+
+    const PerspectiveCamera& camera() const { return camera_; }
+    const std::vector<std::unique_ptr<Light>>& lights() const { return lights_; }
+    const std::vector<std::unique_ptr<Shape>>& shapes() const { return shapes_; }
+    // Lights hit by escaping rays (constant, envmap).
+    const std::vector<const Light*>& background_lights() const { return background_lights_; }
+
+    // Light selection proportional to power (luminance).
+    const Light* sample_light(float u, float* pdf) const;
+    float light_pdf(const Light* light) const;
+
+    const SceneSphere& bounding_sphere() const { return sphere_; }
+    const Aabb& bounds() const { return bounds_; }
+
+private:
+    RTCDevice device_ = nullptr;
+    RTCScene rtc_scene_ = nullptr;
+    std::vector<std::shared_ptr<const Bsdf>> bsdfs_;
+    std::vector<std::unique_ptr<Shape>> shapes_;
+    std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
+    std::vector<std::unique_ptr<Light>> lights_;
+    std::vector<const Light*> background_lights_;
+    Distribution1D light_distribution_;
+    std::vector<float> light_pdf_;  // by index in lights_
+    PerspectiveCamera camera_;
+    SceneSphere sphere_;
+    Aabb bounds_;
+    float ray_epsilon_ = 1e-4f;  // scaled with the scene at commit()
+    bool committed_ = false;
+};
+
+}  // namespace render
