@@ -18,12 +18,9 @@ Distribution1D::Distribution1D(std::vector<float> weights) : func_(std::move(wei
     double total = cdf_[n];
     integral_ = n > 0 ? float(total / double(n)) : 0.0f;
     if (total <= 0) {
-        // All zero: fall back to uniform so sampling stays well defined.
-        for (size_t i = 0; i < n; ++i) {
-            func_[i] = 1.0f;
-            cdf_[i + 1] = double(i + 1) / double(n);
-        }
-        integral_ = n > 0 ? 1.0f : 0.0f;
+        // All zero: sample uniformly so sampling stays well defined, but keep reporting the
+        // true (zero) weights and integral so callers can detect a black distribution.
+        for (size_t i = 0; i < n; ++i) cdf_[i + 1] = double(i + 1) / double(n);
     } else {
         for (size_t i = 1; i <= n; ++i) cdf_[i] /= total;
     }

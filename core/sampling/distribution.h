@@ -13,8 +13,8 @@ namespace render {
 class Distribution1D {
 public:
     Distribution1D() = default;
-    // Weights must be finite and non-negative. If they all are zero, the distribution is
-    // uniform (so that sampling never fails on a black envmap row).
+    // Non-finite or negative weights count as zero. If all are zero, sampling is uniform (so
+    // it never fails on a black envmap row) while weight() and integral() still report zero.
     explicit Distribution1D(std::vector<float> weights);
 
     size_t size() const { return func_.size(); }

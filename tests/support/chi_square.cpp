@@ -41,19 +41,24 @@ double gamma_q_fraction(double a, double x) {
     return std::exp(-x + a * std::log(x) - std::lgamma(a)) * h;
 }
 
-// Integral of pdf over [x0,x1]x[y0,y1] by composite Simpson with n intervals per axis.
+// Integral of pdf over [x0,x1]x[y0,y1] by composite 2-point Gauss-Legendre on n x n sub-cells.
+// All nodes are interior: a density that jumps at a cell edge (hemisphere rims, cones,
+// piecewise-constant distributions) is integrated without the bias of edge nodes.
 double integrate_cell(const std::function<double(Vec2)>& pdf, double x0, double x1, double y0,
                       double y1, int n) {
+    const double node = 0.5 / std::sqrt(3.0);  // Gauss-Legendre nodes at 1/2 -+ node
     double hx = (x1 - x0) / n, hy = (y1 - y0) / n, sum = 0;
-    for (int i = 0; i <= n; ++i) {
-        double wx = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2);
-        for (int j = 0; j <= n; ++j) {
-            double wy = (j == 0 || j == n) ? 1 : (j % 2 ? 4 : 2);
-            double v = pdf(Vec2(float(x0 + i * hx), float(y0 + j * hy)));
-            sum += wx * wy * (std::isfinite(v) ? v : 0.0);
+    for (int i = 0; i < n; ++i)
+        for (int a = -1; a <= 1; a += 2) {
+            double x = x0 + (i + 0.5 + a * node) * hx;
+            for (int j = 0; j < n; ++j)
+                for (int b = -1; b <= 1; b += 2) {
+                    double y = y0 + (j + 0.5 + b * node) * hy;
+                    double v = pdf(Vec2(float(x), float(y)));
+                    sum += std::isfinite(v) ? v : 0.0;
+                }
         }
-    }
-    return sum * hx * hy / 9.0;
+    return sum * hx * hy / 4.0;
 }
 
 }  // namespace

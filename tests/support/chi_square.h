@@ -2,7 +2,8 @@
 
 // A chi-square goodness-of-fit test in the style of Mitsuba's ChiSquareTest: draw many samples
 // from a sampling routine, histogram them, and compare against the expected counts obtained by
-// numerically integrating the pdf that the routine claims over each histogram cell. Cells with
+// numerically integrating (Gauss-Legendre, interior nodes only) the pdf that the routine claims
+// over each histogram cell. Cells with
 // small expected counts are pooled (each pooled group needs >= 5 expected samples). The null
 // hypothesis "samples follow the pdf" is rejected when the p-value falls below the significance
 // level, Sidak-corrected for the number of tests a suite runs:

@@ -1,0 +1,80 @@
+#include "core/lights/area_light.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "core/math/constants.h"
+#include "core/math/frame.h"
+#include "core/sampling/warp.h"
+
+namespace render {
+
+AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
+    : shape_(shape), radiance_(radiance), area_(shape ? shape->surface_area() : 0.0f) {
+    if (!(area_ > 0) || !std::isfinite(area_)) area_ = 0;
+    inv_area_ = area_ > 0 ? 1.0f / area_ : 0.0f;
+    // A denormal area would make 1 / area overflow.
+    if (!std::isfinite(inv_area_)) area_ = inv_area_ = 0;
+}
+
+bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const {
+    if (inv_area_ == 0 || radiance_.is_black()) return false;
+    ShapeSample s = shape_->sample_area(u);
+    if (!(s.pdf_area > 0) || !std::isfinite(s.pdf_area)) return false;
+    Vec3 to_light = s.p - ref;
+    float d2 = length_squared(to_light);
+    if (!(d2 > 0) || !std::isfinite(d2)) return false;
+    float d = std::sqrt(d2);
+    Vec3 wi = to_light / d;
+    float cos_light = dot(s.n, -wi);
+    if (!(cos_light > 0)) return false;  // back side (one-sided) or grazing
+    float pdf_w = s.pdf_area * d2 / cos_light;
+    if (!std::isfinite(pdf_w)) return false;  // grazing to within float precision
+    out.wi = wi;
+    out.distance = d;
+    out.radiance = radiance_;
+    out.pdf_direct_w = pdf_w;
+    out.pdf_emission_w = s.pdf_area * cos_light * kInvPi;
+    out.cos_at_light = cos_light;
+    return true;
+}
+
+bool AreaLight::emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const {
+    if (inv_area_ == 0 || radiance_.is_black()) return false;
+    ShapeSample s = shape_->sample_area(u_position);
+    if (!(s.pdf_area > 0) || !std::isfinite(s.pdf_area)) return false;
+    Vec3 local = warp::square_to_cosine_hemisphere(u_direction);
+    // Malley's method reaches cos = 0 only on the disk's rim; such a ray carries nothing.
+    if (!(local.z > 0)) return false;
+    out.origin = s.p;
+    out.direction = normalize(Frame::from_normal(s.n).to_world(local));
+    out.energy = radiance_ * local.z;
+    out.pdf_emission_w = s.pdf_area * local.z * kInvPi;
+    out.pdf_direct_a = s.pdf_area;
+    out.cos_at_light = local.z;
+    return true;
+}
+
+LightRadiance AreaLight::radiance(const Vec3& /*hit_point*/, const Vec3& hit_normal,
+                                  const Vec3& ray_direction) const {
+    float cos_light = dot(hit_normal, -ray_direction);
+    if (!(cos_light > 0) || inv_area_ == 0) return {};
+    LightRadiance r;
+    r.radiance = radiance_;
+    r.pdf_direct_a = inv_area_;
+    r.pdf_emission_w = inv_area_ * cos_light * kInvPi;
+    return r;
+}
+
+Rgb AreaLight::power() const {
+    return radiance_ * (kPi * area_);
+}
+
+std::string AreaLight::to_string() const {
+    std::ostringstream os;
+    os << "AreaLight[radiance = " << radiance_ << ", area = " << area_
+       << ", shape = " << (shape_ ? shape_->to_string() : std::string("none")) << "]";
+    return os.str();
+}
+
+}  // namespace render

@@ -1,0 +1,99 @@
+#include "core/lights/light_factory.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "core/lights/area_light.h"
+#include "core/lights/constant_light.h"
+#include "core/lights/directional_light.h"
+#include "core/lights/envmap_light.h"
+#include "core/lights/point_light.h"
+#include "core/scene/error.h"
+
+namespace render {
+namespace {
+
+constexpr const char* kSupported = "area, point, directional, constant, envmap";
+
+// Emitted quantities must be finite and non-negative: a negative or NaN radiance would
+// poison every image sample it touches.
+Rgb get_emission(const Properties& props, const std::string& name, const Rgb& def) {
+    Rgb value = props.get_rgb(name, def);
+    for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(value[c]) || value[c] < 0) {
+            std::ostringstream os;
+            os << "must be finite and non-negative, got " << value;
+            throw props.error(name, os.str());
+        }
+    return value;
+}
+
+std::unique_ptr<Light> make_point(const Properties& props) {
+    if (props.has("position") && props.has("to_world"))
+        throw props.error("position", "give either \"position\" or \"to_world\", not both");
+    Vec3 position = props.has("position")
+                        ? props.get_vec3("position")
+                        : props.get_transform("to_world", Transform()).apply_point(Vec3(0.0f));
+    if (!is_finite(position)) throw props.error("position", "must be finite");
+    return std::make_unique<PointLight>(position, get_emission(props, "intensity", Rgb(1.0f)));
+}
+
+std::unique_ptr<Light> make_directional(const Properties& props) {
+    if (props.has("direction") && props.has("to_world"))
+        throw props.error("direction", "give either \"direction\" or \"to_world\", not both");
+    // Mitsuba: the light travels along the local +z axis.
+    const char* name = props.has("direction") ? "direction" : "to_world";
+    Vec3 direction = props.has("direction")
+                         ? props.get_vec3("direction")
+                         : props.get_transform("to_world", Transform()).apply_vector(Vec3(0, 0, 1));
+    float len = length(direction);
+    if (!(len > 0) || !std::isfinite(len))
+        throw props.error(name, "the light's direction must be a finite, non-zero vector");
+    return std::make_unique<DirectionalLight>(direction,
+                                              get_emission(props, "irradiance", Rgb(1.0f)));
+}
+
+std::unique_ptr<Light> make_envmap(const Properties& props,
+                                   const std::filesystem::path& scene_dir) {
+    std::filesystem::path filename = props.get_string("filename");
+    if (filename.is_relative()) filename = scene_dir / filename;
+    float scale = props.get_float("scale", 1.0f);
+    if (!std::isfinite(scale) || scale < 0)
+        throw props.error("scale", "must be finite and non-negative");
+    std::optional<Frame> frame = EnvmapLight::rotation_frame(props.get_transform("to_world", {}));
+    if (!frame) throw props.error("to_world", "an environment map's to_world must be a rotation");
+    try {
+        return EnvmapLight::load(filename, scale, *frame);
+    } catch (const SceneError& e) {
+        throw props.error("filename", e.what());
+    }
+}
+
+}  // namespace
+
+std::unique_ptr<Light> make_light(const Properties& props, const Shape* shape,
+                                  const std::filesystem::path& scene_dir) {
+    const std::string& type = props.type();
+    if (type == "area") {
+        if (!shape)
+            throw SceneError(props.where(),
+                             "emitter \"area\" must be nested inside a shape (it emits from "
+                             "that shape's surface)");
+        return std::make_unique<AreaLight>(shape, get_emission(props, "radiance", Rgb(1.0f)));
+    }
+    bool known = type == "point" || type == "directional" || type == "constant" || type == "envmap";
+    if (!known)
+        throw SceneError(props.where(),
+                         "unknown emitter type \"" + type + "\" (supported: " + kSupported + ")");
+    if (shape)
+        throw SceneError(props.where(), "emitter \"" + type +
+                                            "\" cannot be nested inside a shape (only "
+                                            "\"area\" can)");
+    if (type == "point") return make_point(props);
+    if (type == "directional") return make_directional(props);
+    if (type == "constant")
+        return std::make_unique<ConstantLight>(get_emission(props, "radiance", Rgb(1.0f)));
+    return make_envmap(props, scene_dir);
+}
+
+}  // namespace render
