@@ -21,6 +21,11 @@ public:
     PerspectiveCamera(const Transform& to_world, float fov_degrees, char fov_axis, int width,
                       int height);
 
+    // The same camera with another resolution; the field of view along fov_axis is kept.
+    PerspectiveCamera with_resolution(int width, int height) const {
+        return PerspectiveCamera(to_world_, fov_degrees_, fov_axis_, width, height);
+    }
+
     int width() const { return width_; }
     int height() const { return height_; }
     Vec3 position() const { return position_; }
@@ -43,6 +48,8 @@ public:
 private:
     Transform to_world_;
     Transform to_camera_;
+    float fov_degrees_ = 90;
+    char fov_axis_ = 'x';
     Vec3 position_;
     Vec3 forward_;
     int width_ = 1, height_ = 1;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "core/camera/perspective_camera.h"
@@ -87,7 +88,7 @@ private:
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<const Light*> background_lights_;
     Distribution1D light_distribution_;
-    std::vector<float> light_pdf_;  // by index in lights_
+    std::unordered_map<const Light*, float> light_pdf_;
     PerspectiveCamera camera_;
     SceneSphere sphere_;
     Aabb bounds_;

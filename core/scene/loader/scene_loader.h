@@ -18,8 +18,8 @@ std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
                                   const std::map<std::string, std::string>& defines = {});
 
 // The same from a string (for tests); relative file names resolve against base_dir.
-std::unique_ptr<Scene> load_scene_from_string(const std::string& xml,
-                                              const std::filesystem::path& base_dir,
-                                              const std::map<std::string, std::string>& defines = {});
+std::unique_ptr<Scene> load_scene_from_string(
+    const std::string& xml, const std::filesystem::path& base_dir,
+    const std::map<std::string, std::string>& defines = {});
 
 }  // namespace render

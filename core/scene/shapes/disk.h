@@ -7,6 +7,8 @@
 
 namespace render {
 
+struct DiskCallbacks;
+
 // Analytic disk: the unit disk at z = 0 in object space with normal +z, mapped by to_world
 // (Mitsuba's `disk`). Embree user geometry.
 class Disk final : public Shape {
@@ -23,6 +25,7 @@ public:
     std::string to_string() const override;
 
 private:
+    friend struct DiskCallbacks;
     Transform to_world_;
     Transform to_object_;
     Vec3 center_, normal_;

@@ -1,0 +1,49 @@
+#pragma once
+
+// Integrators render one progressive iteration at a time. An iteration adds exactly one
+// estimate per pixel to the target buffer, and takes all its random numbers from
+// (seed, frame, iteration, stream) keys (core/sampling/rng.h), so the result does not depend
+// on threads or on which worker runs it (DESIGN.md, the iteration contract).
+
+#include <cstdint>
+#include <memory>
+
+#include "core/image/image.h"
+#include "core/math/ray.h"
+#include "core/render/render_settings.h"
+#include "core/sampling/rng.h"
+#include "core/scene/scene.h"
+
+namespace render {
+
+struct IterationKey {
+    uint64_t seed = 0;
+    uint32_t frame = 0;
+    uint64_t iteration = 1;  // 1-based global index
+};
+
+class Integrator {
+public:
+    virtual ~Integrator() = default;
+    // Adds iteration `key.iteration`'s image to `target` (same size as the camera).
+    virtual void render_iteration(const Scene& scene, const IterationKey& key,
+                                  AccumulationBuffer& target, RenderStats& stats) const = 0;
+};
+
+// Integrators that estimate each pixel independently from one camera ray (PT, eyelight).
+// Handles tiling, threading, per-pixel random streams and dropping non-finite samples.
+class PixelIntegrator : public Integrator {
+public:
+    void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
+                          RenderStats& stats) const override;
+
+protected:
+    // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats.
+    virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const = 0;
+};
+
+// The integrator `settings.algorithm` names ("pt", "path", "eyelight"). Throws
+// std::invalid_argument naming the supported ones for anything else.
+std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings);
+
+}  // namespace render

@@ -1,0 +1,103 @@
+#include "core/integrators/path_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/integrators/mis.h"
+#include "core/materials/surface_bsdf.h"
+
+namespace render {
+
+Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng,
+                   RenderStats& stats) const {
+    Rgb L(0.0f), beta(1.0f);
+    Ray ray = camera_ray;
+    // Density (solid angle) of the BSDF sample that produced `ray`; a delta or camera
+    // segment cannot be found by light sampling, so emission it finds is not weighted.
+    float prev_bsdf_pdf = 0;
+    bool prev_delta = true;
+    const bool has_lights = !scene.lights().empty();
+
+    for (int depth = 1;; ++depth) {  // depth = segments of the path including `ray`
+        SurfaceInteraction si;
+        ++stats.rays;
+        if (!scene.intersect(ray, si)) {
+            for (const Light* light : scene.background_lights()) {
+                LightRadiance le = light->radiance(Vec3(), Vec3(), ray.direction);
+                if (le.radiance.is_black()) continue;
+                float w = prev_delta ? 1.0f
+                                     : power_heuristic(prev_bsdf_pdf,
+                                                       scene.light_pdf(light) * le.pdf_direct_a);
+                L += beta * le.radiance * w;
+            }
+            break;
+        }
+
+        if (si.emitter) {
+            LightRadiance le = si.emitter->radiance(si.p, si.geometric_normal, ray.direction);
+            if (!le.radiance.is_black()) {
+                float w = 1.0f;
+                if (!prev_delta) {
+                    // Light sampling's density for this point, converted to solid angle.
+                    float cos_light = abs_dot(si.geometric_normal, ray.direction);
+                    float light_pdf = cos_light > 0 ? scene.light_pdf(si.emitter) *
+                                                          le.pdf_direct_a * si.t * si.t /
+                                                          cos_light
+                                                    : 0.0f;
+                    w = power_heuristic(prev_bsdf_pdf, light_pdf);
+                }
+                L += beta * le.radiance * w;
+            }
+        }
+        if (max_depth_ >= 0 && depth >= max_depth_) break;
+
+        SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal, TransportMode::Radiance);
+        const Vec3 wo = -ray.direction;
+
+        // Next-event estimation.
+        if (has_lights && si.bsdf->has_non_delta()) {
+            float select_pdf;
+            const Light* light = scene.sample_light(rng.next_1d(), &select_pdf);
+            Vec2 u_light = rng.next_2d();
+            LightIlluminateSample ls;
+            if (light && select_pdf > 0 && light->illuminate(si.p, u_light, ls) &&
+                ls.pdf_direct_w > 0) {
+                Rgb f = bsdf.f(wo, ls.wi);
+                if (!f.is_black()) {
+                    Ray shadow = std::isinf(ls.distance)
+                                     ? scene.spawn_ray_to_infinity(si.p, si.geometric_normal, ls.wi)
+                                     : scene.spawn_ray_to(si.p, si.geometric_normal,
+                                                          si.p + ls.wi * ls.distance, Vec3());
+                    ++stats.rays;
+                    if (!scene.occluded(shadow)) {
+                        float light_pdf = select_pdf * ls.pdf_direct_w;
+                        float w = light->is_delta()
+                                      ? 1.0f
+                                      : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi).forward);
+                        L += beta * f * ls.radiance * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        float u_lobe = rng.next_1d();
+        std::optional<BsdfSample> bs = bsdf.sample(wo, u_lobe, rng.next_2d());
+        if (!bs || bs->weight.is_black()) break;
+        beta *= bs->weight;
+        prev_delta = bs->delta;
+        prev_bsdf_pdf = bs->pdf.forward;
+
+        if (depth >= rr_depth_) {
+            // Survive with probability proportional to the throughput (capped so that paths
+            // carrying little energy are cut, and bright paths are never boosted beyond 1/0.95).
+            float q = std::min(beta.max(), 0.95f);
+            if (!(q > 0) || rng.next_1d() >= q) break;
+            beta *= 1.0f / q;
+        }
+        ray = scene.spawn_ray(si.p, si.geometric_normal, bs->wi);
+    }
+    return L;
+}
+
+}  // namespace render

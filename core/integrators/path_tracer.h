@@ -1,0 +1,23 @@
+#pragma once
+
+#include "core/integrators/integrator.h"
+
+namespace render {
+
+// Unidirectional path tracing with next-event estimation. Emission found by BSDF sampling and
+// by light sampling are combined with the power heuristic; delta BSDF lobes and delta lights
+// take the only technique that can find them. max_depth counts path segments as Mitsuba does
+// (1 = directly visible emitters only). Russian roulette from rr_depth on.
+class PathTracer final : public PixelIntegrator {
+public:
+    PathTracer(int max_depth, int rr_depth) : max_depth_(max_depth), rr_depth_(rr_depth) {}
+
+protected:
+    Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const override;
+
+private:
+    int max_depth_;
+    int rr_depth_;
+};
+
+}  // namespace render

@@ -1,0 +1,37 @@
+#pragma once
+
+// The one entry point through which every image is rendered (DESIGN.md, iteration contract):
+// a pure function of (scene, settings, frame, [first, end)).
+
+#include <cstdint>
+
+#include "core/image/image.h"
+#include "core/render/render_settings.h"
+#include "core/scene/scene.h"
+
+namespace render {
+
+struct IterationRange {
+    uint64_t first = 1;  // 1-based global iteration index, inclusive
+    uint64_t end = 2;    // exclusive
+};
+
+struct IterationResult {
+    AccumulationBuffer sum;      // sum of the iterations' images
+    AccumulationBuffer odd_sum;  // sum over the odd iterations only (noise estimation)
+    uint64_t count = 0;          // iterations rendered
+    uint64_t odd_count = 0;      // odd-indexed iterations among them
+    RenderStats stats;
+};
+
+// Renders iterations [first, end) and returns their sum. The result is the same, up to float
+// summation order, however the range is split and however many threads run it.
+// Throws std::invalid_argument for an unknown algorithm or an empty/invalid range.
+IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,
+                                  uint32_t frame, IterationRange range);
+
+// Estimated relative error of the mean image from the even/odd half sums: the RMS of the
+// difference of the two half means over the RMS of the full mean (0 if black).
+double estimate_relative_error(const IterationResult& result);
+
+}  // namespace render

@@ -1,0 +1,184 @@
+#include "core/scene/loader/property_reader.h"
+
+#include <cmath>
+
+#include "core/scene/loader/values.h"
+
+namespace render {
+namespace {
+
+std::string field_name(const XmlElement& e) {
+    std::optional<std::string> name = e.optional("name");
+    return e.tag() + " \"" + (name ? *name : std::string()) + "\"";
+}
+
+Vec3 to_vec3(const std::vector<double>& v) {
+    return Vec3(float(v[0]), float(v[1]), float(v[2]));
+}
+
+// `value="x, y, z"` or x/y/z attributes (each defaulting to `def`).
+Vec3 read_xyz(const XmlElement& e, const std::string& field, float def) {
+    if (std::optional<std::string> value = e.optional("value")) {
+        if (e.has("x") || e.has("y") || e.has("z"))
+            throw SceneError(e.where(), field + ": give either value or x/y/z, not both");
+        std::vector<double> v = parse_number_list(*value, e.where(), field);
+        if (v.size() != 3)
+            throw SceneError(e.where(),
+                             field + ": value needs 3 numbers, got " + std::to_string(v.size()));
+        return to_vec3(v);
+    }
+    Vec3 out(def);
+    const char* names[3] = {"x", "y", "z"};
+    for (int i = 0; i < 3; ++i)
+        if (std::optional<std::string> s = e.optional(names[i]))
+            out[i] = float(parse_number(*s, e.where(), field + " " + names[i]));
+    return out;
+}
+
+Vec3 read_point_attribute(const XmlElement& e, const char* attr, const std::string& field) {
+    std::vector<double> v =
+        parse_number_list(e.required(attr), e.where(), field + " " + std::string(attr));
+    if (v.size() != 3)
+        throw SceneError(e.where(),
+                         field + ": " + attr + " needs 3 numbers, got " + std::to_string(v.size()));
+    return to_vec3(v);
+}
+
+Transform read_transform_step(const XmlElement& e) {
+    const std::string tag = e.tag();
+    const std::string field = "<" + tag + ">";
+    if (!e.children().empty()) throw SceneError(e.where(), field + " cannot have child elements");
+    if (tag == "matrix") {
+        e.check_attributes({"value"});
+        std::vector<double> v = parse_number_list(e.required("value"), e.where(), field);
+        if (v.size() != 16)
+            throw SceneError(e.where(), field + ": value needs 16 numbers (row-major 4x4), got " +
+                                            std::to_string(v.size()));
+        Transform::Matrix m;
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) m[size_t(r)][size_t(c)] = v[size_t(4 * r + c)];
+        return Transform(m);
+    }
+    if (tag == "translate") {
+        e.check_attributes({"x", "y", "z", "value"});
+        return Transform::translate(read_xyz(e, field, 0.0f));
+    }
+    if (tag == "scale") {
+        e.check_attributes({"x", "y", "z", "value"});
+        if (std::optional<std::string> value = e.optional("value")) {
+            std::vector<double> v = parse_number_list(*value, e.where(), field);
+            if (v.size() == 1) return Transform::scale(Vec3(float(v[0])));
+        }
+        return Transform::scale(read_xyz(e, field, 1.0f));
+    }
+    if (tag == "rotate") {
+        e.check_attributes({"x", "y", "z", "value", "angle"});
+        Vec3 axis = read_xyz(e, field, 0.0f);
+        if (length_squared(axis) == 0)
+            throw SceneError(e.where(), field + ": the rotation axis is zero");
+        float angle = float(parse_number(e.required("angle"), e.where(), field + " angle"));
+        return Transform::rotate(axis, angle);
+    }
+    if (tag == "lookat") {
+        e.check_attributes({"origin", "target", "up"});
+        Vec3 origin = read_point_attribute(e, "origin", field);
+        Vec3 target = read_point_attribute(e, "target", field);
+        Vec3 dir = target - origin;
+        if (length_squared(dir) == 0)
+            throw SceneError(e.where(), field + ": origin and target are the same point");
+        dir = normalize(dir);
+        Vec3 up;
+        if (e.has("up")) {
+            up = read_point_attribute(e, "up", field);
+        } else {
+            // Any direction perpendicular to dir (Mitsuba's coordinate_system).
+            up =
+                std::abs(dir.x) > std::abs(dir.z) ? Vec3(-dir.y, dir.x, 0) : Vec3(0, -dir.z, dir.y);
+        }
+        if (length_squared(up) == 0 || length_squared(cross(normalize(up), dir)) < 1e-12f)
+            throw SceneError(e.where(), field + ": up is zero or parallel to the view direction");
+        return Transform::look_at(origin, target, up);
+    }
+    throw SceneError(e.where(), "unknown tag <" + tag +
+                                    "> in <transform> (expected matrix, lookat, translate, "
+                                    "scale or rotate)");
+}
+
+bool is_finite_transform(const Transform& t) {
+    for (const auto& row : t.matrix())
+        for (double x : row)
+            if (!std::isfinite(x)) return false;
+    return true;
+}
+
+}  // namespace
+
+bool is_property_tag(std::string_view tag) {
+    for (std::string_view t : {"integer", "float", "boolean", "string", "rgb", "spectrum", "point",
+                               "vector", "transform"})
+        if (t == tag) return true;
+    return false;
+}
+
+Transform read_transform(const XmlElement& e) {
+    Transform t;
+    for (const XmlElement& step : e.children()) t = read_transform_step(step) * t;
+    if (!is_finite_transform(t))
+        throw SceneError(e.where(), field_name(e) + ": the composed transform is not finite");
+    return t;
+}
+
+void read_property(const XmlElement& e, Properties& props) {
+    const std::string tag = e.tag();
+    const std::string name = e.required("name");
+    if (name.empty()) throw SceneError(e.where(), "<" + tag + "> has an empty name");
+    const std::string field = field_name(e);
+    const SourceLocation where = e.where();
+    if (tag != "transform" && !e.children().empty())
+        throw SceneError(where, field + " cannot have child elements");
+
+    if (tag == "integer") {
+        e.check_attributes({"name", "value"});
+        props.set(name, parse_integer(e.required("value"), where, field), where);
+    } else if (tag == "float") {
+        e.check_attributes({"name", "value"});
+        props.set(name, float(parse_number(e.required("value"), where, field)), where);
+    } else if (tag == "boolean") {
+        e.check_attributes({"name", "value"});
+        props.set(name, parse_boolean(e.required("value"), where, field), where);
+    } else if (tag == "string") {
+        e.check_attributes({"name", "value"});
+        props.set(name, e.required("value"), where);
+    } else if (tag == "rgb") {
+        e.check_attributes({"name", "value"});
+        std::vector<double> v = parse_number_list(e.required("value"), where, field);
+        if (v.size() == 1) v = {v[0], v[0], v[0]};
+        if (v.size() != 3)
+            throw SceneError(
+                where, field + ": value needs 1 or 3 numbers, got " + std::to_string(v.size()));
+        props.set(name, Rgb(float(v[0]), float(v[1]), float(v[2])), where);
+    } else if (tag == "spectrum") {
+        e.check_attributes({"name", "value"});
+        std::string value = e.required("value");
+        if (value.find(':') != std::string::npos)
+            throw SceneError(where, field +
+                                        ": wavelength:value spectra are not supported yet "
+                                        "(use a single number or <rgb>)");
+        std::vector<double> v = parse_number_list(value, where, field);
+        if (v.size() != 1)
+            throw SceneError(where, field +
+                                        ": a spectrum must be a single number (grey); use "
+                                        "<rgb> for colours");
+        props.set(name, float(v[0]), where);
+    } else if (tag == "point" || tag == "vector") {
+        e.check_attributes({"name", "value", "x", "y", "z"});
+        props.set(name, read_xyz(e, field, 0.0f), where);
+    } else if (tag == "transform") {
+        e.check_attributes({"name"});
+        props.set(name, read_transform(e), where);
+    } else {
+        throw SceneError(where, "<" + tag + "> is not a property tag");
+    }
+}
+
+}  // namespace render

@@ -1,0 +1,505 @@
+// Scene assembly: walks the <scene> element (and included files), builds every plugin through
+// its factory, checks that every parameter was used, and fills the Scene. The accepted tags,
+// plugins and parameters are documented in docs/scene-format.md; keep the two in step.
+
+#include "core/scene/loader/scene_loader.h"
+
+#include <cctype>
+#include <iostream>
+#include <optional>
+#include <set>
+
+#include "core/lights/light_factory.h"
+#include "core/materials/bsdf_factory.h"
+#include "core/scene/loader/property_reader.h"
+#include "core/scene/loader/shape_factory.h"
+#include "core/scene/loader/values.h"
+#include "core/scene/loader/xml_element.h"
+#include "core/scene/loader/xml_file.h"
+
+namespace render {
+namespace {
+
+constexpr int kMaxIncludeDepth = 32;
+
+// Mitsuba tags this renderer knows but does not support yet.
+struct Unsupported {
+    const char* tag;
+    const char* what;
+};
+constexpr Unsupported kUnsupportedTags[] = {
+    {"medium", "participating media (<medium>) are"},
+    {"phase", "phase functions (<phase>) are"},
+    {"volume", "volume data (<volume>) is"},
+    {"texture", "textures (<texture>) are"},
+    {"srgb", "<srgb> colours are"},
+    {"blackbody", "<blackbody> spectra are"},
+    {"animation", "animated transforms (<animation>) are"},
+    {"path", "search paths (<path>) are"},
+    {"alias", "<alias> is"},
+};
+
+const char* unsupported_what(const std::string& tag) {
+    for (const Unsupported& u : kUnsupportedTags)
+        if (tag == u.tag) return u.what;
+    return nullptr;
+}
+
+// Known sampler plugins; all are rendered with independent samples.
+constexpr const char* kSamplerTypes[] = {"independent", "stratified", "multijitter", "orthogonal",
+                                         "ldsampler",   "halton",     "sobol"};
+
+class Loader {
+  public:
+    Loader(Scene& scene, const std::map<std::string, std::string>& defines)
+        : scene_(scene), params_(defines.begin(), defines.end()) {}
+
+    void load_root(const XmlFile& file) {
+        include_stack_.push_back(canonical_name(file));
+        read_scene_element(file);
+        include_stack_.pop_back();
+        if (!have_sensor_)
+            throw SceneError(SourceLocation{file.name(), 0},
+                             "the scene has no <sensor> (a perspective camera is required)");
+    }
+
+  private:
+    // ----- generic helpers -----
+
+    static std::string canonical_name(const XmlFile& file) {
+        std::error_code ec;
+        std::filesystem::path p = std::filesystem::weakly_canonical(file.name(), ec);
+        return ec ? file.name() : p.string();
+    }
+
+    [[noreturn]] static void unknown_tag(const XmlElement& e, const std::string& context) {
+        const std::string tag = e.tag();
+        if (const char* what = unsupported_what(tag))
+            throw SceneError(e.where(), std::string(what) + " not supported yet");
+        throw SceneError(e.where(), "unknown tag <" + tag + "> in " + context);
+    }
+
+    // Builds a plugin through a factory, turning any non-SceneError exception into a located
+    // SceneError; then checks that every parameter was used.
+    template <typename F>
+    static auto build(const Properties& props, F&& factory) {
+        try {
+            auto result = factory();
+            props.check_all_used();
+            return result;
+        } catch (const SceneError&) {
+            throw;
+        } catch (const std::exception& ex) {
+            throw SceneError(props.where(),
+                             props.plugin_class() + " \"" + props.type() + "\": " + ex.what());
+        }
+    }
+
+    // Reads an object element: its type, id, property children; other children go to
+    // `on_child`, which returns false for tags it does not accept.
+    template <typename OnChild>
+    Properties read_object(const XmlElement& e, const std::string& plugin_class,
+                           OnChild&& on_child) {
+        e.check_attributes({"type", "id", "name"});
+        std::string type = e.required("type");
+        Properties props(plugin_class, type, e.where());
+        if (std::optional<std::string> id = e.optional("id")) {
+            if (id->empty()) throw SceneError(e.where(), "empty id on " + e.describe());
+            props.id = *id;
+        }
+        if (std::optional<std::string> name = e.optional("name"))
+            if (*name == "interior" || *name == "exterior")
+                throw SceneError(e.where(),
+                                 "participating media (" + *name + " media) are not supported yet");
+        for (const XmlElement& child : e.children()) {
+            if (is_property_tag(child.tag())) {
+                read_property(child, props);
+            } else if (!on_child(child, props)) {
+                unknown_tag(child, e.describe());
+            }
+        }
+        return props;
+    }
+
+    Properties read_plain_object(const XmlElement& e, const std::string& plugin_class) {
+        return read_object(e, plugin_class, [](const XmlElement&, Properties&) { return false; });
+    }
+
+    void register_id(const std::string& id, const SourceLocation& where) {
+        auto [it, inserted] = ids_.emplace(id, where);
+        if (!inserted)
+            throw SceneError(where, "duplicate id \"" + id + "\" (first used at " +
+                                        it->second.to_string() + ")");
+    }
+
+    std::shared_ptr<const Bsdf> lookup_bsdf(const XmlElement& ref) {
+        ref.check_attributes({"id", "name"});
+        std::string id = ref.required("id");
+        if (std::optional<std::string> name = ref.optional("name"))
+            if (*name == "interior" || *name == "exterior")
+                throw SceneError(ref.where(),
+                                 "participating media (" + *name + " media) are not supported yet");
+        auto it = bsdfs_.find(id);
+        if (it == bsdfs_.end()) {
+            if (ids_.count(id))
+                throw SceneError(ref.where(),
+                                 "<ref id=\"" + id + "\">: \"" + id + "\" is not a bsdf");
+            throw SceneError(ref.where(), "<ref>: unknown id \"" + id +
+                                              "\" (a bsdf must be defined before it is "
+                                              "referenced)");
+        }
+        return it->second;
+    }
+
+    // ----- the scene element -----
+
+    void read_scene_element(const XmlFile& file) {
+        XmlElement root(file.scene(), file, params_);
+        for (const XmlElement& e : root.children()) {
+            const std::string tag = e.tag();
+            if (tag == "default")
+                read_default(e);
+            else if (tag == "include")
+                read_include(e);
+            else if (tag == "integrator")
+                read_integrator(e);
+            else if (tag == "sensor")
+                read_sensor(e);
+            else if (tag == "bsdf")
+                read_bsdf(e);
+            else if (tag == "shape")
+                read_shape(e);
+            else if (tag == "emitter")
+                read_top_level_emitter(e);
+            else if (is_property_tag(tag))
+                throw SceneError(e.where(), "property <" + tag +
+                                                "> directly inside <scene> (it must belong to "
+                                                "a plugin)");
+            else
+                unknown_tag(e, "<scene>");
+        }
+    }
+
+    void read_default(const XmlElement& e) {
+        e.check_attributes({"name", "value"});
+        if (!e.children().empty())
+            throw SceneError(e.where(), "<default> cannot have child elements");
+        std::string name = e.required("name");
+        if (name.empty()) throw SceneError(e.where(), "<default> has an empty name");
+        for (char c : name)
+            if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_'))
+                throw SceneError(e.where(), "<default name=\"" + name +
+                                                "\">: names may only contain letters, digits "
+                                                "and underscores");
+        std::string value = e.required("value");
+        params_.emplace(name, value);  // a -D define or an earlier default wins
+    }
+
+    void read_include(const XmlElement& e) {
+        e.check_attributes({"filename"});
+        if (!e.children().empty())
+            throw SceneError(e.where(), "<include> cannot have child elements");
+        std::filesystem::path file = e.required("filename");
+        std::filesystem::path path = file.is_absolute() ? file : e.file().dir() / file;
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec))
+            throw SceneError(e.where(), "<include>: file not found: " + path.string());
+        if (include_stack_.size() >= size_t(kMaxIncludeDepth))
+            throw SceneError(e.where(), "<include>: includes are nested too deeply");
+        std::unique_ptr<XmlFile> included;
+        try {
+            included = XmlFile::load(path);
+        } catch (const SceneError& ex) {
+            throw SceneError(std::string(ex.what()) + " (included from " + e.where().to_string() +
+                             ")");
+        }
+        std::string name = canonical_name(*included);
+        for (const std::string& open : include_stack_)
+            if (open == name)
+                throw SceneError(e.where(), "<include>: include cycle: " + path.string() +
+                                                " is already being read");
+        include_stack_.push_back(name);
+        read_scene_element(*included);
+        include_stack_.pop_back();
+    }
+
+    void read_integrator(const XmlElement& e) {
+        if (have_integrator_)
+            throw SceneError(e.where(), "only one <integrator> is allowed (first at " +
+                                            integrator_where_.to_string() + ")");
+        Properties props = read_plain_object(e, "integrator");
+        build(props, [&] {
+            SceneSettings& s = scene_.settings;
+            s.integrator = props.type();
+            if (s.integrator.empty()) throw SceneError(e.where(), "empty integrator type");
+            int64_t max_depth = props.get_int("max_depth", s.max_depth);
+            if (max_depth < -1 || max_depth > 1000000)
+                throw props.error("max_depth", "must be -1 (unbounded) or a non-negative depth");
+            int64_t rr_depth = props.get_int("rr_depth", s.rr_depth);
+            if (rr_depth < 1 || rr_depth > 1000000)
+                throw props.error("rr_depth", "must be positive");
+            s.max_depth = int(max_depth);
+            s.rr_depth = int(rr_depth);
+            return 0;
+        });
+        have_integrator_ = true;
+        integrator_where_ = e.where();
+    }
+
+    // ----- sensor, film, sampler -----
+
+    void read_sensor(const XmlElement& e) {
+        if (have_sensor_)
+            throw SceneError(e.where(), "only one <sensor> is supported (first at " +
+                                            sensor_where_.to_string() + ")");
+        int width = 768, height = 576;  // Mitsuba's hdrfilm defaults
+        bool have_film = false, have_sampler = false;
+        Properties props = read_object(e, "sensor", [&](const XmlElement& c, Properties&) {
+            if (c.tag() == "film") {
+                if (have_film) throw SceneError(c.where(), "a sensor has only one <film>");
+                read_film(c, width, height);
+                have_film = true;
+                return true;
+            }
+            if (c.tag() == "sampler") {
+                if (have_sampler) throw SceneError(c.where(), "a sensor has only one <sampler>");
+                read_sampler(c);
+                have_sampler = true;
+                return true;
+            }
+            return false;
+        });
+        if (props.type() != "perspective")
+            throw SceneError(
+                e.where(), "unknown sensor type \"" + props.type() + "\" (supported: perspective)");
+        PerspectiveCamera camera = build(props, [&] {
+            float fov = props.get_float("fov");
+            if (!(fov > 0 && fov < 180)) throw props.error("fov", "must be in (0, 180) degrees");
+            std::string axis = props.get_string("fov_axis", "x");
+            char fov_axis;
+            if (axis == "x")
+                fov_axis = 'x';
+            else if (axis == "y")
+                fov_axis = 'y';
+            else if (axis == "smaller")
+                fov_axis = width <= height ? 'x' : 'y';
+            else if (axis == "larger")
+                fov_axis = width >= height ? 'x' : 'y';
+            else
+                throw props.error("fov_axis",
+                                  "\"" + axis + "\" is not supported (x, y, smaller or larger)");
+            float near_clip = props.get_float("near_clip", 0.01f);
+            float far_clip = props.get_float("far_clip", 10000.0f);
+            if (!(near_clip > 0)) throw props.error("near_clip", "must be positive");
+            if (!(far_clip > near_clip))
+                throw props.error("far_clip", "must be larger than near_clip");
+            Transform to_world = props.get_transform("to_world", Transform());
+            if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+            return PerspectiveCamera(to_world, fov, fov_axis, width, height);
+        });
+        scene_.set_camera(camera);
+        have_sensor_ = true;
+        sensor_where_ = e.where();
+    }
+
+    void read_film(const XmlElement& e, int& width, int& height) {
+        Properties props = read_object(e, "film", [&](const XmlElement& c, Properties&) {
+            if (c.tag() != "rfilter") return false;
+            read_rfilter(c);
+            return true;
+        });
+        if (props.type() != "hdrfilm")
+            throw SceneError(e.where(),
+                             "unknown film type \"" + props.type() + "\" (supported: hdrfilm)");
+        build(props, [&] {
+            int64_t w = props.get_int("width", 768), h = props.get_int("height", 576);
+            if (w < 1 || w > 65536) throw props.error("width", "must be in [1, 65536]");
+            if (h < 1 || h > 65536) throw props.error("height", "must be in [1, 65536]");
+            // Accepted for compatibility; the renderer always writes float RGB OpenEXR.
+            props.get_string("file_format", "openexr");
+            props.get_string("pixel_format", "rgb");
+            props.get_string("component_format", "float32");
+            width = int(w), height = int(h);
+            return 0;
+        });
+    }
+
+    void read_rfilter(const XmlElement& e) {
+        Properties props = read_plain_object(e, "rfilter");
+        // Every value is read (validated) but ignored.
+        if (props.type() != "box" && !warned_rfilter_) {
+            std::cerr << "warning: " << e.where().to_string()
+                      << ": reconstruction filters are ignored (a box filter is used)\n";
+            warned_rfilter_ = true;
+        }
+    }
+
+    void read_sampler(const XmlElement& e) {
+        Properties props = read_plain_object(e, "sampler");
+        bool known = false;
+        for (const char* t : kSamplerTypes) known = known || props.type() == t;
+        if (!known)
+            throw SceneError(e.where(), "unknown sampler type \"" + props.type() +
+                                            "\" (supported: independent; stratified, "
+                                            "multijitter, orthogonal, ldsampler, halton and sobol "
+                                            "are accepted and rendered as independent)");
+        build(props, [&] {
+            int64_t n = props.get_int("sample_count", scene_.settings.sample_count);
+            if (n < 1 || n > (int64_t(1) << 31) - 1)
+                throw props.error("sample_count", "must be a positive integer");
+            props.get_int("seed", 0);  // accepted; the job's seed is used
+            scene_.settings.sample_count = int(n);
+            return 0;
+        });
+    }
+
+    // ----- BSDFs -----
+
+    std::shared_ptr<const Bsdf> read_bsdf_object(const XmlElement& e) {
+        Properties props = read_object(e, "bsdf", [&](const XmlElement& c, Properties& p) {
+            if (c.tag() == "bsdf") {
+                p.nested_bsdfs.push_back(read_bsdf_object(c));
+                return true;
+            }
+            if (c.tag() == "ref") {
+                if (!c.children().empty())
+                    throw SceneError(c.where(), "<ref> cannot have child elements");
+                p.nested_bsdfs.push_back(lookup_bsdf(c));
+                return true;
+            }
+            return false;
+        });
+        if (props.type() == "null")
+            throw SceneError(e.where(),
+                             "the \"null\" bsdf (index-matched boundaries of media) is not "
+                             "supported yet");
+        std::shared_ptr<const Bsdf> bsdf = build(props, [&] { return make_bsdf(props); });
+        if (!bsdf) throw SceneError(e.where(), "bsdf \"" + props.type() + "\" was not built");
+        if (!props.id.empty()) {
+            register_id(props.id, e.where());
+            bsdfs_[props.id] = bsdf;
+        }
+        return bsdf;
+    }
+
+    void read_bsdf(const XmlElement& e) { keep(read_bsdf_object(e)); }
+
+    // Hands a BSDF to the scene once, however many shapes use it.
+    const Bsdf* keep(std::shared_ptr<const Bsdf> bsdf) {
+        if (kept_.insert(bsdf.get()).second) scene_.add_bsdf(bsdf);
+        return bsdf.get();
+    }
+
+    const Bsdf* default_bsdf(const SourceLocation& where) {
+        if (!default_bsdf_) {
+            // A shape without a BSDF gets Mitsuba 3's default: diffuse with reflectance 0.5.
+            Properties props("bsdf", "diffuse", where);
+            default_bsdf_ = keep(build(props, [&] { return make_bsdf(props); }));
+        }
+        return default_bsdf_;
+    }
+
+    // ----- emitters and shapes -----
+
+    void read_top_level_emitter(const XmlElement& e) {
+        Properties props = read_plain_object(e, "emitter");
+        if (props.type() == "area")
+            throw SceneError(e.where(), "an area emitter must be nested in a <shape>");
+        std::unique_ptr<Light> light =
+            build(props, [&] { return make_light(props, nullptr, e.file().dir()); });
+        if (!light) throw SceneError(e.where(), "emitter \"" + props.type() + "\" was not built");
+        if (!props.id.empty()) register_id(props.id, e.where());
+        scene_.add_light(std::move(light));
+    }
+
+    void read_shape(const XmlElement& e) {
+        std::shared_ptr<const Bsdf> bsdf;
+        SourceLocation bsdf_where;
+        std::optional<Properties> emitter;
+        auto set_bsdf = [&](std::shared_ptr<const Bsdf> b, const XmlElement& c) {
+            if (bsdf)
+                throw SceneError(c.where(), "a shape has at most one bsdf (first at " +
+                                                bsdf_where.to_string() + ")");
+            bsdf = std::move(b);
+            bsdf_where = c.where();
+        };
+        Properties props = read_object(e, "shape", [&](const XmlElement& c, Properties&) {
+            if (c.tag() == "bsdf") {
+                set_bsdf(read_bsdf_object(c), c);
+                return true;
+            }
+            if (c.tag() == "ref") {
+                if (!c.children().empty())
+                    throw SceneError(c.where(), "<ref> cannot have child elements");
+                set_bsdf(lookup_bsdf(c), c);
+                return true;
+            }
+            if (c.tag() == "emitter") {
+                if (emitter) throw SceneError(c.where(), "a shape has at most one emitter");
+                emitter = read_plain_object(c, "emitter");
+                if (emitter->type() != "area")
+                    throw SceneError(c.where(),
+                                     "an emitter inside a <shape> must be of type "
+                                     "\"area\", not \"" +
+                                         emitter->type() + "\"");
+                return true;
+            }
+            return false;
+        });
+        if (!props.id.empty()) register_id(props.id, e.where());
+        std::unique_ptr<Shape> shape =
+            build(props, [&] { return make_shape(props, e.file().dir()); });
+        std::unique_ptr<Light> light;
+        if (emitter) {
+            light =
+                build(*emitter, [&] { return make_light(*emitter, shape.get(), e.file().dir()); });
+            if (!light) throw SceneError(emitter->where(), "the area emitter was not built");
+            shape->emitter = light.get();
+        }
+        const Bsdf* b = bsdf ? keep(bsdf) : default_bsdf(e.where());
+        scene_.add_shape(std::move(shape), b);
+        if (light) scene_.add_light(std::move(light));
+    }
+
+    Scene& scene_;
+    ParameterTable params_;
+    std::vector<std::string> include_stack_;
+    std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
+    std::map<std::string, SourceLocation> ids_;
+    std::set<const Bsdf*> kept_;
+    const Bsdf* default_bsdf_ = nullptr;
+    bool have_sensor_ = false, have_integrator_ = false, warned_rfilter_ = false;
+    SourceLocation sensor_where_, integrator_where_;
+};
+
+std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std::string>& defines,
+                            const std::string& source_file) {
+    auto scene = std::make_unique<Scene>();
+    scene->source_file = source_file;
+    try {
+        Loader(*scene, defines).load_root(file);
+        scene->commit();
+    } catch (const SceneError&) {
+        throw;
+    } catch (const std::exception& ex) {
+        throw SceneError(SourceLocation{file.name(), 0}, ex.what());
+    }
+    return scene;
+}
+
+}  // namespace
+
+std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
+                                  const std::map<std::string, std::string>& defines) {
+    std::unique_ptr<XmlFile> xml = XmlFile::load(file);
+    return load(*xml, defines, file.string());
+}
+
+std::unique_ptr<Scene> load_scene_from_string(const std::string& xml,
+                                              const std::filesystem::path& base_dir,
+                                              const std::map<std::string, std::string>& defines) {
+    XmlFile file(xml, "<string>", base_dir.empty() ? std::filesystem::path(".") : base_dir);
+    return load(file, defines, "<string>");
+}
+
+}  // namespace render

@@ -1,0 +1,136 @@
+#include "core/scene/loader/shape_factory.h"
+
+#include <cmath>
+#include <system_error>
+
+#include "core/scene/mesh_io/obj_reader.h"
+#include "core/scene/mesh_io/ply_reader.h"
+#include "core/scene/shapes/disk.h"
+#include "core/scene/shapes/sphere.h"
+#include "core/scene/shapes/triangle_mesh.h"
+
+namespace render {
+namespace {
+
+std::string shape_name(const Properties& props) {
+    return props.id.empty() ? props.type() + " (" + props.where().to_string() + ")" : props.id;
+}
+
+std::unique_ptr<Shape> make_mesh_shape(const Properties& props, MeshData data,
+                                       bool allow_face_normals) {
+    Transform to_world = props.get_transform("to_world", Transform());
+    bool flip = props.get_bool("flip_normals", false);
+    bool face_normals = allow_face_normals ? props.get_bool("face_normals", false) : false;
+    if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+    if (data.indices.empty()) throw props.error("filename", "the mesh has no faces");
+    if (data.normals.empty() && !face_normals) compute_vertex_normals(data, to_world);
+    return std::make_unique<TriangleMesh>(std::move(data), to_world, flip, face_normals,
+                                          shape_name(props));
+}
+
+std::unique_ptr<Shape> make_file_mesh(const Properties& props,
+                                      const std::filesystem::path& scene_dir) {
+    std::filesystem::path file = props.get_string("filename");
+    if (file.empty()) throw props.error("filename", "empty file name");
+    std::filesystem::path path = file.is_absolute() ? file : scene_dir / file;
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw props.error("filename", "mesh file not found: " + path.string());
+    MeshData data;
+    try {
+        data = props.type() == "ply" ? read_ply(path) : read_obj(path);
+    } catch (const SceneError& e) {
+        throw props.error("filename", e.what());
+    }
+    return make_mesh_shape(props, std::move(data), true);
+}
+
+std::unique_ptr<Shape> make_sphere(const Properties& props) {
+    Vec3 center = props.get_vec3("center", Vec3(0.0f));
+    float radius = props.get_float("radius", 1.0f);
+    if (!(radius > 0)) throw props.error("radius", "the radius must be positive");
+    Transform to_world = props.get_transform("to_world", Transform());
+    bool flip = props.get_bool("flip_normals", false);
+    // to_world must be a similarity: rotation/reflection, uniform scale and translation.
+    const Transform::Matrix& m = to_world.matrix();
+    if (m[3][0] != 0 || m[3][1] != 0 || m[3][2] != 0 || m[3][3] != 1)
+        throw props.error("to_world", "a sphere's to_world cannot be projective");
+    double scale2[3], off = 0;
+    for (int i = 0; i < 3; ++i) {
+        scale2[i] = 0;
+        for (int r = 0; r < 3; ++r) scale2[i] += m[size_t(r)][size_t(i)] * m[size_t(r)][size_t(i)];
+    }
+    for (int i = 0; i < 3; ++i)
+        for (int j = i + 1; j < 3; ++j) {
+            double d = 0;
+            for (int r = 0; r < 3; ++r) d += m[size_t(r)][size_t(i)] * m[size_t(r)][size_t(j)];
+            off = std::max(off, std::abs(d));
+        }
+    double s2 = (scale2[0] + scale2[1] + scale2[2]) / 3;
+    const double tol = 1e-4 * s2;
+    if (!(s2 > 0) || std::abs(scale2[0] - s2) > tol || std::abs(scale2[1] - s2) > tol ||
+        std::abs(scale2[2] - s2) > tol || off > tol)
+        throw props.error("to_world",
+                          "a sphere's to_world must be a similarity (rotation, uniform scale, "
+                          "translation); a non-uniform scale would make an ellipsoid");
+    Vec3 world_center = to_world.apply_point(center);
+    float world_radius = float(radius * std::sqrt(s2));
+    if (!is_finite(world_center) || !std::isfinite(world_radius))
+        throw props.error("to_world", "the sphere's centre or radius is not finite");
+    return std::make_unique<Sphere>(world_center, world_radius, flip, shape_name(props));
+}
+
+}  // namespace
+
+void compute_vertex_normals(MeshData& mesh, const Transform& to_world) {
+    std::vector<Vec3> world(mesh.positions.size());
+    for (size_t i = 0; i < world.size(); ++i) world[i] = to_world.apply_point(mesh.positions[i]);
+    bool mirrored = to_world.determinant3x3() < 0;  // TriangleMesh then reverses the winding
+    std::vector<Vec3> normals(world.size(), Vec3(0.0f));
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+        uint32_t idx[3] = {mesh.indices[t], mesh.indices[t + 1], mesh.indices[t + 2]};
+        if (idx[0] >= world.size() || idx[1] >= world.size() || idx[2] >= world.size())
+            continue;  // TriangleMesh reports the bad index
+        if (mirrored) std::swap(idx[1], idx[2]);
+        Vec3 n = cross(world[idx[1]] - world[idx[0]], world[idx[2]] - world[idx[0]]);
+        float len = length(n);
+        if (!(len > 0) || !std::isfinite(len)) continue;
+        n = n / len;
+        for (int k = 0; k < 3; ++k) {
+            Vec3 d0 = world[idx[(k + 1) % 3]] - world[idx[k]];
+            Vec3 d1 = world[idx[(k + 2) % 3]] - world[idx[k]];
+            float l0 = length(d0), l1 = length(d1);
+            if (!(l0 > 0) || !(l1 > 0)) continue;
+            float c = std::clamp(dot(d0, d1) / (l0 * l1), -1.0f, 1.0f);
+            normals[idx[k]] += n * std::acos(c);
+        }
+    }
+    // Object-space normals whose inverse transpose is the world normal: n_obj = M^T n_world.
+    const Transform::Matrix& m = to_world.matrix();
+    mesh.normals.resize(world.size());
+    for (size_t i = 0; i < world.size(); ++i) {
+        const Vec3& w = normals[i];
+        Vec3 o;
+        for (int c = 0; c < 3; ++c)
+            o[c] = float(m[0][size_t(c)] * w.x + m[1][size_t(c)] * w.y + m[2][size_t(c)] * w.z);
+        mesh.normals[i] = o;
+    }
+}
+
+std::unique_ptr<Shape> make_shape(const Properties& props, const std::filesystem::path& scene_dir) {
+    const std::string& type = props.type();
+    if (type == "obj" || type == "ply") return make_file_mesh(props, scene_dir);
+    if (type == "rectangle") return make_mesh_shape(props, make_rectangle_mesh(), false);
+    if (type == "cube") return make_mesh_shape(props, make_cube_mesh(), false);
+    if (type == "sphere") return make_sphere(props);
+    if (type == "disk") {
+        Transform to_world = props.get_transform("to_world", Transform());
+        bool flip = props.get_bool("flip_normals", false);
+        if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+        return std::make_unique<Disk>(to_world, flip, shape_name(props));
+    }
+    throw SceneError(props.where(), "unknown shape type \"" + type +
+                                        "\" (supported: rectangle, cube, sphere, disk, obj, ply)");
+}
+
+}  // namespace render

@@ -1,0 +1,178 @@
+#include "core/scene/scene.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "core/materials/bsdf_factory.h"
+#include "core/scene/error.h"
+#include "core/scene/properties.h"
+
+namespace render {
+namespace {
+
+void embree_error(void*, RTCError code, const char* message) {
+    std::fprintf(stderr, "embree error %d: %s\n", int(code), message ? message : "");
+}
+
+float max_abs_component(const Vec3& p) {
+    return std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z)));
+}
+
+}  // namespace
+
+Scene::Scene() {
+    device_ = rtcNewDevice(nullptr);
+    if (!device_) throw SceneError("could not create an Embree device");
+    rtcSetDeviceErrorFunction(device_, embree_error, nullptr);
+    rtc_scene_ = rtcNewScene(device_);
+    rtcSetSceneFlags(rtc_scene_, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(rtc_scene_, RTC_BUILD_QUALITY_HIGH);
+}
+
+Scene::~Scene() {
+    if (rtc_scene_) rtcReleaseScene(rtc_scene_);
+    if (device_) rtcReleaseDevice(device_);
+}
+
+const Bsdf* Scene::add_bsdf(std::shared_ptr<const Bsdf> bsdf) {
+    bsdfs_.push_back(std::move(bsdf));
+    return bsdfs_.back().get();
+}
+
+Shape* Scene::add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf) {
+    if (!bsdf) {
+        // A shape without a BSDF absorbs everything: emitters in the reference scenes are black.
+        Properties black("bsdf", "diffuse", SourceLocation{"<default>", 0});
+        black.set("reflectance", Rgb(0.0f), SourceLocation{"<default>", 0});
+        bsdf = add_bsdf(make_bsdf(black));
+    }
+    shape->bsdf = bsdf;
+    shapes_.push_back(std::move(shape));
+    return shapes_.back().get();
+}
+
+const Light* Scene::add_light(std::unique_ptr<Light> light) {
+    lights_.push_back(std::move(light));
+    return lights_.back().get();
+}
+
+void Scene::commit() {
+    if (committed_) return;
+    for (const auto& shape : shapes_) {
+        unsigned id = shape->attach(device_, rtc_scene_);
+        if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
+        geometry_to_shape_[id] = shape.get();
+        bounds_.expand(shape->bounds());
+    }
+    rtcCommitScene(rtc_scene_);
+    if (bounds_.empty()) {
+        // Only infinite lights (or nothing): a unit sphere around the camera keeps the
+        // infinite-light emission disk well defined.
+        bounds_.expand(camera_.position() - Vec3(1.0f));
+        bounds_.expand(camera_.position() + Vec3(1.0f));
+    }
+    sphere_.center = (bounds_.lo + bounds_.hi) * 0.5f;
+    sphere_.radius = std::max(0.5f * length(bounds_.hi - bounds_.lo), 1e-6f);
+    // Offsets proportional to the scene size keep spawning scale invariant (1e-3 ... 1e4).
+    ray_epsilon_ = 1e-5f * sphere_.radius;
+
+    std::vector<float> weights;
+    for (const auto& light : lights_) {
+        light->preprocess(sphere_);
+        weights.push_back(std::max(0.0f, light->power().luminance()));
+        if (light->is_infinite_background()) background_lights_.push_back(light.get());
+    }
+    light_distribution_ = Distribution1D(weights);
+    for (size_t i = 0; i < lights_.size(); ++i)
+        light_pdf_[lights_[i].get()] = light_distribution_.discrete_pdf(i);
+    committed_ = true;
+}
+
+bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    rh.ray.org_x = ray.origin.x;
+    rh.ray.org_y = ray.origin.y;
+    rh.ray.org_z = ray.origin.z;
+    rh.ray.dir_x = ray.direction.x;
+    rh.ray.dir_y = ray.direction.y;
+    rh.ray.dir_z = ray.direction.z;
+    rh.ray.tnear = ray.t_min;
+    rh.ray.tfar = ray.t_max;
+    rh.ray.time = 0;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(rtc_scene_, &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    const Shape* shape = geometry_to_shape_[rh.hit.geomID];
+    shape->fill_interaction(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+    return true;
+}
+
+bool Scene::occluded(const Ray& ray) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRay r;
+    r.org_x = ray.origin.x;
+    r.org_y = ray.origin.y;
+    r.org_z = ray.origin.z;
+    r.dir_x = ray.direction.x;
+    r.dir_y = ray.direction.y;
+    r.dir_z = ray.direction.z;
+    r.tnear = ray.t_min;
+    r.tfar = ray.t_max;
+    r.time = 0;
+    r.mask = 0xffffffffu;
+    r.id = 0;
+    r.flags = 0;
+    rtcOccluded1(rtc_scene_, &context, &r);
+    return r.tfar < 0;
+}
+
+Ray Scene::spawn_ray(const Vec3& p, const Vec3& n, const Vec3& d) const {
+    // Offset along the normal to the side the ray leaves from; the size grows with |p| because
+    // float spacing does, and with the scene because intersection error does.
+    float eps = ray_epsilon_ + 1e-6f * max_abs_component(p);
+    Vec3 offset = n * (dot(n, d) >= 0 ? eps : -eps);
+    return Ray(p + offset, d, 0.0f, kInfinity);
+}
+
+Ray Scene::spawn_ray_to(const Vec3& p, const Vec3& n, const Vec3& target,
+                        const Vec3& n_target) const {
+    Vec3 d0 = target - p;
+    Ray ray = spawn_ray(p, n, d0);
+    Vec3 end = target;
+    if (length_squared(n_target) > 0) {
+        float eps = ray_epsilon_ + 1e-6f * max_abs_component(target);
+        end = target + n_target * (dot(n_target, -d0) >= 0 ? eps : -eps);
+    }
+    Vec3 d = end - ray.origin;
+    float dist = length(d);
+    ray.direction = dist > 0 ? d / dist : normalize(d0);
+    ray.t_max = dist * (1.0f - 1e-5f);
+    return ray;
+}
+
+Ray Scene::spawn_ray_to_infinity(const Vec3& p, const Vec3& n, const Vec3& d) const {
+    return spawn_ray(p, n, d);
+}
+
+const Light* Scene::sample_light(float u, float* pdf) const {
+    if (lights_.empty()) {
+        if (pdf) *pdf = 0;
+        return nullptr;
+    }
+    size_t i = light_distribution_.sample_discrete(u, pdf);
+    return lights_[i].get();
+}
+
+float Scene::light_pdf(const Light* light) const {
+    auto it = light_pdf_.find(light);
+    return it == light_pdf_.end() ? 0.0f : it->second;
+}
+
+}  // namespace render

@@ -1,0 +1,133 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/math/constants.h"
+#include "core/sampling/rng.h"
+#include "core/sampling/warp.h"
+#include "core/scene/scene.h"
+#include "core/scene/shapes/disk.h"
+#include "core/scene/shapes/sphere.h"
+#include "core/scene/shapes/triangle_mesh.h"
+
+namespace render {
+namespace {
+
+std::unique_ptr<Scene> scene_with(std::unique_ptr<Shape> shape) {
+    auto scene = std::make_unique<Scene>();
+    scene->set_camera(PerspectiveCamera(Transform(), 45, 'x', 4, 4));
+    scene->add_shape(std::move(shape), nullptr);
+    scene->commit();
+    return scene;
+}
+
+TEST(Sphere, HitsFromOutsideAndInside) {
+    auto scene = scene_with(std::make_unique<Sphere>(Vec3(1, 2, 3), 0.5f, false, "s"));
+    SurfaceInteraction si;
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(1, 2, 0), Vec3(0, 0, 1)), si));
+    EXPECT_NEAR(si.t, 2.5f, 1e-5f);
+    EXPECT_NEAR(si.geometric_normal.z, -1.0f, 1e-5f);
+    // From the centre the far side is hit, with the outward normal.
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(1, 2, 3), Vec3(0, 1, 0)), si));
+    EXPECT_NEAR(si.t, 0.5f, 1e-5f);
+    EXPECT_NEAR(si.geometric_normal.y, 1.0f, 1e-5f);
+    EXPECT_FALSE(scene->intersect(Ray(Vec3(1, 3, 0), Vec3(0, 0, 1)), si));
+    EXPECT_TRUE(scene->occluded(Ray(Vec3(1, 2, 0), Vec3(0, 0, 1), 0, 10)));
+    EXPECT_FALSE(scene->occluded(Ray(Vec3(1, 2, 0), Vec3(0, 0, 1), 0, 2.4f)));
+}
+
+TEST(Sphere, SampleAreaLiesOnTheSurface) {
+    Sphere sphere(Vec3(0, 1, 0), 2.0f, true, "s");
+    Rng rng(StreamKey{1, 0, 1, 0});
+    for (int i = 0; i < 1000; ++i) {
+        ShapeSample s = sphere.sample_area(rng.next_2d());
+        EXPECT_NEAR(length(s.p - Vec3(0, 1, 0)), 2.0f, 1e-5f);
+        EXPECT_NEAR(dot(s.n, normalize(s.p - Vec3(0, 1, 0))), -1.0f, 1e-5f);  // flipped
+        EXPECT_NEAR(s.pdf_area, 1.0f / (16.0f * kPi), 1e-7f);
+    }
+}
+
+TEST(Disk, HitsInsideTheEllipseOnly) {
+    Transform to_world = Transform::translate(Vec3(0, 0, 2)) * Transform::scale(Vec3(2, 1, 1));
+    auto disk = std::make_unique<Disk>(to_world, false, "d");
+    EXPECT_NEAR(disk->surface_area(), 2.0f * kPi, 1e-5f);
+    auto scene = scene_with(std::move(disk));
+    SurfaceInteraction si;
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(1.9f, 0, 0), Vec3(0, 0, 1)), si));
+    EXPECT_NEAR(si.t, 2.0f, 1e-6f);
+    EXPECT_NEAR(si.geometric_normal.z, 1.0f, 1e-6f);
+    EXPECT_FALSE(scene->intersect(Ray(Vec3(0, 1.1f, 0), Vec3(0, 0, 1)), si));
+}
+
+TEST(TriangleMesh, ProceduralShapesHaveMitsubaConventions) {
+    TriangleMesh rect(make_rectangle_mesh(), Transform(), false, false, "r");
+    EXPECT_NEAR(rect.surface_area(), 4.0f, 1e-6f);
+    TriangleMesh cube(make_cube_mesh(), Transform::scale(Vec3(1, 2, 3)), false, false, "c");
+    EXPECT_NEAR(cube.surface_area(), 2 * (2 * 4 + 2 * 6 + 4 * 6), 1e-4f);
+    // Every cube face samples outward normals.
+    Rng rng(StreamKey{2, 0, 1, 0});
+    for (int i = 0; i < 1000; ++i) {
+        ShapeSample s = cube.sample_area(rng.next_2d());
+        EXPECT_GT(dot(s.n, s.p), 0.0f);
+    }
+}
+
+TEST(TriangleMesh, MirroringTransformKeepsTheNormalOfTheInverseTranspose) {
+    // diag(1, 1, -1) mirrors; the rectangle's normal must become -z as Mitsuba's rectangle.
+    Transform mirror = Transform::scale(Vec3(1, 1, -1));
+    auto rect = std::make_unique<TriangleMesh>(make_rectangle_mesh(), mirror, false, false, "m");
+    auto scene = scene_with(std::move(rect));
+    SurfaceInteraction si;
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(0.2f, 0.3f, 1), Vec3(0, 0, -1)), si));
+    EXPECT_NEAR(si.geometric_normal.z, -1.0f, 1e-6f);
+    EXPECT_NEAR(si.shading.n.z, -1.0f, 1e-6f);
+}
+
+TEST(TriangleMesh, RejectsBadIndices) {
+    MeshData data = make_rectangle_mesh();
+    data.indices.push_back(0);
+    EXPECT_THROW(TriangleMesh(data, Transform(), false, false, "bad"), SceneError);
+    data = make_rectangle_mesh();
+    data.indices[2] = 17;
+    EXPECT_THROW(TriangleMesh(data, Transform(), false, false, "bad"), SceneError);
+}
+
+TEST(TriangleMesh, ZeroAreaTrianglesAreNeverSampled) {
+    MeshData data = make_rectangle_mesh();
+    data.indices.insert(data.indices.end(), {0, 0, 1});  // degenerate
+    TriangleMesh mesh(data, Transform(), false, false, "m");
+    Rng rng(StreamKey{3, 0, 1, 0});
+    for (int i = 0; i < 10000; ++i) {
+        ShapeSample s = mesh.sample_area(rng.next_2d());
+        ASSERT_TRUE(is_finite(s.p));
+        ASSERT_NEAR(s.n.z, 1.0f, 1e-6f);
+    }
+}
+
+// Spawned rays neither re-hit their own surface nor tunnel through a close one, whatever the
+// scene's scale.
+class SpawnScale : public ::testing::TestWithParam<float> {};
+
+TEST_P(SpawnScale, NoSelfIntersectionAndNoTunnelling) {
+    const float scale = GetParam();
+    auto scene = scene_with(std::make_unique<Sphere>(Vec3(3, -2, 1) * scale, scale, false, "s"));
+    Rng rng(StreamKey{4, 0, 1, 0});
+    int self_hits = 0, misses = 0;
+    for (int i = 0; i < 20000; ++i) {
+        ShapeSample s =
+            static_cast<const Sphere&>(*scene->shapes()[0]).sample_area(rng.next_2d());
+        Vec3 d = warp::square_to_uniform_sphere(rng.next_2d());
+        SurfaceInteraction si;
+        Ray ray = scene->spawn_ray(s.p, s.n, d);
+        bool hit = scene->intersect(ray, si);
+        if (dot(d, s.n) > 1e-3f) self_hits += hit;  // leaving: must escape
+        if (dot(d, s.n) < -1e-3f) misses += !hit;   // entering: must hit the far side
+    }
+    EXPECT_EQ(self_hits, 0);
+    EXPECT_EQ(misses, 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Scales, SpawnScale, ::testing::Values(1e-3f, 1.0f, 1e4f));
+
+}  // namespace
+}  // namespace render
