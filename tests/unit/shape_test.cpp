@@ -5,6 +5,7 @@
 #include "core/math/constants.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
+#include "core/scene/error.h"
 #include "core/scene/scene.h"
 #include "core/scene/shapes/disk.h"
 #include "core/scene/shapes/sphere.h"

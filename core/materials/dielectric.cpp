@@ -1,0 +1,57 @@
+#include "core/materials/dielectric.h"
+
+#include <sstream>
+
+#include "core/materials/bsdf_params.h"
+#include "core/materials/fresnel.h"
+
+namespace render {
+
+DielectricBsdf::DielectricBsdf(float eta, const Rgb& specular_reflectance,
+                               const Rgb& specular_transmission)
+    : eta_(eta),
+      specular_reflectance_(specular_reflectance),
+      specular_transmission_(specular_transmission) {}
+
+std::shared_ptr<const Bsdf> DielectricBsdf::create(const Properties& props) {
+    const float eta = read_relative_ior(props, *lookup_dielectric_ior("bk7"));
+    return std::make_shared<DielectricBsdf>(
+        eta, read_reflectance(props, "specular_reflectance", Rgb(1.0f)),
+        read_reflectance(props, "specular_transmission", Rgb(1.0f)));
+}
+
+std::optional<BsdfSample> DielectricBsdf::sample(const Vec3& wo, float u_lobe, Vec2,
+                                                 TransportMode mode) const {
+    if (wo.z == 0 || !is_finite(wo)) return std::nullopt;
+    const DielectricFresnel fresnel = fresnel_dielectric(wo.z, eta_);
+    const float reflectance = fresnel.reflectance;
+
+    BsdfSample s;
+    s.delta = true;
+    if (u_lobe < reflectance) {
+        s.wi = reflect_z(wo);
+        s.weight = specular_reflectance_;
+        // The mirrored direction has the same cosine, hence the same selection probability.
+        s.pdf = {reflectance, reflectance};
+        s.lobe = kLobeDeltaReflection;
+        return s;
+    }
+    s.wi = refract_z(wo, fresnel.cos_theta_t, fresnel.eta_ti);
+    if (s.wi.z == 0) return std::nullopt;
+    s.weight = specular_transmission_;
+    // Radiance is compressed into the smaller solid angle of the denser side.
+    if (mode == TransportMode::Radiance) s.weight *= fresnel.eta_ti * fresnel.eta_ti;
+    s.pdf = {1.0f - reflectance, 1.0f - fresnel_dielectric(s.wi.z, eta_).reflectance};
+    s.lobe = kLobeDeltaTransmission;
+    s.eta = fresnel.eta_it;
+    return s;
+}
+
+std::string DielectricBsdf::to_string() const {
+    std::ostringstream out;
+    out << "dielectric(eta " << eta_ << ", specular_reflectance " << specular_reflectance_
+        << ", specular_transmission " << specular_transmission_ << ")";
+    return out.str();
+}
+
+}  // namespace render

@@ -1,0 +1,81 @@
+#include "core/materials/phong.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "core/materials/bsdf_params.h"
+#include "core/materials/fresnel.h"
+#include "core/math/constants.h"
+#include "core/math/frame.h"
+#include "core/sampling/warp.h"
+
+namespace render {
+
+PhongBsdf::PhongBsdf(const Rgb& diffuse_reflectance, const Rgb& specular_reflectance,
+                     float exponent)
+    : diffuse_reflectance_(diffuse_reflectance),
+      specular_reflectance_(specular_reflectance),
+      exponent_(exponent) {
+    const float d = diffuse_reflectance_.average(), s = specular_reflectance_.average();
+    specular_sampling_weight_ = d + s > 0 ? s / (d + s) : 0.0f;
+}
+
+std::shared_ptr<const Bsdf> PhongBsdf::create(const Properties& props) {
+    const Rgb kd = read_reflectance(props, "diffuse_reflectance", Rgb(0.5f));
+    const Rgb ks = read_reflectance(props, "specular_reflectance", Rgb(0.2f));
+    const float exponent = read_non_negative(props, "exponent", 30.0f);
+    return std::make_shared<PhongBsdf>(kd, ks, exponent);
+}
+
+Rgb PhongBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0f);
+    Rgb result = diffuse_reflectance_ * kInvPi;
+    const float cos_alpha = dot(reflect_z(wo), wi);
+    if (cos_alpha > 0)
+        result += specular_reflectance_ *
+                  ((exponent_ + 2.0f) * kInv2Pi * std::pow(std::min(cos_alpha, 1.0f), exponent_));
+    return result;
+}
+
+float PhongBsdf::sample_density(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return 0.0f;
+    const float cos_alpha = std::min(dot(reflect_z(wo), wi), 1.0f);
+    const float specular =
+        cos_alpha > 0 ? (exponent_ + 1.0f) * kInv2Pi * std::pow(cos_alpha, exponent_) : 0.0f;
+    const float diffuse = wi.z * kInvPi;
+    return specular_sampling_weight_ * specular + (1.0f - specular_sampling_weight_) * diffuse;
+}
+
+BsdfPdf PhongBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+    return {sample_density(wo, wi), sample_density(wi, wo)};
+}
+
+std::optional<BsdfSample> PhongBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u,
+                                            TransportMode mode) const {
+    if (wo.z <= 0 || !is_finite(wo)) return std::nullopt;
+    if (diffuse_reflectance_.is_black() && specular_reflectance_.is_black()) return std::nullopt;
+    BsdfSample s;
+    if (u_lobe < specular_sampling_weight_) {
+        const Vec3 lobe_local = warp::square_to_phong_lobe(u, exponent_);
+        s.wi = normalize(Frame::from_normal(reflect_z(wo)).to_world(lobe_local));
+        s.lobe = kLobeGlossyReflection;
+    } else {
+        s.wi = warp::square_to_cosine_hemisphere(u);
+        s.lobe = kLobeDiffuseReflection;
+    }
+    if (s.wi.z <= 0) return std::nullopt;  // the specular lobe dipped below the surface
+    s.pdf = pdf(wo, s.wi);
+    if (!(s.pdf.forward > 0)) return std::nullopt;
+    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf.forward);
+    if (!s.weight.is_finite()) return std::nullopt;
+    return s;
+}
+
+std::string PhongBsdf::to_string() const {
+    std::ostringstream out;
+    out << "phong(diffuse_reflectance " << diffuse_reflectance_ << ", specular_reflectance "
+        << specular_reflectance_ << ", exponent " << exponent_ << ")";
+    return out.str();
+}
+
+}  // namespace render

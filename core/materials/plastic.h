@@ -1,0 +1,47 @@
+#pragma once
+
+// Smooth plastic (Mitsuba's `plastic`): a diffuse substrate under a smooth dielectric coating.
+// Light either reflects specularly off the coating (weight F) or enters it, scatters diffusely
+// and leaves through the coating, with the internal reflections at the coating summed in
+// closed form:
+//     f_diffuse = kd / (1 - Fdr_int) * (1 - F(cos_o)) (1 - F(cos_i)) / (pi eta^2),
+// or kd / (1 - kd Fdr_int) when `nonlinear` (the colour shift of multiple bounces inside).
+// The delta specular lobe is chosen with probability proportional to F * mean(ks) against
+// (1 - F) * mean(kd), as in Mitsuba. One-sided.
+
+#include "core/materials/bsdf.h"
+#include "core/scene/properties.h"
+
+namespace render {
+
+class PlasticBsdf final : public Bsdf {
+  public:
+    // eta = n_inside / n_outside of the coating.
+    PlasticBsdf(const Rgb& diffuse_reflectance, const Rgb& specular_reflectance, float eta,
+                bool nonlinear);
+
+    // Parameters: `diffuse_reflectance` (0.5), `specular_reflectance` (1), `int_ior`
+    // (polypropylene), `ext_ior` (air), `nonlinear` (false).
+    static std::shared_ptr<const Bsdf> create(const Properties& props);
+
+    Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
+    BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const override;
+    std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
+                                     TransportMode mode) const override;
+    uint32_t lobes() const override { return kLobeDeltaReflection | kLobeDiffuseReflection; }
+    std::string to_string() const override;
+
+  private:
+    // Probability that sample() picks the specular lobe for a direction with this cosine.
+    float specular_probability(float cos_theta) const;
+    // p(wi | wo) of the diffuse lobe, including its selection probability.
+    float sample_density(const Vec3& wo, const Vec3& wi) const;
+
+    Rgb diffuse_reflectance_, specular_reflectance_;
+    float eta_;
+    bool nonlinear_;
+    Rgb diffuse_scaled_;  // kd / (1 - Fdr_int) or kd / (1 - kd Fdr_int), divided by pi eta^2
+    float specular_sampling_weight_;
+};
+
+}  // namespace render

@@ -1,0 +1,56 @@
+#include "core/materials/twosided.h"
+
+namespace render {
+namespace {
+
+Vec3 flip_z(const Vec3& w) {
+    return {w.x, w.y, -w.z};
+}
+
+}  // namespace
+
+TwoSidedBsdf::TwoSidedBsdf(std::shared_ptr<const Bsdf> front, std::shared_ptr<const Bsdf> back)
+    : front_(std::move(front)), back_(back ? std::move(back) : front_) {}
+
+std::shared_ptr<const Bsdf> TwoSidedBsdf::create(const Properties& props) {
+    const size_t n = props.nested_bsdfs.size();
+    if (n == 0 || n > 2)
+        throw SceneError(props.where(),
+                         "bsdf \"twosided\" needs one nested bsdf (or two: front "
+                         "and back), got " +
+                             std::to_string(n));
+    for (const auto& child : props.nested_bsdfs)
+        if (child->lobes() & kLobeTransmission)
+            throw SceneError(props.where(), "bsdf \"twosided\" cannot wrap the transmissive " +
+                                                child->to_string());
+    return std::make_shared<TwoSidedBsdf>(props.nested_bsdfs[0],
+                                          n == 2 ? props.nested_bsdfs[1] : nullptr);
+}
+
+Rgb TwoSidedBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+    if (wo.z > 0) return front_->f(wo, wi, mode);
+    if (wo.z < 0) return back_->f(flip_z(wo), flip_z(wi), mode);
+    return Rgb(0.0f);
+}
+
+BsdfPdf TwoSidedBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z > 0) return front_->pdf(wo, wi);
+    if (wo.z < 0) return back_->pdf(flip_z(wo), flip_z(wi));
+    return {};
+}
+
+std::optional<BsdfSample> TwoSidedBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u,
+                                               TransportMode mode) const {
+    if (wo.z > 0) return front_->sample(wo, u_lobe, u, mode);
+    if (wo.z == 0) return std::nullopt;
+    std::optional<BsdfSample> s = back_->sample(flip_z(wo), u_lobe, u, mode);
+    if (s) s->wi = flip_z(s->wi);
+    return s;
+}
+
+std::string TwoSidedBsdf::to_string() const {
+    if (front_ == back_) return "twosided(" + front_->to_string() + ")";
+    return "twosided(front " + front_->to_string() + ", back " + back_->to_string() + ")";
+}
+
+}  // namespace render
