@@ -8,8 +8,12 @@ namespace render {
 
 PerspectiveCamera::PerspectiveCamera(const Transform& to_world, float fov_degrees, char fov_axis,
                                      int width, int height)
-    : to_world_(to_world), to_camera_(to_world.inverse()), fov_degrees_(fov_degrees),
-      fov_axis_(fov_axis), width_(width), height_(height) {
+    : to_world_(to_world),
+      to_camera_(to_world.inverse()),
+      fov_degrees_(fov_degrees),
+      fov_axis_(fov_axis),
+      width_(width),
+      height_(height) {
     float tan_half = std::tan(0.5f * fov_degrees * kPi / 180.0f);
     float aspect = float(width) / float(height);
     if (fov_axis == 'y') {

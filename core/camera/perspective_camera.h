@@ -15,7 +15,7 @@
 namespace render {
 
 class PerspectiveCamera {
-public:
+  public:
     PerspectiveCamera() = default;
     // fov in degrees along fov_axis ('x' or 'y'); width, height in pixels.
     PerspectiveCamera(const Transform& to_world, float fov_degrees, char fov_axis, int width,
@@ -45,7 +45,7 @@ public:
     // Area of the image plane at distance 1 from the pinhole.
     float image_plane_area() const { return image_plane_area_; }
 
-private:
+  private:
     Transform to_world_;
     Transform to_camera_;
     float fov_degrees_ = 90;

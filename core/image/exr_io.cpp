@@ -19,8 +19,8 @@ void write_exr(const std::filesystem::path& file, const Image& image,
     spec.channelnames = {"R", "G", "B"};
     spec.attribute("compression", "zip");
     for (const auto& [key, value] : metadata) spec.attribute(key, value);
-    if (!out->open(file.string(), spec) ||
-        !out->write_image(OIIO::TypeDesc::FLOAT, image.data()) || !out->close())
+    if (!out->open(file.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, image.data()) ||
+        !out->close())
         throw std::runtime_error("cannot write " + file.string() + ": " + out->geterror());
 }
 
@@ -63,8 +63,8 @@ void write_png_preview(const std::filesystem::path& file, const Image& image,
     auto out = OIIO::ImageOutput::create(file.string());
     if (!out) throw std::runtime_error("cannot write " + file.string() + ": " + OIIO::geterror());
     OIIO::ImageSpec spec(image.width(), image.height(), 3, OIIO::TypeDesc::UINT8);
-    if (!out->open(file.string(), spec) ||
-        !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) || !out->close())
+    if (!out->open(file.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) ||
+        !out->close())
         throw std::runtime_error("cannot write " + file.string() + ": " + out->geterror());
 }
 

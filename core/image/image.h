@@ -11,9 +11,10 @@
 namespace render {
 
 class Image {
-public:
+  public:
     Image() = default;
-    Image(int width, int height) : width_(width), height_(height), rgb_(size_t(width) * height * 3) {}
+    Image(int width, int height)
+        : width_(width), height_(height), rgb_(size_t(width) * height * 3) {}
 
     int width() const { return width_; }
     int height() const { return height_; }
@@ -28,13 +29,13 @@ public:
     const float* data() const { return rgb_.data(); }
     float* data() { return rgb_.data(); }
 
-private:
+  private:
     int width_ = 0, height_ = 0;
     std::vector<float> rgb_;  // interleaved RGB, rows top to bottom
 };
 
 class AccumulationBuffer {
-public:
+  public:
     AccumulationBuffer() = default;
     AccumulationBuffer(int width, int height)
         : width_(width), height_(height), rgb_(size_t(width) * height * 3, 0.0) {}
@@ -58,7 +59,7 @@ public:
     // The buffer divided by `count` (e.g. the iteration count).
     Image average(double count) const;
 
-private:
+  private:
     int width_ = 0, height_ = 0;
     std::vector<double> rgb_;
 };

@@ -7,10 +7,10 @@ namespace render {
 
 ImageComparison compare_images(const Image& test, const Image& reference) {
     if (test.width() != reference.width() || test.height() != reference.height())
-        throw std::invalid_argument(
-            "images differ in size: " + std::to_string(test.width()) + "x" +
-            std::to_string(test.height()) + " vs " + std::to_string(reference.width()) + "x" +
-            std::to_string(reference.height()));
+        throw std::invalid_argument("images differ in size: " + std::to_string(test.width()) + "x" +
+                                    std::to_string(test.height()) + " vs " +
+                                    std::to_string(reference.width()) + "x" +
+                                    std::to_string(reference.height()));
     ImageComparison result;
     std::array<double, 3> se{}, rel{}, diff{};
     size_t n = 0;

@@ -10,9 +10,9 @@
 namespace render {
 
 struct ImageComparison {
-    std::array<double, 3> rmse{};            // sqrt(mean((a - b)^2))
-    std::array<double, 3> relative_mse{};    // mean((a - b)^2 / (b^2 + 1e-2)), b = reference
-    std::array<double, 3> mean_difference{}; // mean(a - b)
+    std::array<double, 3> rmse{};             // sqrt(mean((a - b)^2))
+    std::array<double, 3> relative_mse{};     // mean((a - b)^2 / (b^2 + 1e-2)), b = reference
+    std::array<double, 3> mean_difference{};  // mean(a - b)
     double rmse_all = 0, relative_mse_all = 0;
     size_t non_finite = 0;  // pixels of either image with NaN or Inf (skipped)
 };

@@ -7,7 +7,7 @@ namespace render {
 // Debug shading: |cos| between the shading normal and the view ray, so geometry and normals
 // can be checked without any light transport. Black where rays escape.
 class EyeLight final : public PixelIntegrator {
-protected:
+  protected:
     Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const override;
 };
 

@@ -23,7 +23,7 @@ struct IterationKey {
 };
 
 class Integrator {
-public:
+  public:
     virtual ~Integrator() = default;
     // Adds iteration `key.iteration`'s image to `target` (same size as the camera).
     virtual void render_iteration(const Scene& scene, const IterationKey& key,
@@ -33,11 +33,11 @@ public:
 // Integrators that estimate each pixel independently from one camera ray (PT, eyelight).
 // Handles tiling, threading, per-pixel random streams and dropping non-finite samples.
 class PixelIntegrator : public Integrator {
-public:
+  public:
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           RenderStats& stats) const override;
 
-protected:
+  protected:
     // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats.
     virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const = 0;
 };

@@ -8,8 +8,7 @@
 
 namespace render {
 
-Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng,
-                   RenderStats& stats) const {
+Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderStats& stats) const {
     Rgb L(0.0f), beta(1.0f);
     Ray ray = camera_ray;
     // Density (solid angle) of the BSDF sample that produced `ray`; a delta or camera
@@ -41,8 +40,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng,
                     // Light sampling's density for this point, converted to solid angle.
                     float cos_light = abs_dot(si.geometric_normal, ray.direction);
                     float light_pdf = cos_light > 0 ? scene.light_pdf(si.emitter) *
-                                                          le.pdf_direct_a * si.t * si.t /
-                                                          cos_light
+                                                          le.pdf_direct_a * si.t * si.t / cos_light
                                                     : 0.0f;
                     w = power_heuristic(prev_bsdf_pdf, light_pdf);
                 }

@@ -9,13 +9,13 @@ namespace render {
 // take the only technique that can find them. max_depth counts path segments as Mitsuba does
 // (1 = directly visible emitters only). Russian roulette from rr_depth on.
 class PathTracer final : public PixelIntegrator {
-public:
+  public:
     PathTracer(int max_depth, int rr_depth) : max_depth_(max_depth), rr_depth_(rr_depth) {}
 
-protected:
+  protected:
     Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const override;
 
-private:
+  private:
     int max_depth_;
     int rr_depth_;
 };

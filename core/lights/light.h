@@ -27,9 +27,9 @@ struct SceneSphere {
 };
 
 struct LightIlluminateSample {
-    Vec3 wi;               // unit direction from the receiving point toward the light
-    float distance = 0;    // to the sampled point; infinity for infinite and directional lights
-    Rgb radiance;          // Le arriving along -wi, not divided by any pdf
+    Vec3 wi;             // unit direction from the receiving point toward the light
+    float distance = 0;  // to the sampled point; infinity for infinite and directional lights
+    Rgb radiance;        // Le arriving along -wi, not divided by any pdf
     float pdf_direct_w = 0;
     float pdf_emission_w = 0;
     float cos_at_light = 1;  // cosine between the light's normal and -wi (1 when not defined)
@@ -37,7 +37,7 @@ struct LightIlluminateSample {
 
 struct LightEmitSample {
     Vec3 origin;
-    Vec3 direction;        // unit
+    Vec3 direction;  // unit
     // Le * cos_at_light (SmallVCM's "energy"): divide by (selection probability *
     // pdf_emission_w) to get the light path's throughput.
     Rgb energy;
@@ -47,13 +47,13 @@ struct LightEmitSample {
 };
 
 struct LightRadiance {
-    Rgb radiance;          // Le toward the viewer; black from the back of a one-sided emitter
+    Rgb radiance;  // Le toward the viewer; black from the back of a one-sided emitter
     float pdf_direct_a = 0;
     float pdf_emission_w = 0;
 };
 
 class Light {
-public:
+  public:
     virtual ~Light() = default;
 
     // Called once after the scene geometry is known (bounding sphere for infinite lights).
@@ -75,13 +75,13 @@ public:
     // Total emitted power (approximate for envmaps): drives light selection.
     virtual Rgb power() const = 0;
 
-    virtual bool is_delta() const = 0;    // position or direction is a delta (point, directional)
-    virtual bool is_finite() const = 0;   // false for directional, constant and envmap lights
+    virtual bool is_delta() const = 0;   // position or direction is a delta (point, directional)
+    virtual bool is_finite() const = 0;  // false for directional, constant and envmap lights
     virtual bool is_infinite_background() const { return false; }  // seen by escaping rays
 
     virtual std::string to_string() const = 0;
 
-protected:
+  protected:
     SceneSphere scene_sphere_;
 };
 

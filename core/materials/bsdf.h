@@ -59,7 +59,7 @@ struct BsdfSample {
 };
 
 class Bsdf {
-public:
+  public:
     virtual ~Bsdf() = default;
 
     // f(wo, wi) without the cosine factor. Zero for delta lobes.

@@ -13,7 +13,7 @@
 namespace render {
 
 class SurfaceBsdf {
-public:
+  public:
     SurfaceBsdf(const Bsdf& bsdf, const Frame& shading, const Vec3& geometric_normal,
                 TransportMode mode)
         : bsdf_(bsdf), shading_(shading), ng_(geometric_normal), mode_(mode) {}
@@ -31,7 +31,7 @@ public:
     const Bsdf& bsdf() const { return bsdf_; }
     bool is_delta() const { return bsdf_.is_delta(); }
 
-private:
+  private:
     // False if the pair is reflection for one normal and transmission for the other.
     bool consistent(const Vec3& wo, const Vec3& wi, const Vec3& wo_local,
                     const Vec3& wi_local) const;

@@ -26,11 +26,23 @@ struct Frame {
 };
 
 // Trigonometry of a local direction (unit vector, z = normal).
-inline float cos_theta(const Vec3& w) { return w.z; }
-inline float abs_cos_theta(const Vec3& w) { return std::abs(w.z); }
-inline float cos2_theta(const Vec3& w) { return w.z * w.z; }
-inline float sin2_theta(const Vec3& w) { return std::max(0.0f, 1.0f - w.z * w.z); }
-inline float tan2_theta(const Vec3& w) { return sin2_theta(w) / cos2_theta(w); }
-inline bool same_hemisphere(const Vec3& a, const Vec3& b) { return a.z * b.z > 0; }
+inline float cos_theta(const Vec3& w) {
+    return w.z;
+}
+inline float abs_cos_theta(const Vec3& w) {
+    return std::abs(w.z);
+}
+inline float cos2_theta(const Vec3& w) {
+    return w.z * w.z;
+}
+inline float sin2_theta(const Vec3& w) {
+    return std::max(0.0f, 1.0f - w.z * w.z);
+}
+inline float tan2_theta(const Vec3& w) {
+    return sin2_theta(w) / cos2_theta(w);
+}
+inline bool same_hemisphere(const Vec3& a, const Vec3& b) {
+    return a.z * b.z > 0;
+}
 
 }  // namespace render

@@ -113,7 +113,9 @@ Transform Transform::operator*(const Transform& other) const {
                      singular_ || other.singular_);
 }
 
-Transform Transform::inverse() const { return Transform(inv_, m_, singular_); }
+Transform Transform::inverse() const {
+    return Transform(inv_, m_, singular_);
+}
 
 Vec3 Transform::apply_point(const Vec3& p) const {
     double r[4];

@@ -9,10 +9,10 @@ namespace render {
 // Affine/projective 4x4 transform, stored in double so that long chains of scene-file
 // transforms and their inverse stay accurate; applied to float geometry.
 class Transform {
-public:
+  public:
     using Matrix = std::array<std::array<double, 4>, 4>;
 
-    Transform();  // identity
+    Transform();                          // identity
     explicit Transform(const Matrix& m);  // computes the inverse; a singular m has a zero inverse
 
     static Transform translate(const Vec3& d);
@@ -37,7 +37,7 @@ public:
     // Determinant of the upper 3x3 part: negative when the transform mirrors (handedness).
     double determinant3x3() const;
 
-private:
+  private:
     Transform(const Matrix& m, const Matrix& inv, bool singular)
         : m_(m), inv_(inv), singular_(singular) {}
     Matrix m_;

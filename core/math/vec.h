@@ -39,27 +39,43 @@ struct Vec3 {
     constexpr bool operator==(const Vec3& b) const { return x == b.x && y == b.y && z == b.z; }
 };
 
-constexpr Vec3 operator*(float s, const Vec3& v) { return v * s; }
-constexpr float dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline float abs_dot(const Vec3& a, const Vec3& b) { return std::abs(dot(a, b)); }
+constexpr Vec3 operator*(float s, const Vec3& v) {
+    return v * s;
+}
+constexpr float dot(const Vec3& a, const Vec3& b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+inline float abs_dot(const Vec3& a, const Vec3& b) {
+    return std::abs(dot(a, b));
+}
 constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-constexpr float length_squared(const Vec3& v) { return dot(v, v); }
-inline float length(const Vec3& v) { return std::sqrt(dot(v, v)); }
-inline Vec3 normalize(const Vec3& v) { return v / length(v); }
+constexpr float length_squared(const Vec3& v) {
+    return dot(v, v);
+}
+inline float length(const Vec3& v) {
+    return std::sqrt(dot(v, v));
+}
+inline Vec3 normalize(const Vec3& v) {
+    return v / length(v);
+}
 inline Vec3 min(const Vec3& a, const Vec3& b) {
     return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
 }
 inline Vec3 max(const Vec3& a, const Vec3& b) {
     return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
 }
-inline float max_component(const Vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+inline float max_component(const Vec3& v) {
+    return std::max(v.x, std::max(v.y, v.z));
+}
 inline bool is_finite(const Vec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 // Mirror direction of w about the normal n (both pointing away from the surface).
-inline Vec3 reflect(const Vec3& w, const Vec3& n) { return 2.0f * dot(w, n) * n - w; }
+inline Vec3 reflect(const Vec3& w, const Vec3& n) {
+    return 2.0f * dot(w, n) * n - w;
+}
 
 inline std::ostream& operator<<(std::ostream& os, const Vec3& v) {
     return os << "(" << v.x << ", " << v.y << ", " << v.z << ")";
@@ -93,7 +109,9 @@ struct Rgb {
     bool is_finite() const { return std::isfinite(r) && std::isfinite(g) && std::isfinite(b); }
 };
 
-constexpr Rgb operator*(float s, const Rgb& c) { return c * s; }
+constexpr Rgb operator*(float s, const Rgb& c) {
+    return c * s;
+}
 inline std::ostream& operator<<(std::ostream& os, const Rgb& c) {
     return os << "[" << c.r << ", " << c.g << ", " << c.b << "]";
 }

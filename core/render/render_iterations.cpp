@@ -21,8 +21,7 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
     result.sum = AccumulationBuffer(width, height);
     result.odd_sum = AccumulationBuffer(width, height);
     AccumulationBuffer iteration_image(width, height);
-    tbb::task_arena arena(settings.threads > 0 ? settings.threads
-                                               : tbb::task_arena::automatic);
+    tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::task_arena::automatic);
     arena.execute([&] {
         for (uint64_t i = range.first; i < range.end; ++i) {
             std::fill(iteration_image.values().begin(), iteration_image.values().end(), 0.0);

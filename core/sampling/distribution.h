@@ -11,7 +11,7 @@
 namespace render {
 
 class Distribution1D {
-public:
+  public:
     Distribution1D() = default;
     // Non-finite or negative weights count as zero. If all are zero, sampling is uniform (so
     // it never fails on a black envmap row) while weight() and integral() still report zero.
@@ -29,14 +29,14 @@ public:
     float sample_continuous(float u, float* pdf = nullptr, size_t* index = nullptr) const;
     float pdf_continuous(float x) const;
 
-private:
+  private:
     std::vector<float> func_;
     std::vector<double> cdf_;  // size + 1 entries, cdf_[0] = 0, cdf_.back() = 1
     float integral_ = 0;
 };
 
 class Distribution2D {
-public:
+  public:
     Distribution2D() = default;
     // weights[row * width + col]; rows are along v (y), columns along u (x).
     Distribution2D(const std::vector<float>& weights, size_t width, size_t height);
@@ -45,7 +45,7 @@ public:
     Vec2 sample(Vec2 u, float* pdf = nullptr) const;
     float pdf(Vec2 p) const;
 
-private:
+  private:
     std::vector<Distribution1D> conditional_;  // one per row
     Distribution1D marginal_;                  // over rows
 };

@@ -34,7 +34,7 @@ struct StreamKey {
 };
 
 class Rng {
-public:
+  public:
     explicit Rng(const StreamKey& key) {
         uint64_t h = mix64(key.seed ^ 0x5851f42d4c957f2dULL);
         h = hash_combine(h, key.frame);
@@ -64,7 +64,7 @@ public:
         return {a, next_1d()};
     }
 
-private:
+  private:
     uint64_t state_ = 0;
     uint64_t inc_ = 1;
 };

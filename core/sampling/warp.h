@@ -12,7 +12,9 @@
 
 namespace render::warp {
 
-inline float safe_sqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
+inline float safe_sqrt(float x) {
+    return std::sqrt(std::max(0.0f, x));
+}
 
 // Concentric map of Shirley and Chiu: square -> unit disk, area preserving up to pi.
 inline Vec2 square_to_uniform_disk_concentric(Vec2 u) {
@@ -38,7 +40,9 @@ inline Vec3 square_to_uniform_sphere(Vec2 u) {
     float phi = 2.0f * kPi * u.y;
     return {r * std::cos(phi), r * std::sin(phi), z};
 }
-inline float square_to_uniform_sphere_pdf() { return kInv4Pi; }
+inline float square_to_uniform_sphere_pdf() {
+    return kInv4Pi;
+}
 
 inline Vec3 square_to_uniform_hemisphere(Vec2 u) {
     float z = u.x;

@@ -11,13 +11,13 @@ class Shape;
 
 // A ray's hit on a surface, in world space.
 struct SurfaceInteraction {
-    Vec3 p;              // hit point
+    Vec3 p;                 // hit point
     Vec3 geometric_normal;  // unit; the side the shape's winding/orientation calls "outside"
-    Frame shading;       // shading frame; shading.n is the interpolated (or geometric) normal
+    Frame shading;          // shading frame; shading.n is the interpolated (or geometric) normal
     Vec2 uv;
-    float t = 0;         // ray distance
+    float t = 0;  // ray distance
     const Shape* shape = nullptr;
-    const Bsdf* bsdf = nullptr;    // never null for a hit (absorbing black if the file had none)
+    const Bsdf* bsdf = nullptr;      // never null for a hit (absorbing black if the file had none)
     const Light* emitter = nullptr;  // area light attached to the shape, if any
 };
 

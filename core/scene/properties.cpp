@@ -6,8 +6,8 @@ void Properties::set(const std::string& name, Value value, const SourceLocation&
     auto [it, inserted] = values_.emplace(name, Entry{std::move(value), where});
     if (!inserted)
         throw SceneError(where, "parameter \"" + name + "\" of " + class_ + " \"" + type_ +
-                                    "\" is given twice (first at " +
-                                    it->second.where.to_string() + ")");
+                                    "\" is given twice (first at " + it->second.where.to_string() +
+                                    ")");
 }
 
 const Properties::Entry* Properties::find(const std::string& name) const {
@@ -36,7 +36,9 @@ T Properties::get_as(const std::string& name, const char* type_name) const {
     throw error(name, std::string("expected a value of type ") + type_name);
 }
 
-bool Properties::get_bool(const std::string& name) const { return get_as<bool>(name, "boolean"); }
+bool Properties::get_bool(const std::string& name) const {
+    return get_as<bool>(name, "boolean");
+}
 bool Properties::get_bool(const std::string& name, bool def) const {
     return has(name) ? get_bool(name) : def;
 }
@@ -94,8 +96,8 @@ Transform Properties::get_transform(const std::string& name, const Transform& de
 void Properties::check_all_used() const {
     for (const auto& [name, entry] : values_)
         if (!entry.used)
-            throw SceneError(entry.where, "unused parameter \"" + name + "\" in " + class_ +
-                                              " \"" + type_ +
+            throw SceneError(entry.where, "unused parameter \"" + name + "\" in " + class_ + " \"" +
+                                              type_ +
                                               "\" (misspelt, or not supported by this plugin)");
 }
 

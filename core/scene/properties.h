@@ -20,11 +20,12 @@ namespace render {
 class Bsdf;
 
 class Properties {
-public:
+  public:
     using Value = std::variant<bool, int64_t, float, std::string, Rgb, Vec3, Transform>;
 
     Properties(std::string plugin_class, std::string plugin_type, SourceLocation where)
-        : class_(std::move(plugin_class)), type_(std::move(plugin_type)),
+        : class_(std::move(plugin_class)),
+          type_(std::move(plugin_type)),
           where_(std::move(where)) {}
 
     // e.g. class "bsdf", type "diffuse"
@@ -66,7 +67,7 @@ public:
     // Throws a SceneError naming the first value nobody read.
     void check_all_used() const;
 
-private:
+  private:
     struct Entry {
         Value value;
         SourceLocation where;

@@ -24,13 +24,13 @@ namespace render {
 // Settings a scene file carries (integrator, sampler, film). Command-line options override them.
 struct SceneSettings {
     std::string integrator = "path";
-    int max_depth = -1;        // Mitsuba's meaning: -1 = unbounded; 1 = directly visible emitters
-    int rr_depth = 5;          // Russian roulette starts at this path depth
-    int sample_count = 16;     // sampler sample_count (iterations, one sample per pixel each)
+    int max_depth = -1;     // Mitsuba's meaning: -1 = unbounded; 1 = directly visible emitters
+    int rr_depth = 5;       // Russian roulette starts at this path depth
+    int sample_count = 16;  // sampler sample_count (iterations, one sample per pixel each)
 };
 
 class Scene {
-public:
+  public:
     Scene();
     ~Scene();
     Scene(const Scene&) = delete;
@@ -79,7 +79,7 @@ public:
     const SceneSphere& bounding_sphere() const { return sphere_; }
     const Aabb& bounds() const { return bounds_; }
 
-private:
+  private:
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;

@@ -19,7 +19,7 @@ struct Aabb {
 // Geometry the renderer can intersect and (for area lights) sample. A shape registers itself
 // with Embree once; after a hit the scene asks the shape to fill in the interaction.
 class Shape {
-public:
+  public:
     virtual ~Shape() = default;
 
     // Creates, commits and attaches this shape's Embree geometry; returns its geometry id.

@@ -150,15 +150,18 @@ int compare(const std::string& test_file, const std::string& reference_file) {
 
 std::string format_seconds(double s) {
     char buf[32];
-    if (s < 60) std::snprintf(buf, sizeof buf, "%.1fs", s);
-    else if (s < 3600) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-    else std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) % 3600) / 60);
+    if (s < 60)
+        std::snprintf(buf, sizeof buf, "%.1fs", s);
+    else if (s < 3600)
+        std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+    else
+        std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) % 3600) / 60);
     return buf;
 }
 
 // A progress bar on a terminal; a plain line every 10% (or every 10 s) otherwise.
 class Progress {
-public:
+  public:
     Progress(std::optional<uint64_t> total, std::optional<double> budget)
         : total_(total), budget_(budget), tty_(isatty(STDERR_FILENO)) {}
 
@@ -192,7 +195,7 @@ public:
         if (tty_) std::fprintf(stderr, "\n");
     }
 
-private:
+  private:
     std::optional<uint64_t> total_;
     std::optional<double> budget_;
     bool tty_;

@@ -100,8 +100,7 @@ ChiSquareResult chi_square_test_2d(const std::function<std::optional<Vec2>(Rng&)
     // Sort cells by expected count and pool the smallest until each group has >= 5.
     std::vector<int> order(cells);
     std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(),
-              [&](int a, int b) { return expected[a] < expected[b]; });
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return expected[a] < expected[b]; });
     double pooled_obs = 0, pooled_exp = 0, stat = 0;
     int groups = 0;
     struct Worst {

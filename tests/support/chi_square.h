@@ -32,7 +32,7 @@ struct ChiSquareOptions {
     int resolution_x = 32;
     int resolution_y = 32;
     int sample_count = 1000000;
-    int test_count = 1;        // tests in the suite, for the Sidak correction
+    int test_count = 1;  // tests in the suite, for the Sidak correction
     double significance = 0.01;
     uint64_t seed = 1;
 };

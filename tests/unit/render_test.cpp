@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include "core/render/render_iterations.h"
@@ -69,8 +70,7 @@ TEST_P(Furnace, RadianceIsOneEverywhere) {
         ASSERT_GT(s.standard_error, 0.0);
         // 5 standard errors: a false failure has probability < 1e-6 per check.
         EXPECT_NEAR(s.mean, 1.0, 5 * s.standard_error)
-            << algorithm << " radius " << radius << " channel " << c << ", SE "
-            << s.standard_error;
+            << algorithm << " radius " << radius << " channel " << c << ", SE " << s.standard_error;
         // The estimator must also be reasonably precise (catches a broken NEE/MIS that still
         // happens to be unbiased but wildly noisy).
         EXPECT_LT(s.standard_error, 0.05);
@@ -204,6 +204,37 @@ TEST(ScaleInvariance, SceneScaledBy1e3And1e4GivesTheSameImage) {
         EXPECT_NEAR(total_scaled / total_unit, 1.0, 5e-3) << "scale " << s;
         EXPECT_LT(double(differing) / n, 0.02) << "scale " << s;
     }
+}
+
+}  // namespace
+}  // namespace render
+
+namespace render {
+namespace {
+
+// Every shipped scene loads and renders a few iterations with no NaN or Inf sample.
+TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
+    const std::string root = std::string(RENDER_SOURCE_DIR) + "/scenes";
+    int rendered = 0;
+    for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
+        if (entry.path().extension() != ".xml") continue;
+        if (entry.path().parent_path().filename() == "include") continue;  // fragments
+        SCOPED_TRACE(entry.path().string());
+        auto scene = load_scene(entry.path());
+        scene->set_camera(scene->camera().with_resolution(24, 24));
+        RenderSettings settings;
+        settings.max_depth = scene->settings.max_depth;
+        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 5});
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        double total = 0;
+        for (double v : r.sum.values()) {
+            ASSERT_TRUE(std::isfinite(v));
+            total += v;
+        }
+        EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
+        ++rendered;
+    }
+    EXPECT_EQ(rendered, 7);  // 3 Bitterli scenes + 4 SmallVCM boxes
 }
 
 }  // namespace

@@ -115,8 +115,7 @@ TEST_P(SpawnScale, NoSelfIntersectionAndNoTunnelling) {
     Rng rng(StreamKey{4, 0, 1, 0});
     int self_hits = 0, misses = 0;
     for (int i = 0; i < 20000; ++i) {
-        ShapeSample s =
-            static_cast<const Sphere&>(*scene->shapes()[0]).sample_area(rng.next_2d());
+        ShapeSample s = static_cast<const Sphere&>(*scene->shapes()[0]).sample_area(rng.next_2d());
         Vec3 d = warp::square_to_uniform_sphere(rng.next_2d());
         SurfaceInteraction si;
         Ray ray = scene->spawn_ray(s.p, s.n, d);

@@ -39,8 +39,8 @@ TEST(Transform, NormalsStayPerpendicular) {
 }
 
 TEST(Transform, RotateIsRightHanded) {
-    expect_vec_near(Transform::rotate(Vec3(0, 0, 1), 90).apply_vector(Vec3(1, 0, 0)),
-                    Vec3(0, 1, 0), 1e-6f);
+    expect_vec_near(Transform::rotate(Vec3(0, 0, 1), 90).apply_vector(Vec3(1, 0, 0)), Vec3(0, 1, 0),
+                    1e-6f);
 }
 
 TEST(Transform, LookAtMatchesMitsuba) {

@@ -71,7 +71,9 @@ struct DiskCallbacks {
 };
 
 Disk::Disk(const Transform& to_world, bool flip_normals, std::string name)
-    : to_world_(to_world), to_object_(to_world.inverse()), flip_normals_(flip_normals),
+    : to_world_(to_world),
+      to_object_(to_world.inverse()),
+      flip_normals_(flip_normals),
       name_(std::move(name)) {
     if (to_world.is_singular()) throw SceneError(name_ + ": to_world transform is singular");
     center_ = to_world.apply_point(Vec3(0, 0, 0));

@@ -12,7 +12,7 @@ struct DiskCallbacks;
 // Analytic disk: the unit disk at z = 0 in object space with normal +z, mapped by to_world
 // (Mitsuba's `disk`). Embree user geometry.
 class Disk final : public Shape {
-public:
+  public:
     // Throws SceneError if to_world is singular.
     Disk(const Transform& to_world, bool flip_normals, std::string name);
 
@@ -24,7 +24,7 @@ public:
     ShapeSample sample_area(Vec2 u) const override;
     std::string to_string() const override;
 
-private:
+  private:
     friend struct DiskCallbacks;
     Transform to_world_;
     Transform to_object_;

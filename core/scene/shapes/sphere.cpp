@@ -122,7 +122,9 @@ Aabb Sphere::bounds() const {
     return b;
 }
 
-float Sphere::surface_area() const { return 4.0f * kPi * radius_ * radius_; }
+float Sphere::surface_area() const {
+    return 4.0f * kPi * radius_ * radius_;
+}
 
 ShapeSample Sphere::sample_area(Vec2 u) const {
     Vec3 d = warp::square_to_uniform_sphere(u);

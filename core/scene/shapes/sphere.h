@@ -9,7 +9,7 @@ namespace render {
 // Analytic sphere (Embree user geometry; intersected in double precision, never tessellated).
 // Normals point outward unless flip_normals is set.
 class Sphere final : public Shape {
-public:
+  public:
     Sphere(const Vec3& center, float radius, bool flip_normals, std::string name);
 
     unsigned attach(RTCDevice device, RTCScene scene) const override;
@@ -23,7 +23,7 @@ public:
     Vec3 center() const { return center_; }
     float radius() const { return radius_; }
 
-private:
+  private:
     Vec3 center_;
     float radius_;
     bool flip_normals_;

@@ -43,7 +43,8 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
     // transformed normal (inverse transpose of the object normal, which Mitsuba's rectangle
     // uses). Reversing the triangles keeps both on the same side, as pbrt does.
     if (to_world.determinant3x3() < 0)
-        for (size_t i = 0; i + 2 < indices_.size(); i += 3) std::swap(indices_[i + 1], indices_[i + 2]);
+        for (size_t i = 0; i + 2 < indices_.size(); i += 3)
+            std::swap(indices_[i + 1], indices_[i + 2]);
     std::vector<float> areas(triangle_count());
     double total = 0;
     for (size_t i = 0; i < triangle_count(); ++i) {
@@ -61,17 +62,17 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
 unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
     RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     // Embree reads vertices as 16-byte loads; rtcSetNewGeometryBuffer pads the buffer for it.
-    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-        positions_.size()));
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), positions_.size()));
     for (size_t i = 0; i < positions_.size(); ++i) {
         vertices[3 * i] = positions_[i].x;
         vertices[3 * i + 1] = positions_[i].y;
         vertices[3 * i + 2] = positions_[i].z;
     }
-    auto* indices = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t),
-        triangle_count()));
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(uint32_t), triangle_count()));
     std::copy(indices_.begin(), indices_.end(), indices);
     rtcCommitGeometry(geometry);
     unsigned id = rtcAttachGeometry(scene, geometry);

@@ -13,8 +13,8 @@ namespace render {
 // Raw triangle data as a file loader or a procedural generator produces it (object space).
 struct MeshData {
     std::vector<Vec3> positions;
-    std::vector<Vec3> normals;    // per vertex; empty = none
-    std::vector<Vec2> uvs;        // per vertex; empty = none
+    std::vector<Vec3> normals;      // per vertex; empty = none
+    std::vector<Vec2> uvs;          // per vertex; empty = none
     std::vector<uint32_t> indices;  // 3 per triangle
 };
 
@@ -22,7 +22,7 @@ struct MeshData {
 // has none or `face_normals` is set. Degenerate (zero-area) triangles are kept for
 // intersection but never sampled.
 class TriangleMesh final : public Shape {
-public:
+  public:
     // Throws SceneError for out-of-range indices, non-finite positions or an index count that
     // is not a multiple of 3.
     TriangleMesh(MeshData data, const Transform& to_world, bool flip_normals, bool face_normals,
@@ -39,7 +39,7 @@ public:
     size_t triangle_count() const { return indices_.size() / 3; }
     const std::vector<Vec3>& positions() const { return positions_; }
 
-private:
+  private:
     std::vector<Vec3> positions_;
     std::vector<Vec3> normals_;
     std::vector<Vec2> uvs_;
