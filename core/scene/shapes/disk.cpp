@@ -1,12 +1,12 @@
 #include "core/scene/shapes/disk.h"
 
 #include <cmath>
-#include <limits>
 #include <sstream>
 
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 #include "core/scene/error.h"
+#include "core/scene/shapes/user_geometry.h"
 
 namespace render {
 namespace {
@@ -26,49 +26,7 @@ double intersect_disk(const Transform& to_object, const float org[3], const floa
     return x * x + y * y <= 1.0 ? t : -1.0;
 }
 
-void disk_bounds(const RTCBoundsFunctionArguments* args) {
-    Aabb b = static_cast<const Disk*>(args->geometryUserPtr)->bounds();
-    args->bounds_o->lower_x = b.lo.x;
-    args->bounds_o->lower_y = b.lo.y;
-    args->bounds_o->lower_z = b.lo.z;
-    args->bounds_o->upper_x = b.hi.x;
-    args->bounds_o->upper_y = b.hi.y;
-    args->bounds_o->upper_z = b.hi.z;
-}
-
 }  // namespace
-
-// Embree callbacks need the object transform; friend-free access through a small struct.
-struct DiskCallbacks {
-    static void intersect(const RTCIntersectFunctionNArguments* args) {
-        if (!args->valid[0]) return;
-        const auto* disk = static_cast<const Disk*>(args->geometryUserPtr);
-        auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
-        RTCRay& ray = rayhit->ray;
-        const float org[3] = {ray.org_x, ray.org_y, ray.org_z};
-        const float dir[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
-        double t = intersect_disk(disk->to_object_, org, dir);
-        if (!(t > ray.tnear && t < ray.tfar)) return;
-        ray.tfar = float(t);
-        RTCHit& hit = rayhit->hit;
-        hit.Ng_x = disk->normal_.x;
-        hit.Ng_y = disk->normal_.y;
-        hit.Ng_z = disk->normal_.z;
-        hit.u = hit.v = 0;
-        hit.primID = args->primID;
-        hit.geomID = args->geomID;
-        hit.instID[0] = args->context->instID[0];
-    }
-    static void occluded(const RTCOccludedFunctionNArguments* args) {
-        if (!args->valid[0]) return;
-        const auto* disk = static_cast<const Disk*>(args->geometryUserPtr);
-        auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-        const float org[3] = {ray->org_x, ray->org_y, ray->org_z};
-        const float dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-        double t = intersect_disk(disk->to_object_, org, dir);
-        if (t > ray->tnear && t < ray->tfar) ray->tfar = -std::numeric_limits<float>::infinity();
-    }
-};
 
 Disk::Disk(const Transform& to_world, bool flip_normals, std::string name)
     : to_world_(to_world),
@@ -84,17 +42,11 @@ Disk::Disk(const Transform& to_world, bool flip_normals, std::string name)
                                to_world.apply_vector(Vec3(0, 1, 0))));
 }
 
-unsigned Disk::attach(RTCDevice device, RTCScene scene) const {
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(geometry, 1);
-    rtcSetGeometryUserData(geometry, const_cast<Disk*>(this));
-    rtcSetGeometryBoundsFunction(geometry, disk_bounds, nullptr);
-    rtcSetGeometryIntersectFunction(geometry, DiskCallbacks::intersect);
-    rtcSetGeometryOccludedFunction(geometry, DiskCallbacks::occluded);
-    rtcCommitGeometry(geometry);
-    unsigned id = rtcAttachGeometry(scene, geometry);
-    rtcReleaseGeometry(geometry);
-    return id;
+std::optional<double> Disk::nearest_hit(const float org[3], const float dir[3], float t_min,
+                                        float t_max) const {
+    double t = intersect_disk(to_object_, org, dir);
+    if (!(t > t_min && t < t_max)) return std::nullopt;
+    return t;
 }
 
 void Disk::fill_interaction(const Ray& ray, float t, unsigned, float, float,

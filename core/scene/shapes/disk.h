@@ -3,20 +3,19 @@
 #include <string>
 
 #include "core/math/transform.h"
-#include "core/scene/shape.h"
+#include "core/scene/shapes/user_geometry.h"
 
 namespace render {
 
-struct DiskCallbacks;
-
 // Analytic disk: the unit disk at z = 0 in object space with normal +z, mapped by to_world
 // (Mitsuba's `disk`). Embree user geometry.
-class Disk final : public Shape {
+class Disk final : public AnalyticShape {
   public:
     // Throws SceneError if to_world is singular.
     Disk(const Transform& to_world, bool flip_normals, std::string name);
 
-    unsigned attach(RTCDevice device, RTCScene scene) const override;
+    std::optional<double> nearest_hit(const float org[3], const float dir[3], float t_min,
+                                      float t_max) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                           SurfaceInteraction& si) const override;
     Aabb bounds() const override;
@@ -25,7 +24,6 @@ class Disk final : public Shape {
     std::string to_string() const override;
 
   private:
-    friend struct DiskCallbacks;
     Transform to_world_;
     Transform to_object_;
     Vec3 center_, normal_;

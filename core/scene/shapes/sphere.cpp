@@ -1,11 +1,11 @@
 #include "core/scene/shapes/sphere.h"
 
 #include <cmath>
-#include <limits>
 #include <sstream>
 
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
+#include "core/scene/shapes/user_geometry.h"
 
 namespace render {
 namespace {
@@ -29,70 +29,18 @@ bool intersect_sphere(const Vec3& center, double radius, const float org[3], con
     return true;
 }
 
-void sphere_bounds(const RTCBoundsFunctionArguments* args) {
-    const auto* sphere = static_cast<const Sphere*>(args->geometryUserPtr);
-    Aabb b = sphere->bounds();
-    args->bounds_o->lower_x = b.lo.x;
-    args->bounds_o->lower_y = b.lo.y;
-    args->bounds_o->lower_z = b.lo.z;
-    args->bounds_o->upper_x = b.hi.x;
-    args->bounds_o->upper_y = b.hi.y;
-    args->bounds_o->upper_z = b.hi.z;
-}
-
-// The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
-void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
-    if (!args->valid[0]) return;
-    const auto* sphere = static_cast<const Sphere*>(args->geometryUserPtr);
-    auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
-    RTCRay& ray = rayhit->ray;
-    const float org[3] = {ray.org_x, ray.org_y, ray.org_z};
-    const float dir[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
-    double t0, t1;
-    if (!intersect_sphere(sphere->center(), sphere->radius(), org, dir, t0, t1)) return;
-    double t = t0 > ray.tnear ? t0 : t1;
-    if (!(t > ray.tnear && t < ray.tfar)) return;
-    ray.tfar = float(t);
-    RTCHit& hit = rayhit->hit;
-    Vec3 p(float(org[0] + t * dir[0]), float(org[1] + t * dir[1]), float(org[2] + t * dir[2]));
-    Vec3 n = p - sphere->center();
-    hit.Ng_x = n.x;
-    hit.Ng_y = n.y;
-    hit.Ng_z = n.z;
-    hit.u = hit.v = 0;
-    hit.primID = args->primID;
-    hit.geomID = args->geomID;
-    hit.instID[0] = args->context->instID[0];
-}
-
-void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
-    if (!args->valid[0]) return;
-    const auto* sphere = static_cast<const Sphere*>(args->geometryUserPtr);
-    auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const float org[3] = {ray->org_x, ray->org_y, ray->org_z};
-    const float dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-    double t0, t1;
-    if (!intersect_sphere(sphere->center(), sphere->radius(), org, dir, t0, t1)) return;
-    if ((t0 > ray->tnear && t0 < ray->tfar) || (t1 > ray->tnear && t1 < ray->tfar))
-        ray->tfar = -std::numeric_limits<float>::infinity();
-}
-
 }  // namespace
 
 Sphere::Sphere(const Vec3& center, float radius, bool flip_normals, std::string name)
     : center_(center), radius_(radius), flip_normals_(flip_normals), name_(std::move(name)) {}
 
-unsigned Sphere::attach(RTCDevice device, RTCScene scene) const {
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(geometry, 1);
-    rtcSetGeometryUserData(geometry, const_cast<Sphere*>(this));
-    rtcSetGeometryBoundsFunction(geometry, sphere_bounds, nullptr);
-    rtcSetGeometryIntersectFunction(geometry, sphere_intersect);
-    rtcSetGeometryOccludedFunction(geometry, sphere_occluded);
-    rtcCommitGeometry(geometry);
-    unsigned id = rtcAttachGeometry(scene, geometry);
-    rtcReleaseGeometry(geometry);
-    return id;
+std::optional<double> Sphere::nearest_hit(const float org[3], const float dir[3], float t_min,
+                                          float t_max) const {
+    double t0, t1;
+    if (!intersect_sphere(center_, radius_, org, dir, t0, t1)) return std::nullopt;
+    double t = t0 > t_min ? t0 : t1;  // from inside, the far root
+    if (!(t > t_min && t < t_max)) return std::nullopt;
+    return t;
 }
 
 void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,

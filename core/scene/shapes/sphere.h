@@ -2,17 +2,18 @@
 
 #include <string>
 
-#include "core/scene/shape.h"
+#include "core/scene/shapes/user_geometry.h"
 
 namespace render {
 
 // Analytic sphere (Embree user geometry; intersected in double precision, never tessellated).
 // Normals point outward unless flip_normals is set.
-class Sphere final : public Shape {
+class Sphere final : public AnalyticShape {
   public:
     Sphere(const Vec3& center, float radius, bool flip_normals, std::string name);
 
-    unsigned attach(RTCDevice device, RTCScene scene) const override;
+    std::optional<double> nearest_hit(const float org[3], const float dir[3], float t_min,
+                                      float t_max) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                           SurfaceInteraction& si) const override;
     Aabb bounds() const override;
