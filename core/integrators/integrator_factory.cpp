@@ -1,8 +1,10 @@
+#include <map>
 #include <stdexcept>
 
 #include "core/integrators/eyelight.h"
 #include "core/integrators/integrator.h"
 #include "core/integrators/path_tracer.h"
+#include "core/integrators/vertex_cm.h"
 
 namespace render {
 
@@ -11,7 +13,29 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
     if (name == "pt" || name == "path")
         return std::make_unique<PathTracer>(settings.max_depth, settings.rr_depth);
     if (name == "eyelight") return std::make_unique<EyeLight>();
-    throw std::invalid_argument("unknown algorithm \"" + name + "\" (supported: pt, eyelight)");
+
+    static const std::map<std::string, BidirectionalMode> bidirectional = {
+        {"lt", BidirectionalMode::LightTracing}, {"bpt", BidirectionalMode::Bpt},
+        {"ppm", BidirectionalMode::Ppm},         {"bpm", BidirectionalMode::Bpm},
+        {"vcm", BidirectionalMode::Vcm},
+    };
+    auto it = bidirectional.find(name);
+    if (it == bidirectional.end())
+        throw std::invalid_argument("unknown algorithm \"" + name +
+                                    "\" (supported: pt, lt, bpt, ppm, bpm, vcm, eyelight)");
+    if (!(settings.radius_factor > 0) || !(settings.alpha > 0) || settings.alpha > 1)
+        throw std::invalid_argument("radius_factor must be > 0 and alpha in (0, 1]");
+    if (settings.mis_power != 1 && settings.mis_power != 2)
+        throw std::invalid_argument("mis_power must be 1 (balance) or 2 (power heuristic)");
+    BidirectionalConfig config;
+    config.mode = it->second;
+    config.max_depth = settings.max_depth;
+    config.rr_depth = settings.rr_depth;
+    config.radius_factor = settings.radius_factor;
+    config.alpha = settings.alpha;
+    config.light_path_count = settings.light_path_count;
+    config.mis_power = settings.mis_power;
+    return std::make_unique<VertexConnectionMerging>(config);
 }
 
 }  // namespace render

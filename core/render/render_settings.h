@@ -12,6 +12,18 @@ struct RenderSettings {
     int rr_depth = 5;    // Russian roulette from this path depth on
     uint64_t seed = 0;   // job seed: part of every random stream key
     int threads = 0;     // 0 = all cores; never changes the image
+
+    // Bidirectional family (lt, bpt, ppm, bpm, vcm).
+    // Initial merging radius as a fraction of the scene's bounding-sphere radius, and the
+    // radius reduction exponent: the defaults of the VCM reference implementation (SmallVCM),
+    // with which the reference Cornell boxes were rendered.
+    double radius_factor = 0.003;
+    double alpha = 0.75;
+    // Light paths per iteration; 0 = one per pixel (SmallVCM's choice: every eye path then has
+    // a light path of its own to connect to).
+    uint64_t light_path_count = 0;
+    // MIS heuristic exponent: 2 = power heuristic (default), 1 = balance heuristic.
+    int mis_power = 2;
 };
 
 // Counters of one render call; merged by addition.

@@ -1,0 +1,48 @@
+#pragma once
+
+// The bidirectional family on one set of MIS quantities: light tracing, bidirectional path
+// tracing, progressive photon mapping, bidirectional photon mapping and vertex connection and
+// merging (Georgiev, Krivanek, Davidovic and Slusallek 2012). The implementation follows the
+// technical report "Implementing Vertex Connection and Merging" (Georgiev 2012, below "the
+// report"): every subpath carries the recursive partial weights dVCM, dVC and dVM, from which
+// every technique's MIS weight is computed locally. The algorithms differ only in which
+// techniques they enable, which is what BidirectionalMode selects.
+
+#include <cstdint>
+
+#include "core/integrators/integrator.h"
+
+namespace render {
+
+enum class BidirectionalMode {
+    LightTracing,  // light paths connected to the camera (t = 1)
+    Bpt,           // every connection technique (s, t), the report with merging disabled
+    Ppm,           // merging at the first non-specular eye vertex, no MIS (Hachisuka 2008)
+    Bpm,           // merging at every eye vertex, MIS between merges
+    Vcm,           // connections and merges, full MIS
+};
+
+struct BidirectionalConfig {
+    BidirectionalMode mode = BidirectionalMode::Vcm;
+    int max_depth = -1;  // Mitsuba's meaning: path segments, -1 = unbounded
+    int rr_depth = 5;
+    double radius_factor = 0.003;
+    double alpha = 0.75;
+    uint64_t light_path_count = 0;  // 0 = one per pixel
+    int mis_power = 2;              // 2 = power heuristic, 1 = balance heuristic
+};
+
+class VertexConnectionMerging final : public Integrator {
+  public:
+    explicit VertexConnectionMerging(const BidirectionalConfig& config) : config_(config) {}
+
+    void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
+                          RenderStats& stats) const override;
+
+    const BidirectionalConfig& config() const { return config_; }
+
+  private:
+    BidirectionalConfig config_;
+};
+
+}  // namespace render

@@ -1,0 +1,19 @@
+#pragma once
+
+// The merging radius schedule of progressive photon mapping and VCM. It is a function of the
+// global iteration index alone (DESIGN.md, iteration contract), so every worker rendering any
+// range of iterations uses the same radii, and the merged image is exact.
+
+#include <cstdint>
+
+namespace render {
+
+// r_i = r1 * i^((alpha - 1) / 2) for the 1-based iteration i (VCM report, eq. 14 with the
+// radius reduction of Knaus and Zwicker 2011). alpha in (0, 1]: 1 keeps the radius fixed.
+// The result never falls below min_radius(r1), so 1 / (pi r^2) stays finite in float.
+double merge_radius(double r1, double alpha, uint64_t iteration);
+
+// Floor of the schedule: 1e-12 of the initial radius, and never below 1e-18 in absolute terms.
+double min_merge_radius(double r1);
+
+}  // namespace render
