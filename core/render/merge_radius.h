@@ -10,10 +10,11 @@ namespace render {
 
 // r_i = r1 * i^((alpha - 1) / 2) for the 1-based iteration i (VCM report, eq. 14 with the
 // radius reduction of Knaus and Zwicker 2011). alpha in (0, 1]: 1 keeps the radius fixed.
-// The result never falls below min_radius(r1), so 1 / (pi r^2) stays finite in float.
+// The result never falls below min_merge_radius(), so 1 / (pi r^2 N) stays finite in float.
 double merge_radius(double r1, double alpha, uint64_t iteration);
 
-// Floor of the schedule: 1e-12 of the initial radius, and never below 1e-18 in absolute terms.
-double min_merge_radius(double r1);
+// Floor of the schedule, 1e-18: pi r^2 stays above float's smallest normal number (1e-38), so
+// the merging normalisation 1 / (pi r^2 N) is finite for any light-path count N >= 1.
+double min_merge_radius();
 
 }  // namespace render

@@ -35,7 +35,10 @@ constexpr const char* kUsage = R"(usage:
   render --compare TEST.exr REFERENCE.exr
 
 options:
-  --algo NAME          integrator: pt (path tracing, default), eyelight (debug shading)
+  --algo NAME          integrator: pt (path tracing, default), lt (light tracing),
+                       bpt (bidirectional path tracing), ppm (progressive photon mapping),
+                       bpm (bidirectional photon mapping), vcm (vertex connection and
+                       merging), eyelight (debug shading)
   --iterations N       progressive iterations, one sample per pixel each
                        (default: the scene's sampler sample_count)
   --time S             stop after S seconds (with --iterations: whichever comes first)
@@ -44,6 +47,10 @@ options:
   --resolution WxH     override the film resolution
   --max-depth D        override the scene's max_depth (-1 = unbounded)
   -D name=value        override a <default> of the scene file (repeatable)
+  --radius-factor F    initial merging radius / scene bounding-sphere radius (0.003)
+  --alpha A            merging radius reduction, r_i = r_1 i^((A-1)/2), A in (0, 1] (0.75)
+  --light-paths N      light paths per iteration (default: one per pixel)
+  --mis power|balance  MIS heuristic of the bidirectional family (power)
   --png FILE.png       also write a tone-mapped sRGB preview
   --out FILE.exr       output image (required)
 )";
@@ -60,6 +67,10 @@ struct Options {
     int width = 0, height = 0;
     std::optional<int> max_depth;
     std::map<std::string, std::string> defines;
+    double radius_factor = RenderSettings().radius_factor;
+    double alpha = RenderSettings().alpha;
+    uint64_t light_paths = 0;
+    int mis_power = 2;
 };
 
 [[noreturn]] void usage_error(const std::string& message) {
@@ -103,6 +114,24 @@ Options parse_options(int argc, char** argv) {
             if (o.threads < 0) usage_error("--threads must be >= 0");
         } else if (a == "--seed") {
             o.seed = parse_number<uint64_t>(a, value());
+        } else if (a == "--radius-factor") {
+            o.radius_factor = parse_number<double>(a, value());
+            if (!(o.radius_factor > 0)) usage_error("--radius-factor must be positive");
+        } else if (a == "--alpha") {
+            o.alpha = parse_number<double>(a, value());
+            if (!(o.alpha > 0 && o.alpha <= 1)) usage_error("--alpha must be in (0, 1]");
+        } else if (a == "--light-paths") {
+            int64_t n = parse_number<int64_t>(a, value());
+            if (n < 1) usage_error("--light-paths must be at least 1");
+            o.light_paths = uint64_t(n);
+        } else if (a == "--mis") {
+            std::string v = value();
+            if (v == "power")
+                o.mis_power = 2;
+            else if (v == "balance")
+                o.mis_power = 1;
+            else
+                usage_error("--mis expects power or balance, got \"" + v + "\"");
         } else if (a == "--max-depth") {
             o.max_depth = parse_number<int>(a, value());
         } else if (a == "--resolution") {
@@ -215,6 +244,10 @@ int render_scene(const Options& o) {
     settings.rr_depth = scene->settings.rr_depth;
     settings.seed = o.seed;
     settings.threads = o.threads;
+    settings.radius_factor = o.radius_factor;
+    settings.alpha = o.alpha;
+    settings.light_path_count = o.light_paths;
+    settings.mis_power = o.mis_power;
     // Validate the algorithm before rendering anything.
     (void)make_integrator(settings);
 
@@ -258,6 +291,10 @@ int render_scene(const Options& o) {
         {"render:seed", std::to_string(settings.seed)},
         {"render:max_depth", std::to_string(settings.max_depth)},
         {"render:rr_depth", std::to_string(settings.rr_depth)},
+        {"render:radius_factor", std::to_string(settings.radius_factor)},
+        {"render:alpha", std::to_string(settings.alpha)},
+        {"render:light_paths", std::to_string(settings.light_path_count)},
+        {"render:mis", settings.mis_power == 1 ? "balance" : "power"},
         {"render:relative_error_estimate", std::to_string(error)},
         {"render:non_finite_samples_dropped", std::to_string(accumulated.stats.non_finite)},
     };

@@ -78,7 +78,8 @@ TEST_P(Furnace, RadianceIsOneEverywhere) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, Furnace,
-                         ::testing::Combine(::testing::Values("pt"),
+                         ::testing::Combine(::testing::Values("pt", "lt", "bpt", "ppm", "bpm",
+                                                              "vcm"),
                                             ::testing::Values("1", "1e-3", "1e4")));
 
 std::unique_ptr<Scene> cornell_box(int size) {
@@ -86,9 +87,12 @@ std::unique_ptr<Scene> cornell_box(int size) {
                       {{"resx", std::to_string(size)}, {"resy", std::to_string(size)}});
 }
 
-TEST(IterationContract, SplitRangesSumToTheWholeRange) {
+class IterationContract : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(IterationContract, SplitRangesSumToTheWholeRange) {
     auto scene = cornell_box(24);
     RenderSettings settings;
+    settings.algorithm = GetParam();
     settings.seed = 7;
     IterationResult whole = render_iterations(*scene, settings, 0, IterationRange{1, 9});
     IterationResult a = render_iterations(*scene, settings, 0, IterationRange{1, 5});
@@ -106,9 +110,10 @@ TEST(IterationContract, SplitRangesSumToTheWholeRange) {
     }
 }
 
-TEST(IterationContract, ThreadCountDoesNotChangeTheImage) {
+TEST_P(IterationContract, ThreadCountDoesNotChangeTheImage) {
     auto scene = cornell_box(32);
     RenderSettings one, two;
+    one.algorithm = two.algorithm = GetParam();
     one.threads = 1;
     two.threads = 2;
     IterationResult r1 = render_iterations(*scene, one, 3, IterationRange{4, 6});
@@ -118,7 +123,10 @@ TEST(IterationContract, ThreadCountDoesNotChangeTheImage) {
         ASSERT_NEAR(r1.sum.values()[i], r2.sum.values()[i], 1e-6 * std::abs(r1.sum.values()[i]));
 }
 
-TEST(IterationContract, SeedFrameAndIterationChangeTheNoise) {
+INSTANTIATE_TEST_SUITE_P(Algorithms, IterationContract,
+                         ::testing::Values("pt", "lt", "bpt", "ppm", "bpm", "vcm"));
+
+TEST(IterationKeys, SeedFrameAndIterationChangeTheNoise) {
     auto scene = cornell_box(16);
     RenderSettings settings;
     IterationResult base = render_iterations(*scene, settings, 0, IterationRange{1, 2});
@@ -131,7 +139,7 @@ TEST(IterationContract, SeedFrameAndIterationChangeTheNoise) {
     EXPECT_NE(base.sum.values(), other_seed.sum.values());
 }
 
-TEST(IterationContract, RejectsInvalidInput) {
+TEST(IterationKeys, RejectsInvalidInput) {
     auto scene = cornell_box(8);
     RenderSettings settings;
     EXPECT_THROW(render_iterations(*scene, settings, 0, IterationRange{0, 2}),
@@ -212,7 +220,8 @@ TEST(ScaleInvariance, SceneScaledBy1e3And1e4GivesTheSameImage) {
 namespace render {
 namespace {
 
-// Every shipped scene loads and renders a few iterations with no NaN or Inf sample.
+// Every shipped scene loads and renders a few iterations of every algorithm with no NaN or
+// Inf sample.
 TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
     const std::string root = std::string(RENDER_SOURCE_DIR) + "/scenes";
     int rendered = 0;
@@ -222,16 +231,20 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
         SCOPED_TRACE(entry.path().string());
         auto scene = load_scene(entry.path());
         scene->set_camera(scene->camera().with_resolution(24, 24));
-        RenderSettings settings;
-        settings.max_depth = scene->settings.max_depth;
-        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 5});
-        EXPECT_EQ(r.stats.non_finite, 0u);
-        double total = 0;
-        for (double v : r.sum.values()) {
-            ASSERT_TRUE(std::isfinite(v));
-            total += v;
+        for (const char* algorithm : {"pt", "lt", "bpt", "ppm", "bpm", "vcm"}) {
+            SCOPED_TRACE(algorithm);
+            RenderSettings settings;
+            settings.algorithm = algorithm;
+            settings.max_depth = scene->settings.max_depth;
+            IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 3});
+            EXPECT_EQ(r.stats.non_finite, 0u);
+            double total = 0;
+            for (double v : r.sum.values()) {
+                ASSERT_TRUE(std::isfinite(v));
+                total += v;
+            }
+            EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         }
-        EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         ++rendered;
     }
     EXPECT_EQ(rendered, 7);  // 3 Bitterli scenes + 4 SmallVCM boxes
