@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/integrators/hash_grid.h"
+#include "core/integrators/vcm_mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/render/merge_radius.h"
@@ -32,7 +33,7 @@ struct SubpathState {
     int path_length = 1;          // segments traced so far (the report's "path length")
     bool is_finite_light = true;  // light subpaths: the origin is a finite point
     bool specular_path = true;    // eye subpaths: every scattering so far was a delta lobe
-    float dVCM = 0, dVC = 0, dVM = 0;
+    MisQuantities mis;
 };
 
 // A stored light-subpath vertex at a surface with a non-delta BSDF.
@@ -42,7 +43,7 @@ struct LightVertex {
     Vec3 wo;  // toward the previous vertex of the light subpath
     Rgb throughput;
     int path_length;
-    float dVCM, dVC, dVM;
+    MisQuantities mis;
     SurfaceBsdf bsdf;  // importance transport
 };
 
@@ -55,7 +56,11 @@ struct Splat {
 class Iteration {
   public:
     Iteration(const BidirectionalConfig& config, const Scene& scene, const IterationKey& key)
-        : config_(config), scene_(scene), key_(key), camera_(scene.camera()) {
+        : config_(config),
+          scene_(scene),
+          key_(key),
+          camera_(scene.camera()),
+          mis_(make_mis(config, scene, key)) {
         const BidirectionalMode mode = config.mode;
         light_trace_only_ = mode == BidirectionalMode::LightTracing;
         ppm_ = mode == BidirectionalMode::Ppm;
@@ -66,21 +71,40 @@ class Iteration {
 
         pixel_count_ = uint64_t(camera_.width()) * uint64_t(camera_.height());
         light_path_count_ = config.light_path_count > 0 ? config.light_path_count : pixel_count_;
-        const double r1 = config.radius_factor * scene.bounding_sphere().radius;
-        radius_ = merge_radius(r1, config.alpha, key.iteration);
-        // The report's eta_VCM = pi r^2 N_VM (eq. 21): the ratio of merging to connection
-        // densities for the same path.
-        const double eta_vcm = kPi * radius_ * radius_ * double(light_path_count_);
-        vm_normalization_ = float(1.0 / eta_vcm);
-        mis_vm_weight_factor_ = use_vm_ ? mis(float(eta_vcm)) : 0.0f;
-        mis_vc_weight_factor_ = use_vc_ ? mis(float(1.0 / eta_vcm)) : 0.0f;
+        radius_ = radius_for(config, scene, key);
+        vm_normalization_ = float(1.0 / eta_vcm(config, scene, key));
     }
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats) const;
 
   private:
-    float mis(float pdf) const { return config_.mis_power == 1 ? pdf : pdf * pdf; }
+    static uint64_t light_paths(const BidirectionalConfig& config, const Scene& scene) {
+        return config.light_path_count > 0
+                   ? config.light_path_count
+                   : uint64_t(scene.camera().width()) * uint64_t(scene.camera().height());
+    }
+    static double radius_for(const BidirectionalConfig& config, const Scene& scene,
+                             const IterationKey& key) {
+        const double r1 = config.radius_factor * scene.bounding_sphere().radius;
+        return merge_radius(r1, config.alpha, key.iteration);
+    }
+    // The report's eta_VCM = pi r^2 N_light (eq. 21): the ratio of merging to connection
+    // densities of the same path.
+    static double eta_vcm(const BidirectionalConfig& config, const Scene& scene,
+                          const IterationKey& key) {
+        const double r = radius_for(config, scene, key);
+        return kPi * r * r * double(light_paths(config, scene));
+    }
+    static VcmMis make_mis(const BidirectionalConfig& config, const Scene& scene,
+                           const IterationKey& key) {
+        const BidirectionalMode m = config.mode;
+        const bool use_vc = m == BidirectionalMode::Bpt || m == BidirectionalMode::Vcm;
+        const bool use_vm = m == BidirectionalMode::Ppm || m == BidirectionalMode::Bpm ||
+                            m == BidirectionalMode::Vcm;
+        return VcmMis(config.mis_power, use_vc, use_vm, eta_vcm(config, scene, key),
+                      double(light_paths(config, scene)));
+    }
 
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
     // (the report's camera pdf with the image plane measured in pixels).
@@ -115,7 +139,8 @@ class Iteration {
     int max_length_ = 0;
     uint64_t pixel_count_ = 0, light_path_count_ = 0;
     double radius_ = 0;
-    float vm_normalization_ = 0, mis_vm_weight_factor_ = 0, mis_vc_weight_factor_ = 0;
+    float vm_normalization_ = 0;
+    VcmMis mis_;
 
     std::vector<LightVertex> light_vertices_;
     std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
@@ -139,16 +164,10 @@ bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) c
     state.initial_luminance = std::max(state.throughput.max(), 1e-30f);
     state.path_length = 1;
     state.is_finite_light = light->is_finite();
-    // The report, eqs. (31)-(33): initial partial weights of a light subpath.
-    state.dVCM = mis(direct_pdf_a / emission_pdf_w);
-    if (light->is_delta()) {
-        state.dVC = 0;  // a delta light cannot be hit, so no technique ends on it by chance
-    } else {
-        // Infinite lights have no cosine at the (virtual) emission point.
-        const float cos_light = light->is_finite() ? e.cos_at_light : 1.0f;
-        state.dVC = mis(cos_light / emission_pdf_w);
-    }
-    state.dVM = state.dVC * mis_vc_weight_factor_;
+    // Infinite lights have no cosine at the (virtual) emission point; a delta light cannot be
+    // hit, so no technique ends on it by chance (eqs. 31-33).
+    state.mis = mis_.start_light(direct_pdf_a, emission_pdf_w,
+                                 light->is_finite() ? e.cos_at_light : 1.0f, light->is_delta());
     // Offsetting along the direction keeps the ray off the emitting surface.
     ray = light->is_finite() ? scene_.spawn_ray(e.origin, e.direction, e.direction)
                              : Ray(e.origin, e.direction);
@@ -169,12 +188,8 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         const Vec3 wo = -ray.direction;
         const float cos_in = abs_dot(si.geometric_normal, wo);
         if (!(cos_in > 0)) break;
-        // The report, eqs. (34)-(36): complete the area-measure conversion of the segment just
-        // traced (for infinite lights the first segment has no distance term).
-        if (state.path_length > 1 || state.is_finite_light) state.dVCM *= mis(si.t * si.t);
-        state.dVCM /= mis(cos_in);
-        state.dVC /= mis(cos_in);
-        state.dVM /= mis(cos_in);
+        // For infinite lights the first segment has no distance term.
+        mis_.arrive(state.mis, si.t * si.t, state.path_length > 1 || state.is_finite_light, cos_in);
 
         const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal,
                                TransportMode::Importance);
@@ -182,8 +197,7 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         if (si.bsdf->has_non_delta()) {
             if (use_vc_ || use_vm_)
                 vertices.push_back(LightVertex{si.p, si.geometric_normal, wo, state.throughput,
-                                               state.path_length, state.dVCM, state.dVC, state.dVM,
-                                               bsdf});
+                                               state.path_length, state.mis, bsdf});
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
                 connect_to_camera(state, si, bsdf, wo, splats, stats);
         }
@@ -240,25 +254,10 @@ bool Iteration::sample_scattering(const SurfaceBsdf& bsdf, const SurfaceInteract
     const float cos_out = abs_dot(si.geometric_normal, bs->wi);
     if (!(cos_out > 0)) return false;
 
-    if (bs->delta) {
-        // A specular vertex: forward and reverse densities are equal and cancel; no technique
-        // connects or merges here, so the dVCM term vanishes (the report, section 6).
-        state.dVCM = 0;
-        state.dVC *= mis(cos_out);
-        state.dVM *= mis(cos_out);
-    } else {
-        // The report, eqs. (34)-(36): the recursive partial weights after a scattering event.
-        // Russian roulette is deliberately not part of these densities: MIS weights only need
-        // to sum to one across techniques, and the roulette is undone in the throughput.
-        const float pdf_forward = bs->pdf.forward, pdf_reverse = bs->pdf.reverse;
-        if (!(pdf_forward > 0)) return false;
-        state.dVC = mis(cos_out / pdf_forward) *
-                    (state.dVC * mis(pdf_reverse) + state.dVCM + mis_vm_weight_factor_);
-        state.dVM = mis(cos_out / pdf_forward) *
-                    (state.dVM * mis(pdf_reverse) + state.dVCM * mis_vc_weight_factor_ + 1.0f);
-        state.dVCM = mis(1.0f / pdf_forward);
-        state.specular_path = false;
-    }
+    if (!bs->delta && !(bs->pdf.forward > 0)) return false;
+    // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
+    mis_.scatter(state.mis, cos_out, bs->pdf.forward, bs->pdf.reverse, bs->delta);
+    state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 
     if (state.path_length >= config_.rr_depth) {
@@ -284,12 +283,10 @@ void Iteration::connect_to_camera(const SubpathState& state, const SurfaceIntera
     const BsdfPdf pdf = bsdf.pdf(wo, d);
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
     const float cos_geometric = abs_dot(si.geometric_normal, d);
-    // The report, eq. (46): the camera's area density at this vertex, and the partial weight
-    // of every technique that would have produced this path from the eye side.
+    // The camera's area density at this vertex (eq. 46).
     const float camera_pdf_a = camera_pdf_w * cos_geometric / dist2;
-    const float w_light = mis(camera_pdf_a / float(light_path_count_)) *
-                          (mis_vm_weight_factor_ + state.dVCM + state.dVC * mis(pdf.reverse));
-    const float weight = light_trace_only_ ? 1.0f : 1.0f / (w_light + 1.0f);
+    const float weight =
+        light_trace_only_ ? 1.0f : mis_.weight_camera(state.mis, camera_pdf_a, pdf.reverse);
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * bsdf.abs_cos_shading(d) / (dist2 * float(light_path_count_)));
@@ -315,11 +312,8 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // subpaths (connections to the camera, or merging).
     if (!use_vc_) return state.specular_path ? le.radiance : Rgb(0.0f);
     const float pick = scene_.light_pdf(light);
-    const float direct_pdf_a = le.pdf_direct_a * pick;
-    const float emission_pdf_w = le.pdf_emission_w * pick;
-    // The report, eq. (43).
-    const float w_camera = mis(direct_pdf_a) * state.dVCM + mis(emission_pdf_w) * state.dVC;
-    return le.radiance * (1.0f / (1.0f + w_camera));
+    return le.radiance *
+           mis_.weight_emission(state.mis, le.pdf_direct_a * pick, le.pdf_emission_w * pick);
 }
 
 Rgb Iteration::direct_illumination(const SubpathState& state, const SurfaceInteraction& si,
@@ -334,18 +328,10 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const SurfaceInter
     const Rgb f = bsdf.f(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
     const BsdfPdf pdf = bsdf.pdf(wo, ls.wi);
-    const float cos_geometric = abs_dot(si.geometric_normal, ls.wi);
-    // The report, eq. (44): light-side weight, a ratio of solid-angle densities at this point
-    // (the distance and light cosine cancel). A delta light cannot be hit by BSDF sampling.
-    const float w_light = light->is_delta() ? 0.0f : mis(pdf.forward / (pick * ls.pdf_direct_w));
-    // The report, eq. (45): eye-side weight. emission/direct area densities at the light
-    // reduce to (pdf_emission_w cos_here) / (pdf_direct_w cos_light); the pick cancels.
-    const float w_camera =
-        ls.cos_at_light > 0
-            ? mis(ls.pdf_emission_w * cos_geometric / (ls.pdf_direct_w * ls.cos_at_light)) *
-                  (mis_vm_weight_factor_ + state.dVCM + state.dVC * mis(pdf.reverse))
-            : 0.0f;
-    const float weight = 1.0f / (w_light + 1.0f + w_camera);
+    // Eqs. (44) and (45).
+    const float weight = mis_.weight_direct(
+        state.mis, pdf.forward, pdf.reverse, pick * ls.pdf_direct_w, ls.pdf_emission_w,
+        ls.pdf_direct_w, abs_dot(si.geometric_normal, ls.wi), ls.cos_at_light, light->is_delta());
     const Rgb contribution =
         ls.radiance * f * (weight * bsdf.abs_cos_shading(ls.wi) / (pick * ls.pdf_direct_w));
     if (contribution.is_black()) return Rgb(0.0f);
@@ -373,12 +359,9 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const SurfaceInteraction&
     // Area densities of extending either subpath to the other's endpoint.
     const float eye_pdf_a = pdf_eye.forward * abs_dot(lv.geometric_normal, d) / dist2;
     const float light_pdf_a = pdf_light.forward * abs_dot(si.geometric_normal, d) / dist2;
-    // The report, eqs. (40) and (41).
-    const float w_light =
-        mis(eye_pdf_a) * (mis_vm_weight_factor_ + lv.dVCM + lv.dVC * mis(pdf_light.reverse));
-    const float w_camera =
-        mis(light_pdf_a) * (mis_vm_weight_factor_ + state.dVCM + state.dVC * mis(pdf_eye.reverse));
-    const float weight = 1.0f / (w_light + 1.0f + w_camera);
+    // Eqs. (40) and (41).
+    const float weight = mis_.weight_connection(lv.mis, state.mis, eye_pdf_a, light_pdf_a,
+                                                pdf_light.reverse, pdf_eye.reverse);
     const float geometry = bsdf.abs_cos_shading(d) * lv.bsdf.abs_cos_shading(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return Rgb(0.0f);
@@ -401,11 +384,8 @@ Rgb Iteration::merge(const SurfaceInteraction& si, const SurfaceBsdf& bsdf, cons
         float weight = 1.0f;
         if (!ppm_) {
             const BsdfPdf pdf = bsdf.pdf(wo, lv.wo);
-            // The report, eqs. (38) and (39).
-            const float w_light = lv.dVCM * mis_vc_weight_factor_ + lv.dVM * mis(pdf.forward);
-            const float w_camera =
-                state.dVCM * mis_vc_weight_factor_ + state.dVM * mis(pdf.reverse);
-            weight = 1.0f / (w_light + 1.0f + w_camera);
+            // Eqs. (38) and (39).
+            weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse);
         }
         sum += f * lv.throughput * weight;
     });
@@ -421,10 +401,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
     SubpathState state;
     state.throughput = Rgb(1.0f);
     state.initial_luminance = 1.0f;
-    // The report, eq. (31) for the eye: the camera is a delta point, so only dVCM is set.
-    const float camera_pdf_w = camera_pixel_pdf_w(ray.direction);
-    state.dVCM = camera_pdf_w > 0 ? mis(float(light_path_count_) / camera_pdf_w) : 0.0f;
-    state.dVC = state.dVM = 0;
+    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
 
     Rgb color(0.0f);
     for (;; ++state.path_length) {
@@ -438,11 +415,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
         const Vec3 wo = -ray.direction;
         const float cos_in = abs_dot(si.geometric_normal, wo);
         if (!(cos_in > 0)) break;
-        // The report, eqs. (34)-(36) for the eye subpath.
-        state.dVCM *= mis(si.t * si.t);
-        state.dVCM /= mis(cos_in);
-        state.dVC /= mis(cos_in);
-        state.dVM /= mis(cos_in);
+        mis_.arrive(state.mis, si.t * si.t, true, cos_in);
 
         if (si.emitter)
             color += state.throughput *
