@@ -20,12 +20,14 @@ struct MisQuantities {
 class VcmMis {
   public:
     // use_vc / use_vm select the enabled technique families; eta_vcm = pi r^2 N_light (the
-    // report's eq. 21 ratio between merging and connection densities); light_path_count =
+    // report's ratio between merging and connection densities); light_path_count =
     // N_light, the number of light subpaths per iteration.
     VcmMis(int power, bool use_vc, bool use_vm, double eta_vcm, double light_path_count)
         : power_(power), light_path_count_(float(light_path_count)) {
-        vm_weight_factor_ = use_vm ? mis(float(eta_vcm)) : 0.0f;
-        vc_weight_factor_ = use_vc ? mis(float(1.0 / eta_vcm)) : 0.0f;
+        // Clamped so that an extreme radius (at the floor of the schedule) cannot turn the
+        // factors into infinities and the weights into NaN.
+        vm_weight_factor_ = use_vm ? clamp_factor(mis_double(eta_vcm)) : 0.0f;
+        vc_weight_factor_ = use_vc ? clamp_factor(mis_double(1.0 / eta_vcm)) : 0.0f;
     }
 
     float mis(float p) const { return power_ == 1 ? p : p * p; }
@@ -136,6 +138,9 @@ class VcmMis {
     }
 
   private:
+    double mis_double(double p) const { return power_ == 1 ? p : p * p; }
+    static float clamp_factor(double f) { return float(f < 1e30 ? f : 1e30); }
+
     int power_;
     float light_path_count_;
     float vm_weight_factor_ = 0, vc_weight_factor_ = 0;

@@ -89,7 +89,7 @@ class Iteration {
         const double r1 = config.radius_factor * scene.bounding_sphere().radius;
         return merge_radius(r1, config.alpha, key.iteration);
     }
-    // The report's eta_VCM = pi r^2 N_light (eq. 21): the ratio of merging to connection
+    // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
     // densities of the same path.
     static double eta_vcm(const BidirectionalConfig& config, const Scene& scene,
                           const IterationKey& key) {
@@ -193,7 +193,7 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
 
         const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal,
                                TransportMode::Importance);
-        // Delta BSDFs can neither be connected to nor merged at (the report, section 6).
+        // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (si.bsdf->has_non_delta()) {
             if (use_vc_ || use_vm_)
                 vertices.push_back(LightVertex{si.p, si.geometric_normal, wo, state.throughput,
@@ -423,11 +423,11 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
         if (state.path_length >= max_length_) break;
 
         const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal, TransportMode::Radiance);
-        if (light_trace_only_) {
-            // Light tracing covers every path with a non-specular vertex seen by the camera;
-            // the eye only follows specular chains to emitters.
-            if (si.bsdf->has_non_delta()) break;
-        } else if (si.bsdf->has_non_delta()) {
+        // Light tracing and PPM leave every non-delta scattering of the eye path to the light
+        // paths (camera connections or the one merge); the eye continues only through delta
+        // lobes, including the delta lobes of mixed materials such as plastic's coating.
+        const bool eye_ends_at_non_delta = light_trace_only_ || ppm_;
+        if (si.bsdf->has_non_delta() && !light_trace_only_) {
             if (use_vc_) {
                 color += state.throughput * direct_illumination(state, si, bsdf, wo, rng, stats);
             }
@@ -443,10 +443,11 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
             }
             if (use_vm_) {
                 color += state.throughput * merge(si, bsdf, wo, state);
-                if (ppm_) break;  // PPM merges at the first non-specular vertex only
             }
         }
+        if (eye_ends_at_non_delta && !si.bsdf->has_delta()) break;
         if (!sample_scattering(bsdf, si, wo, rng, state, ray)) break;
+        if (eye_ends_at_non_delta && !state.specular_path) break;
     }
     return color;
 }

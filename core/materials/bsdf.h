@@ -78,6 +78,7 @@ class Bsdf {
 
     bool is_delta() const { return (lobes() & kLobeNonDelta) == 0; }
     bool has_non_delta() const { return (lobes() & kLobeNonDelta) != 0; }
+    bool has_delta() const { return (lobes() & kLobeDelta) != 0; }
 
     // A short description for logs and error messages.
     virtual std::string to_string() const = 0;

@@ -8,8 +8,8 @@
 
 namespace render {
 
-// r_i = r1 * i^((alpha - 1) / 2) for the 1-based iteration i (VCM report, eq. 14 with the
-// radius reduction of Knaus and Zwicker 2011). alpha in (0, 1]: 1 keeps the radius fixed.
+// r_i = r1 * i^((alpha - 1) / 2) for the 1-based iteration i (the radius reduction of
+// Knaus and Zwicker 2011, as the VCM paper uses it). alpha in (0, 1]: 1 keeps the radius fixed.
 // The result never falls below min_merge_radius(), so 1 / (pi r^2 N) stays finite in float.
 double merge_radius(double r1, double alpha, uint64_t iteration);
 

@@ -252,3 +252,60 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
 
 }  // namespace
 }  // namespace render
+
+namespace render {
+namespace {
+
+// Mean of the whole image and its standard error from the spread of per-batch means.
+std::pair<double, double> image_mean(const Scene& scene, const std::string& algorithm, int batches,
+                                     int iterations_per_batch) {
+    RenderSettings settings;
+    settings.algorithm = algorithm;
+    settings.seed = 99;
+    double sum = 0, sum2 = 0;
+    for (int b = 0; b < batches; ++b) {
+        const uint64_t first = 1 + uint64_t(b) * iterations_per_batch;
+        IterationResult r = render_iterations(scene, settings, 0,
+                                              IterationRange{first, first + iterations_per_batch});
+        double total = 0;
+        for (double v : r.sum.values()) total += v;
+        const double mean = total / (double(r.sum.values().size()) * iterations_per_batch);
+        sum += mean;
+        sum2 += mean * mean;
+    }
+    const double mean = sum / batches;
+    const double variance = std::max(0.0, (sum2 - batches * mean * mean) / (batches - 1));
+    return {mean, std::sqrt(variance / batches)};
+}
+
+// A black plastic floor shows only its coating's reflection of a large light. Algorithms that
+// leave non-specular eye scattering to the light paths (LT, PPM) must still follow the
+// coating's delta lobe from the eye, or the reflection disappears.
+TEST(MixedMaterials, CoatingReflectionSeenByEveryAlgorithm) {
+    const std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 1.2, 3" target="0, 0, -0.5" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/></transform>
+    <bsdf type="plastic"><rgb name="diffuse_reflectance" value="0"/></bsdf>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><scale x="4" y="2"/><translate y="1" z="-4"/></transform>
+    <emitter type="area"><rgb name="radiance" value="2"/></emitter>
+  </shape>
+</scene>)";
+    auto scene = load_scene_from_string(xml, ".");
+    const auto [reference, reference_se] = image_mean(*scene, "pt", 16, 4);
+    ASSERT_GT(reference, 0.01);
+    for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm"}) {
+        const auto [mean, se] = image_mean(*scene, algorithm, 16, 4);
+        // 5 combined standard errors (15 degrees of freedom per estimate).
+        EXPECT_NEAR(mean, reference, 5 * std::hypot(se, reference_se)) << algorithm;
+    }
+}
+
+}  // namespace
+}  // namespace render
