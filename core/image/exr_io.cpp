@@ -12,15 +12,30 @@ namespace render {
 namespace OIIO = OIIO_NAMESPACE;
 
 void write_exr(const std::filesystem::path& file, const Image& image,
-               const std::map<std::string, std::string>& metadata) {
+               const std::map<std::string, std::string>& metadata,
+               const std::vector<NamedLayer>& layers) {
     auto out = OIIO::ImageOutput::create(file.string());
     if (!out) throw std::runtime_error("cannot write " + file.string() + ": " + OIIO::geterror());
-    OIIO::ImageSpec spec(image.width(), image.height(), 3, OIIO::TypeDesc::FLOAT);
+    const int channels = 3 * int(1 + layers.size());
+    OIIO::ImageSpec spec(image.width(), image.height(), channels, OIIO::TypeDesc::FLOAT);
     spec.channelnames = {"R", "G", "B"};
+    for (const NamedLayer& layer : layers) {
+        if (layer.image.width() != image.width() || layer.image.height() != image.height())
+            throw std::invalid_argument("layer " + layer.name + " differs in size from the image");
+        for (const char* c : {".R", ".G", ".B"}) spec.channelnames.push_back(layer.name + c);
+    }
     spec.attribute("compression", "zip");
     for (const auto& [key, value] : metadata) spec.attribute(key, value);
-    if (!out->open(file.string(), spec) || !out->write_image(OIIO::TypeDesc::FLOAT, image.data()) ||
-        !out->close())
+    // Interleave the main image and the layers pixel by pixel, as OIIO expects.
+    std::vector<float> pixels(image.pixel_count() * size_t(channels));
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        float* dst = &pixels[i * size_t(channels)];
+        for (int c = 0; c < 3; ++c) dst[c] = image.data()[3 * i + c];
+        for (size_t l = 0; l < layers.size(); ++l)
+            for (int c = 0; c < 3; ++c) dst[3 * (l + 1) + c] = layers[l].image.data()[3 * i + c];
+    }
+    if (!out->open(file.string(), spec) ||
+        !out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) || !out->close())
         throw std::runtime_error("cannot write " + file.string() + ": " + out->geterror());
 }
 

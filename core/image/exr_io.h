@@ -6,15 +6,24 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "core/image/image.h"
 
 namespace render {
 
-// Writes linear float RGB OpenEXR; `metadata` becomes string attributes in the header.
-// Throws std::runtime_error with OIIO's message on failure.
+// An extra image stored as channels NAME.R, NAME.G, NAME.B after the main R, G, B.
+struct NamedLayer {
+    std::string name;
+    Image image;
+};
+
+// Writes linear float RGB OpenEXR; `metadata` becomes string attributes in the header and
+// `layers` extra channels (same size as `image`). Throws std::runtime_error with OIIO's
+// message on failure.
 void write_exr(const std::filesystem::path& file, const Image& image,
-               const std::map<std::string, std::string>& metadata = {});
+               const std::map<std::string, std::string>& metadata = {},
+               const std::vector<NamedLayer>& layers = {});
 
 // Reads any image OIIO can read (EXR, HDR, PNG...) as linear float RGB (alpha dropped, grey
 // replicated). `metadata` (optional) receives the header's string attributes.

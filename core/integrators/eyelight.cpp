@@ -2,7 +2,8 @@
 
 namespace render {
 
-Rgb EyeLight::Li(const Scene& scene, const Ray& ray, Rng&, RenderStats& stats) const {
+Rgb EyeLight::Li(const Scene& scene, const Ray& ray, Rng&, RenderStats& stats,
+                 const LayerSink&) const {
     SurfaceInteraction si;
     ++stats.rays;
     if (!scene.intersect(ray, si)) return Rgb(0.0f);

@@ -8,7 +8,8 @@ namespace render {
 // can be checked without any light transport. Black where rays escape.
 class EyeLight final : public PixelIntegrator {
   protected:
-    Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const override;
+    Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
+           const LayerSink& sink) const override;
 };
 
 }  // namespace render

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "core/image/image.h"
+#include "core/image/technique_layers.h"
 #include "core/math/ray.h"
 #include "core/render/render_settings.h"
 #include "core/sampling/rng.h"
@@ -25,9 +26,11 @@ struct IterationKey {
 class Integrator {
   public:
     virtual ~Integrator() = default;
-    // Adds iteration `key.iteration`'s image to `target` (same size as the camera).
+    // Adds iteration `key.iteration`'s image to `target` (same size as the camera) and, if
+    // `layers` is not null, each contribution to its technique's layer.
     virtual void render_iteration(const Scene& scene, const IterationKey& key,
-                                  AccumulationBuffer& target, RenderStats& stats) const = 0;
+                                  AccumulationBuffer& target, TechniqueLayers* layers,
+                                  RenderStats& stats) const = 0;
 };
 
 // Integrators that estimate each pixel independently from one camera ray (PT, eyelight).
@@ -35,11 +38,13 @@ class Integrator {
 class PixelIntegrator : public Integrator {
   public:
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
-                          RenderStats& stats) const override;
+                          TechniqueLayers* layers, RenderStats& stats) const override;
 
   protected:
-    // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats.
-    virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const = 0;
+    // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats and
+    // reports each technique's contribution to `sink`.
+    virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
+                   const LayerSink& sink) const = 0;
 };
 
 // The integrator `settings.algorithm` names ("pt", "path", "eyelight"). Throws

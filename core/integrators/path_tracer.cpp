@@ -8,7 +8,8 @@
 
 namespace render {
 
-Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderStats& stats) const {
+Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderStats& stats,
+                   const LayerSink& sink) const {
     Rgb L(0.0f), beta(1.0f);
     Ray ray = camera_ray;
     // Density (solid angle) of the BSDF sample that produced `ray`; a delta or camera
@@ -27,7 +28,10 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                 float w = prev_delta ? 1.0f
                                      : power_heuristic(prev_bsdf_pdf,
                                                        scene.light_pdf(light) * le.pdf_direct_a);
-                L += beta * le.radiance * w;
+                const Rgb contribution = beta * le.radiance * w;
+                L += contribution;
+                // Emission found by the eye: s = 0 light vertices, t = depth + 1 eye vertices.
+                sink.add(Technique::Connection, 0, depth + 1, contribution);
             }
             break;
         }
@@ -44,7 +48,10 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                                                     : 0.0f;
                     w = power_heuristic(prev_bsdf_pdf, light_pdf);
                 }
-                L += beta * le.radiance * w;
+                const Rgb contribution = beta * le.radiance * w;
+                L += contribution;
+                // Emission found by the eye: s = 0 light vertices, t = depth + 1 eye vertices.
+                sink.add(Technique::Connection, 0, depth + 1, contribution);
             }
         }
         if (max_depth_ >= 0 && depth >= max_depth_) break;
@@ -72,7 +79,10 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                         float w = light->is_delta()
                                       ? 1.0f
                                       : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi).forward);
-                        L += beta * f * ls.radiance * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
+                        const Rgb contribution =
+                            beta * f * ls.radiance * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
+                        L += contribution;
+                        sink.add(Technique::Connection, 1, depth + 1, contribution);
                     }
                 }
             }

@@ -13,7 +13,8 @@ class PathTracer final : public PixelIntegrator {
     PathTracer(int max_depth, int rr_depth) : max_depth_(max_depth), rr_depth_(rr_depth) {}
 
   protected:
-    Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats) const override;
+    Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
+           const LayerSink& sink) const override;
 
   private:
     int max_depth_;

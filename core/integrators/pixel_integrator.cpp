@@ -7,7 +7,8 @@
 namespace render {
 
 void PixelIntegrator::render_iteration(const Scene& scene, const IterationKey& key,
-                                       AccumulationBuffer& target, RenderStats& stats) const {
+                                       AccumulationBuffer& target, TechniqueLayers* layers,
+                                       RenderStats& stats) const {
     const PerspectiveCamera& camera = scene.camera();
     const int width = camera.width(), height = camera.height();
     tbb::combinable<RenderStats> tile_stats;
@@ -24,7 +25,7 @@ void PixelIntegrator::render_iteration(const Scene& scene, const IterationKey& k
                     Rng rng(StreamKey{key.seed, key.frame, key.iteration, pixel});
                     Vec2 jitter = rng.next_2d();
                     Ray ray = camera.generate_ray(Vec2(float(x) + jitter.x, float(y) + jitter.y));
-                    Rgb L = Li(scene, ray, rng, local);
+                    Rgb L = Li(scene, ray, rng, local, LayerSink{layers, pixel});
                     ++local.samples;
                     if (!L.is_finite()) {
                         ++local.non_finite;

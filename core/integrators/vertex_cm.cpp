@@ -50,6 +50,7 @@ struct LightVertex {
 struct Splat {
     uint32_t pixel;
     Rgb value;
+    int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
 // Everything one iteration shares between the light pass and the eye pass.
@@ -76,7 +77,7 @@ class Iteration {
     }
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
-    Rgb trace_eye_path(uint64_t pixel, RenderStats& stats) const;
+    Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
   private:
     static uint64_t light_paths(const BidirectionalConfig& config, const Scene& scene) {
@@ -296,7 +297,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const SurfaceIntera
         return;
     const uint32_t x = std::min(uint32_t(raster->x), uint32_t(camera_.width() - 1));
     const uint32_t y = std::min(uint32_t(raster->y), uint32_t(camera_.height() - 1));
-    splats.push_back(Splat{y * uint32_t(camera_.width()) + x, contribution});
+    splats.push_back(Splat{y * uint32_t(camera_.width()) + x, contribution, state.path_length + 1});
 }
 
 // --- eye subpaths -----------------------------------------------------------------------------
@@ -392,7 +393,7 @@ Rgb Iteration::merge(const SurfaceInteraction& si, const SurfaceBsdf& bsdf, cons
     return sum * vm_normalization_;
 }
 
-Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
+Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, pixel});
     const int width = camera_.width();
     const Vec2 jitter = rng.next_2d();
@@ -404,12 +405,18 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
     state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
 
     Rgb color(0.0f);
+    // s light vertices and t = path_length + 1 eye vertices (the camera included).
+    auto add = [&](Technique kind, int s, const Rgb& contribution) {
+        color += contribution;
+        sink.add(kind, s, state.path_length + 1, contribution);
+    };
     for (;; ++state.path_length) {
         SurfaceInteraction si;
         ++stats.rays;
         if (!scene_.intersect(ray, si)) {
             for (const Light* light : scene_.background_lights())
-                color += state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction);
+                add(Technique::Connection, 0,
+                    state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
             break;
         }
         const Vec3 wo = -ray.direction;
@@ -418,8 +425,9 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
         mis_.arrive(state.mis, si.t * si.t, true, cos_in);
 
         if (si.emitter)
-            color += state.throughput *
-                     emission(si.emitter, state, si.p, si.geometric_normal, ray.direction);
+            add(Technique::Connection, 0,
+                state.throughput *
+                    emission(si.emitter, state, si.p, si.geometric_normal, ray.direction));
         if (state.path_length >= max_length_) break;
 
         const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal, TransportMode::Radiance);
@@ -429,7 +437,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
         const bool eye_ends_at_non_delta = light_trace_only_ || ppm_;
         if (si.bsdf->has_non_delta() && !light_trace_only_) {
             if (use_vc_) {
-                color += state.throughput * direct_illumination(state, si, bsdf, wo, rng, stats);
+                add(Technique::Connection, 1,
+                    state.throughput * direct_illumination(state, si, bsdf, wo, rng, stats));
             }
             if (use_vc_ && !path_ends_.empty()) {
                 const uint64_t path = pixel % light_path_count_;
@@ -437,12 +446,13 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
                 for (uint32_t i = first; i < path_ends_[path]; ++i) {
                     const LightVertex& lv = light_vertices_[i];
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
-                    color += state.throughput * lv.throughput *
-                             connect_vertices(lv, si, bsdf, wo, state, stats);
+                    add(Technique::Connection, lv.path_length + 1,
+                        state.throughput * lv.throughput *
+                            connect_vertices(lv, si, bsdf, wo, state, stats));
                 }
             }
             if (use_vm_) {
-                color += state.throughput * merge(si, bsdf, wo, state);
+                add(Technique::Merging, 0, state.throughput * merge(si, bsdf, wo, state));
             }
         }
         if (eye_ends_at_non_delta && !si.bsdf->has_delta()) break;
@@ -455,7 +465,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats) const {
 }  // namespace
 
 void VertexConnectionMerging::render_iteration(const Scene& scene, const IterationKey& key,
-                                               AccumulationBuffer& target,
+                                               AccumulationBuffer& target, TechniqueLayers* layers,
                                                RenderStats& stats) const {
     Iteration iteration(config_, scene, key);
     std::vector<Splat> splats;
@@ -466,6 +476,9 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
             continue;
         }
         target.add(splat.pixel, splat.value);
+        if (layers)
+            layers->add(layers->index(Technique::Connection, splat.light_vertices, 1), splat.pixel,
+                        splat.value);
     }
 
     const int width = scene.camera().width(), height = scene.camera().height();
@@ -478,7 +491,8 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
             for (int y = tile.rows().begin(); y < tile.rows().end(); ++y)
                 for (int x = tile.cols().begin(); x < tile.cols().end(); ++x) {
                     const uint64_t pixel = uint64_t(y) * width + x;
-                    const Rgb color = iteration.trace_eye_path(pixel, local);
+                    const Rgb color =
+                        iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
                     ++local.samples;
                     if (!color.is_finite()) {
                         ++local.non_finite;

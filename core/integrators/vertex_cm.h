@@ -37,7 +37,7 @@ class VertexConnectionMerging final : public Integrator {
     explicit VertexConnectionMerging(const BidirectionalConfig& config) : config_(config) {}
 
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
-                          RenderStats& stats) const override;
+                          TechniqueLayers* layers, RenderStats& stats) const override;
 
     const BidirectionalConfig& config() const { return config_; }
 

@@ -20,13 +20,17 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
     IterationResult result;
     result.sum = AccumulationBuffer(width, height);
     result.odd_sum = AccumulationBuffer(width, height);
+    result.layers = TechniqueLayers(settings.layers, width, height);
     AccumulationBuffer iteration_image(width, height);
     tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::task_arena::automatic);
     arena.execute([&] {
         for (uint64_t i = range.first; i < range.end; ++i) {
             std::fill(iteration_image.values().begin(), iteration_image.values().end(), 0.0);
-            integrator->render_iteration(scene, IterationKey{settings.seed, frame, i},
-                                         iteration_image, result.stats);
+            // Layers are sums like the image; each pixel is written by one task per iteration,
+            // so they accumulate directly.
+            integrator->render_iteration(
+                scene, IterationKey{settings.seed, frame, i}, iteration_image,
+                result.layers.enabled() ? &result.layers : nullptr, result.stats);
             result.sum.add(iteration_image);
             if (i % 2 == 1) {
                 result.odd_sum.add(iteration_image);

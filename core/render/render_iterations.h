@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "core/image/image.h"
+#include "core/image/technique_layers.h"
 #include "core/render/render_settings.h"
 #include "core/scene/scene.h"
 
@@ -21,6 +22,7 @@ struct IterationResult {
     AccumulationBuffer odd_sum;  // sum over the odd iterations only (noise estimation)
     uint64_t count = 0;          // iterations rendered
     uint64_t odd_count = 0;      // odd-indexed iterations among them
+    TechniqueLayers layers;      // per-technique sums, when settings.layers asks for them
     RenderStats stats;
 };
 

@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <string>
 
+#include "core/image/technique_layers.h"
+
 namespace render {
 
 // Everything that, together with the scene, determines a rendered image.
@@ -24,6 +26,8 @@ struct RenderSettings {
     uint64_t light_path_count = 0;
     // MIS heuristic exponent: 2 = power heuristic (default), 1 = balance heuristic.
     int mis_power = 2;
+    // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
+    LayerMode layers = LayerMode::None;
 };
 
 // Counters of one render call; merged by addition.

@@ -51,6 +51,8 @@ options:
   --alpha A            merging radius reduction, r_i = r_1 i^((A-1)/2), A in (0, 1] (0.75)
   --light-paths N      light paths per iteration (default: one per pixel)
   --mis power|balance  MIS heuristic of the bidirectional family (power)
+  --layers KIND        extra EXR layers: techniques (connection and merging parts),
+                       st (one image per (s, t) technique, paths of up to 6 vertices)
   --png FILE.png       also write a tone-mapped sRGB preview
   --out FILE.exr       output image (required)
 )";
@@ -71,6 +73,7 @@ struct Options {
     double alpha = RenderSettings().alpha;
     uint64_t light_paths = 0;
     int mis_power = 2;
+    LayerMode layers = LayerMode::None;
 };
 
 [[noreturn]] void usage_error(const std::string& message) {
@@ -132,6 +135,14 @@ Options parse_options(int argc, char** argv) {
                 o.mis_power = 1;
             else
                 usage_error("--mis expects power or balance, got \"" + v + "\"");
+        } else if (a == "--layers") {
+            std::string v = value();
+            if (v == "techniques")
+                o.layers = LayerMode::Techniques;
+            else if (v == "st")
+                o.layers = LayerMode::PathVertices;
+            else
+                usage_error("--layers expects techniques or st, got \"" + v + "\"");
         } else if (a == "--max-depth") {
             o.max_depth = parse_number<int>(a, value());
         } else if (a == "--resolution") {
@@ -248,6 +259,7 @@ int render_scene(const Options& o) {
     settings.alpha = o.alpha;
     settings.light_path_count = o.light_paths;
     settings.mis_power = o.mis_power;
+    settings.layers = o.layers;
     // Validate the algorithm before rendering anything.
     (void)make_integrator(settings);
 
@@ -262,6 +274,7 @@ int render_scene(const Options& o) {
     IterationResult accumulated;
     accumulated.sum = AccumulationBuffer(width, height);
     accumulated.odd_sum = AccumulationBuffer(width, height);
+    accumulated.layers = TechniqueLayers(settings.layers, width, height);
     Progress progress(total, o.seconds);
     auto t0 = Clock::now();
     double elapsed = 0;
@@ -276,6 +289,7 @@ int render_scene(const Options& o) {
         accumulated.count += r.count;
         accumulated.odd_count += r.odd_count;
         accumulated.stats += r.stats;
+        accumulated.layers.add(r.layers);
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
     }
@@ -299,7 +313,16 @@ int render_scene(const Options& o) {
         {"render:non_finite_samples_dropped", std::to_string(accumulated.stats.non_finite)},
     };
     for (const auto& [name, value] : o.defines) metadata["render:define:" + name] = value;
-    write_exr(o.out, image, metadata);
+    std::vector<NamedLayer> layers;
+    for (size_t i = 0; i < accumulated.layers.size(); ++i) {
+        const AccumulationBuffer& buffer = accumulated.layers.buffer(i);
+        bool any = false;
+        for (double v : buffer.values()) any |= v != 0;
+        if (any)  // techniques that never contributed are left out of the file
+            layers.push_back(
+                {accumulated.layers.name(i), buffer.average(double(accumulated.count))});
+    }
+    write_exr(o.out, image, metadata, layers);
     if (!o.png.empty()) write_png_preview(o.png, image);
 
     double samples_per_s = elapsed > 0 ? accumulated.stats.samples / elapsed : 0;

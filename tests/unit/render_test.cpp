@@ -309,3 +309,55 @@ TEST(MixedMaterials, CoatingReflectionSeenByEveryAlgorithm) {
 
 }  // namespace
 }  // namespace render
+
+namespace render {
+namespace {
+
+double total(const AccumulationBuffer& buffer) {
+    double sum = 0;
+    for (double v : buffer.values()) sum += v;
+    return sum;
+}
+
+// The per-technique layers partition the image: connection + merging is the image for every
+// algorithm, and for paths of at most 6 vertices the (s, t) layers are too.
+TEST(TechniqueLayers, PartitionTheImage) {
+    auto scene = cornell_box(16);
+    for (const char* algorithm : {"pt", "lt", "bpt", "ppm", "bpm", "vcm"}) {
+        SCOPED_TRACE(algorithm);
+        RenderSettings settings;
+        settings.algorithm = algorithm;
+        settings.layers = LayerMode::Techniques;
+        settings.radius_factor = 0.05;  // 256 photons per iteration must find some eye vertices
+        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 3});
+        ASSERT_EQ(r.layers.size(), 2u);
+        const double image = total(r.sum);
+        ASSERT_GT(image, 0.0);
+        EXPECT_NEAR(total(r.layers.buffer(0)) + total(r.layers.buffer(1)), image, 1e-5 * image);
+        const bool merges = std::string(algorithm) == "ppm" || std::string(algorithm) == "bpm" ||
+                            std::string(algorithm) == "vcm";
+        EXPECT_EQ(total(r.layers.buffer(1)) > 0, merges);
+    }
+    for (const char* algorithm : {"pt", "lt", "bpt"}) {
+        SCOPED_TRACE(algorithm);
+        RenderSettings settings;
+        settings.algorithm = algorithm;
+        settings.max_depth = TechniqueLayers::kMaxVertices - 1;  // segments = vertices - 1
+        settings.layers = LayerMode::PathVertices;
+        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 3});
+        double layers = 0;
+        int non_empty = 0;
+        for (size_t i = 0; i < r.layers.size(); ++i) {
+            layers += total(r.layers.buffer(i));
+            non_empty += total(r.layers.buffer(i)) > 0;
+        }
+        EXPECT_NEAR(layers, total(r.sum), 1e-5 * total(r.sum));
+        // PT uses s = 0 and s = 1 only; BPT every (s, t) that can carry light.
+        if (std::string(algorithm) == "bpt") {
+            EXPECT_GT(non_empty, 10);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace render
