@@ -1,0 +1,152 @@
+#include "client/bundle.h"
+
+#include <pugixml.hpp>
+
+#include <set>
+#include <stdexcept>
+#include <system_error>
+
+#include "worker/sha256.h"
+
+namespace render::service {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+class Collector {
+  public:
+    Collector(fs::path root, std::map<std::string, std::string> params)
+        : root_(std::move(root)), params_(std::move(params)) {}
+
+    void visit_scene_file(const fs::path& file, int depth) {
+        if (depth > 32) throw std::runtime_error(file.string() + ": includes nested too deeply");
+        if (!active_.insert(file.string()).second)
+            throw std::runtime_error(file.string() + ": include cycle");
+        pugi::xml_document doc;
+        pugi::xml_parse_result parsed = doc.load_file(file.c_str());
+        if (!parsed)
+            throw std::runtime_error(file.string() + ": " + parsed.description() +
+                                     " (byte offset " + std::to_string(parsed.offset) + ")");
+        walk(doc, file, depth);
+        active_.erase(file.string());
+    }
+
+    void add_file(const fs::path& file, const fs::path& referenced_from) {
+        fs::path normal = file.lexically_normal();
+        fs::path rel = normal.lexically_relative(root_);
+        std::string text = rel.generic_string();
+        if (rel.empty() || text == "." || text.rfind("..", 0) == 0 || rel.is_absolute())
+            throw std::runtime_error(
+                normal.string() + " (referenced from " + referenced_from.string() +
+                ") is outside the scene's folder " + root_.string() +
+                "; a job can only carry files under the scene's folder: move or copy it there");
+        std::error_code ec;
+        if (!fs::is_regular_file(normal, ec))
+            throw std::runtime_error(normal.string() + " (referenced from " +
+                                     referenced_from.string() +
+                                     ") does not exist or is not a file");
+        if (seen_.insert(text).second) files.push_back({text, normal, "", 0});
+    }
+
+    std::vector<BundleEntry> files;
+    std::string integrator;
+    std::optional<uint64_t> sample_count;
+
+  private:
+    // Replaces $name references; nullopt when a name is undefined.
+    std::optional<std::string> substitute(const std::string& value, std::string* missing) const {
+        std::string out;
+        for (size_t i = 0; i < value.size(); ++i) {
+            if (value[i] != '$') {
+                out += value[i];
+                continue;
+            }
+            size_t j = i + 1;
+            while (j < value.size() && (std::isalnum((unsigned char)value[j]) || value[j] == '_'))
+                ++j;
+            std::string name = value.substr(i + 1, j - i - 1);
+            auto it = params_.find(name);
+            if (name.empty() || it == params_.end()) {
+                if (missing) *missing = name;
+                return std::nullopt;
+            }
+            out += it->second;
+            i = j - 1;
+        }
+        return out;
+    }
+
+    std::string need(const std::string& value, const fs::path& file, const pugi::xml_node& node) {
+        std::string missing;
+        std::optional<std::string> s = substitute(value, &missing);
+        if (!s)
+            throw std::runtime_error(file.string() + ": <" + node.name() + "> refers to $" +
+                                     missing + ", which has no <default> and no -D value");
+        return *s;
+    }
+
+    void walk(const pugi::xml_node& parent, const fs::path& file, int depth) {
+        for (pugi::xml_node node = parent.first_child(); node; node = node.next_sibling()) {
+            if (node.type() != pugi::node_element) continue;
+            std::string tag = node.name();
+            if (tag == "default") {
+                std::string name = node.attribute("name").value();
+                if (!name.empty() && !params_.count(name)) {
+                    std::optional<std::string> v =
+                        substitute(node.attribute("value").value(), nullptr);
+                    if (v) params_[name] = *v;
+                }
+            } else if (tag == "include") {
+                std::string name = need(node.attribute("filename").value(), file, node);
+                fs::path included = (file.parent_path() / name).lexically_normal();
+                add_file(included, file);
+                visit_scene_file(included, depth + 1);
+            } else if (std::string(node.attribute("name").value()) == "filename" &&
+                       node.attribute("value")) {
+                std::string name = need(node.attribute("value").value(), file, node);
+                add_file(file.parent_path() / name, file);
+            } else if (tag == "integrator" && integrator.empty()) {
+                if (auto v = substitute(node.attribute("type").value(), nullptr)) integrator = *v;
+            } else if (tag == "integer" &&
+                       std::string(node.attribute("name").value()) == "sample_count" &&
+                       std::string(parent.name()) == "sampler" && !sample_count) {
+                if (auto v = substitute(node.attribute("value").value(), nullptr)) {
+                    try {
+                        long long n = std::stoll(*v);
+                        if (n > 0) sample_count = uint64_t(n);
+                    } catch (const std::exception&) {
+                    }
+                }
+            }
+            walk(node, file, depth);
+        }
+    }
+
+    fs::path root_;
+    std::map<std::string, std::string> params_;
+    std::set<std::string> active_, seen_;
+};
+
+}  // namespace
+
+SceneBundleInfo collect_bundle(const fs::path& scene_file,
+                               const std::map<std::string, std::string>& defines) {
+    fs::path scene = fs::absolute(scene_file).lexically_normal();
+    std::error_code ec;
+    if (!fs::is_regular_file(scene, ec))
+        throw std::runtime_error(scene_file.string() + ": no such scene file");
+    SceneBundleInfo info;
+    info.root = scene.parent_path();
+    Collector collector(info.root, defines);
+    collector.add_file(scene, scene);
+    collector.visit_scene_file(scene, 0);
+    info.scene_path = scene.filename().generic_string();
+    info.files = std::move(collector.files);
+    info.integrator = collector.integrator;
+    info.sample_count = collector.sample_count;
+    for (BundleEntry& entry : info.files) entry.sha256 = sha256_file(entry.absolute, &entry.size);
+    return info;
+}
+
+}  // namespace render::service

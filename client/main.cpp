@@ -1,0 +1,586 @@
+// `client`: the command line of the render service.
+//
+//   client [--server HOST:PORT] [--token T] COMMAND ...
+//   (see kUsage)
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "client/bundle.h"
+#include "client/progress.h"
+#include "render.grpc.pb.h"
+#include "worker/rpc_common.h"
+#include "worker/sha256.h"
+
+namespace {
+
+using namespace render::service;
+namespace v1 = render::v1;
+namespace fs = std::filesystem;
+
+constexpr const char* kUsage = R"(usage:
+  client [--server HOST:PORT] [--token T] COMMAND ...
+
+commands:
+  submit SCENE.xml [options]   pack the scene and the files it references, upload what the
+                               server lacks, submit a job and print its id
+      --algo NAME              pt, lt, bpt, ppm, bpm, vcm (default: the scene's integrator)
+      --iterations N           iterations per frame (default: the scene's sample_count)
+      --time S                 time budget per frame in seconds
+      --resolution WxH         override the film resolution
+      --seed S                 random seed (default 0)
+      --max-depth D            override the scene's max_depth (-1 = unbounded)
+      --radius-factor F        initial merging radius / scene radius (default 0.003)
+      --alpha A                merging radius reduction (default 0.75)
+      --light-paths N          light paths per iteration (default: one per pixel)
+      --priority P             higher runs first (default 0)
+      -D name=value            override a <default> of the scene (repeatable)
+      --name NAME              job name (default: the scene file's name)
+      --wait                   show progress until the job ends (as `watch`)
+      --out FILE.exr           wait, then fetch frame 0 into FILE.exr
+  watch JOB                    progress until the job ends; exit status 1 unless it is DONE
+  fetch JOB [--frame F] [--preview] --out FILE.exr
+                               download a frame's EXR (--preview: the current average)
+  cancel JOB                   cancel a job
+  list                         all jobs
+  status                       workers and queue
+  bundle SCENE.xml [-D k=v]    list the files `submit` would upload, with their SHA-256
+  hash FILE...                 print the SHA-256 of files (as the asset store names them)
+
+global options:
+  --server HOST:PORT           default: env RENDER_SERVER, else 127.0.0.1:50051
+  --token T                    bearer token (default: env RENDER_TOKEN)
+
+Exit status: 0 on success, 1 on a failed call or job (the gRPC status is printed), 2 on
+bad usage.
+)";
+
+constexpr double kRpcTimeout = 30.0;
+
+[[noreturn]] void usage_error(const std::string& message) {
+    std::cerr << "client: " << message << "\n\n" << kUsage;
+    std::exit(2);
+}
+
+struct RpcFailure : std::runtime_error {
+    RpcFailure(const std::string& call, const grpc::Status& s)
+        : std::runtime_error(call + " failed: " + describe(s)), status(s) {}
+    grpc::Status status;
+};
+
+template <typename T>
+T parse_number(const std::string& flag, const std::string& text) {
+    std::istringstream in(text);
+    T value{};
+    if (!(in >> value) || !in.eof()) usage_error(flag + " expects a number, got \"" + text + "\"");
+    return value;
+}
+
+struct Connection {
+    std::string address;
+    std::string token;
+    std::unique_ptr<v1::JobService::Stub> stub;
+
+    void prepare(grpc::ClientContext& context, double timeout = kRpcTimeout) const {
+        prepare_context(context, token, timeout);
+    }
+};
+
+// ---------------------------------------------------------------------------------------------
+// submit
+
+struct SubmitOptions {
+    std::string scene;
+    v1::RenderSettings settings;
+    int priority = 0;
+    std::string name;
+    bool wait = false;
+    std::string out;
+    bool iterations_given = false;
+};
+
+SubmitOptions parse_submit(const std::vector<std::string>& args) {
+    SubmitOptions o;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= args.size()) usage_error(a + " needs a value");
+            return args[++i];
+        };
+        v1::RenderSettings& s = o.settings;
+        if (a == "--algo") {
+            s.set_algorithm(value());
+        } else if (a == "--iterations" || a == "--spp") {
+            int64_t n = parse_number<int64_t>(a, value());
+            if (n < 1) usage_error(a + " must be at least 1");
+            s.set_iterations(uint64_t(n));
+            o.iterations_given = true;
+        } else if (a == "--time") {
+            double t = parse_number<double>(a, value());
+            if (!(t > 0)) usage_error("--time must be positive");
+            s.set_time_budget_seconds(t);
+        } else if (a == "--resolution") {
+            std::string v = value();
+            size_t x = v.find('x');
+            if (x == std::string::npos) usage_error("--resolution expects WxH, got \"" + v + "\"");
+            int w = parse_number<int>(a, v.substr(0, x)), h = parse_number<int>(a, v.substr(x + 1));
+            if (w < 1 || h < 1 || w > 16384 || h > 16384)
+                usage_error("--resolution must be between 1x1 and 16384x16384");
+            s.set_width(uint32_t(w));
+            s.set_height(uint32_t(h));
+        } else if (a == "--seed") {
+            s.set_seed(parse_number<uint64_t>(a, value()));
+        } else if (a == "--max-depth") {
+            s.set_max_depth(parse_number<int>(a, value()));
+            s.set_has_max_depth(true);
+        } else if (a == "--radius-factor") {
+            double f = parse_number<double>(a, value());
+            if (!(f > 0)) usage_error("--radius-factor must be positive");
+            s.set_radius_factor(f);
+        } else if (a == "--alpha") {
+            double al = parse_number<double>(a, value());
+            if (!(al > 0 && al <= 1)) usage_error("--alpha must be in (0, 1]");
+            s.set_alpha(al);
+        } else if (a == "--light-paths") {
+            int64_t n = parse_number<int64_t>(a, value());
+            if (n < 1) usage_error("--light-paths must be at least 1");
+            s.set_light_path_count(uint64_t(n));
+        } else if (a == "--priority") {
+            o.priority = parse_number<int>(a, value());
+        } else if (a == "-D" || (a.rfind("-D", 0) == 0 && a.size() > 2)) {
+            std::string def = a == "-D" ? value() : a.substr(2);
+            size_t eq = def.find('=');
+            if (eq == std::string::npos || eq == 0) usage_error("-D expects name=value");
+            (*s.mutable_defines())[def.substr(0, eq)] = def.substr(eq + 1);
+        } else if (a == "--name") {
+            o.name = value();
+        } else if (a == "--wait") {
+            o.wait = true;
+        } else if (a == "--out" || a == "-o") {
+            o.out = value();
+        } else if (!a.empty() && a[0] == '-') {
+            usage_error("submit: unknown option " + a);
+        } else if (o.scene.empty()) {
+            o.scene = a;
+        } else {
+            usage_error("submit: more than one scene file given");
+        }
+    }
+    if (o.scene.empty()) usage_error("submit: no scene file given");
+    return o;
+}
+
+std::map<std::string, std::string> defines_of(const v1::RenderSettings& s) {
+    return {s.defines().begin(), s.defines().end()};
+}
+
+void upload(const Connection& c, const BundleEntry& entry) {
+    std::ifstream in(entry.absolute, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read " + entry.absolute.string());
+    grpc::ClientContext context;
+    c.prepare(context, 600.0);
+    v1::BundleFile reply;
+    std::unique_ptr<grpc::ClientWriter<v1::AssetChunk>> writer =
+        c.stub->UploadAsset(&context, &reply);
+    std::string buffer(kMaxChunkBytes, '\0');
+    bool first = true, ok = true;
+    while (ok) {
+        in.read(buffer.data(), std::streamsize(buffer.size()));
+        std::streamsize n = in.gcount();
+        if (n <= 0 && !first) break;
+        v1::AssetChunk chunk;
+        if (first) {
+            chunk.set_sha256(entry.sha256);
+            chunk.set_size(entry.size);
+        }
+        chunk.set_data(buffer.data(), size_t(std::max<std::streamsize>(n, 0)));
+        ok = writer->Write(chunk);
+        first = false;
+        if (n < std::streamsize(buffer.size())) break;
+    }
+    if (ok) writer->WritesDone();
+    grpc::Status status = writer->Finish();
+    if (!status.ok()) throw RpcFailure("UploadAsset " + entry.path, status);
+}
+
+int watch(const Connection& c, const std::string& job_id);
+int fetch(const Connection& c, const std::string& job_id, uint32_t frame, bool preview,
+          const std::string& out);
+
+int submit(const Connection& c, const std::vector<std::string>& args) {
+    SubmitOptions o = parse_submit(args);
+    SceneBundleInfo bundle = collect_bundle(o.scene, defines_of(o.settings));
+    v1::RenderSettings& s = o.settings;
+    if (s.algorithm().empty()) {
+        // The scene's integrator, in the service's names (Mitsuba's "path" is "pt").
+        std::string algorithm = bundle.integrator;
+        if (algorithm.empty() || algorithm == "path") algorithm = "pt";
+        s.set_algorithm(algorithm);
+    }
+    if (!o.iterations_given && s.time_budget_seconds() <= 0) {
+        if (!bundle.sample_count)
+            usage_error("submit: the scene has no sample_count; give --iterations or --time");
+        s.set_iterations(*bundle.sample_count);
+    }
+    uint64_t total = 0;
+    for (const BundleEntry& e : bundle.files) total += e.size;
+
+    // Upload what the server does not have yet.
+    v1::HasAssetsRequest has_request;
+    for (const BundleEntry& e : bundle.files) has_request.add_sha256(e.sha256);
+    v1::HasAssetsReply has_reply;
+    {
+        grpc::ClientContext context;
+        c.prepare(context);
+        grpc::Status status = c.stub->HasAssets(&context, has_request, &has_reply);
+        if (!status.ok()) throw RpcFailure("HasAssets", status);
+    }
+    std::set<std::string> missing(has_reply.missing().begin(), has_reply.missing().end());
+    uint64_t uploaded = 0;
+    size_t uploaded_files = 0;
+    for (const BundleEntry& e : bundle.files) {
+        if (!missing.count(e.sha256)) continue;
+        upload(c, e);
+        missing.erase(e.sha256);  // two paths with the same content: upload once
+        uploaded += e.size;
+        ++uploaded_files;
+    }
+    std::fprintf(stderr, "client: %s: %zu files (%.1f KiB), uploaded %zu (%.1f KiB)\n",
+                 o.scene.c_str(), bundle.files.size(), total / 1024.0, uploaded_files,
+                 uploaded / 1024.0);
+
+    v1::SubmitJobRequest request;
+    request.set_name(o.name.empty() ? fs::path(o.scene).filename().string() : o.name);
+    request.set_priority(o.priority);
+    *request.mutable_settings() = s;
+    v1::SceneBundle* b = request.mutable_bundle();
+    b->set_scene_path(bundle.scene_path);
+    for (const BundleEntry& e : bundle.files) {
+        v1::BundleFile* f = b->add_files();
+        f->set_path(e.path);
+        f->set_sha256(e.sha256);
+        f->set_size(e.size);
+    }
+    v1::Job job;
+    {
+        grpc::ClientContext context;
+        c.prepare(context);
+        grpc::Status status = c.stub->SubmitJob(&context, request, &job);
+        if (!status.ok()) throw RpcFailure("SubmitJob", status);
+    }
+    std::printf("%s\n", job.id().c_str());
+    std::fflush(stdout);
+    if (!o.wait && o.out.empty()) return 0;
+    int rc = watch(c, job.id());
+    if (rc != 0 || o.out.empty()) return rc;
+    return fetch(c, job.id(), 0, false, o.out);
+}
+
+// ---------------------------------------------------------------------------------------------
+// watch, fetch, cancel, list, status
+
+v1::Job get_job(const Connection& c, const std::string& job_id) {
+    grpc::ClientContext context;
+    c.prepare(context);
+    v1::GetJobRequest request;
+    request.set_job_id(job_id);
+    v1::Job job;
+    grpc::Status status = c.stub->GetJob(&context, request, &job);
+    if (!status.ok()) throw RpcFailure("GetJob", status);
+    return job;
+}
+
+int watch(const Connection& c, const std::string& job_id) {
+    ProgressDisplay display(isatty(STDERR_FILENO));
+    v1::Job last;
+    bool have = false;
+    int unavailable = 0;
+    for (;;) {
+        grpc::ClientContext context;
+        c.prepare(context, 0);  // a watch lasts as long as the job
+        v1::WatchJobRequest request;
+        request.set_job_id(job_id);
+        std::unique_ptr<grpc::ClientReader<v1::JobEvent>> reader =
+            c.stub->WatchJob(&context, request);
+        v1::JobEvent event;
+        while (reader->Read(&event)) {
+            last = event.job();
+            have = true;
+            unavailable = 0;
+            display.update(last);
+            if (is_terminal(last.state())) break;
+        }
+        if (have && is_terminal(last.state())) {
+            context.TryCancel();
+            reader->Finish();
+            break;
+        }
+        grpc::Status status = reader->Finish();
+        if (!status.ok()) {
+            // Ride out a short server restart; give up after ~30 s.
+            if (status.error_code() == grpc::StatusCode::UNAVAILABLE && ++unavailable <= 12) {
+                std::this_thread::sleep_for(std::chrono::milliseconds(250 * unavailable));
+                continue;
+            }
+            throw RpcFailure("WatchJob", status);
+        }
+        // The stream ended without a final state: ask, and watch again if needed.
+        last = get_job(c, job_id);
+        have = true;
+        display.update(last);
+        if (is_terminal(last.state())) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+    display.finish();
+    uint64_t iterations = 0;
+    double seconds = 0, error = 0;
+    for (const auto& f : last.frames()) {
+        iterations += f.iterations_done();
+        seconds = std::max(seconds, f.render_seconds());
+        error = std::max(error, f.relative_error());
+    }
+    std::fprintf(stderr, "job %s %s: %d frame(s), %llu iterations, %s, estimated error %.3g%s%s\n",
+                 last.id().c_str(), state_name(last.state()), last.frames_size(),
+                 (unsigned long long)iterations, format_seconds(seconds).c_str(), error,
+                 last.error().empty() ? "" : ": ", last.error().c_str());
+    return last.state() == v1::JOB_STATE_DONE ? 0 : 1;
+}
+
+int fetch(const Connection& c, const std::string& job_id, uint32_t frame, bool preview,
+          const std::string& out) {
+    fs::path target(out);
+    if (target.has_parent_path()) fs::create_directories(target.parent_path());
+    fs::path tmp = target;
+    tmp += ".part";
+    grpc::ClientContext context;
+    c.prepare(context, 600.0);
+    v1::FetchResultRequest request;
+    request.set_job_id(job_id);
+    request.set_frame(frame);
+    request.set_preview(preview);
+    std::unique_ptr<grpc::ClientReader<v1::ResultChunk>> reader =
+        c.stub->FetchResult(&context, request);
+    uint64_t written = 0, total = 0;
+    {
+        std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
+        if (!file) throw std::runtime_error("cannot write " + tmp.string());
+        v1::ResultChunk chunk;
+        while (reader->Read(&chunk)) {
+            if (chunk.total_size() > 0) total = chunk.total_size();
+            file.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+            written += chunk.data().size();
+        }
+        file.close();
+        if (!file) throw std::runtime_error("error writing " + tmp.string());
+    }
+    grpc::Status status = reader->Finish();
+    if (!status.ok()) {
+        fs::remove(tmp);
+        throw RpcFailure("FetchResult", status);
+    }
+    if (written == 0 || (total > 0 && written != total)) {
+        fs::remove(tmp);
+        throw std::runtime_error("FetchResult: incomplete result (" + std::to_string(written) +
+                                 " of " + std::to_string(total) + " bytes)");
+    }
+    fs::rename(tmp, target);
+    std::fprintf(stderr, "client: wrote %s (frame %u%s, %.1f KiB)\n", out.c_str(), frame,
+                 preview ? ", preview" : "", written / 1024.0);
+    return 0;
+}
+
+std::string format_time(int64_t unix_ms) {
+    if (unix_ms <= 0) return "-";
+    std::time_t t = std::time_t(unix_ms / 1000);
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+    return buf;
+}
+
+int list(const Connection& c) {
+    grpc::ClientContext context;
+    c.prepare(context);
+    v1::ListJobsReply reply;
+    grpc::Status status = c.stub->ListJobs(&context, v1::ListJobsRequest(), &reply);
+    if (!status.ok()) throw RpcFailure("ListJobs", status);
+    std::printf("%-24s %-10s %4s %-5s %7s %14s  %-19s  %s\n", "ID", "STATE", "PRIO", "ALGO",
+                "FRAMES", "ITERATIONS", "SUBMITTED", "NAME");
+    for (const v1::Job& job : reply.jobs()) {
+        uint64_t done = 0, target = 0;
+        int frames_done = 0;
+        for (const auto& f : job.frames()) {
+            done += f.iterations_done();
+            target += f.iterations_target();
+            frames_done += f.done();
+        }
+        std::string frames = std::to_string(frames_done) + "/" + std::to_string(job.frames_size());
+        std::string its = std::to_string(done) + "/" + (target ? std::to_string(target) : "-");
+        std::printf("%-24s %-10s %4d %-5s %7s %14s  %-19s  %s\n", job.id().c_str(),
+                    state_name(job.state()), job.priority(), job.settings().algorithm().c_str(),
+                    frames.c_str(), its.c_str(), format_time(job.submitted_unix_ms()).c_str(),
+                    job.name().c_str());
+    }
+    return 0;
+}
+
+int status(const Connection& c) {
+    grpc::ClientContext context;
+    c.prepare(context);
+    v1::ClusterStatusReply reply;
+    grpc::Status s = c.stub->ClusterStatus(&context, v1::ClusterStatusRequest(), &reply);
+    if (!s.ok()) throw RpcFailure("ClusterStatus", s);
+    std::printf("server %s: %u queued, %u running job(s), %d worker(s)\n", c.address.c_str(),
+                reply.queued_jobs(), reply.running_jobs(), reply.workers_size());
+    if (reply.workers_size() > 0)
+        std::printf("%-24s %-20s %7s %10s  %s\n", "WORKER", "HOST", "THREADS", "SEEN", "LEASE");
+    int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                      std::chrono::system_clock::now().time_since_epoch())
+                      .count();
+    for (const v1::WorkerStatus& w : reply.workers()) {
+        std::string seen = w.last_seen_unix_ms() > 0
+                               ? format_seconds((now - w.last_seen_unix_ms()) / 1000.0) + " ago"
+                               : "-";
+        std::printf("%-24s %-20s %7u %10s  %s\n", w.worker_id().c_str(), w.host().c_str(),
+                    w.threads(), seen.c_str(),
+                    w.lease_id().empty() ? "idle" : w.lease_id().c_str());
+    }
+    return 0;
+}
+
+int cancel(const Connection& c, const std::string& job_id) {
+    grpc::ClientContext context;
+    c.prepare(context);
+    v1::CancelJobRequest request;
+    request.set_job_id(job_id);
+    v1::Job job;
+    grpc::Status s = c.stub->CancelJob(&context, request, &job);
+    if (!s.ok()) throw RpcFailure("CancelJob", s);
+    std::printf("job %s: %s\n", job.id().c_str(), state_name(job.state()));
+    return 0;
+}
+
+int bundle_command(const std::vector<std::string>& args) {
+    std::string scene;
+    std::map<std::string, std::string> defines;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        if (a == "-D" || (a.rfind("-D", 0) == 0 && a.size() > 2)) {
+            if (a == "-D" && i + 1 >= args.size()) usage_error("-D needs a value");
+            std::string def = a == "-D" ? args[++i] : a.substr(2);
+            size_t eq = def.find('=');
+            if (eq == std::string::npos || eq == 0) usage_error("-D expects name=value");
+            defines[def.substr(0, eq)] = def.substr(eq + 1);
+        } else if (scene.empty() && !a.empty() && a[0] != '-') {
+            scene = a;
+        } else {
+            usage_error("bundle: unexpected argument " + a);
+        }
+    }
+    if (scene.empty()) usage_error("bundle: no scene file given");
+    SceneBundleInfo b = collect_bundle(scene, defines);
+    std::printf("# root %s, scene %s, integrator %s, sample_count %s\n", b.root.c_str(),
+                b.scene_path.c_str(), b.integrator.empty() ? "?" : b.integrator.c_str(),
+                b.sample_count ? std::to_string(*b.sample_count).c_str() : "?");
+    for (const BundleEntry& e : b.files)
+        std::printf("%s %10llu %s\n", e.sha256.c_str(), (unsigned long long)e.size, e.path.c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string server, token;
+    if (const char* env = std::getenv("RENDER_SERVER"); env && *env) server = env;
+    std::vector<std::string> rest;
+    for (int i = 1; i < argc; ++i) {
+        std::string a = argv[i];
+        if (a == "--server" || a == "--token") {
+            if (i + 1 >= argc) usage_error(a + " needs a value");
+            (a == "--server" ? server : token) = argv[++i];
+        } else if (a == "--help" || a == "-h") {
+            std::cout << kUsage;
+            return 0;
+        } else {
+            rest.push_back(a);
+        }
+    }
+    if (rest.empty()) usage_error("no command given");
+    if (server.empty()) server = "127.0.0.1:50051";
+    std::string command = rest[0];
+    std::vector<std::string> args(rest.begin() + 1, rest.end());
+    try {
+        if (command == "hash") {
+            if (args.empty()) usage_error("hash: no file given");
+            for (const std::string& f : args)
+                std::printf("%s  %s\n", sha256_file(f).c_str(), f.c_str());
+            return 0;
+        }
+        if (command == "bundle") return bundle_command(args);
+
+        Connection c;
+        c.address = server;
+        c.token = token_or_env(token);
+        c.stub = v1::JobService::NewStub(make_channel(server));
+        auto job_arg = [&](const char* cmd) -> std::string {
+            if (args.empty() || args[0].empty() || args[0][0] == '-')
+                usage_error(std::string(cmd) + ": no job id given");
+            return args[0];
+        };
+        if (command == "submit") return submit(c, args);
+        if (command == "watch") {
+            if (args.size() != 1) usage_error("watch expects one job id");
+            return watch(c, job_arg("watch"));
+        }
+        if (command == "fetch") {
+            std::string job = job_arg("fetch"), out;
+            uint32_t frame = 0;
+            bool preview = false;
+            for (size_t i = 1; i < args.size(); ++i) {
+                const std::string& a = args[i];
+                auto value = [&]() -> std::string {
+                    if (i + 1 >= args.size()) usage_error(a + " needs a value");
+                    return args[++i];
+                };
+                if (a == "--frame")
+                    frame = parse_number<uint32_t>(a, value());
+                else if (a == "--preview")
+                    preview = true;
+                else if (a == "--out" || a == "-o")
+                    out = value();
+                else
+                    usage_error("fetch: unexpected argument " + a);
+            }
+            if (out.empty()) usage_error("fetch: --out FILE.exr is required");
+            return fetch(c, job, frame, preview, out);
+        }
+        if (command == "cancel") {
+            if (args.size() != 1) usage_error("cancel expects one job id");
+            return cancel(c, job_arg("cancel"));
+        }
+        if (command == "list") return list(c);
+        if (command == "status") return status(c);
+        usage_error("unknown command " + command);
+    } catch (const RpcFailure& e) {
+        std::fprintf(stderr, "client: %s (server %s)\n", e.what(), server.c_str());
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "client: error: %s\n", e.what());
+        return 1;
+    }
+}

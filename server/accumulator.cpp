@@ -1,0 +1,174 @@
+#include "server/accumulator.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+
+#include "core/image/exr_io.h"
+
+namespace render::server {
+
+namespace {
+
+constexpr char kMagic[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '1'};
+
+template <typename T>
+void put(std::string& out, const T& v) {
+    out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+
+template <typename T>
+void get(std::ifstream& in, T& v, const std::filesystem::path& file) {
+    if (!in.read(reinterpret_cast<char*>(&v), sizeof v))
+        throw std::runtime_error("checkpoint " + file.string() + " is truncated");
+}
+
+void write_all(int fd, const char* data, size_t size, const std::filesystem::path& file) {
+    while (size > 0) {
+        ssize_t n = ::write(fd, data, size);
+        if (n < 0)
+            throw std::runtime_error("cannot write " + file.string() + ": " + std::strerror(errno));
+        data += n;
+        size -= size_t(n);
+    }
+}
+
+}  // namespace
+
+FrameAccumulator::FrameAccumulator(int width, int height) : width_(width), height_(height) {
+    result_.sum = AccumulationBuffer(width, height);
+    result_.odd_sum = AccumulationBuffer(width, height);
+}
+
+void FrameAccumulator::add(Range range, const std::vector<double>& sum,
+                           const std::vector<double>& odd_sum, uint64_t odd_count,
+                           const RenderStats& stats) {
+    if (sum.size() != value_count() || odd_sum.size() != value_count())
+        throw std::invalid_argument("accumulator: buffer size mismatch");
+    auto& s = result_.sum.values();
+    auto& o = result_.odd_sum.values();
+    for (size_t i = 0; i < s.size(); ++i) {
+        s[i] += sum[i];
+        o[i] += odd_sum[i];
+    }
+    result_.count += range.size();
+    result_.odd_count += odd_count;
+    result_.stats += stats;
+    ranges_.add(range);
+}
+
+double FrameAccumulator::relative_error() const {
+    if (result_.count == 0) return 1.0;
+    return estimate_relative_error(result_);
+}
+
+Image FrameAccumulator::average() const {
+    if (result_.count == 0) return Image(width_, height_);
+    return result_.sum.average(double(result_.count));
+}
+
+void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_seconds) const {
+    std::string header;
+    header.append(kMagic, sizeof kMagic);
+    put(header, uint32_t(width_));
+    put(header, uint32_t(height_));
+    put(header, uint64_t(result_.count));
+    put(header, uint64_t(result_.odd_count));
+    put(header, uint64_t(result_.stats.samples));
+    put(header, uint64_t(result_.stats.rays));
+    put(header, uint64_t(result_.stats.non_finite));
+    put(header, double(elapsed_seconds));
+    std::vector<Range> ranges = ranges_.ranges();
+    put(header, uint64_t(ranges.size()));
+    for (const Range& r : ranges) {
+        put(header, r.first);
+        put(header, r.end);
+    }
+    std::filesystem::create_directories(file.parent_path());
+    std::filesystem::path tmp = file;
+    tmp += ".tmp";
+    int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0)
+        throw std::runtime_error("cannot create " + tmp.string() + ": " + std::strerror(errno));
+    try {
+        write_all(fd, header.data(), header.size(), tmp);
+        const auto& s = result_.sum.values();
+        const auto& o = result_.odd_sum.values();
+        write_all(fd, reinterpret_cast<const char*>(s.data()), s.size() * sizeof(double), tmp);
+        write_all(fd, reinterpret_cast<const char*>(o.data()), o.size() * sizeof(double), tmp);
+        write_all(fd, kMagic, sizeof kMagic, tmp);
+        if (::fsync(fd) != 0)
+            throw std::runtime_error("cannot sync " + tmp.string() + ": " + std::strerror(errno));
+    } catch (...) {
+        ::close(fd);
+        std::remove(tmp.c_str());
+        throw;
+    }
+    ::close(fd);
+    std::filesystem::rename(tmp, file);
+}
+
+FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
+                                        double* elapsed_seconds) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open checkpoint " + file.string());
+    char magic[8];
+    if (!in.read(magic, 8) || std::memcmp(magic, kMagic, 8) != 0)
+        throw std::runtime_error("checkpoint " + file.string() + " has a bad header");
+    uint32_t width = 0, height = 0;
+    uint64_t count = 0, odd_count = 0, samples = 0, rays = 0, non_finite = 0, n_ranges = 0;
+    double elapsed = 0;
+    get(in, width, file);
+    get(in, height, file);
+    get(in, count, file);
+    get(in, odd_count, file);
+    get(in, samples, file);
+    get(in, rays, file);
+    get(in, non_finite, file);
+    get(in, elapsed, file);
+    get(in, n_ranges, file);
+    if (width == 0 || height == 0 || width > 65536 || height > 65536 || n_ranges > (1u << 26))
+        throw std::runtime_error("checkpoint " + file.string() + " has a bad header");
+    FrameAccumulator acc{int(width), int(height)};
+    uint64_t total = 0;
+    for (uint64_t i = 0; i < n_ranges; ++i) {
+        Range r;
+        get(in, r.first, file);
+        get(in, r.end, file);
+        if (r.end <= r.first)
+            throw std::runtime_error("checkpoint " + file.string() + " has an empty range");
+        acc.ranges_.add(r);
+        total += r.size();
+    }
+    if (total != count || acc.ranges_.total() != count)
+        throw std::runtime_error("checkpoint " + file.string() + ": ranges do not match count");
+    auto& s = acc.result_.sum.values();
+    auto& o = acc.result_.odd_sum.values();
+    if (!in.read(reinterpret_cast<char*>(s.data()), std::streamsize(s.size() * sizeof(double))) ||
+        !in.read(reinterpret_cast<char*>(o.data()), std::streamsize(o.size() * sizeof(double))))
+        throw std::runtime_error("checkpoint " + file.string() + " is truncated");
+    if (!in.read(magic, 8) || std::memcmp(magic, kMagic, 8) != 0)
+        throw std::runtime_error("checkpoint " + file.string() + " is truncated");
+    acc.result_.count = count;
+    acc.result_.odd_count = odd_count;
+    acc.result_.stats.samples = samples;
+    acc.result_.stats.rays = rays;
+    acc.result_.stats.non_finite = non_finite;
+    if (elapsed_seconds) *elapsed_seconds = elapsed;
+    return acc;
+}
+
+void write_frame_exr(const std::filesystem::path& file, const Image& image,
+                     const std::map<std::string, std::string>& metadata) {
+    std::filesystem::create_directories(file.parent_path());
+    std::filesystem::path tmp = file;
+    tmp += ".tmp.exr";
+    write_exr(tmp, image, metadata);
+    std::filesystem::rename(tmp, file);
+}
+
+}  // namespace render::server

@@ -1,0 +1,55 @@
+#pragma once
+
+// The merged sums of one frame (double precision) and their checkpoint file. The checkpoint
+// holds the buffers together with the ranges they contain, written atomically (temp + rename),
+// so that after a crash buffers and ranges always agree.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/render/render_iterations.h"
+#include "server/interval_set.h"
+
+namespace render::server {
+
+class FrameAccumulator {
+  public:
+    FrameAccumulator(int width, int height);
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    // Values per buffer (width * height * 3).
+    size_t value_count() const { return size_t(width_) * height_ * 3; }
+
+    // Adds one range's sums. `sum` and `odd_sum` must have value_count() entries.
+    void add(Range range, const std::vector<double>& sum, const std::vector<double>& odd_sum,
+             uint64_t odd_count, const RenderStats& stats);
+
+    const IterationResult& result() const { return result_; }
+    const IntervalSet& ranges() const { return ranges_; }
+    uint64_t count() const { return result_.count; }
+    // Estimated relative error of the current mean (1 when unknown).
+    double relative_error() const;
+    // The mean image so far (black when nothing is merged).
+    Image average() const;
+
+    // Writes the checkpoint atomically; throws std::runtime_error on I/O failure.
+    void save(const std::filesystem::path& file, double elapsed_seconds) const;
+    // Reads a checkpoint; throws std::runtime_error when it is missing, truncated or of
+    // another size. `elapsed_seconds` receives the saved render time.
+    static FrameAccumulator load(const std::filesystem::path& file, double* elapsed_seconds);
+
+  private:
+    int width_ = 0, height_ = 0;
+    IterationResult result_;
+    IntervalSet ranges_;
+};
+
+// Writes `image` as EXR with the metadata through core (no OpenImageIO here).
+void write_frame_exr(const std::filesystem::path& file, const Image& image,
+                     const std::map<std::string, std::string>& metadata);
+
+}  // namespace render::server

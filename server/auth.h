@@ -1,0 +1,22 @@
+#pragma once
+
+// Optional bearer-token authentication: with a token configured, every call must carry the
+// metadata `authorization: Bearer <token>`, otherwise it gets UNAUTHENTICATED.
+
+#include <grpcpp/grpcpp.h>
+
+#include <string>
+
+namespace render::server {
+
+class Auth {
+  public:
+    explicit Auth(std::string token) : token_(std::move(token)) {}
+    bool enabled() const { return !token_.empty(); }
+    grpc::Status check(const grpc::ServerContext* context) const;
+
+  private:
+    std::string token_;
+};
+
+}  // namespace render::server

@@ -1,0 +1,775 @@
+#include "server/job_manager.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <set>
+
+#include "core/scene/error.h"
+#include "core/scene/loader/scene_loader.h"
+#include "server/log.h"
+#include "server/validation.h"
+
+namespace render::server {
+
+namespace fs = std::filesystem;
+using grpc::Status;
+using grpc::StatusCode;
+
+namespace {
+
+int64_t unix_ms() {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+std::string random_hex(int digits) {
+    static thread_local std::mt19937_64 rng{std::random_device{}()};
+    static const char* hex = "0123456789abcdef";
+    std::string out;
+    for (int i = 0; i < digits; ++i) out.push_back(hex[rng() & 15]);
+    return out;
+}
+
+Status invalid(const std::string& message) {
+    return Status(StatusCode::INVALID_ARGUMENT, message);
+}
+
+// The scene file's integrator name in the service's names, or "" when it has none of them.
+std::string algorithm_from_scene(const std::string& integrator) {
+    if (integrator == "path" || integrator == "pt") return "pt";
+    if (is_supported_algorithm(integrator)) return integrator;
+    return "";
+}
+
+std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& request,
+                                                 uint32_t frame) {
+    std::map<std::string, std::string> defines(request.settings().defines().begin(),
+                                               request.settings().defines().end());
+    if (frame < uint32_t(request.frames_size()))
+        for (const auto& [k, v] : request.frames(int(frame)).defines()) defines[k] = v;
+    return defines;
+}
+
+Status check_defines(const google::protobuf::Map<std::string, std::string>& defines,
+                     const std::string& where) {
+    if (defines.size() > 1000) return invalid(where + " has more than 1000 defines");
+    for (const auto& [k, v] : defines) {
+        if (k.empty()) return invalid(where + " has a define with an empty name");
+        if (k.size() > 256 || v.size() > 65536)
+            return invalid(where + " define \"" + k.substr(0, 64) + "\" is too long");
+    }
+    return Status::OK;
+}
+
+// Validation that needs neither the assets nor the scene.
+Status check_request(const v1::SubmitJobRequest& r) {
+    const v1::RenderSettings& s = r.settings();
+    if (r.name().size() > 1024) return invalid("name is longer than 1024 characters");
+    if (!s.algorithm().empty() && !is_supported_algorithm(s.algorithm()))
+        return invalid("settings.algorithm \"" + s.algorithm().substr(0, 64) +
+                       "\" is not one of pt, lt, bpt, ppm, bpm, vcm");
+    if (s.iterations() > kMaxIterations)
+        return invalid("settings.iterations " + std::to_string(s.iterations()) +
+                       " is out of range [1, 10000000]");
+    if (!std::isfinite(s.time_budget_seconds()) || s.time_budget_seconds() < 0 ||
+        s.time_budget_seconds() > kMaxTimeBudgetSeconds)
+        return invalid("settings.time_budget_seconds must be a finite number in [0, 2592000]");
+    if (s.width() > kMaxResolution || s.height() > kMaxResolution)
+        return invalid("settings.width/height " + std::to_string(s.width()) + "x" +
+                       std::to_string(s.height()) + " exceeds 8192");
+    if ((s.width() == 0) != (s.height() == 0))
+        return invalid("settings.width and settings.height must both be set or both be 0");
+    if (!std::isfinite(s.radius_factor()) || s.radius_factor() < 0)
+        return invalid("settings.radius_factor must be >= 0 (0 = default)");
+    if (!std::isfinite(s.alpha()) || s.alpha() < 0 || s.alpha() > 1)
+        return invalid("settings.alpha must be in (0, 1] (0 = default)");
+    if (s.has_max_depth() && (s.max_depth() < -1 || s.max_depth() > 100000))
+        return invalid("settings.max_depth must be -1 (unbounded) or in [0, 100000]");
+    if (s.light_path_count() > 100000000ull)
+        return invalid("settings.light_path_count exceeds 100000000");
+    if (Status st = check_defines(s.defines(), "settings"); !st.ok()) return st;
+    if (size_t(r.frames_size()) > kMaxFrames)
+        return invalid("frames: " + std::to_string(r.frames_size()) + " frames exceed 1000");
+    for (int i = 0; i < r.frames_size(); ++i)
+        if (Status st = check_defines(r.frames(i).defines(), "frames[" + std::to_string(i) + "]");
+            !st.ok())
+            return st;
+    const v1::SceneBundle& b = r.bundle();
+    if (b.files_size() == 0) return invalid("bundle.files is empty");
+    if (size_t(b.files_size()) > kMaxBundleFiles)
+        return Status(StatusCode::RESOURCE_EXHAUSTED, "bundle has more than 10000 files");
+    std::set<std::string> paths;
+    uint64_t total = 0;
+    for (const v1::BundleFile& f : b.files()) {
+        if (std::string e = check_bundle_path(f.path()); !e.empty())
+            return invalid("bundle path " + e);
+        if (!is_sha256_hex(f.sha256()))
+            return invalid("bundle file \"" + f.path() +
+                           "\": sha256 must be 64 lower-case hex digits");
+        if (!paths.insert(f.path()).second)
+            return invalid("bundle path \"" + f.path() + "\" appears twice");
+        total += f.size();
+        if (f.size() > kMaxAssetSize || total > kMaxBundleSize)
+            return Status(StatusCode::RESOURCE_EXHAUSTED, "bundle exceeds the size limit");
+    }
+    if (std::string e = check_bundle_path(b.scene_path()); !e.empty())
+        return invalid("bundle.scene_path " + e);
+    if (!paths.count(b.scene_path()))
+        return invalid("bundle.scene_path \"" + b.scene_path() + "\" is not one of bundle.files");
+    // A file and a folder of the same name cannot both exist.
+    for (const std::string& p : paths)
+        for (size_t slash = p.find('/'); slash != std::string::npos; slash = p.find('/', slash + 1))
+            if (paths.count(p.substr(0, slash)))
+                return invalid("bundle path \"" + p.substr(0, slash) +
+                               "\" is both a file and a folder");
+    return Status::OK;
+}
+
+}  // namespace
+
+JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
+    : options_(options),
+      store_((fs::create_directories(options.store), options.store / "render.db")),
+      assets_(options.store),
+      scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds},
+                 std::move(clock)) {
+    fs::create_directories(options_.store / "jobs");
+    fs::create_directories(options_.store / "checkpoints");
+    fs::create_directories(options_.store / "results");
+    restore();
+}
+
+JobManager::~JobManager() = default;
+
+fs::path JobManager::checkpoint_path(const std::string& job_id, uint32_t frame) const {
+    return options_.store / "checkpoints" / job_id / (std::to_string(frame) + ".ckpt");
+}
+
+fs::path JobManager::result_path(const std::string& job_id, uint32_t frame) const {
+    return options_.store / "results" / job_id / (std::to_string(frame) + ".exr");
+}
+
+std::shared_ptr<JobManager::JobData> JobManager::find(const std::string& job_id) {
+    auto it = jobs_.find(job_id);
+    return it == jobs_.end() ? nullptr : it->second;
+}
+
+void JobManager::restore() {
+    int voided = store_.clear_leases();
+    if (voided > 0) Log("info", "leases_voided").kv("count", voided);
+    next_sequence_ = store_.max_sequence() + 1;
+    for (JobRow& row : store_.load_jobs()) {
+        auto job = std::make_shared<JobData>();
+        if (!job->request.ParseFromString(row.request)) {
+            Log("error", "restore_failed").kv("job", row.id).kv("error", "unreadable request");
+            continue;
+        }
+        job->row = std::move(row);
+        const std::string& id = job->row.id;
+        JobState state = JobState(job->row.state);
+        std::vector<FrameRow> rows = store_.load_frames(id);
+        std::vector<FramePlan> plans;
+        const v1::RenderSettings& s = job->request.settings();
+        for (const FrameRow& fr : rows) {
+            auto data = std::make_unique<FrameData>();
+            FramePlan plan;
+            plan.target = s.iterations();
+            plan.budget_seconds = s.time_budget_seconds();
+            plan.elapsed_seconds = fr.elapsed_seconds;
+            plan.done = fr.done;
+            fs::path ckpt = checkpoint_path(id, fr.index);
+            if (fr.done || is_terminal(state)) {
+                for (const Range& r : store_.merged_ranges(id, fr.index)) plan.merged.add(r);
+            } else if (fs::exists(ckpt)) {
+                try {
+                    double elapsed = 0;
+                    auto acc =
+                        std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
+                    if (acc->width() != job->row.width || acc->height() != job->row.height)
+                        throw std::runtime_error("checkpoint size differs from the job's");
+                    plan.merged = acc->ranges();
+                    plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
+                    data->relative_error = acc->relative_error();
+                    data->non_finite = acc->result().stats.non_finite;
+                    data->acc = std::move(acc);
+                } catch (const std::exception& e) {
+                    Log("error", "checkpoint_unreadable")
+                        .kv("job", id)
+                        .kv("frame", fr.index)
+                        .kv("error", e.what());
+                }
+                store_.set_merged_ranges(id, fr.index, plan.merged.ranges());
+            } else {
+                store_.set_merged_ranges(id, fr.index, {});
+            }
+            plans.push_back(std::move(plan));
+            job->frames.push_back(std::move(data));
+        }
+        scheduler_.add_job(id, job->row.priority, uint64_t(job->row.sequence), state,
+                           std::move(plans));
+        Log("info", "job_restored")
+            .kv("job", id)
+            .kv("state", int(state))
+            .kv("frames", job->frames.size());
+        jobs_[id] = std::move(job);
+    }
+}
+
+void JobManager::asset_added(const std::string& sha256, uint64_t size) {
+    store_.add_asset(sha256, size);
+}
+
+void JobManager::has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply) {
+    for (const std::string& sha : request.sha256())
+        if (!assets_.has(sha)) reply->add_missing(sha);
+}
+
+Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
+    if (Status st = check_request(in); !st.ok()) return st;
+    v1::SubmitJobRequest request = in;
+    for (const v1::BundleFile& f : request.bundle().files()) {
+        auto size = assets_.size(f.sha256());
+        if (!size)
+            return Status(
+                StatusCode::FAILED_PRECONDITION,
+                "asset \"" + f.path() + "\" (sha256 " + f.sha256() + ") has not been uploaded");
+        if (f.size() != 0 && *size != f.size())
+            return invalid("bundle file \"" + f.path() + "\" declares " + std::to_string(f.size()) +
+                           " bytes, the asset has " + std::to_string(*size));
+    }
+    int64_t sequence;
+    {
+        std::lock_guard lock(mu_);
+        sequence = next_sequence_++;
+    }
+    char prefix[32];
+    std::snprintf(prefix, sizeof prefix, "job-%06lld-", (long long)sequence);
+    std::string id = prefix + random_hex(6);
+    fs::path job_dir = options_.store / "jobs" / id;
+    fs::path scene_dir = job_dir / "scene";
+    int width = 0, height = 0;
+    try {
+        std::vector<std::pair<std::string, std::string>> files;
+        for (const v1::BundleFile& f : request.bundle().files())
+            files.emplace_back(f.path(), f.sha256());
+        assets_.materialize(files, scene_dir);
+        // Frame 0 validates the scene and gives the film size of every frame.
+        std::unique_ptr<Scene> scene =
+            load_scene(scene_dir / request.bundle().scene_path(), frame_defines(request, 0));
+        v1::RenderSettings* s = request.mutable_settings();
+        if (s->algorithm().empty()) {
+            s->set_algorithm(algorithm_from_scene(scene->settings.integrator));
+            if (s->algorithm().empty())
+                throw std::invalid_argument(
+                    "settings.algorithm is empty and the scene's "
+                    "integrator \"" +
+                    scene->settings.integrator + "\" is not one of pt, lt, bpt, ppm, bpm, vcm");
+        }
+        if (s->iterations() == 0 && s->time_budget_seconds() == 0)
+            s->set_iterations(uint64_t(std::max(1, scene->settings.sample_count)));
+        if (s->iterations() > kMaxIterations)
+            throw std::invalid_argument("the scene's sample_count exceeds 10000000");
+        width = s->width() ? int(s->width()) : scene->camera().width();
+        height = s->height() ? int(s->height()) : scene->camera().height();
+        if (width < 1 || height < 1 || width > int(kMaxResolution) || height > int(kMaxResolution))
+            throw std::invalid_argument("the film " + std::to_string(width) + "x" +
+                                        std::to_string(height) + " exceeds 8192");
+        s->set_width(uint32_t(width));
+        s->set_height(uint32_t(height));
+    } catch (const SceneError& e) {
+        std::error_code ec;
+        fs::remove_all(job_dir, ec);
+        Log("warn", "submit_rejected").kv("reason", "scene").kv("error", e.what());
+        return invalid(std::string("scene error: ") + e.what());
+    } catch (const std::invalid_argument& e) {
+        std::error_code ec;
+        fs::remove_all(job_dir, ec);
+        return invalid(e.what());
+    } catch (const std::exception& e) {
+        std::error_code ec;
+        fs::remove_all(job_dir, ec);
+        Log("warn", "submit_rejected").kv("reason", "load").kv("error", e.what());
+        return invalid(std::string("cannot load the scene: ") + e.what());
+    }
+
+    auto job = std::make_shared<JobData>();
+    job->request = request;
+    job->row.id = id;
+    job->row.sequence = sequence;
+    job->row.name = request.name();
+    job->row.state = int(JobState::Queued);
+    job->row.priority = request.priority();
+    job->row.request = request.SerializeAsString();
+    job->row.width = width;
+    job->row.height = height;
+    job->row.submitted_unix_ms = unix_ms();
+    uint32_t frame_count = std::max(1, request.frames_size());
+    try {
+        store_.insert_job(job->row, frame_count);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("job", id).kv("error", e.what());
+        return Status(StatusCode::INTERNAL, std::string("cannot store the job: ") + e.what());
+    }
+    std::vector<FramePlan> plans(frame_count);
+    for (FramePlan& p : plans) {
+        p.target = request.settings().iterations();
+        p.budget_seconds = request.settings().time_budget_seconds();
+        job->frames.push_back(std::make_unique<FrameData>());
+    }
+    std::lock_guard lock(mu_);
+    scheduler_.add_job(id, job->row.priority, uint64_t(sequence), JobState::Queued,
+                       std::move(plans));
+    jobs_[id] = job;
+    fill_job(*job, out);
+    Log("info", "job_submitted")
+        .kv("job", id)
+        .kv("name", request.name())
+        .kv("algorithm", request.settings().algorithm())
+        .kv("iterations", request.settings().iterations())
+        .kv("time_budget", request.settings().time_budget_seconds())
+        .kv("frames", frame_count)
+        .kv("width", width)
+        .kv("height", height)
+        .kv("priority", request.priority());
+    return Status::OK;
+}
+
+void JobManager::fill_job(const JobData& job, v1::Job* out) const {
+    out->Clear();
+    out->set_id(job.row.id);
+    out->set_name(job.row.name);
+    out->set_state(v1::JobState(scheduler_.state(job.row.id)));
+    out->set_priority(job.row.priority);
+    *out->mutable_settings() = job.request.settings();
+    out->set_error(job.row.error);
+    out->set_submitted_unix_ms(job.row.submitted_unix_ms);
+    const v1::RenderSettings& s = job.request.settings();
+    for (uint32_t i = 0; i < job.frames.size(); ++i) {
+        FrameProgress p = scheduler_.progress(job.row.id, i);
+        v1::FrameStatus* f = out->add_frames();
+        f->set_index(i);
+        f->set_iterations_done(p.merged);
+        f->set_iterations_target(p.target);
+        f->set_relative_error(job.frames[i]->relative_error.load());
+        double rate = p.elapsed_seconds > 0 ? double(p.merged) / p.elapsed_seconds : 0;
+        f->set_iterations_per_second(rate);
+        double eta = 0;
+        if (!p.done) {
+            if (p.target > 0 && rate > 0)
+                eta = double(p.target - std::min(p.target, p.merged)) / rate;
+            if (s.time_budget_seconds() > 0) {
+                double left = std::max(0.0, s.time_budget_seconds() - p.elapsed_seconds);
+                eta = p.target > 0 && rate > 0 ? std::min(eta, left) : left;
+            }
+        }
+        f->set_eta_seconds(eta);
+        f->set_done(p.done);
+        f->set_render_seconds(p.elapsed_seconds);
+    }
+}
+
+Status JobManager::get(const std::string& job_id, v1::Job* out) {
+    std::lock_guard lock(mu_);
+    auto job = find(job_id);
+    if (!job)
+        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    fill_job(*job, out);
+    return Status::OK;
+}
+
+void JobManager::list(v1::ListJobsReply* reply) {
+    std::lock_guard lock(mu_);
+    std::vector<const JobData*> ordered;
+    for (const auto& [id, job] : jobs_) ordered.push_back(job.get());
+    std::sort(ordered.begin(), ordered.end(),
+              [](const JobData* a, const JobData* b) { return a->row.sequence < b->row.sequence; });
+    for (const JobData* job : ordered) fill_job(*job, reply->add_jobs());
+}
+
+void JobManager::set_state(JobData& job, JobState state, const std::string& error) {
+    scheduler_.set_state(job.row.id, state);
+    job.row.state = int(state);
+    job.row.error = error;
+    try {
+        store_.update_job_state(job.row.id, int(state), error);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("job", job.row.id).kv("error", e.what());
+    }
+}
+
+Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
+    std::lock_guard lock(mu_);
+    auto job = find(job_id);
+    if (!job)
+        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    JobState state = scheduler_.state(job_id);
+    if (state == JobState::Done || state == JobState::Failed)
+        return Status(
+            StatusCode::FAILED_PRECONDITION,
+            "job " + job_id + " has already " + (state == JobState::Done ? "finished" : "failed"));
+    if (state != JobState::Cancelled) {
+        set_state(*job, JobState::Cancelled, "");
+        Log("info", "job_cancelled").kv("job", job_id);
+    }
+    fill_job(*job, out);
+    return Status::OK;
+}
+
+Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* file,
+                               bool* temporary) {
+    std::shared_ptr<JobData> job;
+    FrameProgress progress;
+    {
+        std::lock_guard lock(mu_);
+        job = find(request.job_id());
+        if (!job)
+            return Status(StatusCode::NOT_FOUND,
+                          "job \"" + request.job_id().substr(0, 80) + "\" not found");
+        if (request.frame() >= job->frames.size())
+            return Status(StatusCode::NOT_FOUND, "job " + request.job_id() + " has no frame " +
+                                                     std::to_string(request.frame()) + " (" +
+                                                     std::to_string(job->frames.size()) +
+                                                     " frames)");
+        progress = scheduler_.progress(request.job_id(), request.frame());
+    }
+    *temporary = false;
+    if (progress.done) {
+        *file = result_path(request.job_id(), request.frame());
+        if (!fs::exists(*file))
+            return Status(StatusCode::NOT_FOUND, "the result file of job " + request.job_id() +
+                                                     " frame " + std::to_string(request.frame()) +
+                                                     " is missing");
+        return Status::OK;
+    }
+    if (!request.preview())
+        return Status(StatusCode::FAILED_PRECONDITION,
+                      "frame " + std::to_string(request.frame()) + " of job " + request.job_id() +
+                          " is not done (" + std::to_string(progress.merged) +
+                          " iterations so far); ask for a preview");
+    FrameData& frame = *job->frames[request.frame()];
+    std::lock_guard lock(frame.mu);
+    if (!frame.acc || frame.acc->count() == 0) {
+        // It may have finished meanwhile.
+        fs::path done = result_path(request.job_id(), request.frame());
+        if (fs::exists(done)) {
+            *file = done;
+            return Status::OK;
+        }
+        return Status(StatusCode::FAILED_PRECONDITION, "frame " + std::to_string(request.frame()) +
+                                                           " of job " + request.job_id() +
+                                                           " has no iterations yet");
+    }
+    *file = assets_.tmp_dir() / ("preview-" + request.job_id() + "-" +
+                                 std::to_string(request.frame()) + "-" + random_hex(8) + ".exr");
+    std::map<std::string, std::string> metadata = {
+        {"render:job", request.job_id()},
+        {"render:preview", "1"},
+        {"render:iterations", std::to_string(frame.acc->count())},
+        {"render:relative_error_estimate", std::to_string(frame.acc->relative_error())},
+    };
+    try {
+        write_frame_exr(*file, frame.acc->average(), metadata);
+    } catch (const std::exception& e) {
+        return Status(StatusCode::INTERNAL, std::string("cannot write the preview: ") + e.what());
+    }
+    *temporary = true;
+    return Status::OK;
+}
+
+void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, w] : workers_) {
+        v1::WorkerStatus* s = reply->add_workers();
+        s->set_worker_id(id);
+        s->set_host(w.host);
+        s->set_threads(w.threads);
+        s->set_last_seen_unix_ms(w.last_seen_unix_ms);
+        auto leases = scheduler_.worker_leases(id);
+        if (!leases.empty()) s->set_lease_id(leases.front());
+    }
+    for (const auto& [id, job] : jobs_) {
+        JobState st = scheduler_.state(id);
+        if (st == JobState::Queued) reply->set_queued_jobs(reply->queued_jobs() + 1);
+        if (st == JobState::Running) reply->set_running_jobs(reply->running_jobs() + 1);
+    }
+}
+
+void JobManager::touch_worker(const std::string& worker_id) {
+    WorkerInfo& w = workers_[worker_id];
+    w.last_seen_unix_ms = unix_ms();
+}
+
+void JobManager::register_worker(const v1::RegisterWorkerRequest& request,
+                                 v1::RegisterWorkerReply* reply) {
+    std::string id = "w-" + random_hex(12);
+    {
+        std::lock_guard lock(mu_);
+        WorkerInfo& w = workers_[id];
+        w.host = request.host().substr(0, 256);
+        w.threads = request.threads();
+        w.version = request.version().substr(0, 256);
+        w.last_seen_unix_ms = unix_ms();
+    }
+    reply->set_worker_id(id);
+    reply->set_heartbeat_seconds(options_.heartbeat_seconds);
+    Log("info", "worker_registered")
+        .kv("worker", id)
+        .kv("host", request.host().substr(0, 256))
+        .kv("threads", request.threads())
+        .kv("version", request.version().substr(0, 256));
+}
+
+Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply) {
+    if (!is_safe_id(request.worker_id()))
+        return invalid("worker_id is empty or malformed; call RegisterWorker first");
+    std::lock_guard lock(mu_);
+    touch_worker(request.worker_id());
+    std::optional<LeaseGrant> grant = scheduler_.lease(request.worker_id());
+    if (!grant) {
+        reply->set_granted(false);
+        return Status::OK;
+    }
+    auto job = find(grant->job_id);
+    if (job && job->row.state == int(JobState::Queued)) {
+        job->row.state = int(JobState::Running);
+        try {
+            store_.update_job_state(job->row.id, int(JobState::Running), "");
+        } catch (const std::exception& e) {
+            Log("error", "store_failed").kv("job", job->row.id).kv("error", e.what());
+        }
+    }
+    reply->set_granted(true);
+    v1::Lease* l = reply->mutable_lease();
+    l->set_lease_id(grant->lease_id);
+    l->set_job_id(grant->job_id);
+    l->set_frame(grant->frame);
+    l->set_first_iteration(grant->range.first);
+    l->set_end_iteration(grant->range.end);
+    l->set_expires_in_seconds(options_.lease_timeout_seconds);
+    if (job) {
+        *l->mutable_settings() = job->request.settings();
+        for (const auto& [k, v] : frame_defines(job->request, grant->frame))
+            (*l->mutable_settings()->mutable_defines())[k] = v;
+        *l->mutable_bundle() = job->request.bundle();
+    }
+    try {
+        store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
+                            grant->range);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("lease", grant->lease_id).kv("error", e.what());
+    }
+    Log("info", "lease")
+        .kv("lease", grant->lease_id)
+        .kv("worker", grant->worker_id)
+        .kv("job", grant->job_id)
+        .kv("frame", grant->frame)
+        .kv("first", grant->range.first)
+        .kv("end", grant->range.end);
+    return Status::OK;
+}
+
+Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply) {
+    if (!is_safe_id(request.worker_id())) return invalid("worker_id is empty or malformed");
+    std::vector<std::string> ids(request.lease_ids().begin(), request.lease_ids().end());
+    std::lock_guard lock(mu_);
+    touch_worker(request.worker_id());
+    for (const std::string& id : scheduler_.heartbeat(request.worker_id(), ids))
+        reply->add_cancelled_lease_ids(id);
+    return Status::OK;
+}
+
+Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, bool* drop) {
+    *drop = false;
+    std::lock_guard lock(mu_);
+    std::optional<LeaseGrant> grant = scheduler_.find_lease(header.lease_id());
+    if (!grant) {
+        *drop = true;
+        return Status::OK;
+    }
+    auto job = find(grant->job_id);
+    if (!job) {
+        *drop = true;
+        return Status::OK;
+    }
+    if (header.width() != uint32_t(job->row.width) || header.height() != uint32_t(job->row.height))
+        return invalid("report size " + std::to_string(header.width()) + "x" +
+                       std::to_string(header.height()) + " differs from the job's film " +
+                       std::to_string(job->row.width) + "x" + std::to_string(job->row.height));
+    uint64_t count = grant->range.size();
+    uint64_t odd = grant->range.end / 2 - grant->range.first / 2;
+    if (header.count() != count)
+        return invalid("report count " + std::to_string(header.count()) + " differs from the " +
+                       "lease's range size " + std::to_string(count));
+    if (header.odd_count() != odd)
+        return invalid("report odd_count " + std::to_string(header.odd_count()) +
+                       " differs from the lease's " + std::to_string(odd));
+    if (!std::isfinite(header.render_seconds()) || header.render_seconds() < 0)
+        return invalid("report render_seconds must be finite and >= 0");
+    *values = size_t(job->row.width) * size_t(job->row.height) * 3;
+    return Status::OK;
+}
+
+Status JobManager::report(const v1::ReportHeader& header, const std::vector<double>& sum,
+                          const std::vector<double>& odd_sum, bool* merged) {
+    *merged = false;
+    LeaseGrant grant;
+    std::shared_ptr<JobData> job;
+    MergeDecision decision;
+    {
+        std::lock_guard lock(mu_);
+        decision = scheduler_.begin_merge(header.lease_id(), header.render_seconds(), &grant);
+        if (decision == MergeDecision::Accept) job = find(grant.job_id);
+        try {
+            store_.delete_lease(header.lease_id());
+        } catch (const std::exception& e) {
+            Log("error", "store_failed").kv("lease", header.lease_id()).kv("error", e.what());
+        }
+    }
+    if (decision != MergeDecision::Accept || !job) {
+        Log("warn", "report_dropped")
+            .kv("lease", header.lease_id())
+            .kv("reason", to_string(decision));
+        return Status::OK;
+    }
+    FrameData& frame = *job->frames[grant.frame];
+    double elapsed = 0;
+    {
+        std::lock_guard lock(mu_);
+        elapsed = scheduler_.progress(grant.job_id, grant.frame).elapsed_seconds;
+    }
+    {
+        std::lock_guard lock(frame.mu);
+        if (!frame.acc)
+            frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height);
+        RenderStats stats;
+        stats.samples = header.samples();
+        stats.rays = header.rays();
+        stats.non_finite = header.non_finite();
+        frame.acc->add(grant.range, sum, odd_sum, header.odd_count(), stats);
+        frame.relative_error = frame.acc->relative_error();
+        frame.non_finite = frame.acc->result().stats.non_finite;
+        try {
+            frame.acc->save(checkpoint_path(grant.job_id, grant.frame), elapsed);
+            store_.add_merged_range(grant.job_id, grant.frame, grant.range);
+            store_.update_frame(grant.job_id, grant.frame, false, elapsed);
+        } catch (const std::exception& e) {
+            Log("error", "checkpoint_failed").kv("job", grant.job_id).kv("error", e.what());
+        }
+    }
+    {
+        std::lock_guard lock(mu_);
+        scheduler_.end_merge(grant);
+    }
+    *merged = true;
+    Log("info", "merged")
+        .kv("lease", grant.lease_id)
+        .kv("job", grant.job_id)
+        .kv("frame", grant.frame)
+        .kv("first", grant.range.first)
+        .kv("end", grant.range.end)
+        .kv("render_seconds", header.render_seconds());
+    tick();
+    return Status::OK;
+}
+
+void JobManager::tick() {
+    std::vector<std::pair<std::string, uint32_t>> complete;
+    {
+        std::lock_guard lock(mu_);
+        complete = scheduler_.tick();
+    }
+    for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
+}
+
+void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
+    std::lock_guard finish_lock(finish_mu_);
+    std::shared_ptr<JobData> job;
+    FrameProgress progress;
+    {
+        std::lock_guard lock(mu_);
+        job = find(job_id);
+        progress = scheduler_.progress(job_id, index);
+    }
+    if (!job) return;
+    FrameData& frame = *job->frames[index];
+    std::string error;
+    {
+        std::lock_guard lock(frame.mu);
+        if (!frame.acc) {
+            error = "frame " + std::to_string(index) + " has no merged sums";
+        } else {
+            const v1::RenderSettings& s = job->request.settings();
+            std::map<std::string, std::string> metadata = {
+                {"render:job", job_id},
+                {"render:frame", std::to_string(index)},
+                {"render:scene", job->request.bundle().scene_path()},
+                {"render:algorithm", s.algorithm()},
+                {"render:iterations", std::to_string(frame.acc->count())},
+                {"render:seconds", std::to_string(progress.elapsed_seconds)},
+                {"render:seed", std::to_string(s.seed())},
+                {"render:relative_error_estimate", std::to_string(frame.acc->relative_error())},
+                {"render:non_finite_samples_dropped",
+                 std::to_string(frame.acc->result().stats.non_finite)},
+            };
+            if (s.radius_factor() > 0)
+                metadata["render:radius_factor"] = std::to_string(s.radius_factor());
+            if (s.alpha() > 0) metadata["render:alpha"] = std::to_string(s.alpha());
+            if (s.has_max_depth()) metadata["render:max_depth"] = std::to_string(s.max_depth());
+            for (const auto& [k, v] : frame_defines(job->request, index))
+                metadata["render:define:" + k] = v;
+            try {
+                write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata);
+                frame.relative_error = frame.acc->relative_error();
+                frame.acc.reset();
+            } catch (const std::exception& e) {
+                error = std::string("cannot write the result: ") + e.what();
+            }
+        }
+    }
+    std::lock_guard lock(mu_);
+    if (!error.empty()) {
+        Log("error", "frame_failed").kv("job", job_id).kv("frame", index).kv("error", error);
+        set_state(*job, JobState::Failed, error);
+        return;
+    }
+    bool job_done = scheduler_.finish_frame(job_id, index);
+    try {
+        store_.update_frame(job_id, index, true, progress.elapsed_seconds);
+        std::error_code ec;
+        fs::remove(checkpoint_path(job_id, index), ec);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("job", job_id).kv("error", e.what());
+    }
+    Log("info", "frame_done")
+        .kv("job", job_id)
+        .kv("frame", index)
+        .kv("iterations", progress.merged)
+        .kv("seconds", progress.elapsed_seconds)
+        .kv("relative_error", frame.relative_error.load());
+    if (job_done) {
+        set_state(*job, JobState::Done, "");
+        Log("info", "job_done").kv("job", job_id);
+    }
+}
+
+void JobManager::checkpoint_all() {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, job] : jobs_) {
+        if (is_terminal(scheduler_.state(id))) continue;
+        for (uint32_t i = 0; i < job->frames.size(); ++i) {
+            FrameProgress p = scheduler_.progress(id, i);
+            if (p.done) continue;
+            try {
+                store_.update_frame(id, i, false, p.elapsed_seconds);
+            } catch (const std::exception& e) {
+                Log("error", "store_failed").kv("job", id).kv("error", e.what());
+            }
+        }
+    }
+    Log("info", "checkpointed");
+}
+
+}  // namespace render::server

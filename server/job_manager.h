@@ -1,0 +1,111 @@
+#pragma once
+
+// The server's state behind both gRPC services: jobs (persisted in the JobStore), the
+// scheduler's lease table, the frames' sums and checkpoints, finished EXRs, workers.
+// Thread-safe. Returns grpc::Status with precise codes for bad requests.
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "render.pb.h"
+#include "server/accumulator.h"
+#include "server/asset_store.h"
+#include "server/job_store.h"
+#include "server/scheduler.h"
+
+namespace render::server {
+
+namespace v1 = ::render::v1;
+
+struct ServerOptions {
+    std::filesystem::path store;
+    double lease_timeout_seconds = 30;
+    double heartbeat_seconds = 2;
+    double target_lease_seconds = 3;
+};
+
+class JobManager {
+  public:
+    explicit JobManager(ServerOptions options, Scheduler::ClockFn clock = SteadyClock::now);
+    ~JobManager();
+
+    // --- public API ---
+    grpc::Status submit(const v1::SubmitJobRequest& request, v1::Job* job);
+    grpc::Status get(const std::string& job_id, v1::Job* job);
+    void list(v1::ListJobsReply* reply);
+    grpc::Status cancel(const std::string& job_id, v1::Job* job);
+    // The EXR to stream for FetchResult; `temporary` files (previews) are deleted by the caller.
+    grpc::Status result_file(const v1::FetchResultRequest& request, std::filesystem::path* file,
+                             bool* temporary);
+    void cluster_status(v1::ClusterStatusReply* reply);
+    void has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply);
+    // Records an uploaded asset.
+    void asset_added(const std::string& sha256, uint64_t size);
+
+    // --- worker protocol ---
+    void register_worker(const v1::RegisterWorkerRequest& request, v1::RegisterWorkerReply* reply);
+    grpc::Status lease(const v1::LeaseRequest& request, v1::LeaseReply* reply);
+    grpc::Status heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply);
+    // Checks a report's header before its values are read: `values` receives the number of
+    // float64 values each of sum and odd_sum must have. `drop` is set (and OK returned) for a
+    // late or duplicate report, which is answered merged=false.
+    grpc::Status check_report(const v1::ReportHeader& header, size_t* values, bool* drop);
+    // Merges a report's sums exactly once; `merged` false when dropped.
+    grpc::Status report(const v1::ReportHeader& header, const std::vector<double>& sum,
+                        const std::vector<double>& odd_sum, bool* merged);
+
+    // Expires leases, closes time budgets and finishes complete frames. Called periodically.
+    void tick();
+    // Saves the render time of unfinished frames (SIGTERM); merged sums are already saved.
+    void checkpoint_all();
+
+    AssetStore& assets() { return assets_; }
+    const ServerOptions& options() const { return options_; }
+
+  private:
+    struct FrameData {
+        std::mutex mu;
+        std::unique_ptr<FrameAccumulator> acc;  // null until something merges, or when done
+        std::atomic<double> relative_error{1.0};
+        std::atomic<uint64_t> non_finite{0};
+    };
+    struct JobData {
+        JobRow row;
+        v1::SubmitJobRequest request;  // settings resolved
+        std::vector<std::unique_ptr<FrameData>> frames;
+    };
+    struct WorkerInfo {
+        std::string host;
+        uint32_t threads = 0;
+        std::string version;
+        int64_t last_seen_unix_ms = 0;
+    };
+
+    void restore();
+    void fill_job(const JobData& job, v1::Job* out) const;                   // mu_ held
+    void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
+    void finish_frame(const std::string& job_id, uint32_t frame);
+    void touch_worker(const std::string& worker_id);  // mu_ held
+    std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
+    std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
+    std::shared_ptr<JobData> find(const std::string& job_id);
+
+    ServerOptions options_;
+    JobStore store_;
+    AssetStore assets_;
+    mutable std::mutex mu_;
+    Scheduler scheduler_;
+    std::map<std::string, std::shared_ptr<JobData>> jobs_;
+    std::map<std::string, WorkerInfo> workers_;
+    int64_t next_sequence_ = 1;
+    std::mutex finish_mu_;  // one frame finishes at a time
+};
+
+}  // namespace render::server

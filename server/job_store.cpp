@@ -1,0 +1,276 @@
+#include "server/job_store.h"
+
+#include <sqlite3.h>
+
+#include <stdexcept>
+
+namespace render::server {
+
+namespace {
+
+// A prepared statement that finalizes itself.
+class Statement {
+  public:
+    Statement(sqlite3* db, const char* sql) : db_(db) {
+        if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK)
+            throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db));
+    }
+    ~Statement() { sqlite3_finalize(stmt_); }
+    Statement(const Statement&) = delete;
+    Statement& operator=(const Statement&) = delete;
+
+    Statement& bind(int i, const std::string& v) {
+        check(sqlite3_bind_blob(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT));
+        return *this;
+    }
+    Statement& text(int i, const std::string& v) {
+        check(sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT));
+        return *this;
+    }
+    Statement& bind(int i, int64_t v) {
+        check(sqlite3_bind_int64(stmt_, i, v));
+        return *this;
+    }
+    Statement& bind(int i, double v) {
+        check(sqlite3_bind_double(stmt_, i, v));
+        return *this;
+    }
+    // True while there is a row.
+    bool step() {
+        int rc = sqlite3_step(stmt_);
+        if (rc == SQLITE_ROW) return true;
+        if (rc == SQLITE_DONE) return false;
+        throw std::runtime_error(std::string("sqlite step: ") + sqlite3_errmsg(db_));
+    }
+    void run() {
+        while (step()) {
+        }
+    }
+    int64_t i64(int col) { return sqlite3_column_int64(stmt_, col); }
+    double f64(int col) { return sqlite3_column_double(stmt_, col); }
+    std::string str(int col) {
+        const void* p = sqlite3_column_blob(stmt_, col);
+        int n = sqlite3_column_bytes(stmt_, col);
+        return p ? std::string(static_cast<const char*>(p), size_t(n)) : std::string();
+    }
+
+  private:
+    void check(int rc) {
+        if (rc != SQLITE_OK)
+            throw std::runtime_error(std::string("sqlite bind: ") + sqlite3_errmsg(db_));
+    }
+    sqlite3* db_;
+    sqlite3_stmt* stmt_ = nullptr;
+};
+
+}  // namespace
+
+JobStore::JobStore(const std::filesystem::path& database) {
+    if (sqlite3_open_v2(database.c_str(), &db_,
+                        SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+                        nullptr) != SQLITE_OK) {
+        std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
+        sqlite3_close(db_);
+        throw std::runtime_error("cannot open database " + database.string() + ": " + message);
+    }
+    sqlite3_busy_timeout(db_, 5000);
+    exec("PRAGMA journal_mode=WAL");
+    exec("PRAGMA synchronous=NORMAL");
+    exec(R"(CREATE TABLE IF NOT EXISTS jobs (
+        id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT, state INTEGER NOT NULL,
+        priority INTEGER NOT NULL, request BLOB NOT NULL, width INTEGER, height INTEGER,
+        error TEXT, submitted_ms INTEGER))");
+    exec(R"(CREATE TABLE IF NOT EXISTS frames (
+        job_id TEXT NOT NULL, idx INTEGER NOT NULL, done INTEGER NOT NULL DEFAULT 0,
+        elapsed REAL NOT NULL DEFAULT 0, PRIMARY KEY (job_id, idx)))");
+    exec(R"(CREATE TABLE IF NOT EXISTS assets (
+        sha256 TEXT PRIMARY KEY, size INTEGER NOT NULL, added_ms INTEGER))");
+    exec(R"(CREATE TABLE IF NOT EXISTS merged_ranges (
+        job_id TEXT NOT NULL, frame INTEGER NOT NULL, first INTEGER NOT NULL,
+        end_ INTEGER NOT NULL, PRIMARY KEY (job_id, frame, first)))");
+    exec(R"(CREATE TABLE IF NOT EXISTS leases (
+        lease_id TEXT PRIMARY KEY, worker_id TEXT, job_id TEXT, frame INTEGER,
+        first INTEGER, end_ INTEGER, issued_ms INTEGER DEFAULT (strftime('%s','now') * 1000)))");
+}
+
+JobStore::~JobStore() {
+    sqlite3_close(db_);
+}
+
+void JobStore::exec(const char* sql) {
+    char* error = nullptr;
+    if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+        std::string message = error ? error : "unknown error";
+        sqlite3_free(error);
+        throw std::runtime_error("sqlite: " + message);
+    }
+}
+
+void JobStore::insert_job(const JobRow& job, uint32_t frame_count) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        Statement s(db_,
+                    "INSERT INTO jobs (id, seq, name, state, priority, request, width, height, "
+                    "error, submitted_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)");
+        s.text(1, job.id)
+            .bind(2, int64_t(job.sequence))
+            .text(3, job.name)
+            .bind(4, int64_t(job.state))
+            .bind(5, int64_t(job.priority))
+            .bind(6, job.request)
+            .bind(7, int64_t(job.width))
+            .bind(8, int64_t(job.height))
+            .text(9, job.error)
+            .bind(10, job.submitted_unix_ms);
+        s.run();
+        for (uint32_t i = 0; i < frame_count; ++i) {
+            Statement fi(db_, "INSERT INTO frames (job_id, idx) VALUES (?1, ?2)");
+            fi.text(1, job.id).bind(2, int64_t(i));
+            fi.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
+void JobStore::update_job_state(const std::string& job_id, int state, const std::string& error) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "UPDATE jobs SET state = ?2, error = ?3 WHERE id = ?1");
+    s.text(1, job_id).bind(2, int64_t(state)).text(3, error);
+    s.run();
+}
+
+void JobStore::update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "UPDATE frames SET done = ?3, elapsed = ?4 WHERE job_id = ?1 AND idx = ?2");
+    s.text(1, job_id).bind(2, int64_t(frame)).bind(3, int64_t(done ? 1 : 0)).bind(4, elapsed);
+    s.run();
+}
+
+std::vector<JobRow> JobStore::load_jobs() {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "SELECT id, seq, name, state, priority, request, width, height, error, "
+                "submitted_ms FROM jobs ORDER BY seq");
+    std::vector<JobRow> out;
+    while (s.step()) {
+        JobRow r;
+        r.id = s.str(0);
+        r.sequence = s.i64(1);
+        r.name = s.str(2);
+        r.state = int(s.i64(3));
+        r.priority = int(s.i64(4));
+        r.request = s.str(5);
+        r.width = int(s.i64(6));
+        r.height = int(s.i64(7));
+        r.error = s.str(8);
+        r.submitted_unix_ms = s.i64(9);
+        out.push_back(std::move(r));
+    }
+    return out;
+}
+
+std::vector<FrameRow> JobStore::load_frames(const std::string& job_id) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "SELECT idx, done, elapsed FROM frames WHERE job_id = ?1 ORDER BY idx");
+    s.text(1, job_id);
+    std::vector<FrameRow> out;
+    while (s.step()) out.push_back({uint32_t(s.i64(0)), s.i64(1) != 0, s.f64(2)});
+    return out;
+}
+
+int64_t JobStore::max_sequence() {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "SELECT COALESCE(MAX(seq), 0) FROM jobs");
+    return s.step() ? s.i64(0) : 0;
+}
+
+void JobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "INSERT OR REPLACE INTO merged_ranges (job_id, frame, first, end_) "
+                "VALUES (?1, ?2, ?3, ?4)");
+    s.text(1, job_id)
+        .bind(2, int64_t(frame))
+        .bind(3, int64_t(range.first))
+        .bind(4, int64_t(range.end));
+    s.run();
+}
+
+void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
+                                 const std::vector<Range>& ranges) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
+        d.text(1, job_id).bind(2, int64_t(frame));
+        d.run();
+        for (const Range& r : ranges) {
+            Statement s(db_,
+                        "INSERT INTO merged_ranges (job_id, frame, first, end_) "
+                        "VALUES (?1, ?2, ?3, ?4)");
+            s.text(1, job_id)
+                .bind(2, int64_t(frame))
+                .bind(3, int64_t(r.first))
+                .bind(4, int64_t(r.end));
+            s.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
+std::vector<Range> JobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "SELECT first, end_ FROM merged_ranges WHERE job_id = ?1 AND frame = ?2 "
+                "ORDER BY first");
+    s.text(1, job_id).bind(2, int64_t(frame));
+    std::vector<Range> out;
+    while (s.step()) out.push_back({uint64_t(s.i64(0)), uint64_t(s.i64(1))});
+    return out;
+}
+
+void JobStore::add_asset(const std::string& sha256, uint64_t size) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "INSERT OR IGNORE INTO assets (sha256, size, added_ms) "
+                "VALUES (?1, ?2, strftime('%s','now') * 1000)");
+    s.text(1, sha256).bind(2, int64_t(size));
+    s.run();
+}
+
+void JobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
+                            const std::string& job_id, uint32_t frame, Range range) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "INSERT OR REPLACE INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    s.text(1, lease_id)
+        .text(2, worker_id)
+        .text(3, job_id)
+        .bind(4, int64_t(frame))
+        .bind(5, int64_t(range.first))
+        .bind(6, int64_t(range.end));
+    s.run();
+}
+
+void JobStore::delete_lease(const std::string& lease_id) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "DELETE FROM leases WHERE lease_id = ?1");
+    s.text(1, lease_id);
+    s.run();
+}
+
+int JobStore::clear_leases() {
+    std::lock_guard lock(mu_);
+    exec("DELETE FROM leases");
+    return sqlite3_changes(db_);
+}
+
+}  // namespace render::server

@@ -1,0 +1,71 @@
+#pragma once
+
+// The persistent job queue: one SQLite database (WAL) with jobs, frames, assets, outstanding
+// leases and merged ranges. Thread-safe (one connection behind a mutex). Throws
+// std::runtime_error with SQLite's message on failure.
+
+#include <cstdint>
+#include <filesystem>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "server/interval_set.h"
+
+struct sqlite3;
+
+namespace render::server {
+
+struct JobRow {
+    std::string id;
+    int64_t sequence = 0;
+    std::string name;
+    int state = 1;
+    int priority = 0;
+    std::string request;  // serialized render.v1.SubmitJobRequest (settings resolved)
+    int width = 0, height = 0;
+    std::string error;
+    int64_t submitted_unix_ms = 0;
+};
+
+struct FrameRow {
+    uint32_t index = 0;
+    bool done = false;
+    double elapsed_seconds = 0;
+};
+
+class JobStore {
+  public:
+    explicit JobStore(const std::filesystem::path& database);
+    ~JobStore();
+    JobStore(const JobStore&) = delete;
+    JobStore& operator=(const JobStore&) = delete;
+
+    void insert_job(const JobRow& job, uint32_t frame_count);
+    void update_job_state(const std::string& job_id, int state, const std::string& error);
+    void update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed);
+    std::vector<JobRow> load_jobs();
+    std::vector<FrameRow> load_frames(const std::string& job_id);
+    int64_t max_sequence();
+
+    void add_merged_range(const std::string& job_id, uint32_t frame, Range range);
+    // Replaces a frame's merged ranges (to agree with its checkpoint after a restart).
+    void set_merged_ranges(const std::string& job_id, uint32_t frame,
+                           const std::vector<Range>& ranges);
+    std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame);
+
+    void add_asset(const std::string& sha256, uint64_t size);
+
+    void insert_lease(const std::string& lease_id, const std::string& worker_id,
+                      const std::string& job_id, uint32_t frame, Range range);
+    void delete_lease(const std::string& lease_id);
+    // Voids every lease of a previous run; returns how many there were.
+    int clear_leases();
+
+  private:
+    void exec(const char* sql);
+    sqlite3* db_ = nullptr;
+    std::mutex mu_;
+};
+
+}  // namespace render::server

@@ -1,0 +1,166 @@
+// `server`: the render service's gRPC frontend.
+//
+//   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
+//          [--heartbeat SECONDS]
+//
+// The token may also come from the environment variable RENDER_TOKEN. With PORT 0 the kernel
+// picks a port; once listening the server prints `listening on HOST:PORT` on stdout. Structured
+// log lines go to stderr. SIGTERM/SIGINT: stop accepting, checkpoint, exit 0.
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "server/auth.h"
+#include "server/job_manager.h"
+#include "server/job_service.h"
+#include "server/log.h"
+#include "server/worker_service.h"
+
+namespace {
+
+using namespace render::server;
+
+constexpr const char* kUsage =
+    "usage: server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS (30)]\n"
+    "              [--heartbeat SECONDS (2)]\n"
+    "The token may also come from the environment variable RENDER_TOKEN.\n";
+
+[[noreturn]] void usage_error(const std::string& message) {
+    std::cerr << "server: " << message << "\n" << kUsage;
+    std::exit(2);
+}
+
+double parse_seconds(const std::string& flag, const std::string& text) {
+    std::istringstream in(text);
+    double v = 0;
+    if (!(in >> v) || !in.eof() || !(v > 0) || v > 1e6)
+        usage_error(flag + " expects a positive number of seconds, got \"" + text + "\"");
+    return v;
+}
+
+struct Options {
+    std::string listen;
+    std::string token;
+    ServerOptions server;
+};
+
+Options parse(int argc, char** argv) {
+    Options o;
+    if (const char* env = std::getenv("RENDER_TOKEN")) o.token = env;
+    for (int i = 1; i < argc; ++i) {
+        std::string a = argv[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) usage_error(a + " needs a value");
+            return argv[++i];
+        };
+        if (a == "--listen")
+            o.listen = value();
+        else if (a == "--store")
+            o.server.store = value();
+        else if (a == "--token")
+            o.token = value();
+        else if (a == "--lease-timeout")
+            o.server.lease_timeout_seconds = parse_seconds(a, value());
+        else if (a == "--heartbeat")
+            o.server.heartbeat_seconds = parse_seconds(a, value());
+        else if (a == "--help" || a == "-h") {
+            std::cout << kUsage;
+            std::exit(0);
+        } else
+            usage_error("unknown argument " + a);
+    }
+    if (o.listen.empty()) usage_error("--listen HOST:PORT is required");
+    if (o.server.store.empty()) usage_error("--store DIR is required");
+    if (o.listen.rfind(':') == std::string::npos) usage_error("--listen expects HOST:PORT");
+    return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Options options = parse(argc, argv);
+
+    // Signals are taken by sigwait below; block them before gRPC starts its threads.
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGTERM);
+    sigaddset(&signals, SIGINT);
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+    signal(SIGPIPE, SIG_IGN);
+
+    std::unique_ptr<JobManager> manager;
+    try {
+        manager = std::make_unique<JobManager>(options.server);
+    } catch (const std::exception& e) {
+        Log("error", "store_open_failed")
+            .kv("store", options.server.store.string())
+            .kv("error", e.what());
+        std::cerr << "server: cannot open the store " << options.server.store << ": " << e.what()
+                  << "\n";
+        return 1;
+    }
+    Auth auth(options.token);
+    std::atomic<bool> stopping{false};
+    JobServiceImpl job_service(*manager, auth, stopping);
+    WorkerServiceImpl worker_service(*manager, auth);
+
+    grpc::EnableDefaultHealthCheckService(true);
+    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port);
+    builder.RegisterService(&job_service);
+    builder.RegisterService(&worker_service);
+    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+    if (!server || port == 0) {
+        std::cerr << "server: cannot listen on " << options.listen << "\n";
+        Log("error", "listen_failed").kv("address", options.listen);
+        return 1;
+    }
+    std::string host = options.listen.substr(0, options.listen.rfind(':'));
+    if (host.empty() || host == "0.0.0.0" || host == "[::]" || host == "::" || host == "localhost")
+        host = "127.0.0.1";
+    std::printf("listening on %s:%d\n", host.c_str(), port);
+    std::fflush(stdout);
+    Log("info", "listening")
+        .kv("address", host + ":" + std::to_string(port))
+        .kv("store", options.server.store.string())
+        .kv("auth", auth.enabled() ? "token" : "none")
+        .kv("lease_timeout", options.server.lease_timeout_seconds)
+        .kv("heartbeat", options.server.heartbeat_seconds);
+
+    std::atomic<bool> ticker_stop{false};
+    std::thread ticker([&] {
+        while (!ticker_stop) {
+            try {
+                manager->tick();
+            } catch (const std::exception& e) {
+                Log("error", "tick_failed").kv("error", e.what());
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        }
+    });
+
+    int sig = 0;
+    sigwait(&signals, &sig);
+    Log("info", "shutting_down").kv("signal", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    stopping = true;
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    ticker_stop = true;
+    ticker.join();
+    manager->checkpoint_all();
+    manager.reset();
+    Log("info", "stopped");
+    return 0;
+}

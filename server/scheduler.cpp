@@ -1,0 +1,339 @@
+#include "server/scheduler.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace render::server {
+
+bool is_terminal(JobState s) {
+    return s == JobState::Done || s == JobState::Cancelled || s == JobState::Failed;
+}
+
+const char* to_string(MergeDecision d) {
+    switch (d) {
+        case MergeDecision::Accept:
+            return "accept";
+        case MergeDecision::UnknownLease:
+            return "unknown_lease";
+        case MergeDecision::AlreadyMerged:
+            return "already_merged";
+        case MergeDecision::Reissued:
+            return "expired_and_reissued";
+        case MergeDecision::JobInactive:
+            return "job_inactive";
+    }
+    return "?";
+}
+
+namespace {
+constexpr uint64_t kMaxLeaseIterations = 1000000;
+constexpr size_t kMaxExpiredKept = 100000;
+}  // namespace
+
+Scheduler::Scheduler(SchedulerOptions options, ClockFn clock)
+    : options_(options), clock_(std::move(clock)) {
+    std::random_device rd;
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "L%08x", unsigned(rd()));
+    lease_prefix_ = buf;
+}
+
+void Scheduler::add_job(const std::string& job_id, int priority, uint64_t sequence, JobState state,
+                        std::vector<FramePlan> frames) {
+    Job job;
+    job.id = job_id;
+    job.priority = priority;
+    job.sequence = sequence;
+    job.state = state;
+    for (FramePlan& plan : frames) {
+        Frame f;
+        f.plan = std::move(plan);
+        f.frontier = f.plan.merged.max_end(1);
+        if (f.frontier > 1) {
+            f.pending.add({1, f.frontier});
+            for (const Range& r : f.plan.merged.ranges()) f.pending.subtract(r);
+        }
+        job.frames.push_back(std::move(f));
+    }
+    jobs_[job_id] = std::move(job);
+}
+
+JobState Scheduler::state(const std::string& job_id) const {
+    auto it = jobs_.find(job_id);
+    return it == jobs_.end() ? JobState::Failed : it->second.state;
+}
+
+void Scheduler::set_state(const std::string& job_id, JobState state) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end()) return;
+    it->second.state = state;
+    if (!is_terminal(state)) return;
+    for (auto l = leases_.begin(); l != leases_.end();) {
+        if (l->second.grant.job_id == job_id)
+            l = leases_.erase(l);
+        else
+            ++l;
+    }
+    for (auto l = expired_.begin(); l != expired_.end();) {
+        if (l->second.job_id == job_id)
+            l = expired_.erase(l);
+        else
+            ++l;
+    }
+    for (Frame& f : it->second.frames) f.leased.clear();
+}
+
+double Scheduler::elapsed(const Frame& f, TimePoint now) const {
+    double e = f.plan.elapsed_seconds;
+    if (f.started) e += std::chrono::duration<double>(now - *f.started).count();
+    return e;
+}
+
+void Scheduler::expire(TimePoint now) {
+    for (auto l = leases_.begin(); l != leases_.end();) {
+        if (l->second.expires < now) {
+            const LeaseGrant& g = l->second.grant;
+            auto job = jobs_.find(g.job_id);
+            if (job != jobs_.end() && g.frame < job->second.frames.size()) {
+                Frame& f = job->second.frames[g.frame];
+                f.leased.subtract(g.range);
+                f.pending.add(g.range);
+            }
+            expired_[l->first] = g;
+            l = leases_.erase(l);
+        } else {
+            ++l;
+        }
+    }
+    while (expired_.size() > kMaxExpiredKept) expired_.erase(expired_.begin());
+}
+
+void Scheduler::close_budgets(TimePoint now) {
+    for (auto& [id, job] : jobs_) {
+        if (is_terminal(job.state)) continue;
+        for (Frame& f : job.frames)
+            if (!f.closed && !f.plan.done && f.plan.budget_seconds > 0 &&
+                elapsed(f, now) >= f.plan.budget_seconds)
+                f.closed = true;
+    }
+}
+
+bool Scheduler::is_complete(const Frame& f) const {
+    if (f.plan.done || !f.pending.empty() || !f.leased.empty() || !f.merging.empty()) return false;
+    uint64_t end = 0;
+    if (f.closed)
+        end = f.frontier;
+    else if (f.plan.target > 0)
+        end = f.plan.target + 1;
+    if (end <= 1) return false;
+    return f.plan.merged.contains({1, end});
+}
+
+uint64_t Scheduler::lease_size(const std::string& worker_id, const std::string& job_id) const {
+    auto it = rates_.find({worker_id, job_id});
+    if (it == rates_.end()) return 1;
+    double n = std::floor(it->second * options_.target_lease_seconds);
+    if (!(n >= 1)) return 1;
+    return std::min<uint64_t>(uint64_t(n), kMaxLeaseIterations);
+}
+
+std::vector<Scheduler::Job*> Scheduler::ordered_jobs() {
+    std::vector<Job*> out;
+    for (auto& [id, job] : jobs_)
+        if (!is_terminal(job.state)) out.push_back(&job);
+    std::sort(out.begin(), out.end(), [](const Job* a, const Job* b) {
+        if (a->priority != b->priority) return a->priority > b->priority;
+        return a->sequence < b->sequence;
+    });
+    return out;
+}
+
+std::string Scheduler::new_lease_id() {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "-%010llu", (unsigned long long)++lease_counter_);
+    return lease_prefix_ + buf;
+}
+
+std::optional<LeaseGrant> Scheduler::lease(const std::string& worker_id) {
+    TimePoint now = clock_();
+    expire(now);
+    close_budgets(now);
+    for (Job* job : ordered_jobs()) {
+        uint64_t size = lease_size(worker_id, job->id);
+        for (uint32_t index = 0; index < job->frames.size(); ++index) {
+            Frame& f = job->frames[index];
+            if (f.plan.done || f.complete_reported) continue;
+            Range r;
+            if (auto p = f.pending.first()) {
+                r = {p->first, std::min(p->end, p->first + size)};
+                f.pending.subtract(r);
+            } else if (!f.closed && (f.plan.target == 0 || f.frontier <= f.plan.target)) {
+                uint64_t n = size;
+                if (f.plan.target > 0) n = std::min(n, f.plan.target + 1 - f.frontier);
+                if (f.plan.budget_seconds > 0) {
+                    auto rate = rates_.find({worker_id, job->id});
+                    if (rate != rates_.end()) {
+                        double left = f.plan.budget_seconds - elapsed(f, now);
+                        double cap = std::floor(rate->second * std::max(left, 0.0)) + 1;
+                        n = std::min<uint64_t>(n, uint64_t(std::max(cap, 1.0)));
+                    }
+                }
+                r = {f.frontier, f.frontier + n};
+                f.frontier = r.end;
+            } else {
+                continue;
+            }
+            f.leased.add(r);
+            if (!f.started) f.started = now;
+            if (job->state == JobState::Queued) job->state = JobState::Running;
+            LeaseGrant g{new_lease_id(), worker_id, job->id, index, r};
+            leases_[g.lease_id] =
+                Lease{g, now + std::chrono::duration_cast<SteadyClock::duration>(
+                                   std::chrono::duration<double>(options_.lease_timeout_seconds))};
+            return g;
+        }
+    }
+    return std::nullopt;
+}
+
+std::vector<std::string> Scheduler::heartbeat(const std::string& worker_id,
+                                              const std::vector<std::string>& lease_ids) {
+    TimePoint now = clock_();
+    expire(now);
+    auto deadline = now + std::chrono::duration_cast<SteadyClock::duration>(
+                              std::chrono::duration<double>(options_.lease_timeout_seconds));
+    for (auto& [id, lease] : leases_)
+        if (lease.grant.worker_id == worker_id) lease.expires = deadline;
+    std::vector<std::string> cancelled;
+    for (const std::string& id : lease_ids) {
+        auto it = leases_.find(id);
+        if (it == leases_.end() || it->second.grant.worker_id != worker_id) {
+            // Unknown or expired: unless its range still waits unclaimed, the work is lost.
+            auto e = expired_.find(id);
+            bool salvageable = false;
+            if (e != expired_.end()) {
+                auto job = jobs_.find(e->second.job_id);
+                salvageable = job != jobs_.end() && !is_terminal(job->second.state) &&
+                              job->second.frames[e->second.frame].pending.contains(e->second.range);
+            }
+            if (!salvageable) cancelled.push_back(id);
+        }
+    }
+    return cancelled;
+}
+
+std::optional<LeaseGrant> Scheduler::find_lease(const std::string& lease_id) const {
+    if (auto it = leases_.find(lease_id); it != leases_.end()) return it->second.grant;
+    if (auto it = expired_.find(lease_id); it != expired_.end()) return it->second;
+    return std::nullopt;
+}
+
+MergeDecision Scheduler::begin_merge(const std::string& lease_id, double render_seconds,
+                                     LeaseGrant* grant) {
+    TimePoint now = clock_();
+    expire(now);
+    LeaseGrant g;
+    bool was_active = false;
+    if (auto it = leases_.find(lease_id); it != leases_.end()) {
+        g = it->second.grant;
+        leases_.erase(it);
+        was_active = true;
+    } else if (auto e = expired_.find(lease_id); e != expired_.end()) {
+        g = e->second;
+        expired_.erase(e);
+    } else {
+        return MergeDecision::UnknownLease;
+    }
+    auto job = jobs_.find(g.job_id);
+    if (job == jobs_.end() || g.frame >= job->second.frames.size())
+        return MergeDecision::UnknownLease;
+    Frame& f = job->second.frames[g.frame];
+    if (was_active) f.leased.subtract(g.range);
+    if (is_terminal(job->second.state)) return MergeDecision::JobInactive;
+    if (f.plan.merged.overlaps(g.range) || f.merging.overlaps(g.range))
+        return MergeDecision::AlreadyMerged;
+    if (!was_active) {
+        if (!f.pending.contains(g.range)) return MergeDecision::Reissued;
+        f.pending.subtract(g.range);
+    }
+    f.merging.add(g.range);
+    if (render_seconds > 0) {
+        double rate = double(g.range.size()) / render_seconds;
+        auto key = std::make_pair(g.worker_id, g.job_id);
+        auto r = rates_.find(key);
+        rates_[key] = r == rates_.end() ? rate : 0.5 * r->second + 0.5 * rate;
+    }
+    if (grant) *grant = g;
+    return MergeDecision::Accept;
+}
+
+void Scheduler::end_merge(const LeaseGrant& grant) {
+    auto job = jobs_.find(grant.job_id);
+    if (job == jobs_.end() || grant.frame >= job->second.frames.size()) return;
+    Frame& f = job->second.frames[grant.frame];
+    f.merging.subtract(grant.range);
+    f.plan.merged.add(grant.range);
+}
+
+std::vector<std::pair<std::string, uint32_t>> Scheduler::tick() {
+    TimePoint now = clock_();
+    expire(now);
+    close_budgets(now);
+    std::vector<std::pair<std::string, uint32_t>> complete;
+    for (auto& [id, job] : jobs_) {
+        if (is_terminal(job.state)) continue;
+        for (uint32_t i = 0; i < job.frames.size(); ++i) {
+            Frame& f = job.frames[i];
+            if (f.complete_reported || !is_complete(f)) continue;
+            f.complete_reported = true;
+            f.plan.elapsed_seconds = elapsed(f, now);
+            f.started.reset();
+            complete.emplace_back(id, i);
+        }
+    }
+    return complete;
+}
+
+bool Scheduler::finish_frame(const std::string& job_id, uint32_t frame) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return false;
+    Frame& f = it->second.frames[frame];
+    if (f.started) {
+        f.plan.elapsed_seconds = elapsed(f, clock_());
+        f.started.reset();
+    }
+    f.plan.done = true;
+    for (const Frame& other : it->second.frames)
+        if (!other.plan.done) return false;
+    it->second.state = JobState::Done;
+    return true;
+}
+
+FrameProgress Scheduler::progress(const std::string& job_id, uint32_t frame) const {
+    FrameProgress p;
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return p;
+    const Frame& f = it->second.frames[frame];
+    p.merged = f.plan.merged.total();
+    p.target = f.plan.target;
+    p.elapsed_seconds = elapsed(f, clock_());
+    p.done = f.plan.done;
+    return p;
+}
+
+std::vector<Range> Scheduler::merged_ranges(const std::string& job_id, uint32_t frame) const {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return {};
+    return it->second.frames[frame].plan.merged.ranges();
+}
+
+std::vector<std::string> Scheduler::worker_leases(const std::string& worker_id) const {
+    std::vector<std::string> out;
+    for (const auto& [id, lease] : leases_)
+        if (lease.grant.worker_id == worker_id) out.push_back(id);
+    return out;
+}
+
+}  // namespace render::server

@@ -1,0 +1,144 @@
+#pragma once
+
+// The lease table and the iteration bookkeeping of every frame: which ranges are merged, which
+// are leased (and until when), which are waiting to be handed out again. Not thread-safe: the
+// owner (JobManager) serializes calls. Time comes from an injectable clock so that tests can
+// expire leases without sleeping.
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "server/interval_set.h"
+
+namespace render::server {
+
+using SteadyClock = std::chrono::steady_clock;
+using TimePoint = SteadyClock::time_point;
+
+// Mirrors render.v1.JobState.
+enum class JobState { Queued = 1, Running = 2, Done = 3, Cancelled = 4, Failed = 5 };
+bool is_terminal(JobState s);
+
+struct FramePlan {
+    uint64_t target = 0;         // iterations; 0 = time budget only
+    double budget_seconds = 0;   // 0 = none
+    double elapsed_seconds = 0;  // render time spent in earlier runs of the server
+    IntervalSet merged;          // ranges already merged (from a checkpoint)
+    bool done = false;
+};
+
+struct LeaseGrant {
+    std::string lease_id;
+    std::string worker_id;
+    std::string job_id;
+    uint32_t frame = 0;
+    Range range;
+};
+
+struct FrameProgress {
+    uint64_t merged = 0;
+    uint64_t target = 0;
+    double elapsed_seconds = 0;
+    bool done = false;
+};
+
+enum class MergeDecision { Accept, UnknownLease, AlreadyMerged, Reissued, JobInactive };
+const char* to_string(MergeDecision d);
+
+struct SchedulerOptions {
+    double lease_timeout_seconds = 30;
+    double target_lease_seconds = 3;
+};
+
+class Scheduler {
+  public:
+    using ClockFn = std::function<TimePoint()>;
+    explicit Scheduler(SchedulerOptions options, ClockFn clock = SteadyClock::now);
+
+    // Adds a job (new or restored). Restored frames may carry merged ranges: everything below
+    // the highest merged iteration that is not merged is queued again.
+    void add_job(const std::string& job_id, int priority, uint64_t sequence, JobState state,
+                 std::vector<FramePlan> frames);
+    bool has_job(const std::string& job_id) const { return jobs_.count(job_id) > 0; }
+    JobState state(const std::string& job_id) const;
+    // Sets a job's state; a terminal state voids its leases (heartbeats report them cancelled).
+    void set_state(const std::string& job_id, JobState state);
+
+    // The next range for this worker, or nothing when no job needs iterations now.
+    std::optional<LeaseGrant> lease(const std::string& worker_id);
+
+    // Extends the worker's leases; returns those of `lease_ids` the worker must stop.
+    std::vector<std::string> heartbeat(const std::string& worker_id,
+                                       const std::vector<std::string>& lease_ids);
+
+    // Looks up an active (or expired but not yet reissued) lease without changing anything.
+    std::optional<LeaseGrant> find_lease(const std::string& lease_id) const;
+
+    // Decides whether the report of `lease_id` is merged. On Accept the range is recorded as
+    // being merged at once (so that a duplicate arriving meanwhile is dropped) and `grant` is
+    // filled; the caller adds the sums and then calls end_merge. `render_seconds` feeds the
+    // worker's measured rate for range sizing.
+    MergeDecision begin_merge(const std::string& lease_id, double render_seconds,
+                              LeaseGrant* grant);
+    // The range of an accepted report is now in the frame's sums.
+    void end_merge(const LeaseGrant& grant);
+
+    // Expires leases and closes time budgets; returns frames that just became complete, each
+    // once (also reported by complete_frames_after_merge).
+    std::vector<std::pair<std::string, uint32_t>> tick();
+    // Marks a frame finished (after its EXR is written); returns true when the whole job is.
+    bool finish_frame(const std::string& job_id, uint32_t frame);
+
+    FrameProgress progress(const std::string& job_id, uint32_t frame) const;
+    std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame) const;
+    // Lease ids currently held by a worker.
+    std::vector<std::string> worker_leases(const std::string& worker_id) const;
+    size_t active_lease_count() const { return leases_.size(); }
+
+  private:
+    struct Frame {
+        FramePlan plan;
+        uint64_t frontier = 1;  // the first iteration never handed out
+        IntervalSet pending;    // handed out, expired, to be handed out again
+        IntervalSet leased;
+        IntervalSet merging;               // accepted, being added to the sums
+        std::optional<TimePoint> started;  // first lease in this run
+        bool closed = false;               // time budget used: no iterations past frontier
+        bool complete_reported = false;
+    };
+    struct Job {
+        std::string id;
+        int priority = 0;
+        uint64_t sequence = 0;
+        JobState state = JobState::Queued;
+        std::vector<Frame> frames;
+    };
+    struct Lease {
+        LeaseGrant grant;
+        TimePoint expires;
+    };
+
+    double elapsed(const Frame& f, TimePoint now) const;
+    void expire(TimePoint now);
+    void close_budgets(TimePoint now);
+    bool is_complete(const Frame& f) const;
+    uint64_t lease_size(const std::string& worker_id, const std::string& job_id) const;
+    std::vector<Job*> ordered_jobs();
+    std::string new_lease_id();
+
+    SchedulerOptions options_;
+    ClockFn clock_;
+    std::map<std::string, Job> jobs_;
+    std::map<std::string, Lease> leases_;
+    std::map<std::string, LeaseGrant> expired_;  // expired, range maybe not yet reissued
+    std::map<std::pair<std::string, std::string>, double> rates_;  // (worker, job) -> it/s
+    std::string lease_prefix_;
+    uint64_t lease_counter_ = 0;
+};
+
+}  // namespace render::server

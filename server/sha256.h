@@ -1,0 +1,36 @@
+#pragma once
+
+// SHA-256 (FIPS 180-4), incremental, for content-addressed assets. No external crypto library.
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace render::server {
+
+class Sha256 {
+  public:
+    Sha256();
+    void update(const void* data, size_t size);
+    void update(std::string_view data) { update(data.data(), data.size()); }
+    // Finishes and returns the lower-case hex digest; the object must not be updated after.
+    std::string hex_digest();
+
+  private:
+    void transform(const uint8_t* block);
+
+    std::array<uint32_t, 8> state_;
+    std::array<uint8_t, 64> buffer_{};
+    size_t buffer_size_ = 0;
+    uint64_t total_bytes_ = 0;
+};
+
+// The lower-case hex SHA-256 of `data`.
+std::string sha256_hex(std::string_view data);
+
+// True for 64 lower-case hex digits.
+bool is_sha256_hex(std::string_view s);
+
+}  // namespace render::server

@@ -1,0 +1,122 @@
+#include "server/worker_service.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "server/job_service.h"
+#include "server/log.h"
+#include "server/sha256.h"
+
+namespace render::server {
+
+using grpc::Status;
+using grpc::StatusCode;
+
+Status WorkerServiceImpl::RegisterWorker(grpc::ServerContext* context,
+                                         const v1::RegisterWorkerRequest* request,
+                                         v1::RegisterWorkerReply* reply) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    manager_.register_worker(*request, reply);
+    return Status::OK;
+}
+
+Status WorkerServiceImpl::Lease(grpc::ServerContext* context, const v1::LeaseRequest* request,
+                                v1::LeaseReply* reply) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    return manager_.lease(*request, reply);
+}
+
+Status WorkerServiceImpl::FetchAsset(grpc::ServerContext* context,
+                                     const v1::FetchAssetRequest* request,
+                                     grpc::ServerWriter<v1::AssetChunk>* writer) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    if (!is_sha256_hex(request->sha256()))
+        return Status(StatusCode::INVALID_ARGUMENT, "sha256 must be 64 lower-case hex digits");
+    if (!manager_.assets().has(request->sha256()))
+        return Status(StatusCode::NOT_FOUND, "asset " + request->sha256() + " not found");
+    bool first = true;
+    return stream_file(manager_.assets().path(request->sha256()),
+                       [&](std::string&& data, uint64_t total) {
+                           v1::AssetChunk chunk;
+                           if (first) {
+                               chunk.set_sha256(request->sha256());
+                               chunk.set_size(total);
+                               first = false;
+                           }
+                           chunk.set_data(std::move(data));
+                           return writer->Write(chunk);
+                       });
+}
+
+Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,
+                                    const v1::HeartbeatRequest* request,
+                                    v1::HeartbeatReply* reply) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    return manager_.heartbeat(*request, reply);
+}
+
+Status WorkerServiceImpl::Report(grpc::ServerContext* context,
+                                 grpc::ServerReader<v1::ReportChunk>* reader,
+                                 v1::ReportReply* reply) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    v1::ReportChunk chunk;
+    if (!reader->Read(&chunk) || !chunk.has_header())
+        return Status(StatusCode::INVALID_ARGUMENT, "a report must start with its header");
+    const v1::ReportHeader header = chunk.header();
+    size_t n = 0;
+    bool drop = false;
+    if (Status s = manager_.check_report(header, &n, &drop); !s.ok()) {
+        Log("warn", "report_rejected")
+            .kv("lease", header.lease_id())
+            .kv("error", s.error_message());
+        return s;
+    }
+    if (drop) {
+        while (reader->Read(&chunk)) {
+        }
+        Log("warn", "report_dropped").kv("lease", header.lease_id()).kv("reason", "unknown_lease");
+        reply->set_merged(false);
+        return Status::OK;
+    }
+    std::vector<double> sum(n), odd_sum(n);
+    const size_t bytes_per_buffer = n * sizeof(double);
+    const size_t expected = 2 * bytes_per_buffer;
+    size_t received = 0;
+    while (reader->Read(&chunk)) {
+        if (chunk.has_header())
+            return Status(StatusCode::INVALID_ARGUMENT, "a report has exactly one header");
+        const std::string& data = chunk.values();
+        if (received + data.size() > expected)
+            return Status(StatusCode::INVALID_ARGUMENT, "report has more than the expected " +
+                                                            std::to_string(expected) +
+                                                            " bytes of values");
+        size_t offset = 0;
+        while (offset < data.size()) {
+            size_t at = received + offset;
+            char* target = at < bytes_per_buffer
+                               ? reinterpret_cast<char*>(sum.data()) + at
+                               : reinterpret_cast<char*>(odd_sum.data()) + (at - bytes_per_buffer);
+            size_t room = at < bytes_per_buffer ? bytes_per_buffer - at : expected - at;
+            size_t take = std::min(room, data.size() - offset);
+            std::memcpy(target, data.data() + offset, take);
+            offset += take;
+        }
+        received += data.size();
+    }
+    if (context->IsCancelled()) return Status(StatusCode::CANCELLED, "report cancelled");
+    if (received != expected)
+        return Status(StatusCode::INVALID_ARGUMENT,
+                      "report has " + std::to_string(received) + " bytes of values, expected " +
+                          std::to_string(expected) + " (sum and odd_sum, " + std::to_string(n) +
+                          " float64 each)");
+    for (size_t i = 0; i < n; ++i)
+        if (!std::isfinite(sum[i]) || !std::isfinite(odd_sum[i]))
+            return Status(StatusCode::INVALID_ARGUMENT,
+                          "report value " + std::to_string(i) + " is not finite");
+    bool merged = false;
+    if (Status s = manager_.report(header, sum, odd_sum, &merged); !s.ok()) return s;
+    reply->set_merged(merged);
+    return Status::OK;
+}
+
+}  // namespace render::server

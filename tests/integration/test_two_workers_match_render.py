@@ -1,0 +1,40 @@
+"""Integration test 1: a job rendered by 2 workers (1 thread each) equals `render` of the same
+scene and settings in one process, up to floating-point summation order:
+|a-b| <= 1e-5 * max(|a|,|b|) + 1e-7 for every pixel and channel."""
+
+import sys
+
+sys.dont_write_bytecode = True  # keep the source tree clean
+import cluster  # noqa: E402
+
+SEED = 7
+ITERATIONS = 16
+RESOLUTION = (32, 32)
+
+
+class TwoWorkersMatchRender(cluster.ClusterTestCase):
+    def test_vcm_and_pt(self):
+        c = self.new_cluster()
+        c.start_server()
+        c.start_workers(2, threads=1)
+        c.wait_workers_registered(2)
+        scene = cluster.cornell_box()
+        # Both jobs are queued at once, so that the two workers share the work.
+        jobs = {algo: c.api.submit(scene, algorithm=algo, iterations=ITERATIONS,
+                                   resolution=RESOLUTION, seed=SEED, name=f"two-workers-{algo}")
+                for algo in ("vcm", "pt")}
+        for algo, job in jobs.items():
+            self.assertTrue(job.id, "SubmitJob returned a job without id")
+            done = c.api.wait_job(job.id, timeout=90, procs=[c.server] + c.workers)
+            frame = done.frames[0]
+            self.assertEqual(frame.iterations_done, ITERATIONS, str(done))
+            self.assertTrue(frame.done, str(done))
+            out = c.api.fetch_to(job.id, c.path(f"{algo}.exr"))
+            ref = cluster.render_reference(scene, algo, ITERATIONS, RESOLUTION, SEED)
+            with self.subTest(algorithm=algo):
+                msg = self.assertImagesMatch(out, ref)
+                print(f"{algo}: {msg}")
+
+
+if __name__ == "__main__":
+    cluster.main()

@@ -1,0 +1,237 @@
+// The server's job manager without sockets: submit validation, leases and reports merged
+// exactly once, frames finished into EXR, and a restart on the same store resuming the job.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "core/render/render_iterations.h"
+#include "core/scene/loader/scene_loader.h"
+#include "server/job_manager.h"
+#include "server/sha256.h"
+
+using namespace render::server;
+namespace fs = std::filesystem;
+namespace v1 = render::v1;
+
+namespace {
+
+const char* kScene = R"(<scene version="3.0.0">
+  <default name="r" value="0.5"/>
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="2"/>
+    <boolean name="flip_normals" value="true"/>
+    <bsdf type="diffuse"><rgb name="reflectance" value="$r"/></bsdf>
+    <emitter type="area"><rgb name="radiance" value="0.5"/></emitter>
+  </shape>
+</scene>)";
+
+struct ManagerTest : ::testing::Test {
+    fs::path dir;
+    ServerOptions options;
+    void SetUp() override {
+        dir = fs::temp_directory_path() /
+              ("server_manager_test_" + std::to_string(::getpid()) + "_" +
+               ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        fs::remove_all(dir);
+        options.store = dir;
+        options.lease_timeout_seconds = 30;
+    }
+    void TearDown() override { fs::remove_all(dir); }
+
+    std::string upload(JobManager& m, const std::string& data) {
+        std::string sha = sha256_hex(data);
+        AssetStore::Upload u(m.assets(), sha, data.size());
+        EXPECT_EQ(u.write(data), "");
+        EXPECT_EQ(u.commit(), "");
+        return sha;
+    }
+
+    v1::SubmitJobRequest request(JobManager& m, uint64_t iterations) {
+        v1::SubmitJobRequest r;
+        r.set_name("test");
+        r.mutable_settings()->set_algorithm("pt");
+        r.mutable_settings()->set_iterations(iterations);
+        r.mutable_bundle()->set_scene_path("scene.xml");
+        v1::BundleFile* f = r.mutable_bundle()->add_files();
+        f->set_path("scene.xml");
+        f->set_sha256(upload(m, kScene));
+        f->set_size(std::string(kScene).size());
+        return r;
+    }
+
+    // Renders a lease like a worker would and reports it.
+    bool render_and_report(JobManager& m, const v1::Lease& lease) {
+        auto scene = render::load_scene_from_string(kScene, ".");
+        render::RenderSettings s;
+        s.algorithm = lease.settings().algorithm();
+        s.seed = lease.settings().seed();
+        auto r = render::render_iterations(*scene, s, lease.frame(),
+                                           {lease.first_iteration(), lease.end_iteration()});
+        v1::ReportHeader h;
+        h.set_lease_id(lease.lease_id());
+        h.set_count(r.count);
+        h.set_odd_count(r.odd_count);
+        h.set_width(8);
+        h.set_height(6);
+        h.set_render_seconds(0.01);
+        size_t n = 0;
+        bool drop = false;
+        EXPECT_TRUE(m.check_report(h, &n, &drop).ok());
+        if (drop) return false;
+        EXPECT_EQ(n, 8u * 6u * 3u);
+        bool merged = false;
+        EXPECT_TRUE(m.report(h, r.sum.values(), r.odd_sum.values(), &merged).ok());
+        return merged;
+    }
+};
+
+}  // namespace
+
+TEST_F(ManagerTest, RejectsBadRequestsWithPreciseCodes) {
+    JobManager m(options);
+    v1::Job job;
+    auto good = request(m, 4);
+
+    auto r = good;
+    r.mutable_settings()->set_algorithm("magic");
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    r = good;
+    r.mutable_settings()->set_iterations(100000000);
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    r = good;
+    r.mutable_settings()->set_width(100000);
+    r.mutable_settings()->set_height(100000);
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    r = good;
+    r.mutable_bundle()->mutable_files(0)->set_path("../../etc/passwd");
+    r.mutable_bundle()->set_scene_path("../../etc/passwd");
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    r = good;
+    r.mutable_bundle()->mutable_files(0)->set_sha256(sha256_hex("never uploaded"));
+    auto missing = m.submit(r, &job);
+    EXPECT_EQ(missing.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_NE(missing.error_message().find("scene.xml"), std::string::npos);
+    r = good;
+    std::string broken = "<scene version=\"3.0.0\"><shape type=\"nonsense\"/></scene>";
+    r.mutable_bundle()->mutable_files(0)->set_sha256(upload(m, broken));
+    r.mutable_bundle()->mutable_files(0)->set_size(broken.size());
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    r = good;
+    for (int i = 0; i < 1001; ++i) r.add_frames();
+    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(m.submit(good, &job).error_code(), grpc::StatusCode::OK);
+    EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+    EXPECT_EQ(job.settings().width(), 8u);
+    v1::ListJobsReply list;
+    m.list(&list);
+    EXPECT_EQ(list.jobs_size(), 1);
+    EXPECT_EQ(m.get("job-nope", &job).error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+TEST_F(ManagerTest, RendersAJobAndDropsDuplicates) {
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 5), &job).ok());
+    v1::RegisterWorkerReply reg;
+    m.register_worker({}, &reg);
+    v1::LeaseRequest lr;
+    lr.set_worker_id(reg.worker_id());
+    v1::LeaseReply first;
+    ASSERT_TRUE(m.lease(lr, &first).ok());
+    ASSERT_TRUE(first.granted());
+    EXPECT_EQ(first.lease().first_iteration(), 1u);
+    EXPECT_EQ(first.lease().end_iteration(), 2u);
+    EXPECT_TRUE(render_and_report(m, first.lease()));
+    EXPECT_FALSE(render_and_report(m, first.lease()));  // duplicate: dropped
+
+    v1::FetchResultRequest fr;
+    fr.set_job_id(job.id());
+    fs::path file;
+    bool temporary = false;
+    EXPECT_EQ(m.result_file(fr, &file, &temporary).error_code(),
+              grpc::StatusCode::FAILED_PRECONDITION);
+    fr.set_preview(true);
+    ASSERT_TRUE(m.result_file(fr, &file, &temporary).ok());
+    EXPECT_TRUE(temporary);
+    EXPECT_TRUE(fs::exists(file));
+
+    v1::LeaseReply next;
+    while (m.lease(lr, &next).ok() && next.granted()) {
+        EXPECT_TRUE(render_and_report(m, next.lease()));
+        next.Clear();
+    }
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_DONE);
+    EXPECT_EQ(job.frames(0).iterations_done(), 5u);
+    fr.set_preview(false);
+    ASSERT_TRUE(m.result_file(fr, &file, &temporary).ok());
+    EXPECT_FALSE(temporary);
+    EXPECT_TRUE(fs::exists(file));
+    fr.set_frame(3);
+    EXPECT_EQ(m.result_file(fr, &file, &temporary).error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+TEST_F(ManagerTest, RestartResumesFromTheCheckpoint) {
+    std::string id;
+    v1::Lease stale;
+    {
+        JobManager m(options);
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 6), &job).ok());
+        id = job.id();
+        v1::LeaseRequest lr;
+        lr.set_worker_id("w-1");
+        v1::LeaseReply a, b;
+        ASSERT_TRUE(m.lease(lr, &a).ok());
+        ASSERT_TRUE(render_and_report(m, a.lease()));  // [1, 2) merged
+        ASSERT_TRUE(m.lease(lr, &b).ok());
+        stale = b.lease();  // outstanding at the "crash"
+    }
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.get(id, &job).ok());
+    EXPECT_EQ(job.frames(0).iterations_done(), 1u);
+    EXPECT_FALSE(render_and_report(m, stale));  // a lease of the previous run is void
+    v1::LeaseRequest lr;
+    lr.set_worker_id("w-2");
+    v1::LeaseReply next;
+    ASSERT_TRUE(m.lease(lr, &next).ok());
+    EXPECT_EQ(next.lease().first_iteration(), 2u);  // the voided range comes back
+    EXPECT_TRUE(render_and_report(m, next.lease()));
+    next.Clear();
+    while (m.lease(lr, &next).ok() && next.granted()) {
+        EXPECT_TRUE(render_and_report(m, next.lease()));
+        next.Clear();
+    }
+    ASSERT_TRUE(m.get(id, &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_DONE);
+    EXPECT_EQ(job.frames(0).iterations_done(), 6u);
+}
+
+TEST_F(ManagerTest, CancelTellsWorkersThroughHeartbeats) {
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    v1::LeaseRequest lr;
+    lr.set_worker_id("w-1");
+    v1::LeaseReply a;
+    ASSERT_TRUE(m.lease(lr, &a).ok());
+    ASSERT_TRUE(m.cancel(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_CANCELLED);
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id("w-1");
+    hb.add_lease_ids(a.lease().lease_id());
+    v1::HeartbeatReply reply;
+    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    ASSERT_EQ(reply.cancelled_lease_ids_size(), 1);
+    EXPECT_FALSE(render_and_report(m, a.lease()));
+    v1::LeaseReply none;
+    ASSERT_TRUE(m.lease(lr, &none).ok());
+    EXPECT_FALSE(none.granted());
+}

@@ -1,0 +1,221 @@
+// The server's lease table and iteration bookkeeping: exactly-once merges, expired lease
+// requeue, priority order, range sizing. Time is injected; nothing sleeps.
+
+#include <gtest/gtest.h>
+
+#include "server/interval_set.h"
+#include "server/scheduler.h"
+
+using namespace render::server;
+
+namespace {
+
+struct FakeClock {
+    TimePoint now = TimePoint{} + std::chrono::hours(1);
+    void advance(double seconds) {
+        now += std::chrono::duration_cast<SteadyClock::duration>(
+            std::chrono::duration<double>(seconds));
+    }
+};
+
+std::vector<FramePlan> frames(int n, uint64_t target, double budget = 0) {
+    std::vector<FramePlan> out(n);
+    for (FramePlan& f : out) {
+        f.target = target;
+        f.budget_seconds = budget;
+    }
+    return out;
+}
+
+struct SchedulerTest : ::testing::Test {
+    FakeClock clock;
+    Scheduler scheduler{SchedulerOptions{10, 3}, [this] { return clock.now; }};
+
+    // Leases, merges and finishes everything the worker gets until nothing is left.
+    uint64_t drain(const std::string& worker) {
+        uint64_t merged = 0;
+        while (auto g = scheduler.lease(worker)) {
+            LeaseGrant out;
+            EXPECT_EQ(scheduler.begin_merge(g->lease_id, 1.0, &out), MergeDecision::Accept);
+            scheduler.end_merge(out);
+            merged += g->range.size();
+            for (auto [job, frame] : scheduler.tick()) scheduler.finish_frame(job, frame);
+        }
+        return merged;
+    }
+};
+
+}  // namespace
+
+TEST(IntervalSet, AddJoinsAndSubtractSplits) {
+    IntervalSet s;
+    s.add({1, 3});
+    s.add({5, 7});
+    s.add({3, 5});
+    ASSERT_EQ(s.ranges().size(), 1u);
+    EXPECT_EQ(s.ranges()[0], (Range{1, 7}));
+    s.subtract({2, 4});
+    ASSERT_EQ(s.ranges().size(), 2u);
+    EXPECT_EQ(s.ranges()[0], (Range{1, 2}));
+    EXPECT_EQ(s.ranges()[1], (Range{4, 7}));
+    EXPECT_TRUE(s.overlaps({1, 2}));
+    EXPECT_FALSE(s.overlaps({2, 4}));
+    EXPECT_TRUE(s.overlaps({3, 5}));
+    EXPECT_TRUE(s.contains({4, 7}));
+    EXPECT_FALSE(s.contains({1, 5}));
+    EXPECT_EQ(s.total(), 4u);
+    EXPECT_EQ(s.max_end(1), 7u);
+}
+
+TEST_F(SchedulerTest, FirstLeaseIsOneIterationThenSizedByRate) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 1000));
+    auto g = scheduler.lease("w");
+    ASSERT_TRUE(g);
+    EXPECT_EQ(g->range, (Range{1, 2}));
+    EXPECT_EQ(scheduler.state("a"), JobState::Running);
+    LeaseGrant out;
+    // 1 iteration in 0.1 s: 10 it/s, so a 3 s lease is 30 iterations.
+    ASSERT_EQ(scheduler.begin_merge(g->lease_id, 0.1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto g2 = scheduler.lease("w");
+    ASSERT_TRUE(g2);
+    EXPECT_EQ(g2->range, (Range{2, 32}));
+    // Another worker has no measured rate yet.
+    auto g3 = scheduler.lease("other");
+    ASSERT_TRUE(g3);
+    EXPECT_EQ(g3->range, (Range{32, 33}));
+}
+
+TEST_F(SchedulerTest, RangesAreCappedByTheTarget) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 5));
+    auto g = scheduler.lease("w");
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(g->lease_id, 0.001, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto g2 = scheduler.lease("w");
+    ASSERT_TRUE(g2);
+    EXPECT_EQ(g2->range, (Range{2, 6}));
+    EXPECT_FALSE(scheduler.lease("w"));
+}
+
+TEST_F(SchedulerTest, DuplicateReportIsDropped) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 10));
+    auto g = scheduler.lease("w");
+    LeaseGrant out;
+    EXPECT_EQ(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
+    // A second report of the same lease while the first is still being added.
+    EXPECT_NE(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    EXPECT_NE(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
+    EXPECT_EQ(scheduler.begin_merge("nonsense", 1, &out), MergeDecision::UnknownLease);
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 1u);
+}
+
+TEST_F(SchedulerTest, ExpiredLeaseIsRequeuedAndLateReportDropped) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 3));
+    auto dead = scheduler.lease("dead");
+    ASSERT_TRUE(dead);
+    EXPECT_EQ(dead->range, (Range{1, 2}));
+    clock.advance(11);  // past the 10 s lease timeout
+    auto again = scheduler.lease("alive");
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->range, (Range{1, 2}));  // the expired range comes back first
+    // The dead worker's heartbeat is told to stop.
+    auto cancelled = scheduler.heartbeat("dead", {dead->lease_id});
+    ASSERT_EQ(cancelled.size(), 1u);
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(again->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    // The late report of the reissued range is dropped.
+    EXPECT_NE(scheduler.begin_merge(dead->lease_id, 1, &out), MergeDecision::Accept);
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 1u);
+    EXPECT_EQ(drain("alive"), 2u);
+    EXPECT_EQ(scheduler.state("a"), JobState::Done);
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 3u);
+}
+
+TEST_F(SchedulerTest, ExpiredButNotReissuedReportStillMerges) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 3));
+    auto slow = scheduler.lease("slow");
+    clock.advance(11);
+    EXPECT_TRUE(scheduler.heartbeat("slow", {slow->lease_id}).empty());  // still salvageable
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(slow->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto next = scheduler.lease("w");
+    ASSERT_TRUE(next);
+    EXPECT_EQ(next->range.first, 2u);  // [1, 2) is not handed out again
+}
+
+TEST_F(SchedulerTest, HeartbeatKeepsLeasesAlive) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 3));
+    auto g = scheduler.lease("w");
+    for (int i = 0; i < 5; ++i) {
+        clock.advance(6);
+        EXPECT_TRUE(scheduler.heartbeat("w", {g->lease_id}).empty());
+    }
+    LeaseGrant out;
+    EXPECT_EQ(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
+}
+
+TEST_F(SchedulerTest, PriorityThenSubmissionOrder) {
+    scheduler.add_job("low", 0, 1, JobState::Queued, frames(1, 1));
+    scheduler.add_job("high-late", 5, 3, JobState::Queued, frames(1, 1));
+    scheduler.add_job("high-early", 5, 2, JobState::Queued, frames(1, 1));
+    EXPECT_EQ(scheduler.lease("w")->job_id, "high-early");
+    EXPECT_EQ(scheduler.lease("w")->job_id, "high-late");
+    EXPECT_EQ(scheduler.lease("w")->job_id, "low");
+    EXPECT_FALSE(scheduler.lease("w"));
+}
+
+TEST_F(SchedulerTest, CancelStopsLeasesAndDropsReports) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 100));
+    scheduler.add_job("b", 0, 2, JobState::Queued, frames(1, 1));
+    auto g = scheduler.lease("w");
+    ASSERT_EQ(g->job_id, "a");
+    scheduler.set_state("a", JobState::Cancelled);
+    EXPECT_EQ(scheduler.heartbeat("w", {g->lease_id}).size(), 1u);
+    LeaseGrant out;
+    EXPECT_NE(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
+    EXPECT_EQ(scheduler.lease("w")->job_id, "b");  // the queue moves on
+}
+
+TEST_F(SchedulerTest, FramesCompleteInTurnAndTheJobIsDone) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(3, 4));
+    EXPECT_EQ(drain("w"), 12u);
+    EXPECT_EQ(scheduler.state("a"), JobState::Done);
+    for (uint32_t f = 0; f < 3; ++f) EXPECT_TRUE(scheduler.progress("a", f).done);
+}
+
+TEST_F(SchedulerTest, RestoredFrameRequeuesTheGapsOnly) {
+    std::vector<FramePlan> plan = frames(1, 10);
+    plan[0].merged.add({1, 3});
+    plan[0].merged.add({5, 6});
+    scheduler.add_job("a", 0, 1, JobState::Running, std::move(plan));
+    auto g = scheduler.lease("w");
+    EXPECT_EQ(g->range, (Range{3, 4}));
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(g->lease_id, 1e-6, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto g2 = scheduler.lease("w");
+    EXPECT_EQ(g2->range, (Range{4, 5}));  // the rest of the gap, not past it
+    ASSERT_EQ(scheduler.begin_merge(g2->lease_id, 1e-6, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto g3 = scheduler.lease("w");
+    EXPECT_EQ(g3->range, (Range{6, 11}));
+}
+
+TEST_F(SchedulerTest, TimeBudgetClosesTheFrame) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 0, 5.0));
+    auto g = scheduler.lease("w");
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(g->lease_id, 1.0, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    EXPECT_TRUE(scheduler.tick().empty());
+    clock.advance(6);
+    EXPECT_FALSE(scheduler.lease("w"));
+    auto complete = scheduler.tick();
+    ASSERT_EQ(complete.size(), 1u);
+    EXPECT_TRUE(scheduler.finish_frame("a", 0));
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 1u);
+}

@@ -1,0 +1,143 @@
+// The server's building blocks: SHA-256, bundle path validation, the SQLite job store and the
+// frame checkpoints.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "server/accumulator.h"
+#include "server/asset_store.h"
+#include "server/job_store.h"
+#include "server/sha256.h"
+#include "server/validation.h"
+
+using namespace render::server;
+namespace fs = std::filesystem;
+
+namespace {
+fs::path temp_dir(const std::string& name) {
+    fs::path dir = fs::temp_directory_path() /
+                   ("server_store_test_" + name + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+}  // namespace
+
+TEST(Sha256, KnownVectors) {
+    EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+    EXPECT_EQ(sha256_hex("abc"),
+              "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+    EXPECT_EQ(sha256_hex("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
+              "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+    std::string million(1000000, 'a');
+    Sha256 h;
+    for (size_t i = 0; i < million.size(); i += 999) h.update(million.substr(i, 999));
+    EXPECT_EQ(h.hex_digest(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+    EXPECT_TRUE(is_sha256_hex(sha256_hex("x")));
+    EXPECT_FALSE(is_sha256_hex("ABC"));
+}
+
+TEST(Validation, BundlePaths) {
+    EXPECT_EQ(check_bundle_path("scene.xml"), "");
+    EXPECT_EQ(check_bundle_path("meshes/a.obj"), "");
+    EXPECT_EQ(check_bundle_path("a..b/c"), "");
+    EXPECT_NE(check_bundle_path(""), "");
+    EXPECT_NE(check_bundle_path("../../etc/passwd"), "");
+    EXPECT_NE(check_bundle_path("a/../../b"), "");
+    EXPECT_NE(check_bundle_path("/etc/passwd"), "");
+    EXPECT_NE(check_bundle_path("a\\b"), "");
+    EXPECT_NE(check_bundle_path("a//b"), "");
+    EXPECT_NE(check_bundle_path("./a"), "");
+    EXPECT_NE(check_bundle_path("a/.."), "");
+    EXPECT_TRUE(is_supported_algorithm("vcm"));
+    EXPECT_FALSE(is_supported_algorithm("path"));
+    EXPECT_FALSE(is_supported_algorithm(""));
+}
+
+TEST(AssetStore, UploadChecksHashAndSize) {
+    fs::path dir = temp_dir("assets");
+    AssetStore store(dir);
+    std::string data = "hello asset";
+    std::string sha = sha256_hex(data);
+    {
+        AssetStore::Upload bad(store, sha, data.size());
+        EXPECT_EQ(bad.write("hello assex"), "");
+        EXPECT_NE(bad.commit(), "");
+    }
+    EXPECT_FALSE(store.has(sha));
+    {
+        AssetStore::Upload too_long(store, sha, 3);
+        EXPECT_NE(too_long.write(data), "");
+    }
+    AssetStore::Upload ok(store, sha, data.size());
+    EXPECT_EQ(ok.write(data.substr(0, 4)), "");
+    EXPECT_EQ(ok.write(data.substr(4)), "");
+    EXPECT_EQ(ok.commit(), "");
+    EXPECT_EQ(store.size(sha), data.size());
+    store.materialize({{"sub/dir/file.txt", sha}}, dir / "job");
+    std::ifstream in(dir / "job" / "sub/dir/file.txt");
+    std::string read((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(read, data);
+    fs::remove_all(dir);
+}
+
+TEST(JobStore, PersistsJobsFramesAndRanges) {
+    fs::path dir = temp_dir("db");
+    {
+        JobStore store(dir / "render.db");
+        JobRow row;
+        row.id = "job-1";
+        row.sequence = 7;
+        row.name = "n";
+        row.request = std::string("\0binary\xff", 8);
+        row.width = 4;
+        row.height = 3;
+        store.insert_job(row, 2);
+        store.update_job_state("job-1", 2, "");
+        store.add_merged_range("job-1", 1, {1, 5});
+        store.update_frame("job-1", 0, true, 2.5);
+        store.insert_lease("L1", "w", "job-1", 0, {5, 6});
+    }
+    JobStore store(dir / "render.db");
+    auto jobs = store.load_jobs();
+    ASSERT_EQ(jobs.size(), 1u);
+    EXPECT_EQ(jobs[0].request, std::string("\0binary\xff", 8));
+    EXPECT_EQ(jobs[0].state, 2);
+    EXPECT_EQ(store.max_sequence(), 7);
+    auto frames = store.load_frames("job-1");
+    ASSERT_EQ(frames.size(), 2u);
+    EXPECT_TRUE(frames[0].done);
+    EXPECT_DOUBLE_EQ(frames[0].elapsed_seconds, 2.5);
+    EXPECT_FALSE(frames[1].done);
+    auto ranges = store.merged_ranges("job-1", 1);
+    ASSERT_EQ(ranges.size(), 1u);
+    EXPECT_EQ(ranges[0], (Range{1, 5}));
+    EXPECT_EQ(store.clear_leases(), 1);
+    fs::remove_all(dir);
+}
+
+TEST(FrameAccumulator, CheckpointRoundTrip) {
+    fs::path dir = temp_dir("ckpt");
+    FrameAccumulator acc(2, 1);
+    std::vector<double> sum = {1, 2, 3, 4, 5, 6}, odd = {1, 1, 1, 1, 1, 1};
+    render::RenderStats stats;
+    stats.samples = 2;
+    acc.add({1, 2}, sum, odd, 1, stats);
+    acc.add({3, 5}, sum, odd, 1, stats);
+    acc.save(dir / "f.ckpt", 4.5);
+    double elapsed = 0;
+    FrameAccumulator back = FrameAccumulator::load(dir / "f.ckpt", &elapsed);
+    EXPECT_DOUBLE_EQ(elapsed, 4.5);
+    EXPECT_EQ(back.count(), 3u);
+    EXPECT_EQ(back.result().odd_count, 2u);
+    EXPECT_EQ(back.result().stats.samples, 4u);
+    EXPECT_EQ(back.ranges().ranges().size(), 2u);
+    EXPECT_EQ(back.result().sum.values()[5], 12.0);
+    EXPECT_EQ(back.average().at(size_t(1)).b, 4.0f);
+    // A truncated checkpoint is refused, not half read.
+    fs::resize_file(dir / "f.ckpt", fs::file_size(dir / "f.ckpt") - 3);
+    EXPECT_THROW(FrameAccumulator::load(dir / "f.ckpt", nullptr), std::runtime_error);
+    fs::remove_all(dir);
+}

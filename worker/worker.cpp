@@ -1,0 +1,374 @@
+#include "worker/worker.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+#include "core/render/render_iterations.h"
+#include "core/scene/loader/scene_loader.h"
+#include "worker/log.h"
+#include "worker/rpc_common.h"
+
+namespace render::service {
+
+static_assert(std::endian::native == std::endian::little,
+              "reports carry little-endian float64 values");
+
+std::atomic<int> g_stop_requests{0};
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr const char* kVersion = "render-worker 0.1";
+constexpr double kRpcTimeout = 10.0;
+
+double seconds_since(Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+std::string host_name() {
+    char buf[256] = {};
+    if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
+    return buf;
+}
+
+// Waits with a growing delay: 0.2 s doubling to 5 s; reset() after a success.
+class Backoff {
+  public:
+    double next() {
+        double d = delay_;
+        delay_ = std::min(delay_ * 2, 5.0);
+        return d;
+    }
+    void reset() { delay_ = 0.2; }
+
+  private:
+    double delay_ = 0.2;
+};
+
+bool is_transient(grpc::StatusCode code) {
+    return code == grpc::StatusCode::UNAVAILABLE || code == grpc::StatusCode::DEADLINE_EXCEEDED ||
+           code == grpc::StatusCode::RESOURCE_EXHAUSTED || code == grpc::StatusCode::ABORTED ||
+           code == grpc::StatusCode::CANCELLED;
+}
+
+}  // namespace
+
+struct RangeResult {
+    std::vector<double> sum, odd_sum;
+    uint64_t count = 0, odd_count = 0;
+    RenderStats stats;
+    double seconds = 0;
+    int width = 0, height = 0;
+};
+
+Worker::Worker(WorkerOptions options)
+    : options_(std::move(options)),
+      channel_(make_channel(options_.server)),
+      stub_(v1::WorkerService::NewStub(channel_)),
+      cache_(options_.cache_dir) {}
+
+void Worker::nap(double seconds) {
+    auto until = Clock::now() + std::chrono::duration<double>(seconds);
+    while (Clock::now() < until && g_stop_requests.load() == 0)
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+}
+
+bool Worker::register_worker() {
+    grpc::ClientContext context;
+    prepare_context(context, options_.token, kRpcTimeout);
+    v1::RegisterWorkerRequest request;
+    request.set_host(host_name());
+    request.set_threads(uint32_t(options_.threads > 0
+                                     ? options_.threads
+                                     : int(std::max(1u, std::thread::hardware_concurrency()))));
+    request.set_version(kVersion);
+    v1::RegisterWorkerReply reply;
+    grpc::Status status = stub_->RegisterWorker(&context, request, &reply);
+    if (!status.ok()) {
+        if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+            status.error_code() == grpc::StatusCode::PERMISSION_DENIED)
+            token_rejected_ = true;
+        log_warn("register_failed").kv("server", options_.server).kv("status", describe(status));
+        return false;
+    }
+    worker_id_ = reply.worker_id();
+    if (reply.heartbeat_seconds() > 0) heartbeat_seconds_ = reply.heartbeat_seconds();
+    log_info("registered")
+        .kv("worker", worker_id_)
+        .kv("server", options_.server)
+        .kv("threads", request.threads())
+        .kv("heartbeat_s", heartbeat_seconds_);
+    return true;
+}
+
+int Worker::run() {
+    log_info("start").kv("server", options_.server).kv("cache", cache_.dir().string());
+    Backoff backoff;
+    while (g_stop_requests.load() == 0) {
+        if (worker_id_.empty()) {
+            if (!register_worker()) {
+                if (token_rejected_) {
+                    log_error("token_rejected").kv("hint", "check --token or RENDER_TOKEN");
+                    return 1;
+                }
+                nap(backoff.next());
+                continue;
+            }
+            backoff.reset();
+        }
+        v1::LeaseRequest request;
+        request.set_worker_id(worker_id_);
+        v1::LeaseReply reply;
+        grpc::ClientContext context;
+        prepare_context(context, options_.token, kRpcTimeout);
+        grpc::Status status = stub_->Lease(&context, request, &reply);
+        if (!status.ok()) {
+            log_warn("lease_failed").kv("status", describe(status));
+            if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED) {
+                log_error("token_rejected").kv("hint", "check --token or RENDER_TOKEN");
+                return 1;
+            }
+            // A server that restarted may not know this worker any more: register again.
+            if (!is_transient(status.error_code())) worker_id_.clear();
+            nap(backoff.next());
+            continue;
+        }
+        backoff.reset();
+        if (!reply.granted() || !reply.has_lease()) {
+            nap(0.3);
+            continue;
+        }
+        process(reply.lease());
+    }
+    log_info("stop").kv("worker", worker_id_);
+    return 0;
+}
+
+grpc::Status Worker::fetch_asset(const std::string& sha256,
+                                 const std::function<void(const std::string&)>& sink) {
+    grpc::ClientContext context;
+    prepare_context(context, options_.token, 300.0);
+    v1::FetchAssetRequest request;
+    request.set_sha256(sha256);
+    std::unique_ptr<grpc::ClientReader<v1::AssetChunk>> reader =
+        stub_->FetchAsset(&context, request);
+    v1::AssetChunk chunk;
+    while (reader->Read(&chunk)) sink(chunk.data());
+    return reader->Finish();
+}
+
+const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::path& scene_file) {
+    const v1::RenderSettings& s = lease.settings();
+    std::map<std::string, std::string> defines(s.defines().begin(), s.defines().end());
+    std::string key =
+        lease.job_id() + "\n" + std::to_string(s.width()) + "x" + std::to_string(s.height());
+    for (const auto& [name, value] : defines) key += "\n" + name + "=" + value;
+    if (scene_ && key == scene_key_) return *scene_;
+    scene_.reset();
+    scene_key_.clear();
+    auto t0 = Clock::now();
+    std::unique_ptr<Scene> scene = load_scene(scene_file, defines);
+    if (s.width() > 0 && s.height() > 0)
+        scene->set_camera(scene->camera().with_resolution(int(s.width()), int(s.height())));
+    log_info("scene_loaded")
+        .kv("job", lease.job_id())
+        .kv("scene", scene_file.string())
+        .kv("width", scene->camera().width())
+        .kv("height", scene->camera().height())
+        .kv("seconds", seconds_since(t0));
+    scene_ = std::move(scene);
+    scene_key_ = key;
+    return *scene_;
+}
+
+bool Worker::heartbeat(const std::string& lease_id) {
+    grpc::ClientContext context;
+    prepare_context(context, options_.token, kRpcTimeout);
+    v1::HeartbeatRequest request;
+    request.set_worker_id(worker_id_);
+    request.add_lease_ids(lease_id);
+    v1::HeartbeatReply reply;
+    grpc::Status status = stub_->Heartbeat(&context, request, &reply);
+    if (!status.ok()) {
+        log_warn("heartbeat_failed").kv("lease", lease_id).kv("status", describe(status));
+        return true;  // keep rendering: the report decides whether the work still counts
+    }
+    for (const std::string& id : reply.cancelled_lease_ids())
+        if (id == lease_id) return false;
+    return true;
+}
+
+Worker::Outcome Worker::process(const v1::Lease& lease) {
+    const uint64_t first = lease.first_iteration(), end = lease.end_iteration();
+    log_info("lease")
+        .kv("lease", lease.lease_id())
+        .kv("job", lease.job_id())
+        .kv("frame", lease.frame())
+        .kv("first", first)
+        .kv("end", end)
+        .kv("algorithm", lease.settings().algorithm());
+    auto fail = [&](const std::string& why) {
+        // Nothing to report: the lease expires and the server hands the range out again.
+        log_error("lease_failed").kv("lease", lease.lease_id()).kv("error", why);
+        return Outcome::Failed;
+    };
+    if (first < 1 || end <= first) return fail("empty or invalid iteration range");
+
+    // Assets and scene.
+    const Scene* scene = nullptr;
+    RenderSettings settings;
+    try {
+        std::filesystem::path scene_file = cache_.prepare_job(
+            lease.job_id(), lease.bundle(),
+            [this](const std::string& sha, const std::function<void(const std::string&)>& sink) {
+                return fetch_asset(sha, sink);
+            });
+        scene = &scene_for(lease, scene_file);
+        const v1::RenderSettings& s = lease.settings();
+        settings.algorithm = s.algorithm().empty() ? scene->settings.integrator : s.algorithm();
+        settings.seed = s.seed();
+        settings.max_depth = s.has_max_depth() ? s.max_depth() : scene->settings.max_depth;
+        settings.rr_depth = scene->settings.rr_depth;
+        if (s.radius_factor() != 0) settings.radius_factor = s.radius_factor();
+        if (s.alpha() != 0) settings.alpha = s.alpha();
+        settings.light_path_count = s.light_path_count();
+        settings.threads = options_.threads;
+    } catch (const std::exception& e) {
+        return fail(e.what());
+    }
+
+    // Render in a thread, one iteration per call (the sum equals one call over the range, and
+    // a cancellation takes effect between iterations); heartbeat from this thread.
+    RangeResult result;
+    result.width = scene->camera().width();
+    result.height = scene->camera().height();
+    const size_t values = size_t(result.width) * size_t(result.height) * 3;
+    result.sum.assign(values, 0.0);
+    result.odd_sum.assign(values, 0.0);
+    std::atomic<bool> abandon{false};
+    std::mutex mutex;
+    std::condition_variable done_cv;
+    bool done = false;
+    std::string error;
+    auto t0 = Clock::now();
+    std::thread renderer([&] {
+        try {
+            for (uint64_t i = first; i < end && !abandon.load(); ++i) {
+                IterationResult r = render_iterations(*scene, settings, lease.frame(), {i, i + 1});
+                const std::vector<double>& sum = r.sum.values();
+                const std::vector<double>& odd = r.odd_sum.values();
+                for (size_t k = 0; k < values; ++k) result.sum[k] += sum[k];
+                if (r.odd_count > 0)
+                    for (size_t k = 0; k < values; ++k) result.odd_sum[k] += odd[k];
+                result.count += r.count;
+                result.odd_count += r.odd_count;
+                result.stats += r.stats;
+            }
+        } catch (const std::exception& e) {
+            error = e.what();
+        }
+        std::lock_guard<std::mutex> lock(mutex);
+        done = true;
+        done_cv.notify_all();
+    });
+    bool cancelled = false;
+    {
+        std::unique_lock<std::mutex> lock(mutex);
+        auto next_beat = Clock::now() + std::chrono::duration<double>(heartbeat_seconds_);
+        while (!done) {
+            done_cv.wait_for(lock, std::chrono::milliseconds(50));
+            if (done) break;
+            if (g_stop_requests.load() >= 2 && !abandon) {
+                log_warn("abandon").kv("lease", lease.lease_id()).kv("reason", "second signal");
+                abandon = true;
+            }
+            if (Clock::now() >= next_beat && !abandon) {
+                lock.unlock();
+                bool alive = heartbeat(lease.lease_id());
+                lock.lock();
+                next_beat = Clock::now() + std::chrono::duration<double>(heartbeat_seconds_);
+                if (!alive) {
+                    cancelled = true;
+                    abandon = true;
+                }
+            }
+        }
+    }
+    renderer.join();
+    result.seconds = seconds_since(t0);
+    if (!error.empty()) return fail(error);
+    if (cancelled) {
+        log_info("lease_cancelled").kv("lease", lease.lease_id()).kv("job", lease.job_id());
+        return Outcome::Cancelled;
+    }
+    if (abandon || result.count != end - first) {
+        log_warn("lease_abandoned").kv("lease", lease.lease_id());
+        return Outcome::Dropped;
+    }
+    log_info("rendered")
+        .kv("lease", lease.lease_id())
+        .kv("iterations", result.count)
+        .kv("seconds", result.seconds)
+        .kv("it_per_s", result.seconds > 0 ? double(result.count) / result.seconds : 0.0);
+    return report(lease, result);
+}
+
+Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result) {
+    // Retry while the lease may still be alive (the server may be restarting).
+    const double patience = std::max(10.0, lease.expires_in_seconds());
+    auto t0 = Clock::now();
+    Backoff backoff;
+    for (;;) {
+        grpc::ClientContext context;
+        prepare_context(context, options_.token, 120.0);
+        v1::ReportReply reply;
+        std::unique_ptr<grpc::ClientWriter<v1::ReportChunk>> writer =
+            stub_->Report(&context, &reply);
+        v1::ReportChunk chunk;
+        v1::ReportHeader* header = chunk.mutable_header();
+        header->set_lease_id(lease.lease_id());
+        header->set_count(result.count);
+        header->set_odd_count(result.odd_count);
+        header->set_width(uint32_t(result.width));
+        header->set_height(uint32_t(result.height));
+        header->set_samples(result.stats.samples);
+        header->set_rays(result.stats.rays);
+        header->set_non_finite(result.stats.non_finite);
+        header->set_render_seconds(result.seconds);
+        bool ok = writer->Write(chunk);
+        // sum, then odd_sum, as one little-endian float64 sequence cut into <= 1 MiB chunks.
+        const size_t per_chunk = kMaxChunkBytes / sizeof(double);
+        for (const std::vector<double>* buffer : {&result.sum, &result.odd_sum}) {
+            for (size_t at = 0; ok && at < buffer->size(); at += per_chunk) {
+                size_t n = std::min(per_chunk, buffer->size() - at);
+                v1::ReportChunk values;
+                values.mutable_values()->assign(reinterpret_cast<const char*>(buffer->data() + at),
+                                                n * sizeof(double));
+                ok = writer->Write(values);
+            }
+        }
+        if (ok) writer->WritesDone();
+        grpc::Status status = writer->Finish();
+        if (status.ok()) {
+            log_info(reply.merged() ? "reported" : "report_dropped")
+                .kv("lease", lease.lease_id())
+                .kv("merged", reply.merged() ? "true" : "false");
+            return reply.merged() ? Outcome::Reported : Outcome::Dropped;
+        }
+        log_warn("report_failed").kv("lease", lease.lease_id()).kv("status", describe(status));
+        if (!is_transient(status.error_code()) || seconds_since(t0) > patience ||
+            g_stop_requests.load() >= 2)
+            return Outcome::Failed;
+        // Plain sleep: a first SIGTERM must not cut short the delivery of finished work.
+        std::this_thread::sleep_for(std::chrono::duration<double>(backoff.next()));
+    }
+}
+
+}  // namespace render::service

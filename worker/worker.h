@@ -1,0 +1,60 @@
+#pragma once
+
+// The worker loop: register, lease a range of iterations, fetch the scene's assets, render
+// the range with render_iterations while heartbeating, and stream the sums back.
+
+#include <atomic>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "core/scene/scene.h"
+#include "render.grpc.pb.h"
+#include "worker/asset_cache.h"
+
+namespace render::service {
+
+struct WorkerOptions {
+    std::string server;  // HOST:PORT
+    int threads = 0;     // 0 = all cores
+    std::string token;
+    std::filesystem::path cache_dir;
+};
+
+// Set by the signal handler: 1 = finish the current range and exit, 2+ = give up at once.
+extern std::atomic<int> g_stop_requests;
+
+class Worker {
+  public:
+    explicit Worker(WorkerOptions options);
+    // Runs until a stop is requested. Returns the process exit code (0, or 1 when the server
+    // refuses the token).
+    int run();
+
+  private:
+    enum class Outcome { Reported, Dropped, Cancelled, Failed };
+
+    bool register_worker();
+    Outcome process(const v1::Lease& lease);
+    const Scene& scene_for(const v1::Lease& lease, const std::filesystem::path& scene_file);
+    grpc::Status fetch_asset(const std::string& sha256,
+                             const std::function<void(const std::string&)>& sink);
+    bool heartbeat(const std::string& lease_id);  // false: the lease was cancelled
+    Outcome report(const v1::Lease& lease, const struct RangeResult& result);
+    // Sleeps up to `seconds`, waking early when a stop is requested.
+    static void nap(double seconds);
+
+    WorkerOptions options_;
+    std::shared_ptr<grpc::Channel> channel_;
+    std::unique_ptr<v1::WorkerService::Stub> stub_;
+    AssetCache cache_;
+    std::string worker_id_;
+    double heartbeat_seconds_ = 2.0;
+    bool token_rejected_ = false;
+
+    std::string scene_key_;
+    std::unique_ptr<Scene> scene_;
+};
+
+}  // namespace render::service
