@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "worker/sha256.h"
+#include "core/util/sha256.h"
 
 namespace render::service {
 

@@ -22,9 +22,9 @@
 
 #include "client/bundle.h"
 #include "client/progress.h"
+#include "core/util/sha256.h"
 #include "render.grpc.pb.h"
 #include "worker/rpc_common.h"
-#include "worker/sha256.h"
 
 namespace {
 
@@ -528,7 +528,7 @@ int main(int argc, char** argv) {
         if (command == "hash") {
             if (args.empty()) usage_error("hash: no file given");
             for (const std::string& f : args)
-                std::printf("%s  %s\n", sha256_file(f).c_str(), f.c_str());
+                std::printf("%s  %s\n", render::sha256_file(f).c_str(), f.c_str());
             return 0;
         }
         if (command == "bundle") return bundle_command(args);

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "server/sha256.h"
+#include "core/util/sha256.h"
 
 namespace render::server {
 

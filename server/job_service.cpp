@@ -5,7 +5,7 @@
 #include <thread>
 
 #include "server/log.h"
-#include "server/sha256.h"
+#include "core/util/sha256.h"
 #include "server/validation.h"
 
 namespace render::server {

@@ -5,7 +5,7 @@
 
 #include "server/job_service.h"
 #include "server/log.h"
-#include "server/sha256.h"
+#include "core/util/sha256.h"
 
 namespace render::server {
 

@@ -7,7 +7,7 @@
 #include <system_error>
 
 #include "worker/log.h"
-#include "worker/sha256.h"
+#include "core/util/sha256.h"
 
 namespace render::service {
 

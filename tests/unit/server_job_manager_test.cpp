@@ -7,9 +7,10 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/util/sha256.h"
 #include "server/job_manager.h"
-#include "server/sha256.h"
 
+using namespace render;
 using namespace render::server;
 namespace fs = std::filesystem;
 namespace v1 = render::v1;

@@ -6,12 +6,13 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/util/sha256.h"
 #include "server/accumulator.h"
 #include "server/asset_store.h"
 #include "server/job_store.h"
-#include "server/sha256.h"
 #include "server/validation.h"
 
+using namespace render;
 using namespace render::server;
 namespace fs = std::filesystem;
 

@@ -5,10 +5,11 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
-namespace render::server {
+namespace render {
 
 class Sha256 {
   public:
@@ -30,7 +31,11 @@ class Sha256 {
 // The lower-case hex SHA-256 of `data`.
 std::string sha256_hex(std::string_view data);
 
+// The lower-case hex SHA-256 of a file's content; `size` (optional) receives its length.
+// Throws std::runtime_error when the file cannot be read.
+std::string sha256_file(const std::filesystem::path& file, uint64_t* size = nullptr);
+
 // True for 64 lower-case hex digits.
 bool is_sha256_hex(std::string_view s);
 
-}  // namespace render::server
+}  // namespace render

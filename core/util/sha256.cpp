@@ -1,8 +1,12 @@
-#include "server/sha256.h"
+#include "core/util/sha256.h"
+
+#include <fstream>
+#include <stdexcept>
+#include <vector>
 
 #include <cstring>
 
-namespace render::server {
+namespace render {
 
 namespace {
 
@@ -110,4 +114,22 @@ bool is_sha256_hex(std::string_view s) {
     return true;
 }
 
-}  // namespace render::server
+std::string sha256_file(const std::filesystem::path& file, uint64_t* size) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read " + file.string());
+    Sha256 hash;
+    std::vector<char> buffer(1 << 16);
+    uint64_t total = 0;
+    while (in) {
+        in.read(buffer.data(), std::streamsize(buffer.size()));
+        const std::streamsize n = in.gcount();
+        if (n <= 0) break;
+        hash.update(buffer.data(), size_t(n));
+        total += uint64_t(n);
+    }
+    if (in.bad()) throw std::runtime_error("error reading " + file.string());
+    if (size) *size = total;
+    return hash.hex_digest();
+}
+
+}  // namespace render
