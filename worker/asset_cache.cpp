@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "worker/log.h"
 #include "core/util/sha256.h"
+#include "worker/log.h"
 
 namespace render::service {
 
