@@ -355,7 +355,7 @@ int watch(const Connection& c, const std::string& job_id) {
     }
     std::fprintf(stderr, "job %s %s: %d frame(s), %llu iterations, %s, estimated error %.3g%s%s\n",
                  last.id().c_str(), state_name(last.state()), last.frames_size(),
-                 (unsigned long long)iterations, format_seconds(seconds).c_str(), error,
+                 (unsigned long long)iterations, render::format_seconds(seconds).c_str(), error,
                  last.error().empty() ? "" : ": ", last.error().c_str());
     return last.state() == v1::JOB_STATE_DONE ? 0 : 1;
 }
@@ -453,9 +453,10 @@ int status(const Connection& c) {
                       std::chrono::system_clock::now().time_since_epoch())
                       .count();
     for (const v1::WorkerStatus& w : reply.workers()) {
-        std::string seen = w.last_seen_unix_ms() > 0
-                               ? format_seconds((now - w.last_seen_unix_ms()) / 1000.0) + " ago"
-                               : "-";
+        std::string seen =
+            w.last_seen_unix_ms() > 0
+                ? render::format_seconds((now - w.last_seen_unix_ms()) / 1000.0) + " ago"
+                : "-";
         std::printf("%-24s %-20s %7u %10s  %s\n", w.worker_id().c_str(), w.host().c_str(),
                     w.threads(), seen.c_str(),
                     w.lease_id().empty() ? "idle" : w.lease_id().c_str());

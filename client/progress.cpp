@@ -21,18 +21,6 @@ double frame_fraction(const v1::Job& job, const v1::FrameStatus& f) {
 }
 }  // namespace
 
-std::string format_seconds(double s) {
-    char buf[32];
-    if (!(s >= 0)) s = 0;
-    if (s < 60)
-        std::snprintf(buf, sizeof buf, "%.1fs", s);
-    else if (s < 3600)
-        std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-    else
-        std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) % 3600) / 60);
-    return buf;
-}
-
 const char* state_name(v1::JobState state) {
     switch (state) {
         case v1::JOB_STATE_QUEUED:

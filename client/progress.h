@@ -8,11 +8,10 @@
 #include <map>
 #include <string>
 
+#include "core/util/format_seconds.h"
 #include "render.pb.h"
 
 namespace render::service {
-
-std::string format_seconds(double s);
 const char* state_name(v1::JobState state);
 bool is_terminal(v1::JobState state);
 

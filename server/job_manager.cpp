@@ -8,7 +8,7 @@
 
 #include "core/scene/error.h"
 #include "core/scene/loader/scene_loader.h"
-#include "server/log.h"
+#include "core/util/log.h"
 #include "server/validation.h"
 
 namespace render::server {

@@ -4,8 +4,8 @@
 #include <fstream>
 #include <thread>
 
+#include "core/util/log.h"
 #include "core/util/sha256.h"
-#include "server/log.h"
 #include "server/validation.h"
 
 namespace render::server {

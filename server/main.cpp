@@ -21,14 +21,15 @@
 #include <string>
 #include <thread>
 
+#include "core/util/log.h"
 #include "server/auth.h"
 #include "server/job_manager.h"
 #include "server/job_service.h"
-#include "server/log.h"
 #include "server/worker_service.h"
 
 namespace {
 
+using namespace render;
 using namespace render::server;
 
 constexpr const char* kUsage =

@@ -3,9 +3,9 @@
 #include <cmath>
 #include <cstring>
 
+#include "core/util/log.h"
 #include "core/util/sha256.h"
 #include "server/job_service.h"
-#include "server/log.h"
 
 namespace render::server {
 

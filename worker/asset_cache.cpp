@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/util/log.h"
 #include "core/util/sha256.h"
-#include "worker/log.h"
 
 namespace render::service {
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "worker/log.h"
+#include "core/util/log.h"
 #include "worker/rpc_common.h"
 #include "worker/worker.h"
 
@@ -96,7 +96,7 @@ int main(int argc, char** argv) {
         Worker worker(options);
         return worker.run();
     } catch (const std::exception& e) {
-        log_error("fatal").kv("error", e.what());
+        render::log_error("fatal").kv("error", e.what());
         return 1;
     }
 }

@@ -12,7 +12,7 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
-#include "worker/log.h"
+#include "core/util/log.h"
 #include "worker/rpc_common.h"
 
 namespace render::service {

@@ -24,6 +24,7 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/error.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/util/format_seconds.h"
 
 namespace {
 
@@ -186,17 +187,6 @@ int compare(const std::string& test_file, const std::string& reference_file) {
     std::printf("overall: rmse %.6g, relative_mse %.6g, non-finite pixels %zu\n", c.rmse_all,
                 c.relative_mse_all, c.non_finite);
     return 0;
-}
-
-std::string format_seconds(double s) {
-    char buf[32];
-    if (s < 60)
-        std::snprintf(buf, sizeof buf, "%.1fs", s);
-    else if (s < 3600)
-        std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-    else
-        std::snprintf(buf, sizeof buf, "%dh%02dm", int(s) / 3600, (int(s) % 3600) / 60);
-    return buf;
 }
 
 // A progress bar on a terminal; a plain line every 10% (or every 10 s) otherwise.

@@ -1,11 +1,11 @@
-#include "server/log.h"
+#include "core/util/log.h"
 
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <mutex>
 
-namespace render::server {
+namespace render {
 
 namespace {
 std::mutex& log_mutex() {
@@ -58,4 +58,4 @@ Log::~Log() {
     std::fflush(stderr);
 }
 
-}  // namespace render::server
+}  // namespace render

@@ -1,13 +1,14 @@
 #pragma once
 
-// Structured log lines on stderr: `ts=... level=info event=lease job=... worker=...`.
-// Usage: Log("info", "lease").kv("job", id).kv("first", 1);  (written when destroyed)
+// Structured log lines on stderr, one per event, shared by the server and the workers:
+// `ts=... level=info event=lease job=... worker=...`. Values with spaces, quotes or '=' are
+// quoted. Usage: log_info("lease").kv("job", id).kv("first", 1);  (written when destroyed)
 
 #include <sstream>
 #include <string>
 #include <string_view>
 
-namespace render::server {
+namespace render {
 
 class Log {
   public:
@@ -32,4 +33,14 @@ class Log {
     std::string line_;
 };
 
-}  // namespace render::server
+inline Log log_info(std::string_view event) {
+    return Log("info", event);
+}
+inline Log log_warn(std::string_view event) {
+    return Log("warn", event);
+}
+inline Log log_error(std::string_view event) {
+    return Log("error", event);
+}
+
+}  // namespace render
