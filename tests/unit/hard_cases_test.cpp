@@ -30,6 +30,7 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/shapes/triangle_mesh.h"
+#include "tests/support/test_scenes.h"
 
 namespace render {
 namespace {
@@ -205,41 +206,6 @@ class TempDir {
     std::filesystem::path path_;
 };
 
-// A small lit box, uniformly scaled by $s on every shape and the camera (the scene of
-// render_test's scale-invariance test).
-std::string box_scene() {
-    return R"(<scene version="3.0.0">
-  <default name="s" value="1"/>
-  <sensor type="perspective">
-    <float name="fov" value="50"/>
-    <transform name="to_world">
-      <lookat origin="0, 1, 4" target="0, 0.8, 0" up="0, 1, 0"/>
-      <scale value="$s"/>
-    </transform>
-    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
-  </sensor>
-  <bsdf type="twosided" id="white"><bsdf type="diffuse"/></bsdf>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="2"/><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="cube">
-    <transform name="to_world"><scale value="0.4"/><translate y="0.4"/><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="sphere">
-    <point name="center" x="0.9" y="0.3" z="0.5"/>
-    <float name="radius" value="0.3"/>
-    <transform name="to_world"><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="1" angle="90"/><scale value="0.5"/><translate y="2"/><scale value="$s"/></transform>
-    <emitter type="area"><rgb name="radiance" value="5"/></emitter>
-  </shape>
-</scene>)";
-}
-
 // --- 1. merging radius 1e-7 x scene size ------------------------------------------------------
 
 // radius_factor 1e-7: eta_VCM = pi r^2 N is ~1e-10, so the merging normalisation 1/eta and the
@@ -249,7 +215,7 @@ std::string box_scene() {
 // and BPM: finiteness only (with nearly no merges their image is the directly visible light
 // plus rare, enormous merges: unbiased but with no usable variance).
 TEST_P(HardCase, TinyMergingRadius) {
-    auto scene = load_scene_from_string(box_scene(), ".");
+    auto scene = load_scene_from_string(testing::scaled_box_scene(), ".");
     RenderSettings s = settings(101);
     s.radius_factor = 1e-7;
     const RenderSummary result = render_summary(*scene, s, 32);
@@ -281,14 +247,14 @@ TEST_P(HardCase, TinyMergingRadius) {
 TEST_P(HardCase, SceneScaledBy1e3And1e4) {
     const uint64_t iterations = 8;
     const RenderSummary& unit = cached("scale-1/" + GetParam(), [&] {
-        auto scene = load_scene_from_string(box_scene(), ".", {{"s", "1"}});
+        auto scene = load_scene_from_string(testing::scaled_box_scene(), ".", {{"s", "1"}});
         return render_summary(*scene, settings(3), iterations);
     });
     expect_finite(unit);
     ASSERT_GT(unit.total(), 0.0);
     for (const std::string scale : {"1e-3", "1e4"}) {
         SCOPED_TRACE("scale " + scale);
-        auto scene = load_scene_from_string(box_scene(), ".", {{"s", scale}});
+        auto scene = load_scene_from_string(testing::scaled_box_scene(), ".", {{"s", scale}});
         const RenderSummary scaled = render_summary(*scene, settings(3), iterations);
         expect_finite(scaled);
         size_t differing = 0;

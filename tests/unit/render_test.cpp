@@ -9,6 +9,7 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/test_scenes.h"
 
 namespace render {
 namespace {
@@ -151,47 +152,11 @@ TEST(IterationKeys, RejectsInvalidInput) {
                  std::invalid_argument);
 }
 
-// A small lit box, uniformly scaled by $s: radiance does not depend on scale, so the image must
-// not either. The same seed gives the same random numbers, so differences come only from ray
-// spawning and float rounding.
-std::string scaled_box_scene() {
-    return R"(<scene version="3.0.0">
-  <default name="s" value="1"/>
-  <sensor type="perspective">
-    <float name="fov" value="50"/>
-    <transform name="to_world">
-      <lookat origin="0, 1, 4" target="0, 0.8, 0" up="0, 1, 0"/>
-      <scale value="$s"/>
-    </transform>
-    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
-  </sensor>
-  <bsdf type="twosided" id="white"><bsdf type="diffuse"/></bsdf>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="2"/><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="cube">
-    <transform name="to_world"><scale value="0.4"/><translate y="0.4"/><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="sphere">
-    <point name="center" x="0.9" y="0.3" z="0.5"/>
-    <float name="radius" value="0.3"/>
-    <transform name="to_world"><scale value="$s"/></transform>
-    <ref id="white"/>
-  </shape>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="1" angle="90"/><scale value="0.5"/><translate y="2"/><scale value="$s"/></transform>
-    <emitter type="area"><rgb name="radiance" value="5"/></emitter>
-  </shape>
-</scene>)";
-}
-
 TEST(ScaleInvariance, SceneScaledBy1e3And1e4GivesTheSameImage) {
     RenderSettings settings;
     settings.seed = 3;
     auto render_at = [&](const std::string& s) {
-        auto scene = load_scene_from_string(scaled_box_scene(), ".", {{"s", s}});
+        auto scene = load_scene_from_string(testing::scaled_box_scene(), ".", {{"s", s}});
         return render_iterations(*scene, settings, 0, IterationRange{1, 9});
     };
     IterationResult unit = render_at("1");
