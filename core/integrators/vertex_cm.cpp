@@ -61,52 +61,26 @@ class Iteration {
           scene_(scene),
           key_(key),
           camera_(scene.camera()),
-          mis_(make_mis(config, scene, key)) {
-        const BidirectionalMode mode = config.mode;
-        light_trace_only_ = mode == BidirectionalMode::LightTracing;
-        ppm_ = mode == BidirectionalMode::Ppm;
-        use_vc_ = mode == BidirectionalMode::Bpt || mode == BidirectionalMode::Vcm;
-        use_vm_ = mode == BidirectionalMode::Ppm || mode == BidirectionalMode::Bpm ||
-                  mode == BidirectionalMode::Vcm;
-        max_length_ = config.max_depth < 0 ? INT_MAX / 4 : config.max_depth;
-
-        pixel_count_ = uint64_t(camera_.width()) * uint64_t(camera_.height());
-        light_path_count_ = config.light_path_count > 0 ? config.light_path_count : pixel_count_;
-        radius_ = radius_for(config, scene, key);
-        vm_normalization_ = float(1.0 / eta_vcm(config, scene, key));
-    }
+          light_trace_only_(config.mode == BidirectionalMode::LightTracing),
+          ppm_(config.mode == BidirectionalMode::Ppm),
+          use_vc_(config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm),
+          use_vm_(config.mode == BidirectionalMode::Ppm || config.mode == BidirectionalMode::Bpm ||
+                  config.mode == BidirectionalMode::Vcm),
+          max_length_(config.max_depth < 0 ? INT_MAX / 4 : config.max_depth),
+          pixel_count_(uint64_t(camera_.width()) * uint64_t(camera_.height())),
+          light_path_count_(config.light_path_count > 0 ? config.light_path_count : pixel_count_),
+          radius_(merge_radius(config.radius_factor * scene.bounding_sphere().radius, config.alpha,
+                               key.iteration)),
+          // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
+          // densities of the same path.
+          eta_vcm_(kPi * radius_ * radius_ * double(light_path_count_)),
+          vm_normalization_(float(1.0 / eta_vcm_)),
+          mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_)) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
   private:
-    static uint64_t light_paths(const BidirectionalConfig& config, const Scene& scene) {
-        return config.light_path_count > 0
-                   ? config.light_path_count
-                   : uint64_t(scene.camera().width()) * uint64_t(scene.camera().height());
-    }
-    static double radius_for(const BidirectionalConfig& config, const Scene& scene,
-                             const IterationKey& key) {
-        const double r1 = config.radius_factor * scene.bounding_sphere().radius;
-        return merge_radius(r1, config.alpha, key.iteration);
-    }
-    // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
-    // densities of the same path.
-    static double eta_vcm(const BidirectionalConfig& config, const Scene& scene,
-                          const IterationKey& key) {
-        const double r = radius_for(config, scene, key);
-        return kPi * r * r * double(light_paths(config, scene));
-    }
-    static VcmMis make_mis(const BidirectionalConfig& config, const Scene& scene,
-                           const IterationKey& key) {
-        const BidirectionalMode m = config.mode;
-        const bool use_vc = m == BidirectionalMode::Bpt || m == BidirectionalMode::Vcm;
-        const bool use_vm = m == BidirectionalMode::Ppm || m == BidirectionalMode::Bpm ||
-                            m == BidirectionalMode::Vcm;
-        return VcmMis(config.mis_power, use_vc, use_vm, eta_vcm(config, scene, key),
-                      double(light_paths(config, scene)));
-    }
-
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
     // (the report's camera pdf with the image plane measured in pixels).
     float camera_pixel_pdf_w(const Vec3& dir) const {
@@ -136,11 +110,12 @@ class Iteration {
     const Scene& scene_;
     IterationKey key_;
     const PerspectiveCamera& camera_;
-    bool light_trace_only_ = false, ppm_ = false, use_vc_ = false, use_vm_ = false;
-    int max_length_ = 0;
-    uint64_t pixel_count_ = 0, light_path_count_ = 0;
-    double radius_ = 0;
-    float vm_normalization_ = 0;
+    bool light_trace_only_, ppm_, use_vc_, use_vm_;
+    int max_length_;
+    uint64_t pixel_count_, light_path_count_;
+    double radius_;
+    double eta_vcm_;
+    float vm_normalization_;
     VcmMis mis_;
 
     std::vector<LightVertex> light_vertices_;
