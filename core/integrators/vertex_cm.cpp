@@ -1,7 +1,6 @@
 #include "core/integrators/vertex_cm.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/blocked_range2d.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "core/integrators/hash_grid.h"
+#include "core/integrators/pixel_loop.h"
 #include "core/integrators/vcm_mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
@@ -457,27 +457,9 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
     }
 
     const int width = scene.camera().width(), height = scene.camera().height();
-    tbb::combinable<RenderStats> tile_stats;
-    constexpr int kTile = 16;
-    tbb::parallel_for(
-        tbb::blocked_range2d<int>(0, height, kTile, 0, width, kTile),
-        [&](const tbb::blocked_range2d<int>& tile) {
-            RenderStats& local = tile_stats.local();
-            for (int y = tile.rows().begin(); y < tile.rows().end(); ++y)
-                for (int x = tile.cols().begin(); x < tile.cols().end(); ++x) {
-                    const uint64_t pixel = uint64_t(y) * width + x;
-                    const Rgb color =
-                        iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
-                    ++local.samples;
-                    if (!color.is_finite()) {
-                        ++local.non_finite;
-                        continue;
-                    }
-                    target.add(pixel, color);
-                }
-        },
-        tbb::simple_partitioner());
-    tile_stats.combine_each([&](const RenderStats& s) { stats += s; });
+    for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
+        return iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
+    });
 }
 
 }  // namespace render

@@ -1,0 +1,45 @@
+#pragma once
+
+// The eye pass shared by every integrator: one estimate per pixel, in 16 x 16 tiles over TBB.
+// Every pixel is written by exactly one task and its value depends only on its own random
+// stream, so the image is identical for any number of threads. A non-finite estimate is
+// counted and dropped, never added.
+
+#include <tbb/blocked_range2d.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include <cstdint>
+
+#include "core/image/image.h"
+#include "core/render/render_settings.h"
+
+namespace render {
+
+// estimate(pixel, stats) returns the pixel's estimate and counts the rays it traces in stats.
+template <typename Estimate>
+void for_each_pixel(int width, int height, AccumulationBuffer& target, RenderStats& stats,
+                    Estimate&& estimate) {
+    constexpr int kTile = 16;
+    tbb::combinable<RenderStats> tile_stats;
+    tbb::parallel_for(
+        tbb::blocked_range2d<int>(0, height, kTile, 0, width, kTile),
+        [&](const tbb::blocked_range2d<int>& tile) {
+            RenderStats& local = tile_stats.local();
+            for (int y = tile.rows().begin(); y < tile.rows().end(); ++y)
+                for (int x = tile.cols().begin(); x < tile.cols().end(); ++x) {
+                    const uint64_t pixel = uint64_t(y) * uint64_t(width) + uint64_t(x);
+                    const Rgb value = estimate(pixel, local);
+                    ++local.samples;
+                    if (!value.is_finite()) {
+                        ++local.non_finite;
+                        continue;
+                    }
+                    target.add(pixel, value);
+                }
+        },
+        tbb::simple_partitioner());
+    tile_stats.combine_each([&](const RenderStats& s) { stats += s; });
+}
+
+}  // namespace render
