@@ -123,34 +123,14 @@ class MisSumTest : public ::testing::Test {
             }
             case LightKind::Point: {
                 light_point_ = first + direction * (0.8f + rng.next_1d());
-                auto light = std::make_unique<PointLight>(light_point_, Rgb(1.0f));
-                LightIlluminateSample ls;
-                EXPECT_TRUE(light->illuminate(first, Vec2(0.5f, 0.5f), ls));
-                LightEmitSample es;
-                EXPECT_TRUE(light->emit(Vec2(0.3f, 0.3f), Vec2(0.2f, 0.7f), es));
-                end_.delta = true;
-                end_.finite = true;
-                end_.cos_light = 1;
-                end_.direct_pdf_a = es.pdf_direct_a;
-                end_.emission_pdf_w = ls.pdf_emission_w;
-                end_.direct_pdf_w = ls.pdf_direct_w;
-                light_ = std::move(light);
+                set_delta_light_end(std::make_unique<PointLight>(light_point_, Rgb(1.0f)), first,
+                                    true);
                 break;
             }
             case LightKind::Directional: {
                 auto light = std::make_unique<DirectionalLight>(-direction, Rgb(1.0f));
                 light->preprocess(sphere);
-                LightIlluminateSample ls;
-                EXPECT_TRUE(light->illuminate(first, Vec2(0.5f, 0.5f), ls));
-                LightEmitSample es;
-                EXPECT_TRUE(light->emit(Vec2(0.3f, 0.3f), Vec2(0.2f, 0.7f), es));
-                end_.delta = true;
-                end_.finite = false;
-                end_.cos_light = 1;
-                end_.direct_pdf_a = es.pdf_direct_a;
-                end_.emission_pdf_w = ls.pdf_emission_w;
-                end_.direct_pdf_w = ls.pdf_direct_w;
-                light_ = std::move(light);
+                set_delta_light_end(std::move(light), first, false);
                 break;
             }
             case LightKind::Constant: {
@@ -169,6 +149,21 @@ class MisSumTest : public ::testing::Test {
         }
         to_light_ = direction;
         return true;
+    }
+
+    // The light end of a delta light (point or directional), with the densities it reports.
+    void set_delta_light_end(std::unique_ptr<Light> light, const Vec3& first, bool finite) {
+        LightIlluminateSample ls;
+        EXPECT_TRUE(light->illuminate(first, Vec2(0.5f, 0.5f), ls));
+        LightEmitSample es;
+        EXPECT_TRUE(light->emit(Vec2(0.3f, 0.3f), Vec2(0.2f, 0.7f), es));
+        end_.delta = true;
+        end_.finite = finite;
+        end_.cos_light = 1;
+        end_.direct_pdf_a = es.pdf_direct_a;
+        end_.emission_pdf_w = ls.pdf_emission_w;
+        end_.direct_pdf_w = ls.pdf_direct_w;
+        light_ = std::move(light);
     }
 
     // Unit direction from vertex i toward its light-side neighbour (the light for i = 0).
