@@ -190,6 +190,10 @@ int64_t JobStore::max_sequence() {
 
 void JobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
+    insert_merged_range(job_id, frame, range);
+}
+
+void JobStore::insert_merged_range(const std::string& job_id, uint32_t frame, Range range) {
     Statement s(db_,
                 "INSERT OR REPLACE INTO merged_ranges (job_id, frame, first, end_) "
                 "VALUES (?1, ?2, ?3, ?4)");
@@ -208,16 +212,7 @@ void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
         Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
         d.text(1, job_id).bind(2, int64_t(frame));
         d.run();
-        for (const Range& r : ranges) {
-            Statement s(db_,
-                        "INSERT INTO merged_ranges (job_id, frame, first, end_) "
-                        "VALUES (?1, ?2, ?3, ?4)");
-            s.text(1, job_id)
-                .bind(2, int64_t(frame))
-                .bind(3, int64_t(r.first))
-                .bind(4, int64_t(r.end));
-            s.run();
-        }
+        for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
         exec("COMMIT");
     } catch (...) {
         exec("ROLLBACK");

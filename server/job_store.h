@@ -64,6 +64,8 @@ class JobStore {
 
   private:
     void exec(const char* sql);
+    // Records one merged range; the caller holds mu_.
+    void insert_merged_range(const std::string& job_id, uint32_t frame, Range range);
     sqlite3* db_ = nullptr;
     std::mutex mu_;
 };
