@@ -254,9 +254,8 @@ void Iteration::connect_to_camera(const SubpathState& state, const SurfaceIntera
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
     const Vec3 d = to_camera / std::sqrt(dist2);
-    const Rgb f = bsdf.f(wo, d);
+    const auto [f, pdf] = bsdf.evaluate(wo, d);
     if (f.is_black()) return;
-    const BsdfPdf pdf = bsdf.pdf(wo, d);
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
     const float cos_geometric = abs_dot(si.geometric_normal, d);
     // The camera's area density at this vertex (eq. 46).
@@ -301,9 +300,8 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const SurfaceInter
     LightIlluminateSample ls;
     if (!light || !(pick > 0) || !light->illuminate(si.p, u, ls) || !(ls.pdf_direct_w > 0))
         return Rgb(0.0f);
-    const Rgb f = bsdf.f(wo, ls.wi);
+    const auto [f, pdf] = bsdf.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
-    const BsdfPdf pdf = bsdf.pdf(wo, ls.wi);
     // Eqs. (44) and (45).
     const float weight = mis_.weight_direct(
         state.mis, pdf.forward, pdf.reverse, pick * ls.pdf_direct_w, ls.pdf_emission_w,
@@ -326,12 +324,10 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const SurfaceInteraction&
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
     d = d / std::sqrt(dist2);
-    const Rgb f_eye = bsdf.f(wo, d);
+    const auto [f_eye, pdf_eye] = bsdf.evaluate(wo, d);
     if (f_eye.is_black()) return Rgb(0.0f);
-    const Rgb f_light = lv.bsdf.f(lv.wo, -d);
+    const auto [f_light, pdf_light] = lv.bsdf.evaluate(lv.wo, -d);
     if (f_light.is_black()) return Rgb(0.0f);
-    const BsdfPdf pdf_eye = bsdf.pdf(wo, d);
-    const BsdfPdf pdf_light = lv.bsdf.pdf(lv.wo, -d);
     // Area densities of extending either subpath to the other's endpoint.
     const float eye_pdf_a = pdf_eye.forward * abs_dot(lv.geometric_normal, d) / dist2;
     const float light_pdf_a = pdf_light.forward * abs_dot(si.geometric_normal, d) / dist2;
@@ -355,11 +351,10 @@ Rgb Iteration::merge(const SurfaceInteraction& si, const SurfaceBsdf& bsdf, cons
         const LightVertex& lv = light_vertices_[index];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
-        const Rgb f = bsdf.f(wo, lv.wo);
+        const auto [f, pdf] = bsdf.evaluate(wo, lv.wo);
         if (f.is_black()) return;
         float weight = 1.0f;
         if (!ppm_) {
-            const BsdfPdf pdf = bsdf.pdf(wo, lv.wo);
             // Eqs. (38) and (39).
             weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse);
         }

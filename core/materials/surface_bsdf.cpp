@@ -33,6 +33,13 @@ BsdfPdf SurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
     return bsdf_.pdf(wo_local, wi_local);
 }
 
+BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
+    const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
+    if (!consistent(wo, wi, wo_local, wi_local)) return {};
+    return {bsdf_.f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
+            bsdf_.pdf(wo_local, wi_local)};
+}
+
 std::optional<BsdfSample> SurfaceBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u) const {
     Vec3 wo_local = shading_.to_local(wo);
     if (wo_local.z == 0) return std::nullopt;

@@ -12,6 +12,12 @@
 
 namespace render {
 
+// f and both directional densities of one direction pair, from one frame conversion.
+struct BsdfEvaluation {
+    Rgb f;
+    BsdfPdf pdf;
+};
+
 class SurfaceBsdf {
   public:
     SurfaceBsdf(const Bsdf& bsdf, const Frame& shading, const Vec3& geometric_normal,
@@ -21,6 +27,8 @@ class SurfaceBsdf {
     // f(wo, wi) for world directions, corrected for shading normals (Importance mode).
     Rgb f(const Vec3& wo, const Vec3& wi) const;
     BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const;
+    // f and pdf together: connections and merges need both for the same pair.
+    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const;
     // Sampled world direction; the weight includes |cos| w.r.t. the shading normal and the
     // shading-normal correction.
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u) const;
