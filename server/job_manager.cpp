@@ -1,5 +1,7 @@
 #include "server/job_manager.h"
 
+#include "core/integrators/integrator.h"
+
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -40,6 +42,7 @@ Status invalid(const std::string& message) {
 // The scene file's integrator name in the service's names, or "" when it has none of them.
 std::string algorithm_from_scene(const std::string& integrator) {
     if (integrator == "path" || integrator == "pt") return "pt";
+    if (integrator == "volpath" || integrator == "volpt") return "volpt";
     if (is_supported_algorithm(integrator)) return integrator;
     return "";
 }
@@ -266,8 +269,10 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
                 throw std::invalid_argument(
                     "settings.algorithm is empty and the scene's "
                     "integrator \"" +
-                    scene->settings.integrator + "\" is not one of pt, lt, bpt, ppm, bpm, vcm");
+                    scene->settings.integrator +
+                    "\" is not one of pt, volpt, lt, bpt, ppm, bpm, vcm");
         }
+        check_algorithm_supports_scene(s->algorithm(), *scene);
         if (s->iterations() == 0 && s->time_budget_seconds() == 0)
             s->set_iterations(uint64_t(std::max(1, scene->settings.sample_count)));
         if (s->iterations() > kMaxIterations)
@@ -640,8 +645,11 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         std::lock_guard lock(mu_);
         elapsed = scheduler_.progress(grant.job_id, grant.frame).elapsed_seconds;
     }
+    using clock = std::chrono::steady_clock;
+    clock::duration add_time{}, checkpoint_time{};
     {
         std::lock_guard lock(frame.mu);
+        const clock::time_point add_start = clock::now();
         if (!frame.acc)
             frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height);
         RenderStats stats;
@@ -651,6 +659,8 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         frame.acc->add(grant.range, sum, odd_sum, header.odd_count(), stats);
         frame.relative_error = frame.acc->relative_error();
         frame.non_finite = frame.acc->result().stats.non_finite;
+        const clock::time_point checkpoint_start = clock::now();
+        add_time = checkpoint_start - add_start;
         try {
             frame.acc->save(checkpoint_path(grant.job_id, grant.frame), elapsed);
             store_.add_merged_range(grant.job_id, grant.frame, grant.range);
@@ -658,6 +668,7 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         } catch (const std::exception& e) {
             Log("error", "checkpoint_failed").kv("job", grant.job_id).kv("error", e.what());
         }
+        checkpoint_time = clock::now() - checkpoint_start;
     }
     {
         std::lock_guard lock(mu_);
@@ -670,7 +681,10 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         .kv("frame", grant.frame)
         .kv("first", grant.range.first)
         .kv("end", grant.range.end)
-        .kv("render_seconds", header.render_seconds());
+        .kv("render_seconds", header.render_seconds())
+        .kv("add_us", std::chrono::duration_cast<std::chrono::microseconds>(add_time).count())
+        .kv("checkpoint_us",
+            std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
     tick();
     return Status::OK;
 }

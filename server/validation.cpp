@@ -25,7 +25,8 @@ std::string check_bundle_path(const std::string& path) {
 }
 
 bool is_supported_algorithm(const std::string& a) {
-    return a == "pt" || a == "lt" || a == "bpt" || a == "ppm" || a == "bpm" || a == "vcm";
+    return a == "pt" || a == "volpt" || a == "lt" || a == "bpt" || a == "ppm" || a == "bpm" ||
+           a == "vcm";
 }
 
 bool is_safe_id(const std::string& id) {

@@ -1,5 +1,6 @@
 #include "server/worker_service.h"
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -63,6 +64,7 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     if (!reader->Read(&chunk) || !chunk.has_header())
         return Status(StatusCode::INVALID_ARGUMENT, "a report must start with its header");
     const v1::ReportHeader header = chunk.header();
+    const auto started = std::chrono::steady_clock::now();
     size_t n = 0;
     bool drop = false;
     if (Status s = manager_.check_report(header, &n, &drop); !s.ok()) {
@@ -113,9 +115,22 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         if (!std::isfinite(sum[i]) || !std::isfinite(odd_sum[i]))
             return Status(StatusCode::INVALID_ARGUMENT,
                           "report value " + std::to_string(i) + " is not finite");
+    const auto received_at = std::chrono::steady_clock::now();
     bool merged = false;
     if (Status s = manager_.report(header, sum, odd_sum, &merged); !s.ok()) return s;
     reply->set_merged(merged);
+    // Cost of a report for the performance report (docs/performance.md): bytes on the wire
+    // (header + values), time spent receiving the chunks and time spent merging (accumulate +
+    // checkpoint + store).
+    using us = std::chrono::microseconds;
+    Log("info", "report_received")
+        .kv("lease", header.lease_id())
+        .kv("bytes", header.ByteSizeLong() + received)
+        .kv("iterations", header.count())
+        .kv("receive_us", std::chrono::duration_cast<us>(received_at - started).count())
+        .kv("merge_us",
+            std::chrono::duration_cast<us>(std::chrono::steady_clock::now() - received_at).count())
+        .kv("merged", merged ? 1 : 0);
     return Status::OK;
 }
 

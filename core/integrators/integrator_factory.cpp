@@ -5,6 +5,7 @@
 #include "core/integrators/integrator.h"
 #include "core/integrators/path_tracer.h"
 #include "core/integrators/vertex_cm.h"
+#include "core/integrators/volumetric_path_tracer.h"
 
 namespace render {
 
@@ -13,6 +14,9 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
     if (name == "pt" || name == "path")
         return std::make_unique<PathTracer>(settings.max_depth, settings.rr_depth);
     if (name == "eyelight") return std::make_unique<EyeLight>();
+    if (name == "volpt" || name == "volpath")
+        return std::make_unique<VolumetricPathTracer>(settings.max_depth, settings.rr_depth,
+                                                      settings.equiangular);
 
     static const std::map<std::string, BidirectionalMode> bidirectional = {
         {"lt", BidirectionalMode::LightTracing}, {"bpt", BidirectionalMode::Bpt},
@@ -22,7 +26,7 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
     auto it = bidirectional.find(name);
     if (it == bidirectional.end())
         throw std::invalid_argument("unknown algorithm \"" + name +
-                                    "\" (supported: pt, lt, bpt, ppm, bpm, vcm, eyelight)");
+                                    "\" (supported: pt, volpt, lt, bpt, ppm, bpm, vcm, eyelight)");
     if (!(settings.radius_factor > 0) || !(settings.alpha > 0) || settings.alpha > 1)
         throw std::invalid_argument("radius_factor must be > 0 and alpha in (0, 1]");
     if (settings.mis_power != 1 && settings.mis_power != 2)
@@ -36,6 +40,12 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
     config.light_path_count = settings.light_path_count;
     config.mis_power = settings.mis_power;
     return std::make_unique<VertexConnectionMerging>(config);
+}
+
+void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene) {
+    if (scene.has_media() && algorithm != "volpt" && algorithm != "volpath")
+        throw std::invalid_argument("the scene has participating media, which algorithm \"" +
+                                    algorithm + "\" does not handle yet (use volpt)");
 }
 
 }  // namespace render

@@ -39,6 +39,13 @@ bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) 
     return true;
 }
 
+bool AreaLight::sample_position(Vec2 u, Vec3& position) const {
+    if (inv_area_ == 0 || radiance_.is_black()) return false;
+    const ShapeSample s = shape_->sample_area(u);
+    position = s.p;
+    return s.pdf_area > 0 && std::isfinite(s.pdf_area);
+}
+
 bool AreaLight::emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const {
     if (inv_area_ == 0 || radiance_.is_black()) return false;
     ShapeSample s = shape_->sample_area(u_position);

@@ -26,6 +26,7 @@ class AreaLight final : public Light {
     AreaLight(const Shape* shape, const Rgb& radiance);
 
     bool illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const override;
+    bool sample_position(Vec2 u, Vec3& position) const override;
     bool emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const override;
     LightRadiance radiance(const Vec3& hit_point, const Vec3& hit_normal,
                            const Vec3& ray_direction) const override;

@@ -63,6 +63,11 @@ class Light {
     // Returns false when the sample carries no energy.
     virtual bool illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const = 0;
 
+    // The point on a finite light that illuminate(ref, u) connects to: for every finite light
+    // here that choice depends on u alone, never on ref. Equi-angular sampling needs the light
+    // point before it picks the receiving point. False for infinite lights.
+    virtual bool sample_position(Vec2 /*u*/, Vec3& /*position*/) const { return false; }
+
     // Samples an emitted ray (start of a light path).
     virtual bool emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const = 0;
 

@@ -26,6 +26,11 @@ bool PointLight::illuminate(const Vec3& ref, Vec2 /*u*/, LightIlluminateSample& 
     return true;
 }
 
+bool PointLight::sample_position(Vec2 /*u*/, Vec3& position) const {
+    position = position_;
+    return !intensity_.is_black();
+}
+
 bool PointLight::emit(Vec2 /*u_position*/, Vec2 u_direction, LightEmitSample& out) const {
     if (intensity_.is_black()) return false;
     out.origin = position_;

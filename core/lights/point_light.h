@@ -22,6 +22,7 @@ class PointLight final : public Light {
     PointLight(const Vec3& position, const Rgb& intensity);
 
     bool illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const override;
+    bool sample_position(Vec2 u, Vec3& position) const override;
     bool emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const override;
     LightRadiance radiance(const Vec3& hit_point, const Vec3& hit_normal,
                            const Vec3& ray_direction) const override;

@@ -28,8 +28,12 @@ enum BsdfLobe : uint32_t {
     kLobeDiffuseTransmission = 1u << 3,
     kLobeGlossyTransmission = 1u << 4,
     kLobeDeltaTransmission = 1u << 5,
-    kLobeDelta = kLobeDeltaReflection | kLobeDeltaTransmission,
-    kLobeTransmission = kLobeDiffuseTransmission | kLobeGlossyTransmission | kLobeDeltaTransmission,
+    // Passes light on unchanged (wi = -wo, weight 1): an index-matched boundary that only
+    // separates two media (the `null` BSDF).
+    kLobeNull = 1u << 6,
+    kLobeDelta = kLobeDeltaReflection | kLobeDeltaTransmission | kLobeNull,
+    kLobeTransmission =
+        kLobeDiffuseTransmission | kLobeGlossyTransmission | kLobeDeltaTransmission | kLobeNull,
     kLobeNonDelta = kLobeDiffuseReflection | kLobeGlossyReflection | kLobeDiffuseTransmission |
                     kLobeGlossyTransmission,
 };
@@ -79,6 +83,8 @@ class Bsdf {
     bool is_delta() const { return (lobes() & kLobeNonDelta) == 0; }
     bool has_non_delta() const { return (lobes() & kLobeNonDelta) != 0; }
     bool has_delta() const { return (lobes() & kLobeDelta) != 0; }
+    // Index-matched boundary: paths cross it without scattering (media transitions only).
+    bool is_null() const { return lobes() == kLobeNull; }
 
     // A short description for logs and error messages.
     virtual std::string to_string() const = 0;

@@ -3,6 +3,7 @@
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
+#include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
@@ -18,10 +19,15 @@ struct BsdfPlugin {
 };
 
 constexpr BsdfPlugin kPlugins[] = {
-    {"diffuse", &DiffuseBsdf::create},       {"twosided", &TwoSidedBsdf::create},
-    {"conductor", &ConductorBsdf::create},   {"roughconductor", &RoughConductorBsdf::create},
-    {"dielectric", &DielectricBsdf::create}, {"roughdielectric", &RoughDielectricBsdf::create},
-    {"plastic", &PlasticBsdf::create},       {"phong", &PhongBsdf::create},
+    {"diffuse", &DiffuseBsdf::create},
+    {"twosided", &TwoSidedBsdf::create},
+    {"conductor", &ConductorBsdf::create},
+    {"roughconductor", &RoughConductorBsdf::create},
+    {"dielectric", &DielectricBsdf::create},
+    {"roughdielectric", &RoughDielectricBsdf::create},
+    {"plastic", &PlasticBsdf::create},
+    {"phong", &PhongBsdf::create},
+    {"null", &NullBsdf::create},
 };
 
 }  // namespace

@@ -16,6 +16,7 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
         throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
                                     ", " + std::to_string(range.end) + ")");
     std::unique_ptr<Integrator> integrator = make_integrator(settings);
+    check_algorithm_supports_scene(settings.algorithm, scene);
     const int width = scene.camera().width(), height = scene.camera().height();
     IterationResult result;
     result.sum = AccumulationBuffer(width, height);

@@ -26,6 +26,9 @@ struct RenderSettings {
     uint64_t light_path_count = 0;
     // MIS heuristic exponent: 2 = power heuristic (default), 1 = balance heuristic.
     int mis_power = 2;
+    // volpt: equi-angular sampling of single scattering toward finite lights, combined by MIS
+    // with distance sampling (off: distance sampling only, for comparisons).
+    bool equiangular = true;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/materials/bsdf_factory.h"
+#include "core/media/medium.h"
 #include "core/scene/error.h"
 #include "core/scene/properties.h"
 
@@ -51,6 +52,11 @@ Shape* Scene::add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf) {
     return shapes_.back().get();
 }
 
+const Medium* Scene::add_medium(std::shared_ptr<const Medium> medium) {
+    media_.push_back(std::move(medium));
+    return media_.back().get();
+}
+
 const Light* Scene::add_light(std::unique_ptr<Light> light) {
     lights_.push_back(std::move(light));
     return lights_.back().get();
@@ -63,7 +69,9 @@ void Scene::commit() {
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
         bounds_.expand(shape->bounds());
+        has_media_ = has_media_ || shape->interior || shape->exterior;
     }
+    has_media_ = has_media_ || camera_medium_;
     rtcCommitScene(rtc_scene_);
     if (bounds_.empty()) {
         // Only infinite lights (or nothing): a unit sphere around the camera keeps the

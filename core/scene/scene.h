@@ -21,6 +21,8 @@
 
 namespace render {
 
+class Medium;
+
 // Settings a scene file carries (integrator, sampler, film). Command-line options override them.
 struct SceneSettings {
     std::string integrator = "path";
@@ -44,6 +46,10 @@ class Scene {
     // Adds a light (area lights must already be attached to their shape via shape->emitter).
     const Light* add_light(std::unique_ptr<Light> light);
     void set_camera(const PerspectiveCamera& camera) { camera_ = camera; }
+    // Keeps a medium alive for the scene's lifetime and returns the stable pointer.
+    const Medium* add_medium(std::shared_ptr<const Medium> medium);
+    // The medium around the camera (null: vacuum).
+    void set_camera_medium(const Medium* medium) { camera_medium_ = medium; }
     SceneSettings settings;
     std::string source_file;  // for messages and EXR metadata
 
@@ -67,6 +73,10 @@ class Scene {
     Ray spawn_ray_to_infinity(const Vec3& p, const Vec3& n, const Vec3& d) const;
 
     const PerspectiveCamera& camera() const { return camera_; }
+    const Medium* camera_medium() const { return camera_medium_; }
+    // True when a shape bounds a medium or the camera sits in one. Integrators take their
+    // medium-aware code paths only then, so surface-only scenes pay nothing for media.
+    bool has_media() const { return has_media_; }
     const std::vector<std::unique_ptr<Light>>& lights() const { return lights_; }
     const std::vector<std::unique_ptr<Shape>>& shapes() const { return shapes_; }
     // Lights hit by escaping rays (constant, envmap).
@@ -77,6 +87,8 @@ class Scene {
     float light_pdf(const Light* light) const;
 
     const SceneSphere& bounding_sphere() const { return sphere_; }
+    // The committed Embree scene, for benchmarks that compare against bare Embree queries.
+    RTCScene embree_scene() const { return rtc_scene_; }
     const Aabb& bounds() const { return bounds_; }
 
   private:
@@ -87,6 +99,9 @@ class Scene {
     std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<const Light*> background_lights_;
+    std::vector<std::shared_ptr<const Medium>> media_;
+    const Medium* camera_medium_ = nullptr;
+    bool has_media_ = false;
     Distribution1D light_distribution_;
     std::unordered_map<const Light*, float> light_pdf_;
     PerspectiveCamera camera_;

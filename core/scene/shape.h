@@ -18,6 +18,8 @@ struct Aabb {
 
 // Geometry the renderer can intersect and (for area lights) sample. A shape registers itself
 // with Embree once; after a hit the scene asks the shape to fill in the interaction.
+class Medium;
+
 class Shape {
   public:
     virtual ~Shape() = default;
@@ -37,6 +39,10 @@ class Shape {
 
     const Bsdf* bsdf = nullptr;
     const Light* emitter = nullptr;
+    // Media on either side (Mitsuba's medium interface): `interior` lies behind the geometric
+    // normal, `exterior` in front of it. Null is vacuum.
+    const Medium* interior = nullptr;
+    const Medium* exterior = nullptr;
 };
 
 }  // namespace render

@@ -36,7 +36,8 @@ constexpr const char* kUsage = R"(usage:
   render --compare TEST.exr REFERENCE.exr
 
 options:
-  --algo NAME          integrator: pt (path tracing, default), lt (light tracing),
+  --algo NAME          integrator: pt (path tracing, default), volpt (volumetric path
+                       tracing, for scenes with media; "volpath" too), lt (light tracing),
                        bpt (bidirectional path tracing), ppm (progressive photon mapping),
                        bpm (bidirectional photon mapping), vcm (vertex connection and
                        merging), eyelight (debug shading)
@@ -52,6 +53,7 @@ options:
   --alpha A            merging radius reduction, r_i = r_1 i^((A-1)/2), A in (0, 1] (0.75)
   --light-paths N      light paths per iteration (default: one per pixel)
   --mis power|balance  MIS heuristic of the bidirectional family (power)
+  --no-equiangular     volpt: distance sampling only (no equi-angular sampling)
   --layers KIND        extra EXR layers: techniques (connection and merging parts),
                        st (one image per (s, t) technique, paths of up to 6 vertices)
   --png FILE.png       also write a tone-mapped sRGB preview
@@ -73,6 +75,7 @@ struct Options {
     double radius_factor = RenderSettings().radius_factor;
     double alpha = RenderSettings().alpha;
     uint64_t light_paths = 0;
+    bool equiangular = true;
     int mis_power = 2;
     LayerMode layers = LayerMode::None;
 };
@@ -128,6 +131,8 @@ Options parse_options(int argc, char** argv) {
             int64_t n = parse_number<int64_t>(a, value());
             if (n < 1) usage_error("--light-paths must be at least 1");
             o.light_paths = uint64_t(n);
+        } else if (a == "--no-equiangular") {
+            o.equiangular = false;
         } else if (a == "--mis") {
             std::string v = value();
             if (v == "power")
@@ -249,9 +254,11 @@ int render_scene(const Options& o) {
     settings.alpha = o.alpha;
     settings.light_path_count = o.light_paths;
     settings.mis_power = o.mis_power;
+    settings.equiangular = o.equiangular;
     settings.layers = o.layers;
     // Validate the algorithm before rendering anything.
     (void)make_integrator(settings);
+    check_algorithm_supports_scene(settings.algorithm, *scene);
 
     std::optional<uint64_t> total = o.iterations;
     if (!total && !o.seconds) total = uint64_t(std::max(1, scene->settings.sample_count));

@@ -11,6 +11,8 @@
 
 #include "core/lights/light_factory.h"
 #include "core/materials/bsdf_factory.h"
+#include "core/media/medium_factory.h"
+#include "core/media/volume_factory.h"
 #include "core/scene/loader/property_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/loader/values.h"
@@ -28,9 +30,6 @@ struct Unsupported {
     const char* what;
 };
 constexpr Unsupported kUnsupportedTags[] = {
-    {"medium", "participating media (<medium>) are"},
-    {"phase", "phase functions (<phase>) are"},
-    {"volume", "volume data (<volume>) is"},
     {"texture", "textures (<texture>) are"},
     {"srgb", "<srgb> colours are"},
     {"blackbody", "<blackbody> spectra are"},
@@ -107,10 +106,6 @@ class Loader {
             if (id->empty()) throw SceneError(e.where(), "empty id on " + e.describe());
             props.id = *id;
         }
-        if (std::optional<std::string> name = e.optional("name"))
-            if (*name == "interior" || *name == "exterior")
-                throw SceneError(e.where(),
-                                 "participating media (" + *name + " media) are not supported yet");
         for (const XmlElement& child : e.children()) {
             if (is_property_tag(child.tag())) {
                 read_property(child, props);
@@ -135,10 +130,6 @@ class Loader {
     std::shared_ptr<const Bsdf> lookup_bsdf(const XmlElement& ref) {
         ref.check_attributes({"id", "name"});
         std::string id = ref.required("id");
-        if (std::optional<std::string> name = ref.optional("name"))
-            if (*name == "interior" || *name == "exterior")
-                throw SceneError(ref.where(),
-                                 "participating media (" + *name + " media) are not supported yet");
         auto it = bsdfs_.find(id);
         if (it == bsdfs_.end()) {
             if (ids_.count(id))
@@ -171,6 +162,8 @@ class Loader {
                 read_shape(e);
             else if (tag == "emitter")
                 read_top_level_emitter(e);
+            else if (tag == "medium")
+                read_medium_object(e);
             else if (is_property_tag(tag))
                 throw SceneError(e.where(), "property <" + tag +
                                                 "> directly inside <scene> (it must belong to "
@@ -253,6 +246,7 @@ class Loader {
             throw SceneError(e.where(), "only one <sensor> is supported (first at " +
                                             sensor_where_.to_string() + ")");
         int width = 768, height = 576;  // Mitsuba's hdrfilm defaults
+        const Medium* camera_medium = nullptr;
         bool have_film = false, have_sampler = false;
         Properties props = read_object(e, "sensor", [&](const XmlElement& c, Properties&) {
             if (c.tag() == "film") {
@@ -265,6 +259,13 @@ class Loader {
                 if (have_sampler) throw SceneError(c.where(), "a sensor has only one <sampler>");
                 read_sampler(c);
                 have_sampler = true;
+                return true;
+            }
+            // The medium the camera sits in (fog around the camera).
+            if (c.tag() == "medium" || c.tag() == "ref") {
+                if (camera_medium) throw SceneError(c.where(), "a sensor has only one medium");
+                if (c.tag() == "ref") c.check_attributes({"id", "name"});
+                camera_medium = c.tag() == "medium" ? read_medium_object(c) : lookup_medium(c);
                 return true;
             }
             return false;
@@ -298,6 +299,7 @@ class Loader {
             return PerspectiveCamera(to_world, fov, fov_axis, width, height);
         });
         scene_.set_camera(camera);
+        scene_.set_camera_medium(camera_medium);
         have_sensor_ = true;
         sensor_where_ = e.where();
     }
@@ -369,10 +371,6 @@ class Loader {
             }
             return false;
         });
-        if (props.type() == "null")
-            throw SceneError(e.where(),
-                             "the \"null\" bsdf (index-matched boundaries of media) is not "
-                             "supported yet");
         std::shared_ptr<const Bsdf> bsdf = build(props, [&] { return make_bsdf(props); });
         if (!bsdf) throw SceneError(e.where(), "bsdf \"" + props.type() + "\" was not built");
         if (!props.id.empty()) {
@@ -399,6 +397,69 @@ class Loader {
         return default_bsdf_;
     }
 
+    // ----- media -----
+
+    std::shared_ptr<const PhaseFunction> read_phase(const XmlElement& e) {
+        Properties props = read_plain_object(e, "phase");
+        return build(props, [&] { return make_phase(props); });
+    }
+
+    std::shared_ptr<const Volume> read_volume(const XmlElement& e) {
+        Properties props = read_plain_object(e, "volume");
+        return build(props, [&] { return make_volume(props, e.file().dir().string()); });
+    }
+
+    // <medium type="..."> with an optional nested <phase> and nested <volume name="...">.
+    const Medium* read_medium_object(const XmlElement& e) {
+        std::shared_ptr<const PhaseFunction> phase;
+        std::map<std::string, std::shared_ptr<const Volume>> volumes;
+        Properties props = read_object(e, "medium", [&](const XmlElement& c, Properties&) {
+            if (c.tag() == "phase") {
+                if (phase) throw SceneError(c.where(), "a medium has at most one <phase>");
+                phase = read_phase(c);
+                return true;
+            }
+            if (c.tag() == "volume") {
+                const std::string name = c.required("name");
+                if (volumes.count(name))
+                    throw SceneError(c.where(), "volume \"" + name + "\" is given twice");
+                volumes[name] = read_volume(c);
+                return true;
+            }
+            return false;
+        });
+        std::shared_ptr<const Medium> medium =
+            build(props, [&] { return make_medium(props, phase, volumes); });
+        if (!medium) throw SceneError(e.where(), "medium \"" + props.type() + "\" was not built");
+        if (!props.id.empty()) {
+            register_id(props.id, e.where());
+            media_[props.id] = medium.get();
+        }
+        return scene_.add_medium(std::move(medium));
+    }
+
+    const Medium* lookup_medium(const XmlElement& ref) {
+        const std::string id = ref.required("id");
+        auto it = media_.find(id);
+        if (it == media_.end()) {
+            if (ids_.count(id))
+                throw SceneError(ref.where(),
+                                 "<ref id=\"" + id + "\">: \"" + id + "\" is not a medium");
+            throw SceneError(ref.where(), "<ref>: unknown medium \"" + id +
+                                              "\" (a medium must be defined before it is "
+                                              "referenced)");
+        }
+        return it->second;
+    }
+
+    const Bsdf* null_bsdf(const SourceLocation& where) {
+        if (!null_bsdf_) {
+            Properties props("bsdf", "null", where);
+            null_bsdf_ = keep(build(props, [&] { return make_bsdf(props); }));
+        }
+        return null_bsdf_;
+    }
+
     // ----- emitters and shapes -----
 
     void read_top_level_emitter(const XmlElement& e) {
@@ -413,6 +474,21 @@ class Loader {
     }
 
     void read_shape(const XmlElement& e) {
+        const Medium* interior = nullptr;
+        const Medium* exterior = nullptr;
+        bool has_interface = false;
+        // `<ref name="interior|exterior" id="..."/>` or a nested `<medium name="...">`.
+        auto set_medium = [&](const XmlElement& c, const Medium* medium) {
+            const std::string name = c.required("name");
+            const Medium*& slot = name == "interior" ? interior : exterior;
+            if (slot || (name != "interior" && name != "exterior"))
+                throw SceneError(c.where(), name == "interior" || name == "exterior"
+                                                ? "the shape's " + name + " medium is given twice"
+                                                : "a medium inside a <shape> needs name="
+                                                  "\"interior\" or name=\"exterior\"");
+            slot = medium;
+            has_interface = true;
+        };
         std::shared_ptr<const Bsdf> bsdf;
         SourceLocation bsdf_where;
         std::optional<Properties> emitter;
@@ -431,7 +507,16 @@ class Loader {
             if (c.tag() == "ref") {
                 if (!c.children().empty())
                     throw SceneError(c.where(), "<ref> cannot have child elements");
-                set_bsdf(lookup_bsdf(c), c);
+                c.check_attributes({"id", "name"});
+                std::optional<std::string> name = c.optional("name");
+                if (name && (*name == "interior" || *name == "exterior"))
+                    set_medium(c, lookup_medium(c));
+                else
+                    set_bsdf(lookup_bsdf(c), c);
+                return true;
+            }
+            if (c.tag() == "medium") {
+                set_medium(c, read_medium_object(c));
                 return true;
             }
             if (c.tag() == "emitter") {
@@ -456,7 +541,12 @@ class Loader {
             if (!light) throw SceneError(emitter->where(), "the area emitter was not built");
             shape->emitter = light.get();
         }
-        const Bsdf* b = bsdf ? keep(bsdf) : default_bsdf(e.where());
+        shape->interior = interior;
+        shape->exterior = exterior;
+        // A shape that only bounds media (no BSDF) is an index-matched boundary.
+        const Bsdf* b = bsdf            ? keep(bsdf)
+                        : has_interface ? null_bsdf(e.where())
+                                        : default_bsdf(e.where());
         scene_.add_shape(std::move(shape), b);
         if (light) scene_.add_light(std::move(light));
     }
@@ -468,6 +558,8 @@ class Loader {
     std::map<std::string, SourceLocation> ids_;
     std::set<const Bsdf*> kept_;
     const Bsdf* default_bsdf_ = nullptr;
+    const Bsdf* null_bsdf_ = nullptr;
+    std::map<std::string, const Medium*> media_;
     bool have_sensor_ = false, have_integrator_ = false, warned_rfilter_ = false;
     SourceLocation sensor_where_, integrator_where_;
 };

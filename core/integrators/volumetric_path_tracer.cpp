@@ -1,0 +1,307 @@
+#include "core/integrators/volumetric_path_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/integrators/mis.h"
+#include "core/materials/surface_bsdf.h"
+#include "core/media/medium.h"
+#include "core/media/medium_interface.h"
+#include "core/media/shadow_transmittance.h"
+#include "core/sampling/equiangular.h"
+
+namespace render {
+namespace {
+
+// Power heuristic of the first of three techniques' densities (same measure).
+float power_heuristic3(float self, float other1, float other2) {
+    if (!(self > 0)) return 0.0f;
+    const float a = other1 / self, b = other2 / self;  // ratios avoid overflowing squares
+    return 1.0f / (1.0f + a * a + b * b);
+}
+
+// A medium segment: the ray that crossed it and the distance range (0, t_end) that distance
+// and equi-angular sampling covered.
+struct MediumSegment {
+    Ray ray;
+    float t_end = 0;
+    const Medium* medium = nullptr;
+};
+
+// The last real scattering vertex of the path, for weighting emission that the next segment
+// finds by chance.
+struct ScatteringVertex {
+    Vec3 p;
+    bool delta = true;  // camera or delta lobe: nothing else samples what it finds
+    float direction_pdf = 0;
+    bool in_medium = false;
+    MediumSegment segment;  // the segment the medium vertex lies on
+    float t = 0;            // its distance along that segment
+    float distance_pdf = 0;
+};
+
+class Tracer {
+  public:
+    Tracer(const Scene& scene, bool equiangular, Rng& rng, RenderStats& stats)
+        : scene_(scene), equiangular_(equiangular), rng_(rng), stats_(stats) {}
+
+    // Density of equi-angular sampling producing distance t on `segment` toward light point
+    // `light_point` (zero when the technique is not used for this light or segment).
+    float equiangular_pdf(const MediumSegment& segment, const Light* light, const Vec3& light_point,
+                          float t) const {
+        if (!equiangular_ || !light->is_finite() || !std::isfinite(segment.t_end)) return 0.0f;
+        return EquiAngularSampler(segment.ray.origin, segment.ray.direction, light_point, 0.0f,
+                                  segment.t_end)
+            .pdf(t);
+    }
+
+    // Transmittance from `p` along the light sample's direction to the light.
+    Rgb light_visibility(const Vec3& p, const Vec3& n, const LightIlluminateSample& ls,
+                         const Medium* medium) {
+        const Ray shadow = std::isinf(ls.distance)
+                               ? scene_.spawn_ray_to_infinity(p, n, ls.wi)
+                               : scene_.spawn_ray_to(p, n, p + ls.wi * ls.distance, Vec3());
+        if (!medium && !scene_.has_media()) {
+            ++stats_.rays;
+            return scene_.occluded(shadow) ? Rgb(0.0f) : Rgb(1.0f);
+        }
+        return shadow_transmittance(scene_, shadow, medium, rng_, stats_.rays);
+    }
+
+    // Light sampling at a distance-sampled medium vertex (technique "DL").
+    Rgb direct_light_in_medium(const ScatteringVertex& v, const Vec3& wo) {
+        float pick = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
+        const Vec2 u = rng_.next_2d();
+        LightIlluminateSample ls;
+        if (!light || !(pick > 0) || !light->illuminate(v.p, u, ls) || !(ls.pdf_direct_w > 0))
+            return Rgb(0.0f);
+        const float phase = v.segment.medium->phase().p(wo, ls.wi);
+        if (!(phase > 0)) return Rgb(0.0f);
+        const float light_pdf = pick * ls.pdf_direct_w;
+        const float equiangular = equiangular_pdf(v.segment, light, v.p + ls.wi * ls.distance, v.t);
+        const float w = power_heuristic3(v.distance_pdf * light_pdf,
+                                         light->is_delta() ? 0.0f : v.distance_pdf * phase,
+                                         equiangular * light_pdf);
+        if (!(w > 0)) return Rgb(0.0f);
+        const Rgb tr = light_visibility(v.p, Vec3(0.0f), ls, v.segment.medium);
+        return ls.radiance * tr * (phase * w / light_pdf);
+    }
+
+    // Equi-angular sampling of single scattering on a segment (technique "EL"): the light
+    // point first, then the distance, then the connection.
+    Rgb equiangular_inscattering(const MediumSegment& segment) {
+        float pick = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
+        const Vec2 u = rng_.next_2d();
+        const float u_t = rng_.next_1d();
+        Vec3 light_point;
+        if (!light || !(pick > 0) || !light->sample_position(u, light_point)) return Rgb(0.0f);
+        const EquiAngularSampler sampler(segment.ray.origin, segment.ray.direction, light_point,
+                                         0.0f, segment.t_end);
+        const float t = sampler.sample(u_t);
+        const float equiangular = sampler.pdf(t);
+        if (!(equiangular > 0)) return Rgb(0.0f);
+        const Vec3 q = segment.ray.at(t);
+        LightIlluminateSample ls;  // the same u picks the same light point (light.h)
+        if (!light->illuminate(q, u, ls) || !(ls.pdf_direct_w > 0)) return Rgb(0.0f);
+        const Medium& medium = *segment.medium;
+        const float phase = medium.phase().p(-segment.ray.direction, ls.wi);
+        const Rgb sigma_s = medium.sigma_s(q);
+        if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
+        const float light_pdf = pick * ls.pdf_direct_w;
+        const float distance = medium.pdf_scatter(segment.ray, t);
+        const float w = power_heuristic3(equiangular * light_pdf, distance * light_pdf,
+                                         light->is_delta() ? 0.0f : distance * phase);
+        if (!(w > 0)) return Rgb(0.0f);
+        const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
+        if (tr_to_q.is_black()) return Rgb(0.0f);
+        const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), ls, segment.medium);
+        return tr_to_q * sigma_s * ls.radiance * tr_to_light *
+               (phase * w / (equiangular * light_pdf));
+    }
+
+    // Light sampling at a surface vertex.
+    Rgb direct_light_at_surface(const SurfaceInteraction& si, const SurfaceBsdf& bsdf,
+                                const Vec3& wo, const Medium* medium) {
+        float pick = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
+        const Vec2 u = rng_.next_2d();
+        LightIlluminateSample ls;
+        if (!light || !(pick > 0) || !light->illuminate(si.p, u, ls) || !(ls.pdf_direct_w > 0))
+            return Rgb(0.0f);
+        const auto [f, pdf] = bsdf.evaluate(wo, ls.wi);
+        if (f.is_black()) return Rgb(0.0f);
+        const float light_pdf = pick * ls.pdf_direct_w;
+        const float w = light->is_delta() ? 1.0f : power_heuristic(light_pdf, pdf.forward);
+        // The shadow ray starts in the medium on the light's side of the surface.
+        const bool same_side = dot(ls.wi, si.geometric_normal) * dot(wo, si.geometric_normal) > 0;
+        const Medium* start = same_side ? medium : medium_after_transmission(si, ls.wi);
+        const Rgb tr = light_visibility(si.p, si.geometric_normal, ls, start);
+        return f * ls.radiance * tr * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
+    }
+
+    // MIS weight of emission from `light` at `light_point` found by sampling a direction at
+    // `v`; `pdf_direct_a` is light sampling's area density of that point (solid angle for
+    // infinite lights, then `solid_angle` is true).
+    float emission_weight(const ScatteringVertex& v, const Light* light, const Vec3& light_point,
+                          float pdf_direct_a, float cos_light, bool solid_angle) const {
+        if (v.delta) return 1.0f;
+        float light_pdf = scene_.light_pdf(light) * pdf_direct_a;
+        if (!solid_angle) {
+            if (!(cos_light > 0)) return 0.0f;
+            light_pdf *= length_squared(light_point - v.p) / cos_light;
+        }
+        if (!v.in_medium) return power_heuristic(v.direction_pdf, light_pdf);
+        const float equiangular =
+            solid_angle ? 0.0f : equiangular_pdf(v.segment, light, light_point, v.t);
+        return power_heuristic3(v.distance_pdf * v.direction_pdf, v.distance_pdf * light_pdf,
+                                equiangular * light_pdf);
+    }
+
+  private:
+    const Scene& scene_;
+    bool equiangular_;
+    Rng& rng_;
+    RenderStats& stats_;
+};
+
+// Index-matched boundaries crossed in a row before the path is given up (coincident null
+// surfaces would otherwise loop forever).
+constexpr int kMaxNullCrossings = 256;
+
+}  // namespace
+
+bool VolumetricPathTracer::survives_roulette(int depth, Rgb& beta, Rng& rng) const {
+    // Media of albedo 1 scatter without losing energy, so a path may take thousands of steps
+    // before it reaches something that absorbs. Roulette therefore only acts on throughput
+    // below 1 (as in pbrt-v4): capping survival at 0.95 like the surface path tracer would
+    // cut almost every such path and leave an unbiased but useless heavy-tailed estimate.
+    // The hard limit only guarantees termination (an infinite albedo-1 medium never absorbs).
+    if (depth >= kMaxSegments) return false;
+    if (depth < rr_depth_) return true;
+    const float q = std::min(beta.max(), 1.0f);
+    if (q >= 1.0f) return true;
+    if (!(q > 0) || rng.next_1d() >= q) return false;
+    beta *= 1.0f / q;
+    return true;
+}
+
+Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng,
+                             RenderStats& stats, const LayerSink& sink) const {
+    Tracer tracer(scene, equiangular_, rng, stats);
+    Rgb L(0.0f), beta(1.0f);
+    Ray ray = camera_ray;
+    const Medium* medium = scene.camera_medium();
+    ScatteringVertex prev;
+    prev.p = ray.origin;
+    const bool has_lights = !scene.lights().empty();
+    const bool can_extend_any = max_depth_ < 0;
+    int null_crossings = 0;
+
+    // depth = segments of the path including `ray`
+    for (int depth = 1;;) {
+        const bool can_extend = can_extend_any || depth < max_depth_;
+        SurfaceInteraction si;
+        ++stats.rays;
+        const bool hit = scene.intersect(ray, si);
+        const float t_end = hit ? si.t : kInfinity;
+
+        if (medium) {
+            const MediumSegment segment{ray, t_end, medium};
+            if (equiangular_ && has_lights && can_extend && std::isfinite(t_end)) {
+                const Rgb c = beta * tracer.equiangular_inscattering(segment);
+                L += c;
+                sink.add(Technique::Connection, 1, depth + 2, c);
+            }
+            const MediumSample ms = medium->sample(ray, t_end, rng);
+            beta *= ms.weight;
+            if (beta.is_black() || !beta.is_finite()) break;
+            if (ms.scattered) {
+                if (!can_extend) break;
+                ScatteringVertex v;
+                v.p = ray.at(ms.t);
+                v.delta = false;
+                v.in_medium = true;
+                v.segment = segment;
+                v.t = ms.t;
+                v.distance_pdf = medium->pdf_scatter(ray, ms.t);
+                const Vec3 wo = -ray.direction;
+                if (has_lights) {
+                    const Rgb c = beta * tracer.direct_light_in_medium(v, wo);
+                    L += c;
+                    sink.add(Technique::Connection, 1, depth + 2, c);
+                }
+                const PhaseSample ps = medium->phase().sample(wo, rng.next_2d());
+                if (!(ps.pdf > 0)) break;
+                v.direction_pdf = ps.pdf;
+                prev = v;
+                if (!survives_roulette(depth, beta, rng)) break;
+                ray = Ray(v.p, ps.wi);
+                ++depth;
+                null_crossings = 0;
+                continue;
+            }
+        }
+
+        if (!hit) {
+            for (const Light* light : scene.background_lights()) {
+                const LightRadiance le = light->radiance(Vec3(), Vec3(), ray.direction);
+                if (le.radiance.is_black()) continue;
+                const Rgb c =
+                    beta * le.radiance *
+                    tracer.emission_weight(prev, light, Vec3(), le.pdf_direct_a, 1.0f, true);
+                L += c;
+                sink.add(Technique::Connection, 0, depth + 1, c);
+            }
+            break;
+        }
+
+        if (si.bsdf->is_null()) {
+            // An index-matched boundary: only the medium changes.
+            if (++null_crossings > kMaxNullCrossings) break;
+            medium = medium_after_transmission(si, ray.direction);
+            ray = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
+            continue;
+        }
+        null_crossings = 0;
+
+        if (si.emitter) {
+            const LightRadiance le = si.emitter->radiance(si.p, si.geometric_normal, ray.direction);
+            if (!le.radiance.is_black()) {
+                const float cos_light = abs_dot(si.geometric_normal, ray.direction);
+                const Rgb c = beta * le.radiance *
+                              tracer.emission_weight(prev, si.emitter, si.p, le.pdf_direct_a,
+                                                     cos_light, false);
+                L += c;
+                sink.add(Technique::Connection, 0, depth + 1, c);
+            }
+        }
+        if (!can_extend) break;
+
+        const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal, TransportMode::Radiance);
+        const Vec3 wo = -ray.direction;
+        if (has_lights && si.bsdf->has_non_delta()) {
+            const Rgb c = beta * tracer.direct_light_at_surface(si, bsdf, wo, medium);
+            L += c;
+            sink.add(Technique::Connection, 1, depth + 1, c);
+        }
+
+        const float u_lobe = rng.next_1d();
+        const std::optional<BsdfSample> bs = bsdf.sample(wo, u_lobe, rng.next_2d());
+        if (!bs || bs->weight.is_black()) break;
+        beta *= bs->weight;
+        if (dot(bs->wi, si.geometric_normal) * dot(wo, si.geometric_normal) < 0)
+            medium = medium_after_transmission(si, bs->wi);
+        prev = ScatteringVertex{};
+        prev.p = si.p;
+        prev.delta = bs->delta;
+        prev.direction_pdf = bs->pdf.forward;
+        if (!survives_roulette(depth, beta, rng)) break;
+        ray = scene.spawn_ray(si.p, si.geometric_normal, bs->wi);
+        ++depth;
+    }
+    return L;
+}
+
+}  // namespace render

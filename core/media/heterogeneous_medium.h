@@ -1,0 +1,80 @@
+#pragma once
+
+// A medium whose coefficients vary in space (Mitsuba 3's `heterogeneous`):
+//     sigma_t(p) = scale * sigma_t_volume(p),   sigma_s(p) = sigma_t(p) * albedo_volume(p).
+// Outside the extinction volume's bounds the medium is empty (sigma_t = 0).
+//
+// Distances: delta tracking against the piecewise-constant majorant of a MajorantGrid, with
+// *spectral tracking* (Kutz, Habel, Li and Novak 2017, "Spectral and Decomposition Tracking for
+// Rendering Heterogeneous Volumes") for RGB extinction. Transmittance: ratio tracking over the
+// same grid with Russian roulette. See sample() and transmittance() for the estimators and
+// docs/media.md for their weight bounds.
+
+#include <array>
+#include <memory>
+
+#include "core/media/majorant_grid.h"
+#include "core/media/medium.h"
+#include "core/media/volume.h"
+
+namespace render {
+
+class HeterogeneousMedium final : public Medium {
+  public:
+    // `albedo` must lie in [0, 1]. `majorant_resolution` {0, 0, 0} chooses the default (one
+    // majorant cell per 8 voxels of sigma_t).
+    HeterogeneousMedium(std::shared_ptr<const Volume> sigma_t, std::shared_ptr<const Volume> albedo,
+                        float scale, std::shared_ptr<const PhaseFunction> phase,
+                        std::array<int, 3> majorant_resolution = {0, 0, 0});
+
+    // Spectral tracking. Let mu be the cell's scalar majorant (>= every channel of sigma_t)
+    // and w the weight carried since the start of this call (w = (1, 1, 1) at the start). At a
+    // tentative collision (density mu) with sigma_n = mu - sigma_t, the event is real with
+    // probability P_r = avg(w sigma_t) / (avg(w sigma_t) + avg(w sigma_n)) and null otherwise
+    // (history-aware probabilities with the channel average; absorption is not an event, it
+    // goes into the weight). Real: scatter with weight w sigma_s / (mu P_r). Null: w <- w
+    // sigma_n / (mu (1 - P_r)), and go on.
+    //
+    // Bounds: P_r + P_n = 1 gives avg(w) mu = avg(w sigma_t) + avg(w sigma_n), so a null
+    // collision leaves avg(w) unchanged: avg(w) = 1 always, and since w >= 0 every channel of w
+    // is <= 3. A scattering weight is w[c] albedo[c] sigma_t[c] / avg(w sigma_t)
+    // <= 3 albedo[c]. So every weight is <= 3 albedo (scattering) or <= 3 (passing through),
+    // the same bounds as the homogeneous medium's spectral MIS, however different the channels.
+    // For grey sigma_t, w stays (1, 1, 1): classic delta tracking (P_r = sigma_t / mu, weight
+    // albedo on scattering, exactly 1 on passing).
+    MediumSample sample(const Ray& ray, float t_max, Rng& rng) const override;
+
+    // Ratio tracking: T *= 1 - sigma_t / mu at each tentative collision. Once max(T) < 0.1 the
+    // walk survives with probability max(T) and T /= max(T) (Russian roulette, unbiased); the
+    // estimate always lies in [0, 1].
+    Rgb transmittance(const Ray& ray, float t_max, Rng& rng) const override;
+
+    // The smooth approximation allowed by medium.h: the homogeneous formulas with the optical
+    // depth tau(t) estimated deterministically by the midpoint rule on each majorant cell the
+    // ray crosses (one density look-up per cell): pdf_scatter = avg(sigma_t(t) exp(-tau(t))),
+    // probability_pass = avg(exp(-tau(t))). Exact for constant volumes.
+    float pdf_scatter(const Ray& ray, float t) const override;
+    float probability_pass(const Ray& ray, float t) const override;
+
+    Rgb sigma_s(const Vec3& p) const override;
+    Rgb sigma_t(const Vec3& p) const override { return sigma_t_->eval(p) * scale_; }
+    const PhaseFunction& phase() const override { return *phase_; }
+    bool is_homogeneous() const override { return false; }
+    std::string to_string() const override;
+
+    const MajorantGrid& majorant_grid() const { return majorants_; }
+
+    // Russian roulette threshold of transmittance().
+    static constexpr float kRouletteThreshold = 0.1f;
+
+  private:
+    Rgb optical_depth(const Ray& ray, float t) const;
+
+    std::shared_ptr<const Volume> sigma_t_, albedo_;
+    float scale_;
+    std::shared_ptr<const PhaseFunction> phase_;
+    MajorantGrid majorants_;
+    bool grey_;  // one-channel extinction: classic delta tracking
+};
+
+}  // namespace render

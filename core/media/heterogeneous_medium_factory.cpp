@@ -1,0 +1,36 @@
+#include "core/media/heterogeneous_medium_factory.h"
+
+#include <cmath>
+
+#include "core/media/constant_volume.h"
+#include "core/media/heterogeneous_medium.h"
+#include "core/media/isotropic_phase.h"
+
+namespace render {
+
+std::unique_ptr<Medium> make_heterogeneous_medium(const Properties& props,
+                                                  std::shared_ptr<const Volume> sigma_t,
+                                                  std::shared_ptr<const Volume> albedo,
+                                                  std::shared_ptr<const PhaseFunction> phase) {
+    const float scale = props.get_float("scale", 1.0f);
+    if (!(std::isfinite(scale) && scale >= 0))
+        throw props.error("scale", "must be finite and >= 0");
+    props.get_bool("sample_emitters", true);          // accepted: NEE is always used
+    props.get_bool("has_spectral_extinction", true);  // accepted: coefficients are RGB
+    if (!sigma_t) sigma_t = std::make_shared<ConstantVolume>(Rgb(1.0f));
+    if (!albedo) albedo = std::make_shared<ConstantVolume>(Rgb(0.75f));
+    if (!phase) phase = std::make_shared<IsotropicPhase>();
+    const float max_sigma = sigma_t->max_value();
+    if (!(std::isfinite(max_sigma) && max_sigma >= 0))
+        throw props.error("sigma_t", "must be finite and >= 0");
+    if (!std::isfinite(scale * max_sigma))
+        throw props.error("scale", "the scaled extinction overflows");
+    const float max_albedo = albedo->max_value();
+    if (!(max_albedo >= 0 && max_albedo <= 1.0f))
+        throw props.error("albedo",
+                          "must be in [0, 1] (its maximum is " + std::to_string(max_albedo) + ")");
+    return std::make_unique<HeterogeneousMedium>(std::move(sigma_t), std::move(albedo), scale,
+                                                 std::move(phase));
+}
+
+}  // namespace render

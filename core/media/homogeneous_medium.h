@@ -1,0 +1,33 @@
+#pragma once
+
+#include <memory>
+
+#include "core/media/medium.h"
+
+namespace render {
+
+// Constant coefficients everywhere: analytic distance sampling and transmittance.
+class HomogeneousMedium final : public Medium {
+  public:
+    HomogeneousMedium(const Rgb& sigma_a, const Rgb& sigma_s,
+                      std::shared_ptr<const PhaseFunction> phase);
+
+    MediumSample sample(const Ray& ray, float t_max, Rng& rng) const override;
+    Rgb transmittance(const Ray& ray, float t_max, Rng& rng) const override;
+    float pdf_scatter(const Ray& ray, float t) const override;
+    float probability_pass(const Ray& ray, float t) const override;
+    Rgb sigma_s(const Vec3&) const override { return sigma_s_; }
+    Rgb sigma_t(const Vec3&) const override { return sigma_t_; }
+    const PhaseFunction& phase() const override { return *phase_; }
+    bool is_homogeneous() const override { return true; }
+    std::string to_string() const override;
+
+    // exp(-sigma_t t) per channel; exactly 1 at t = 0 and 0 at t = infinity.
+    Rgb transmittance(float t) const;
+
+  private:
+    Rgb sigma_s_, sigma_t_;
+    std::shared_ptr<const PhaseFunction> phase_;
+};
+
+}  // namespace render

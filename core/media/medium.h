@@ -1,0 +1,64 @@
+#pragma once
+
+// Participating media. A medium fills the space between surfaces that name it as their interior
+// or exterior (Mitsuba's medium interfaces); paths carry the medium they are in and change it
+// only when they cross a surface by transmission (core/media/medium_interface.h).
+//
+// Coefficients are RGB. Distances are sampled with *spectral MIS* (one-sample MIS over the three
+// channels with the balance heuristic, as in pbrt-v4 and Mitsuba 3): a channel c is chosen
+// uniformly, the distance is sampled with sigma_t[c], and the weight divides by the average of
+// the three channels' densities. Every channel's weight is then bounded, by 3 * albedo for a
+// scattering event and 3 for passing through, however different the channels' coefficients are
+// (sampling with one channel only makes the others' weights unbounded: colour noise). Choosing
+// the channel uniformly, not by throughput, keeps the density a property of the segment alone,
+// which is what bidirectional MIS needs (the density is the same from either end).
+
+#include <string>
+
+#include "core/math/ray.h"
+#include "core/math/vec.h"
+#include "core/media/phase_function.h"
+#include "core/sampling/rng.h"
+
+namespace render {
+
+struct MediumSample {
+    // True for a real scattering event at distance t; false when the ray passed through to the
+    // end of the segment (t = t_max), where a surface interaction (or nothing) awaits.
+    bool scattered = false;
+    float t = 0;
+    // Factor for the path throughput: T(t) * sigma_s(t) / p(t) for a scattering event,
+    // T(t_max) / P(pass) otherwise. Absorption is part of the weight, never a termination, so
+    // the weight may be zero.
+    Rgb weight{1.0f};
+};
+
+class Medium {
+  public:
+    virtual ~Medium() = default;
+
+    // Samples the next real interaction along `ray` (unit direction) in (0, t_max); t_max may
+    // be infinite (a ray leaving the scene in an unbounded medium).
+    virtual MediumSample sample(const Ray& ray, float t_max, Rng& rng) const = 0;
+
+    // Transmittance along `ray` over (0, t_max): exact for homogeneous media, an unbiased
+    // estimate (ratio tracking) for heterogeneous ones.
+    virtual Rgb transmittance(const Ray& ray, float t_max, Rng& rng) const = 0;
+
+    // Densities of sample()'s distance sampling, for MIS: per unit length of a scattering event
+    // at t, and the probability of passing beyond t. Exact for homogeneous media. Heterogeneous
+    // media return a smooth approximation (weights built from it still sum to one, so MIS
+    // stays unbiased; only its variance reduction is approximate).
+    virtual float pdf_scatter(const Ray& ray, float t) const = 0;
+    virtual float probability_pass(const Ray& ray, float t) const = 0;
+
+    // Local coefficients, per unit length.
+    virtual Rgb sigma_s(const Vec3& p) const = 0;
+    virtual Rgb sigma_t(const Vec3& p) const = 0;
+
+    virtual const PhaseFunction& phase() const = 0;
+    virtual bool is_homogeneous() const = 0;
+    virtual std::string to_string() const = 0;
+};
+
+}  // namespace render

@@ -1,0 +1,95 @@
+#include "core/media/medium_factory.h"
+
+#include <cmath>
+
+#include "core/media/constant_volume.h"
+#include "core/media/henyey_greenstein.h"
+#include "core/media/heterogeneous_medium_factory.h"
+#include "core/media/homogeneous_medium.h"
+#include "core/media/isotropic_phase.h"
+
+namespace render {
+namespace {
+
+bool valid_coefficient(const Rgb& c) {
+    return c.is_finite() && c.r >= 0 && c.g >= 0 && c.b >= 0;
+}
+
+std::shared_ptr<const Medium> make_homogeneous(const Properties& props,
+                                               std::shared_ptr<const PhaseFunction> phase) {
+    const float scale = props.get_float("scale", 1.0f);
+    if (!(std::isfinite(scale) && scale >= 0)) throw props.error("scale", "must be >= 0");
+    props.get_bool("sample_emitters", true);          // accepted: NEE is always used
+    props.get_bool("has_spectral_extinction", true);  // accepted: coefficients are RGB
+    Rgb sigma_a, sigma_s;
+    if (props.has("sigmaA") || props.has("sigmaS")) {
+        // Mitsuba 0.6: absorption and scattering coefficients.
+        sigma_a = props.get_rgb("sigmaA", Rgb(0.0f));
+        sigma_s = props.get_rgb("sigmaS", Rgb(0.0f));
+        if (!valid_coefficient(sigma_a)) throw props.error("sigmaA", "must be finite and >= 0");
+        if (!valid_coefficient(sigma_s)) throw props.error("sigmaS", "must be finite and >= 0");
+    } else {
+        // Mitsuba 3: extinction and single-scattering albedo (defaults as in Mitsuba 3).
+        const Rgb sigma_t = props.get_rgb("sigma_t", Rgb(1.0f));
+        const Rgb albedo = props.get_rgb("albedo", Rgb(0.75f));
+        if (!valid_coefficient(sigma_t)) throw props.error("sigma_t", "must be finite and >= 0");
+        if (!valid_coefficient(albedo) || albedo.max() > 1.0f)
+            throw props.error("albedo", "must be in [0, 1]");
+        sigma_s = sigma_t * albedo;
+        sigma_a = sigma_t - sigma_s;
+        for (int c = 0; c < 3; ++c) sigma_a[c] = std::max(sigma_a[c], 0.0f);
+    }
+    const Rgb scaled_a = sigma_a * scale, scaled_s = sigma_s * scale;
+    if (!(scaled_a + scaled_s).is_finite())
+        throw props.error("scale", "the scaled coefficients overflow");
+    return std::make_shared<HomogeneousMedium>(scaled_a, scaled_s, std::move(phase));
+}
+
+}  // namespace
+
+std::shared_ptr<const PhaseFunction> make_phase(const Properties& props) {
+    if (props.type() == "isotropic") return std::make_shared<IsotropicPhase>();
+    if (props.type() == "hg") {
+        const float g = props.get_float("g", 0.8f);  // Mitsuba 3's default
+        if (!(g > -1.0f && g < 1.0f)) throw props.error("g", "must be in (-1, 1)");
+        return std::make_shared<HenyeyGreenstein>(g);
+    }
+    throw SceneError(props.where(), "unknown phase function type \"" + props.type() +
+                                        "\" (supported: isotropic, hg)");
+}
+
+std::shared_ptr<const Medium> make_medium(
+    const Properties& props, std::shared_ptr<const PhaseFunction> phase,
+    const std::map<std::string, std::shared_ptr<const Volume>>& volumes) {
+    if (!phase) phase = std::make_shared<IsotropicPhase>();
+    if (props.type() == "homogeneous") {
+        if (!volumes.empty())
+            throw SceneError(props.where(),
+                             "a homogeneous medium takes float or rgb coefficients, not volumes "
+                             "(use a heterogeneous medium for volume data)");
+        return make_homogeneous(props, std::move(phase));
+    }
+    if (props.type() == "heterogeneous") {
+        // Each coefficient is a nested <volume name="..."> or a plain float/rgb (a constant).
+        auto volume = [&](const std::string& name) -> std::shared_ptr<const Volume> {
+            auto it = volumes.find(name);
+            if (it != volumes.end()) {
+                if (props.has(name))
+                    throw props.error(name, "given both as a value and as a <volume>");
+                return it->second;
+            }
+            if (!props.has(name)) return nullptr;  // the factory applies Mitsuba's default
+            return std::make_shared<ConstantVolume>(props.get_rgb(name));
+        };
+        for (const auto& [name, v] : volumes)
+            if (name != "sigma_t" && name != "albedo")
+                throw SceneError(props.where(), "heterogeneous medium: unknown volume \"" + name +
+                                                    "\" (expected sigma_t or albedo)");
+        return make_heterogeneous_medium(props, volume("sigma_t"), volume("albedo"),
+                                         std::move(phase));
+    }
+    throw SceneError(props.where(), "unknown medium type \"" + props.type() +
+                                        "\" (supported: homogeneous, heterogeneous)");
+}
+
+}  // namespace render
