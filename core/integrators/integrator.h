@@ -51,8 +51,8 @@ class PixelIntegrator : public Integrator {
 // std::invalid_argument naming the supported ones for anything else.
 std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings);
 
-// Throws std::invalid_argument when `algorithm` would render `scene` wrongly: participating
-// media are handled by volpt only (the others would ignore them silently).
+// Throws std::invalid_argument when `algorithm` would render `scene` wrongly: pt and eyelight
+// ignore participating media, and the bidirectional family handles homogeneous media only.
 void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene);
 
 }  // namespace render

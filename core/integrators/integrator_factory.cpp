@@ -6,6 +6,7 @@
 #include "core/integrators/path_tracer.h"
 #include "core/integrators/vertex_cm.h"
 #include "core/integrators/volumetric_path_tracer.h"
+#include "core/media/medium.h"
 
 namespace render {
 
@@ -43,9 +44,18 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
 }
 
 void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene) {
-    if (scene.has_media() && algorithm != "volpt" && algorithm != "volpath")
+    if (!scene.has_media() || algorithm == "volpt" || algorithm == "volpath") return;
+    const bool bidirectional = algorithm == "lt" || algorithm == "bpt" || algorithm == "ppm" ||
+                               algorithm == "bpm" || algorithm == "vcm";
+    if (!bidirectional)
         throw std::invalid_argument("the scene has participating media, which algorithm \"" +
-                                    algorithm + "\" does not handle yet (use volpt)");
+                                    algorithm + "\" ignores (use volpt, or a bidirectional one)");
+    // Bidirectional MIS needs exact distance-sampling densities (core/media/medium_segment.h).
+    for (const auto& medium : scene.media())
+        if (!medium->is_homogeneous())
+            throw std::invalid_argument("algorithm \"" + algorithm +
+                                        "\" handles homogeneous media only; the scene has " +
+                                        medium->to_string() + " (use volpt)");
 }
 
 }  // namespace render

@@ -13,6 +13,11 @@
 
 namespace render {
 
+// dVM is kept without the merging normalisation of the vertex it belongs to (it holds the
+// report's dVM times eta_VCM of the subpath's current end vertex): with media, merges happen at
+// surfaces (eta = pi r^2 N) and in volumes (eta = 4/3 pi r^3 N, photon points), so the end
+// vertex's eta is known only when the next vertex is, and each weight applies it at the vertex
+// where the merge happens. With one eta everywhere this is the report's arithmetic exactly.
 struct MisQuantities {
     float dVCM = 0, dVC = 0, dVM = 0;
 };
@@ -20,19 +25,27 @@ struct MisQuantities {
 class VcmMis {
   public:
     // use_vc / use_vm select the enabled technique families; eta_vcm = pi r^2 N_light (the
-    // report's ratio between merging and connection densities); light_path_count =
-    // N_light, the number of light subpaths per iteration.
-    VcmMis(int power, bool use_vc, bool use_vm, double eta_vcm, double light_path_count)
-        : power_(power), light_path_count_(float(light_path_count)) {
+    // report's ratio between merging and connection densities at a surface vertex);
+    // eta_vcm_volume = 4/3 pi r^3 N_light, the same at a medium vertex (0: as at surfaces);
+    // light_path_count = N_light, the number of light subpaths per iteration.
+    VcmMis(int power, bool use_vc, bool use_vm, double eta_vcm, double light_path_count,
+           double eta_vcm_volume = 0)
+        : power_(power), use_vc_(use_vc), light_path_count_(float(light_path_count)) {
+        if (!(eta_vcm_volume > 0)) eta_vcm_volume = eta_vcm;
         // Clamped so that an extreme radius (at the floor of the schedule) cannot turn the
         // factors into infinities and the weights into NaN.
-        vm_weight_factor_ = use_vm ? clamp_factor(mis_double(eta_vcm)) : 0.0f;
-        vc_weight_factor_ = use_vc ? clamp_factor(mis_double(1.0 / eta_vcm)) : 0.0f;
+        const double etas[2] = {eta_vcm, eta_vcm_volume};
+        for (int m = 0; m < 2; ++m) {
+            vm_weight_factor_[m] = use_vm ? clamp_factor(mis_double(etas[m])) : 0.0f;
+            inverse_eta_[m] = clamp_factor(mis_double(1.0 / etas[m]));
+            vc_weight_factor_[m] = use_vc ? inverse_eta_[m] : 0.0f;
+        }
     }
 
     float mis(float p) const { return power_ == 1 ? p : p * p; }
-    float vm_weight_factor() const { return vm_weight_factor_; }
-    float vc_weight_factor() const { return vc_weight_factor_; }
+    // Merging relative to connection at a vertex (surface, or medium when `medium`).
+    float vm_weight_factor(bool medium = false) const { return vm_weight_factor_[medium]; }
+    float vc_weight_factor(bool medium = false) const { return vc_weight_factor_[medium]; }
 
     // Eqs. (31)-(33): a light subpath starting at a light with the given densities (the light
     // selection probability included). cos_light is 1 for infinite lights.
@@ -41,7 +54,7 @@ class VcmMis {
         MisQuantities q;
         q.dVCM = mis(direct_pdf_a / emission_pdf_w);
         q.dVC = delta_light ? 0.0f : mis(cos_light / emission_pdf_w);
-        q.dVM = q.dVC * vc_weight_factor_;
+        q.dVM = use_vc_ ? q.dVC : 0.0f;
         return q;
     }
 
@@ -53,22 +66,29 @@ class VcmMis {
         return q;
     }
 
-    // Eqs. (34)-(36), second half: completes the area conversion of the segment just traced,
-    // of squared length dist2 (pass apply_distance = false for the first segment from an
-    // infinite light), arriving with |cos| = cos_in at the new vertex.
-    void arrive(MisQuantities& q, float dist2, bool apply_distance, float cos_in) const {
+    // Eqs. (34)-(36), second half: completes the conversion of the segment just traced to the
+    // new vertex's measure. dist2: its squared length (apply_distance = false for the first
+    // segment from an infinite light, and for a path leaving the scene); cos_in: |cos| at the new
+    // vertex (1 in a medium). Through media the density of the new vertex also carries the
+    // distance sampling: forward_distance is that density (per unit length at a medium vertex,
+    // the probability of passing every medium on the way at a surface), reverse_distance the
+    // same for sampling the segment's start from its end (core/integrators/medium_segment.h).
+    void arrive(MisQuantities& q, float dist2, bool apply_distance, float cos_in,
+                float forward_distance = 1.0f, float reverse_distance = 1.0f) const {
         if (apply_distance) q.dVCM *= mis(dist2);
-        const float c = mis(cos_in);
+        const float c = mis(cos_in * forward_distance);
+        const float r = mis(reverse_distance);
         q.dVCM /= c;
-        q.dVC /= c;
-        q.dVM /= c;
+        q.dVC *= r / c;
+        q.dVM *= r / c;
     }
 
-    // Eqs. (34)-(36), first half: leaving a vertex in a sampled direction with |cos| = cos_out,
-    // forward density pdf_forward and reverse density pdf_reverse. At a specular vertex the two
-    // densities are equal and cancel, and no technique ends there, so dVCM becomes 0.
+    // Eqs. (34)-(36), first half: leaving a vertex in a sampled direction with |cos| = cos_out
+    // (1 in a medium), forward density pdf_forward and reverse density pdf_reverse. At a
+    // specular vertex the two densities are equal and cancel, and no technique ends there, so
+    // dVCM becomes 0. `medium`: the vertex is in a medium (merging there uses photon points).
     void scatter(MisQuantities& q, float cos_out, float pdf_forward, float pdf_reverse,
-                 bool specular) const {
+                 bool specular, bool medium = false) const {
         if (specular) {
             q.dVCM = 0;
             q.dVC *= mis(cos_out);
@@ -76,8 +96,9 @@ class VcmMis {
             return;
         }
         const float g = mis(cos_out / pdf_forward);
-        q.dVC = g * (q.dVC * mis(pdf_reverse) + q.dVCM + vm_weight_factor_);
-        q.dVM = g * (q.dVM * mis(pdf_reverse) + q.dVCM * vc_weight_factor_ + 1.0f);
+        const float vm = vm_weight_factor_[medium];
+        q.dVC = g * (q.dVC * mis(pdf_reverse) + q.dVCM + vm);
+        q.dVM = g * (q.dVM * mis(pdf_reverse) + (use_vc_ ? q.dVCM : 0.0f) + vm);
         q.dVCM = mis(1.0f / pdf_forward);
     }
 
@@ -92,48 +113,58 @@ class VcmMis {
     // Eqs. (44) and (45): next-event estimation. light_pdf_w = selection probability times
     // the light's solid-angle density at the receiver; emission_pdf_w and direct_pdf_w are the
     // light's own densities (the selection probability cancels in their ratio); cos_here is at
-    // the receiver, cos_light at the light; bsdf_* are the receiver's densities toward the
-    // light (forward) and back along the eye path (reverse).
+    // the receiver (1 in a medium), cos_light at the light; bsdf_* are the receiver's densities
+    // toward the light (forward) and back along the eye path (reverse). Through media,
+    // distance_to_light is the probability of passing every medium toward the light, and
+    // distance_from_light the distance density of reaching the receiver from the light.
     float weight_direct(const MisQuantities& eye, float bsdf_forward, float bsdf_reverse,
                         float light_pdf_w, float emission_pdf_w, float direct_pdf_w, float cos_here,
-                        float cos_light, bool delta_light) const {
-        const float w_light = delta_light ? 0.0f : mis(bsdf_forward / light_pdf_w);
+                        float cos_light, bool delta_light, bool eye_medium = false,
+                        float distance_to_light = 1.0f, float distance_from_light = 1.0f) const {
+        const float w_light =
+            delta_light ? 0.0f : mis(bsdf_forward * distance_to_light / light_pdf_w);
         const float w_camera =
-            cos_light > 0 ? mis(emission_pdf_w * cos_here / (direct_pdf_w * cos_light)) *
-                                (vm_weight_factor_ + eye.dVCM + eye.dVC * mis(bsdf_reverse))
-                          : 0.0f;
+            cos_light > 0
+                ? mis(emission_pdf_w * cos_here * distance_from_light /
+                      (direct_pdf_w * cos_light)) *
+                      (vm_weight_factor_[eye_medium] + eye.dVCM + eye.dVC * mis(bsdf_reverse))
+                : 0.0f;
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
     // Eqs. (40) and (41): connecting an eye vertex to a light vertex. eye_pdf_a: the eye
-    // vertex's density of sampling the light vertex (area); light_pdf_a: the reverse; *_reverse
-    // are each vertex's densities back along its own subpath given the connection direction.
+    // vertex's density of sampling the light vertex (area, or volume for a medium vertex, with
+    // the distance sampling through media included); light_pdf_a: the reverse; *_reverse are
+    // each vertex's densities back along its own subpath given the connection direction.
     float weight_connection(const MisQuantities& light, const MisQuantities& eye, float eye_pdf_a,
-                            float light_pdf_a, float light_reverse_w, float eye_reverse_w) const {
-        const float w_light =
-            mis(eye_pdf_a) * (vm_weight_factor_ + light.dVCM + light.dVC * mis(light_reverse_w));
-        const float w_camera =
-            mis(light_pdf_a) * (vm_weight_factor_ + eye.dVCM + eye.dVC * mis(eye_reverse_w));
+                            float light_pdf_a, float light_reverse_w, float eye_reverse_w,
+                            bool light_medium = false, bool eye_medium = false) const {
+        const float w_light = mis(eye_pdf_a) * (vm_weight_factor_[light_medium] + light.dVCM +
+                                                light.dVC * mis(light_reverse_w));
+        const float w_camera = mis(light_pdf_a) * (vm_weight_factor_[eye_medium] + eye.dVCM +
+                                                   eye.dVC * mis(eye_reverse_w));
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
     // Eq. (46): a light vertex connected to the camera. camera_pdf_a is the camera's density
-    // of the vertex (area, per unit pixel area); light_reverse_w the vertex's density back
-    // along the light subpath given the direction to the camera.
-    float weight_camera(const MisQuantities& light, float camera_pdf_a,
-                        float light_reverse_w) const {
-        const float w_light = mis(camera_pdf_a / light_path_count_) *
-                              (vm_weight_factor_ + light.dVCM + light.dVC * mis(light_reverse_w));
+    // of the vertex (area or volume, per unit pixel area); light_reverse_w the vertex's density
+    // back along the light subpath given the direction to the camera.
+    float weight_camera(const MisQuantities& light, float camera_pdf_a, float light_reverse_w,
+                        bool light_medium = false) const {
+        const float w_light =
+            mis(camera_pdf_a / light_path_count_) *
+            (vm_weight_factor_[light_medium] + light.dVCM + light.dVC * mis(light_reverse_w));
         return 1.0f / (w_light + 1.0f);
     }
 
-    // Eqs. (38) and (39): merging an eye vertex with a light vertex. eye_forward_w: the eye
-    // vertex's density of continuing toward the light vertex's predecessor; eye_reverse_w:
-    // back along the eye subpath.
+    // Eqs. (38) and (39): merging an eye vertex with a light vertex (both at surfaces, or both
+    // in a medium when `medium`). eye_forward_w: the eye vertex's density of continuing toward
+    // the light vertex's predecessor; eye_reverse_w: back along the eye subpath.
     float weight_merge(const MisQuantities& light, const MisQuantities& eye, float eye_forward_w,
-                       float eye_reverse_w) const {
-        const float w_light = light.dVCM * vc_weight_factor_ + light.dVM * mis(eye_forward_w);
-        const float w_camera = eye.dVCM * vc_weight_factor_ + eye.dVM * mis(eye_reverse_w);
+                       float eye_reverse_w, bool medium = false) const {
+        const float vc = vc_weight_factor_[medium], inverse_eta = inverse_eta_[medium];
+        const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(eye_forward_w);
+        const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(eye_reverse_w);
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
@@ -142,8 +173,10 @@ class VcmMis {
     static float clamp_factor(double f) { return float(f < 1e30 ? f : 1e30); }
 
     int power_;
+    bool use_vc_;
     float light_path_count_;
-    float vm_weight_factor_ = 0, vc_weight_factor_ = 0;
+    // Index 0: surface vertices; 1: medium vertices.
+    float vm_weight_factor_[2] = {0, 0}, vc_weight_factor_[2] = {0, 0}, inverse_eta_[2] = {0, 0};
 };
 
 }  // namespace render

@@ -15,6 +15,8 @@
 #include "core/integrators/vcm_mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
+#include "core/media/medium.h"
+#include "core/media/medium_segment.h"
 #include "core/render/merge_radius.h"
 
 namespace render {
@@ -34,17 +36,65 @@ struct SubpathState {
     bool is_finite_light = true;  // light subpaths: the origin is a finite point
     bool specular_path = true;    // eye subpaths: every scattering so far was a delta lobe
     MisQuantities mis;
+    const Medium* medium = nullptr;  // where the next segment starts (null: vacuum)
+    bool in_medium = false;          // the next segment starts at a medium vertex
 };
 
-// A stored light-subpath vertex at a surface with a non-delta BSDF.
+// A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
+// a phase function scatters. Medium vertices have no normal: cosines are 1, and the vertex
+// measure is volume instead of area (core/integrators/vcm_mis.h).
+struct Vertex {
+    Vec3 p;
+    Vec3 n;  // geometric normal; zero in a medium
+    const Shape* shape = nullptr;
+    const Medium* medium = nullptr;  // the medium the path arrived in
+    std::optional<SurfaceBsdf> bsdf;
+    const PhaseFunction* phase = nullptr;
+
+    bool in_medium() const { return phase != nullptr; }
+    bool has_non_delta() const { return phase || bsdf->bsdf().has_non_delta(); }
+    bool has_delta() const { return !phase && bsdf->bsdf().has_delta(); }
+    // |cos| with the geometric normal (densities) and with the shading normal (throughput).
+    float cos(const Vec3& w) const { return phase ? 1.0f : abs_dot(n, w); }
+    float shading_cos(const Vec3& w) const { return phase ? 1.0f : bsdf->abs_cos_shading(w); }
+    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const {
+        if (!phase) return bsdf->evaluate(wo, wi);
+        const float p = phase->p(wo, wi);  // reciprocal and exactly sampled: both densities
+        return BsdfEvaluation{Rgb(p), BsdfPdf{p, p}};
+    }
+    std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u) const {
+        if (!phase) return bsdf->sample(wo, u_lobe, u);
+        const PhaseSample ps = phase->sample(wo, u);
+        if (!(ps.pdf > 0)) return std::nullopt;
+        BsdfSample bs;
+        bs.wi = ps.wi;
+        bs.weight = Rgb(1.0f);
+        bs.pdf = BsdfPdf{ps.pdf, ps.pdf};
+        return bs;
+    }
+    // The medium on the side of direction d, for a path that arrived from wo: a surface keeps
+    // the arrival medium on wo's side and has its shape's medium across (medium_interface.h).
+    const Medium* medium_toward(const Vec3& wo, const Vec3& d) const {
+        if (phase || dot(d, n) * dot(wo, n) > 0) return medium;
+        return dot(d, n) < 0 ? shape->interior : shape->exterior;
+    }
+};
+
+// A stored light-subpath vertex with a non-delta BSDF or in a medium.
 struct LightVertex {
-    Vec3 position;
-    Vec3 geometric_normal;
+    Vertex vertex;
     Vec3 wo;  // toward the previous vertex of the light subpath
     Rgb throughput;
     int path_length;
     MisQuantities mis;
-    SurfaceBsdf bsdf;  // importance transport
+};
+
+// Visibility and distance-sampling densities of a connection segment. Without media the
+// segment is only tested for occlusion, and only once its contribution is known to be non-zero.
+struct Link {
+    SegmentDensities densities;
+    Rgb transmittance{1.0f};
+    bool traced = false;
 };
 
 struct Splat {
@@ -74,8 +124,13 @@ class Iteration {
           // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
           // densities of the same path.
           eta_vcm_(kPi * radius_ * radius_ * double(light_path_count_)),
+          // Photon points in media: the kernel is a ball, eta = 4/3 pi r^3 N_light.
+          eta_vcm_volume_(4.0 / 3.0 * kPi * radius_ * radius_ * radius_ *
+                          double(light_path_count_)),
           vm_normalization_(float(1.0 / eta_vcm_)),
-          mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_)) {}
+          vm_normalization_volume_(float(1.0 / eta_vcm_volume_)),
+          mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_),
+               eta_vcm_volume_) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
@@ -90,21 +145,24 @@ class Iteration {
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                           std::vector<Splat>& splats, RenderStats& stats) const;
-    bool sample_scattering(const SurfaceBsdf& bsdf, const SurfaceInteraction& si, const Vec3& wo,
-                           Rng& rng, SubpathState& state, Ray& ray) const;
-    void connect_to_camera(const SubpathState& state, const SurfaceInteraction& si,
-                           const SurfaceBsdf& bsdf, const Vec3& wo, std::vector<Splat>& splats,
-                           RenderStats& stats) const;
+    // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
+    // it ends at and completes the MIS quantities' conversion (`arrive`).
+    std::optional<Vertex> next_vertex(const Ray& ray, Rng& rng, SubpathState& state,
+                                      RenderStats& stats, SampledSegment& segment) const;
+    bool sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
+                           Ray& ray) const;
+    Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
+              Rng& rng, RenderStats& stats) const;
+    Rgb visibility(const Link& link, const Ray& ray, RenderStats& stats) const;
+    void connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
+                           std::vector<Splat>& splats, RenderStats& stats) const;
     Rgb emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
                  const Vec3& hit_normal, const Vec3& ray_direction) const;
-    Rgb direct_illumination(const SubpathState& state, const SurfaceInteraction& si,
-                            const SurfaceBsdf& bsdf, const Vec3& wo, Rng& rng,
+    Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
                             RenderStats& stats) const;
-    Rgb connect_vertices(const LightVertex& light_vertex, const SurfaceInteraction& si,
-                         const SurfaceBsdf& bsdf, const Vec3& wo, const SubpathState& state,
-                         RenderStats& stats) const;
-    Rgb merge(const SurfaceInteraction& si, const SurfaceBsdf& bsdf, const Vec3& wo,
-              const SubpathState& state) const;
+    Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
+                         const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
 
     const BidirectionalConfig& config_;
     const Scene& scene_;
@@ -114,15 +172,60 @@ class Iteration {
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
     double radius_;
-    double eta_vcm_;
-    float vm_normalization_;
+    double eta_vcm_, eta_vcm_volume_;
+    float vm_normalization_, vm_normalization_volume_;
     VcmMis mis_;
 
     std::vector<LightVertex> light_vertices_;
     std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
-    std::vector<Vec3> positions_;      // of light_vertices_, for the grid
-    HashGrid grid_;
+    // Merging: surface and medium light vertices in separate grids (photons merge only with
+    // eye vertices of their own kind); *_index_ maps a grid point to its light vertex.
+    std::vector<Vec3> surface_positions_, medium_positions_;
+    std::vector<uint32_t> surface_index_, medium_index_;
+    HashGrid surface_grid_, medium_grid_;
 };
+
+// --- segments and links -----------------------------------------------------------------------
+
+std::optional<Vertex> Iteration::next_vertex(const Ray& ray, Rng& rng, SubpathState& state,
+                                             RenderStats& stats, SampledSegment& seg) const {
+    seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+    state.throughput *= seg.weight;
+    if (seg.end == SegmentEnd::Escaped || state.throughput.is_black()) return std::nullopt;
+    Vertex v;
+    v.p = seg.position;
+    v.medium = seg.medium;
+    const Vec3 wo = -ray.direction;
+    if (seg.end == SegmentEnd::Medium) {
+        v.phase = &seg.medium->phase();
+    } else {
+        v.n = seg.si.geometric_normal;
+        v.shape = seg.si.shape;
+        v.bsdf.emplace(*seg.si.bsdf, seg.si.shading, seg.si.geometric_normal,
+                       TransportMode::Radiance);
+    }
+    const float cos_in = v.cos(wo);
+    if (!(cos_in > 0)) return std::nullopt;
+    // For infinite lights the first segment has no distance term.
+    mis_.arrive(state.mis, seg.distance * seg.distance,
+                state.path_length > 1 || state.is_finite_light, cos_in, seg.densities.toward_end,
+                seg.densities.toward_start);
+    return v;
+}
+
+Link Iteration::link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
+                     Rng& rng, RenderStats& stats) const {
+    if (!scene_.has_media()) return Link{};
+    const SegmentConnection c =
+        connect_segment(scene_, ray, medium, start_in_medium, end_in_medium, rng, stats);
+    return Link{c.densities, c.transmittance, true};
+}
+
+Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) const {
+    if (l.traced) return l.transmittance;
+    ++stats.rays;
+    return scene_.occluded(ray) ? Rgb(0.0f) : Rgb(1.0f);
+}
 
 // --- light subpaths ---------------------------------------------------------------------------
 
@@ -140,6 +243,8 @@ bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) c
     state.initial_luminance = std::max(state.throughput.max(), 1e-30f);
     state.path_length = 1;
     state.is_finite_light = light->is_finite();
+    state.medium = light->is_finite() ? light->medium : nullptr;
+    state.in_medium = false;
     // Infinite lights have no cosine at the (virtual) emission point; a delta light cannot be
     // hit, so no technique ends on it by chance (eqs. 31-33).
     state.mis = mis_.start_light(direct_pdf_a, emission_pdf_w,
@@ -158,28 +263,24 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
     if (!generate_light_sample(rng, state, ray)) return;
 
     for (;; ++state.path_length) {
-        SurfaceInteraction si;
-        ++stats.rays;
-        if (!scene_.intersect(ray, si)) break;
+        SampledSegment seg;
+        std::optional<Vertex> v = next_vertex(ray, rng, state, stats, seg);
+        if (!v) break;
+        if (v->bsdf)
+            v->bsdf.emplace(*seg.si.bsdf, seg.si.shading, seg.si.geometric_normal,
+                            TransportMode::Importance);
         const Vec3 wo = -ray.direction;
-        const float cos_in = abs_dot(si.geometric_normal, wo);
-        if (!(cos_in > 0)) break;
-        // For infinite lights the first segment has no distance term.
-        mis_.arrive(state.mis, si.t * si.t, state.path_length > 1 || state.is_finite_light, cos_in);
-
-        const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal,
-                               TransportMode::Importance);
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
-        if (si.bsdf->has_non_delta()) {
+        if (v->has_non_delta()) {
             if (use_vc_ || use_vm_)
-                vertices.push_back(LightVertex{si.p, si.geometric_normal, wo, state.throughput,
-                                               state.path_length, state.mis, bsdf});
+                vertices.push_back(
+                    LightVertex{*v, wo, state.throughput, state.path_length, state.mis});
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
-                connect_to_camera(state, si, bsdf, wo, splats, stats);
+                connect_to_camera(state, *v, wo, rng, splats, stats);
         }
         // Extending needs one more segment plus at least the segment to the eye.
         if (state.path_length + 2 > max_length_) break;
-        if (!sample_scattering(bsdf, si, wo, rng, state, ray)) break;
+        if (!sample_scattering(*v, wo, rng, state, ray)) break;
     }
 }
 
@@ -214,25 +315,29 @@ void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats
         splats.insert(splats.end(), chunk_splats[c].begin(), chunk_splats[c].end());
     }
     if (use_vm_) {
-        positions_.resize(light_vertices_.size());
-        for (size_t i = 0; i < light_vertices_.size(); ++i)
-            positions_[i] = light_vertices_[i].position;
-        grid_.build(positions_, radius_);
+        for (uint32_t i = 0; i < light_vertices_.size(); ++i) {
+            const bool medium = light_vertices_[i].vertex.in_medium();
+            (medium ? medium_positions_ : surface_positions_)
+                .push_back(light_vertices_[i].vertex.p);
+            (medium ? medium_index_ : surface_index_).push_back(i);
+        }
+        surface_grid_.build(surface_positions_, radius_);
+        medium_grid_.build(medium_positions_, radius_);
     }
 }
 
-bool Iteration::sample_scattering(const SurfaceBsdf& bsdf, const SurfaceInteraction& si,
-                                  const Vec3& wo, Rng& rng, SubpathState& state, Ray& ray) const {
+bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
+                                  Ray& ray) const {
     const float u_lobe = rng.next_1d();
     const Vec2 u = rng.next_2d();
-    std::optional<BsdfSample> bs = bsdf.sample(wo, u_lobe, u);
+    std::optional<BsdfSample> bs = v.sample(wo, u_lobe, u);
     if (!bs || bs->weight.is_black()) return false;
-    const float cos_out = abs_dot(si.geometric_normal, bs->wi);
+    const float cos_out = v.cos(bs->wi);
     if (!(cos_out > 0)) return false;
 
     if (!bs->delta && !(bs->pdf.forward > 0)) return false;
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
-    mis_.scatter(state.mis, cos_out, bs->pdf.forward, bs->pdf.reverse, bs->delta);
+    mis_.scatter(state.mis, cos_out, bs->pdf.forward, bs->pdf.reverse, bs->delta, v.in_medium());
     state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 
@@ -241,37 +346,41 @@ bool Iteration::sample_scattering(const SurfaceBsdf& bsdf, const SurfaceInteract
         if (!(q > 0) || rng.next_1d() >= q) return false;
         state.throughput *= 1.0f / q;
     }
-    ray = scene_.spawn_ray(si.p, si.geometric_normal, bs->wi);
+    state.medium = v.medium_toward(wo, bs->wi);
+    state.in_medium = v.in_medium();
+    ray = v.in_medium() ? Ray(v.p, bs->wi) : scene_.spawn_ray(v.p, v.n, bs->wi);
     return true;
 }
 
-void Iteration::connect_to_camera(const SubpathState& state, const SurfaceInteraction& si,
-                                  const SurfaceBsdf& bsdf, const Vec3& wo,
-                                  std::vector<Splat>& splats, RenderStats& stats) const {
-    std::optional<Vec2> raster = camera_.raster_position(si.p);
+void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo,
+                                  Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const {
+    std::optional<Vec2> raster = camera_.raster_position(v.p);
     if (!raster) return;
-    const Vec3 to_camera = camera_.position() - si.p;
+    const Vec3 to_camera = camera_.position() - v.p;
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
     const Vec3 d = to_camera / std::sqrt(dist2);
-    const auto [f, pdf] = bsdf.evaluate(wo, d);
+    const auto [f, pdf] = v.evaluate(wo, d);
     if (f.is_black()) return;
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_.position(), Vec3());
+    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), false, rng, stats);
+    if (l.traced && l.transmittance.is_black()) return;
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
-    const float cos_geometric = abs_dot(si.geometric_normal, d);
-    // The camera's area density at this vertex (eq. 46).
-    const float camera_pdf_a = camera_pdf_w * cos_geometric / dist2;
+    // The camera's density of this vertex (eq. 46), through the media on the way.
+    const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
     const float weight =
-        light_trace_only_ ? 1.0f : mis_.weight_camera(state.mis, camera_pdf_a, pdf.reverse);
+        light_trace_only_ ? 1.0f
+                          : mis_.weight_camera(state.mis, camera_pdf_a, pdf.reverse, v.in_medium());
     const Rgb contribution =
         state.throughput * f *
-        (weight * camera_pdf_w * bsdf.abs_cos_shading(d) / (dist2 * float(light_path_count_)));
+        (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
     if (contribution.is_black()) return;
-    ++stats.rays;
-    if (scene_.occluded(scene_.spawn_ray_to(si.p, si.geometric_normal, camera_.position(), Vec3())))
-        return;
+    const Rgb tr = visibility(l, ray, stats);
+    if (tr.is_black()) return;
     const uint32_t x = std::min(uint32_t(raster->x), uint32_t(camera_.width() - 1));
     const uint32_t y = std::min(uint32_t(raster->y), uint32_t(camera_.height() - 1));
-    splats.push_back(Splat{y * uint32_t(camera_.width()) + x, contribution, state.path_length + 1});
+    splats.push_back(
+        Splat{y * uint32_t(camera_.width()) + x, contribution * tr, state.path_length + 1});
 }
 
 // --- eye subpaths -----------------------------------------------------------------------------
@@ -291,76 +400,86 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
            mis_.weight_emission(state.mis, le.pdf_direct_a * pick, le.pdf_emission_w * pick);
 }
 
-Rgb Iteration::direct_illumination(const SubpathState& state, const SurfaceInteraction& si,
-                                   const SurfaceBsdf& bsdf, const Vec3& wo, Rng& rng,
-                                   RenderStats& stats) const {
+Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
+                                   Rng& rng, RenderStats& stats) const {
     float pick = 0;
     const Light* light = scene_.sample_light(rng.next_1d(), &pick);
     const Vec2 u = rng.next_2d();
     LightIlluminateSample ls;
-    if (!light || !(pick > 0) || !light->illuminate(si.p, u, ls) || !(ls.pdf_direct_w > 0))
+    if (!light || !(pick > 0) || !light->illuminate(v.p, u, ls) || !(ls.pdf_direct_w > 0))
         return Rgb(0.0f);
-    const auto [f, pdf] = bsdf.evaluate(wo, ls.wi);
+    const auto [f, pdf] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
+    const Ray ray = std::isinf(ls.distance)
+                        ? scene_.spawn_ray_to_infinity(v.p, v.n, ls.wi)
+                        : scene_.spawn_ray_to(v.p, v.n, v.p + ls.wi * ls.distance, Vec3());
+    const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
+    if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Eqs. (44) and (45).
     const float weight = mis_.weight_direct(
         state.mis, pdf.forward, pdf.reverse, pick * ls.pdf_direct_w, ls.pdf_emission_w,
-        ls.pdf_direct_w, abs_dot(si.geometric_normal, ls.wi), ls.cos_at_light, light->is_delta());
+        ls.pdf_direct_w, v.cos(ls.wi), ls.cos_at_light, light->is_delta(), v.in_medium(),
+        l.densities.toward_end, l.densities.toward_start);
     const Rgb contribution =
-        ls.radiance * f * (weight * bsdf.abs_cos_shading(ls.wi) / (pick * ls.pdf_direct_w));
+        ls.radiance * f * (weight * v.shading_cos(ls.wi) / (pick * ls.pdf_direct_w));
     if (contribution.is_black()) return Rgb(0.0f);
-    ++stats.rays;
-    const Ray shadow =
-        std::isinf(ls.distance)
-            ? scene_.spawn_ray_to_infinity(si.p, si.geometric_normal, ls.wi)
-            : scene_.spawn_ray_to(si.p, si.geometric_normal, si.p + ls.wi * ls.distance, Vec3());
-    return scene_.occluded(shadow) ? Rgb(0.0f) : contribution;
+    return contribution * visibility(l, ray, stats);
 }
 
-Rgb Iteration::connect_vertices(const LightVertex& lv, const SurfaceInteraction& si,
-                                const SurfaceBsdf& bsdf, const Vec3& wo, const SubpathState& state,
-                                RenderStats& stats) const {
-    Vec3 d = lv.position - si.p;
+Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
+                                const SubpathState& state, Rng& rng, RenderStats& stats) const {
+    const Vertex& w = lv.vertex;
+    Vec3 d = w.p - v.p;
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
     d = d / std::sqrt(dist2);
-    const auto [f_eye, pdf_eye] = bsdf.evaluate(wo, d);
+    const auto [f_eye, pdf_eye] = v.evaluate(wo, d);
     if (f_eye.is_black()) return Rgb(0.0f);
-    const auto [f_light, pdf_light] = lv.bsdf.evaluate(lv.wo, -d);
+    const auto [f_light, pdf_light] = w.evaluate(lv.wo, -d);
     if (f_light.is_black()) return Rgb(0.0f);
-    // Area densities of extending either subpath to the other's endpoint.
-    const float eye_pdf_a = pdf_eye.forward * abs_dot(lv.geometric_normal, d) / dist2;
-    const float light_pdf_a = pdf_light.forward * abs_dot(si.geometric_normal, d) / dist2;
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
+    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
+    if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
+    // Densities of extending either subpath to the other's endpoint (area, or volume in a
+    // medium, with the distance sampling through media).
+    const float eye_pdf_a = pdf_eye.forward * w.cos(d) * l.densities.toward_end / dist2;
+    const float light_pdf_a = pdf_light.forward * v.cos(d) * l.densities.toward_start / dist2;
     // Eqs. (40) and (41).
-    const float weight = mis_.weight_connection(lv.mis, state.mis, eye_pdf_a, light_pdf_a,
-                                                pdf_light.reverse, pdf_eye.reverse);
-    const float geometry = bsdf.abs_cos_shading(d) * lv.bsdf.abs_cos_shading(d) / dist2;
+    const float weight =
+        mis_.weight_connection(lv.mis, state.mis, eye_pdf_a, light_pdf_a, pdf_light.reverse,
+                               pdf_eye.reverse, w.in_medium(), v.in_medium());
+    const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return Rgb(0.0f);
-    ++stats.rays;
-    if (scene_.occluded(
-            scene_.spawn_ray_to(si.p, si.geometric_normal, lv.position, lv.geometric_normal)))
-        return Rgb(0.0f);
-    return contribution;
+    return contribution * visibility(l, ray, stats);
 }
 
-Rgb Iteration::merge(const SurfaceInteraction& si, const SurfaceBsdf& bsdf, const Vec3& wo,
-                     const SubpathState& state) const {
+Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
+    const bool medium = v.in_medium();
+    const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
+    const std::vector<uint32_t>& index = medium ? medium_index_ : surface_index_;
     Rgb sum(0.0f);
-    grid_.for_each_within_radius(si.p, [&](uint32_t index) {
-        const LightVertex& lv = light_vertices_[index];
+    grid.for_each_within_radius(v.p, [&](uint32_t i) {
+        const LightVertex& lv = light_vertices_[index[i]];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
-        const auto [f, pdf] = bsdf.evaluate(wo, lv.wo);
+        const auto [f, pdf] = v.evaluate(wo, lv.wo);
         if (f.is_black()) return;
         float weight = 1.0f;
         if (!ppm_) {
             // Eqs. (38) and (39).
-            weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse);
+            weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse, medium);
         }
-        sum += f * lv.throughput * weight;
+        Rgb photon = lv.throughput;
+        if (medium) {
+            // Both subpaths' throughputs carry sigma_s at their medium vertex (the distance
+            // sampling weight); the merged path scatters once, so one of them is divided out.
+            const Rgb sigma_s = lv.vertex.medium->sigma_s(lv.vertex.p);
+            for (int c = 0; c < 3; ++c) photon[c] = sigma_s[c] > 0 ? photon[c] / sigma_s[c] : 0.0f;
+        }
+        sum += f * photon * weight;
     });
-    return sum * vm_normalization_;
+    return sum * (medium ? vm_normalization_volume_ : vm_normalization_);
 }
 
 Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
@@ -373,6 +492,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
     state.throughput = Rgb(1.0f);
     state.initial_luminance = 1.0f;
     state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
+    state.medium = scene_.camera_medium();
 
     Rgb color(0.0f);
     // s light vertices and t = path_length + 1 eye vertices (the camera included).
@@ -381,34 +501,34 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         sink.add(kind, s, state.path_length + 1, contribution);
     };
     for (;; ++state.path_length) {
-        SurfaceInteraction si;
-        ++stats.rays;
-        if (!scene_.intersect(ray, si)) {
-            for (const Light* light : scene_.background_lights())
-                add(Technique::Connection, 0,
-                    state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
+        SampledSegment seg;
+        std::optional<Vertex> v = next_vertex(ray, rng, state, stats, seg);
+        if (!v) {
+            if (seg.end == SegmentEnd::Escaped && !state.throughput.is_black()) {
+                // Left the scene: the distance sampling on the way is part of this
+                // technique's density; an infinite light has no distance or cosine term.
+                mis_.arrive(state.mis, 0.0f, false, 1.0f, seg.densities.toward_end,
+                            seg.densities.toward_start);
+                for (const Light* light : scene_.background_lights())
+                    add(Technique::Connection, 0,
+                        state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
+            }
             break;
         }
         const Vec3 wo = -ray.direction;
-        const float cos_in = abs_dot(si.geometric_normal, wo);
-        if (!(cos_in > 0)) break;
-        mis_.arrive(state.mis, si.t * si.t, true, cos_in);
-
-        if (si.emitter)
+        if (!v->in_medium() && seg.si.emitter)
             add(Technique::Connection, 0,
-                state.throughput *
-                    emission(si.emitter, state, si.p, si.geometric_normal, ray.direction));
+                state.throughput * emission(seg.si.emitter, state, v->p, v->n, ray.direction));
         if (state.path_length >= max_length_) break;
 
-        const SurfaceBsdf bsdf(*si.bsdf, si.shading, si.geometric_normal, TransportMode::Radiance);
         // Light tracing and PPM leave every non-delta scattering of the eye path to the light
         // paths (camera connections or the one merge); the eye continues only through delta
         // lobes, including the delta lobes of mixed materials such as plastic's coating.
         const bool eye_ends_at_non_delta = light_trace_only_ || ppm_;
-        if (si.bsdf->has_non_delta() && !light_trace_only_) {
+        if (v->has_non_delta() && !light_trace_only_) {
             if (use_vc_) {
                 add(Technique::Connection, 1,
-                    state.throughput * direct_illumination(state, si, bsdf, wo, rng, stats));
+                    state.throughput * direct_illumination(state, *v, wo, rng, stats));
             }
             if (use_vc_ && !path_ends_.empty()) {
                 const uint64_t path = pixel % light_path_count_;
@@ -418,15 +538,15 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, si, bsdf, wo, state, stats));
+                            connect_vertices(lv, *v, wo, state, rng, stats));
                 }
             }
             if (use_vm_) {
-                add(Technique::Merging, 0, state.throughput * merge(si, bsdf, wo, state));
+                add(Technique::Merging, 0, state.throughput * merge(*v, wo, state));
             }
         }
-        if (eye_ends_at_non_delta && !si.bsdf->has_delta()) break;
-        if (!sample_scattering(bsdf, si, wo, rng, state, ray)) break;
+        if (eye_ends_at_non_delta && !v->has_delta()) break;
+        if (!sample_scattering(*v, wo, rng, state, ray)) break;
         if (eye_ends_at_non_delta && !state.specular_path) break;
     }
     return color;

@@ -7,7 +7,7 @@
 #include "core/materials/surface_bsdf.h"
 #include "core/media/medium.h"
 #include "core/media/medium_interface.h"
-#include "core/media/shadow_transmittance.h"
+#include "core/media/medium_segment.h"
 #include "core/sampling/equiangular.h"
 
 namespace render {
@@ -65,7 +65,7 @@ class Tracer {
             ++stats_.rays;
             return scene_.occluded(shadow) ? Rgb(0.0f) : Rgb(1.0f);
         }
-        return shadow_transmittance(scene_, shadow, medium, rng_, stats_.rays);
+        return connect_segment(scene_, shadow, medium, false, false, rng_, stats_).transmittance;
     }
 
     // Light sampling at a distance-sampled medium vertex (technique "DL").

@@ -20,6 +20,8 @@
 
 namespace render {
 
+class Medium;
+
 // The scene's bounding sphere: infinite and directional lights emit from a disk of this radius.
 struct SceneSphere {
     Vec3 center;
@@ -85,6 +87,10 @@ class Light {
     virtual bool is_infinite_background() const { return false; }  // seen by escaping rays
 
     virtual std::string to_string() const = 0;
+
+    // The medium that light paths start in (finite lights; null: vacuum). An area light emits
+    // into its shape's exterior.
+    const Medium* medium = nullptr;
 
   protected:
     SceneSphere scene_sphere_;

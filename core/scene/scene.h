@@ -74,6 +74,7 @@ class Scene {
 
     const PerspectiveCamera& camera() const { return camera_; }
     const Medium* camera_medium() const { return camera_medium_; }
+    const std::vector<std::shared_ptr<const Medium>>& media() const { return media_; }
     // True when a shape bounds a medium or the camera sits in one. Integrators take their
     // medium-aware code paths only then, so surface-only scenes pay nothing for media.
     bool has_media() const { return has_media_; }

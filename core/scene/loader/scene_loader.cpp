@@ -463,13 +463,22 @@ class Loader {
     // ----- emitters and shapes -----
 
     void read_top_level_emitter(const XmlElement& e) {
-        Properties props = read_plain_object(e, "emitter");
+        // A nested medium (or a reference to one) is the medium the light sits in.
+        const Medium* medium = nullptr;
+        Properties props = read_object(e, "emitter", [&](const XmlElement& c, Properties&) {
+            if (c.tag() != "medium" && c.tag() != "ref") return false;
+            if (medium) throw SceneError(c.where(), "an emitter sits in one medium only");
+            if (c.tag() == "ref") c.check_attributes({"id", "name"});
+            medium = c.tag() == "medium" ? read_medium_object(c) : lookup_medium(c);
+            return true;
+        });
         if (props.type() == "area")
             throw SceneError(e.where(), "an area emitter must be nested in a <shape>");
         std::unique_ptr<Light> light =
             build(props, [&] { return make_light(props, nullptr, e.file().dir()); });
         if (!light) throw SceneError(e.where(), "emitter \"" + props.type() + "\" was not built");
         if (!props.id.empty()) register_id(props.id, e.where());
+        light->medium = medium;
         scene_.add_light(std::move(light));
     }
 
@@ -540,6 +549,7 @@ class Loader {
                 build(*emitter, [&] { return make_light(*emitter, shape.get(), e.file().dir()); });
             if (!light) throw SceneError(emitter->where(), "the area emitter was not built");
             shape->emitter = light.get();
+            light->medium = exterior;  // an area light emits on its normal's side
         }
         shape->interior = interior;
         shape->exterior = exterior;
