@@ -147,8 +147,9 @@ class Iteration {
                           std::vector<Splat>& splats, RenderStats& stats) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
     // it ends at and completes the MIS quantities' conversion (`arrive`).
-    std::optional<Vertex> next_vertex(const Ray& ray, Rng& rng, SubpathState& state,
-                                      RenderStats& stats, SampledSegment& segment) const;
+    std::optional<Vertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                      SubpathState& state, RenderStats& stats,
+                                      SampledSegment& segment) const;
     bool sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
                            Ray& ray) const;
     Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
@@ -187,11 +188,22 @@ class Iteration {
 
 // --- segments and links -----------------------------------------------------------------------
 
-std::optional<Vertex> Iteration::next_vertex(const Ray& ray, Rng& rng, SubpathState& state,
-                                             RenderStats& stats, SampledSegment& seg) const {
-    seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
-    state.throughput *= seg.weight;
-    if (seg.end == SegmentEnd::Escaped || state.throughput.is_black()) return std::nullopt;
+std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                             SubpathState& state, RenderStats& stats,
+                                             SampledSegment& seg) const {
+    if (!state.medium && !scene_.has_media()) {
+        // Surface-only scenes: one closest hit, every distance density 1 (as sample_segment
+        // would return, without its bookkeeping).
+        ++stats.rays;
+        if (!scene_.intersect(ray, seg.si)) return std::nullopt;
+        seg.end = SegmentEnd::Surface;
+        seg.position = seg.si.p;
+        seg.distance = seg.si.t;
+    } else {
+        seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+        state.throughput *= seg.weight;
+        if (seg.end == SegmentEnd::Escaped || state.throughput.is_black()) return std::nullopt;
+    }
     Vertex v;
     v.p = seg.position;
     v.medium = seg.medium;
@@ -201,8 +213,7 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, Rng& rng, SubpathSt
     } else {
         v.n = seg.si.geometric_normal;
         v.shape = seg.si.shape;
-        v.bsdf.emplace(*seg.si.bsdf, seg.si.shading, seg.si.geometric_normal,
-                       TransportMode::Radiance);
+        v.bsdf.emplace(*seg.si.bsdf, seg.si.shading, seg.si.geometric_normal, mode);
     }
     const float cos_in = v.cos(wo);
     if (!(cos_in > 0)) return std::nullopt;
@@ -264,11 +275,9 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
 
     for (;; ++state.path_length) {
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, rng, state, stats, seg);
+        std::optional<Vertex> v =
+            next_vertex(ray, TransportMode::Importance, rng, state, stats, seg);
         if (!v) break;
-        if (v->bsdf)
-            v->bsdf.emplace(*seg.si.bsdf, seg.si.shading, seg.si.geometric_normal,
-                            TransportMode::Importance);
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
@@ -308,6 +317,13 @@ void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats
     // Concatenate in chunk order: deterministic whatever the thread count.
     path_ends_.clear();
     path_ends_.reserve(light_path_count_);
+    size_t vertex_count = 0, splat_count = splats.size();
+    for (uint64_t c = 0; c < chunks; ++c) {
+        vertex_count += chunk_vertices[c].size();
+        splat_count += chunk_splats[c].size();
+    }
+    light_vertices_.reserve(vertex_count);
+    splats.reserve(splat_count);
     uint32_t end = 0;
     for (uint64_t c = 0; c < chunks; ++c) {
         for (uint32_t size : chunk_path_sizes[c]) path_ends_.push_back(end += size);
@@ -315,6 +331,8 @@ void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats
         splats.insert(splats.end(), chunk_splats[c].begin(), chunk_splats[c].end());
     }
     if (use_vm_) {
+        surface_positions_.reserve(light_vertices_.size());
+        surface_index_.reserve(light_vertices_.size());
         for (uint32_t i = 0; i < light_vertices_.size(); ++i) {
             const bool medium = light_vertices_[i].vertex.in_medium();
             (medium ? medium_positions_ : surface_positions_)
@@ -502,7 +520,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
     };
     for (;; ++state.path_length) {
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, rng, state, stats, seg);
+        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
             if (seg.end == SegmentEnd::Escaped && !state.throughput.is_black()) {
                 // Left the scene: the distance sampling on the way is part of this

@@ -37,6 +37,15 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
 SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
                               bool start_in_medium, Rng& rng, RenderStats& stats) {
     SampledSegment out;
+    if (!medium && !scene.has_media()) {
+        // Surface-only scenes: one closest hit, every density 1.
+        ++stats.rays;
+        if (!scene.intersect(ray, out.si)) return out;
+        out.end = SegmentEnd::Surface;
+        out.position = out.si.p;
+        out.distance = out.si.t;
+        return out;
+    }
     SegmentDensityBuilder densities(start_in_medium);
     const Vec3 start = ray.origin;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {

@@ -1,12 +1,30 @@
-// The MIS weights of all techniques that can sample one fixed path sum to one.
+// The MIS weights of the techniques that can sample one fixed path.
 //
-// For explicit paths (camera, a few surface vertices with diffuse, glossy and mirror BSDFs, and
-// an area, point, directional or constant light) the test runs the subpath recursions of
-// vcm_mis.h along the path from both ends, exactly as the integrator does while tracing, and
-// evaluates the weight of every technique that can produce the path: emission hit (s = 0),
-// next-event estimation (s = 1), every connection (s, t >= 2), light tracing (t = 1) and every
-// merge at a non-specular vertex. For BPT (connections only), BPM (merges only) and VCM (both)
-// the weights must sum to one; any wrong density, cosine or distance in the recursion breaks it.
+// For explicit paths (camera, a few vertices with diffuse, glossy and mirror BSDFs or in a
+// medium, and an area, point, directional or constant light) the test runs the subpath
+// recursions of vcm_mis.h along the path from both ends, exactly as the integrator
+// (vertex_cm.cpp) does while tracing, and evaluates the weight of every technique that can
+// produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
+// (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex. For BPT
+// (connections only), BPM (merges only) and VCM (both), with the power and the balance heuristic:
+//   - the weights must sum to one: any density, cosine or distance that the recursion gets
+//     wrong for some techniques and not for others breaks it;
+//   - each weight must equal p_k^beta / sum_j p_j^beta, with every technique's density p_k of
+//     the whole path written out directly (reference_weights, no recursion). This catches what
+//     the sum cannot: a factor wrong for all techniques alike, such as the merging
+//     normalisation eta of medium vertices (weights built with any eta sum to one).
+//
+// Paths in fog. The camera, every vertex and finite lights are inside one homogeneous medium
+// with a chromatic sigma_t. A vertex is on a surface (BSDF, normal) or in the medium
+// (Material::Medium: the fog's Henyey-Greenstein phase function and no normal, so cosines are 1,
+// the phase value is the density in both directions, and merging there uses photon points with
+// eta = 4/3 pi r^3 N instead of pi r^2 N). Sampling a segment also samples its length, so each
+// segment has a distance density at either end: pdf_scatter(t) (per unit length) at a medium
+// vertex, probability_pass(t) at a surface vertex, the light or the camera (surface-like
+// endpoints), both from a real HomogeneousMedium (core/media/medium_segment.h). Directional and
+// constant lights are outside the fog: it fills a ball around the scene with a null boundary,
+// so the segment toward such a light crosses the fog only up to the ball (the vacuum beyond is
+// passed with probability one), and its densities are those of that length.
 
 #include "core/integrators/vcm_mis.h"
 
@@ -27,6 +45,9 @@
 #include "core/materials/phong.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
+#include "core/media/henyey_greenstein.h"
+#include "core/media/homogeneous_medium.h"
+#include "core/media/medium_segment.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/scene/shapes/triangle_mesh.h"
@@ -35,13 +56,18 @@ namespace render {
 namespace {
 
 enum class LightKind { Area, Point, Directional, Constant };
-enum class Material { Diffuse, Glossy, Mirror };
+enum class Material { Diffuse, Glossy, Mirror, Medium };
 
 struct PathVertex {
     Vec3 p;
-    Vec3 n;
-    const Bsdf* bsdf;
-    bool specular;
+    Vec3 n;                                // zero in the medium
+    const Bsdf* bsdf = nullptr;            // surface vertices
+    const PhaseFunction* phase = nullptr;  // medium vertices
+    bool specular = false;
+
+    bool in_medium() const { return phase != nullptr; }
+    // |cos| as the densities use it: 1 in the medium (vertex_cm.cpp's Vertex::cos).
+    float cos(const Vec3& w) const { return phase ? 1.0f : abs_dot(n, w); }
 };
 
 // Densities of the light end of a path, as the light reports them (selection probability 1).
@@ -55,16 +81,38 @@ struct LightEnd {
     float cos_light = 1;
 };
 
+enum class TechniqueKind { Emission, Direct, Connection, Camera, Merge };
+struct Technique {
+    TechniqueKind kind;
+    // Connection: light vertex `vertex` to eye vertex `vertex + 1`; Merge: the vertex merged at.
+    size_t vertex = 0;
+};
+
+// The recursive quantities of both subpaths along the path, as the integrator holds them.
+struct SubpathStates {
+    std::vector<MisQuantities> light;  // after arriving at each vertex
+    std::vector<MisQuantities> eye;    // after arriving at each vertex
+    MisQuantities eye_at_light;        // after hitting the light or leaving the scene
+};
+
 class MisSumTest : public ::testing::Test {
   protected:
     static constexpr int kWidth = 64, kHeight = 64;
+    static constexpr double kLightPaths = double(kWidth * kHeight);
+    static constexpr float kFogRadius = 14.0f;  // the fog's ball, centred at the origin
+    // Endpoint ids for segments: vertex indices, kLightEnd, and vertices_.size() for the camera.
+    static constexpr int kLightEnd = -1;
 
     MisSumTest()
         : diffuse_(Rgb(0.6f)),
           glossy_(Rgb(0.2f), Rgb(0.6f), 20.0f),
           mirror_(std::nullopt, Rgb(1.0f)),
           rectangle_(make_rectangle_mesh(), Transform::scale(Vec3(0.3f, 0.2f, 1.0f)), false, false,
-                     "light") {}
+                     "light"),
+          // Chromatic: the three channels' distance densities differ, and the medium's
+          // densities are their averages (spectral MIS, core/media/medium.h).
+          fog_medium_(Rgb(0.06f, 0.16f, 0.3f), Rgb(0.24f, 0.64f, 1.2f),
+                      std::make_shared<HenyeyGreenstein>(0.4f)) {}
 
     const Bsdf* bsdf_for(Material m) const {
         switch (m) {
@@ -77,9 +125,12 @@ class MisSumTest : public ::testing::Test {
         }
     }
 
-    // Builds a path from the camera through the given materials to a light of the given kind.
-    // Returns false (skip) when a random choice made the geometry degenerate.
-    bool build_path(Rng& rng, const std::vector<Material>& materials, LightKind kind) {
+    // Builds a path from the camera through the given materials to a light of the given kind,
+    // in vacuum or (in_fog) in the fog. Returns false (skip) when a random choice made the
+    // geometry degenerate.
+    bool build_path(Rng& rng, const std::vector<Material>& materials, LightKind kind,
+                    bool in_fog = false) {
+        fog_ = in_fog ? &fog_medium_ : nullptr;
         const Vec3 eye(0.1f, -0.2f, -3.0f), target(0, 0, 0);
         camera_ = PerspectiveCamera(Transform::look_at(eye, target, Vec3(0, 1, 0)), 50.0f, 'x',
                                     kWidth, kHeight);
@@ -92,8 +143,16 @@ class MisSumTest : public ::testing::Test {
                              .direction;
         for (Material m : materials) {
             position = position + direction * (0.7f + rng.next_1d());
+            if (m == Material::Medium) {
+                // Scattering in the fog: any direction (the phase function has full support).
+                eye_order.push_back(
+                    PathVertex{position, Vec3(0.0f), nullptr, &fog_medium_.phase(), false});
+                direction = warp::square_to_uniform_sphere(rng.next_2d());
+                continue;
+            }
             Vec3 n = random_normal_facing(rng, -direction);
-            eye_order.push_back(PathVertex{position, n, bsdf_for(m), m == Material::Mirror});
+            eye_order.push_back(
+                PathVertex{position, n, bsdf_for(m), nullptr, m == Material::Mirror});
             direction = m == Material::Mirror
                             ? reflect(-direction, n)
                             : Frame::from_normal(n).to_world(random_direction_above(rng, 0.2f));
@@ -148,6 +207,15 @@ class MisSumTest : public ::testing::Test {
             }
         }
         to_light_ = direction;
+        if (fog_) {
+            // Everything finite must be inside the fog's ball.
+            for (const PathVertex& v : vertices_)
+                if (length(v.p) > kFogRadius - 0.5f) return false;
+            if (end_.finite && length(light_point_) > kFogRadius - 0.5f) return false;
+            // Distance from the first vertex along to_light_ to the ball's boundary.
+            const float b = dot(first, to_light_);
+            fog_exit_ = -b + std::sqrt(b * b - length_squared(first) + kFogRadius * kFogRadius);
+        }
         return true;
     }
 
@@ -188,86 +256,261 @@ class MisSumTest : public ::testing::Test {
         const PathVertex& v = vertices_[i];
         return SurfaceBsdf(*v.bsdf, Frame::from_normal(v.n), v.n, mode);
     }
+    // Vertex i's densities of scattering from wo to wi (forward) and back (reverse); a phase
+    // function's value is both, in either transport mode.
+    BsdfPdf pdf_at(size_t i, TransportMode mode, const Vec3& wo, const Vec3& wi) const {
+        const PathVertex& v = vertices_[i];
+        if (v.phase) {
+            const float p = v.phase->p(wo, wi);
+            return BsdfPdf{p, p};
+        }
+        return surface(i, mode).pdf(wo, wi);
+    }
     float camera_pdf_w(const Vec3& dir) const {
         return camera_.direction_pdf(dir) * float(kWidth * kHeight);
     }
 
-    // Sum of the weights of every enabled technique for the current path.
-    double weight_sum(const VcmMis& mis, bool use_vc, bool use_vm) const {
+    // --- segment densities ------------------------------------------------------------------
+
+    // An endpoint's position (for an infinite light: a point in its direction).
+    Vec3 endpoint(int id) const {
+        if (id == kLightEnd) return end_.finite ? light_point_ : vertices_[0].p + to_light_;
+        return id == int(vertices_.size()) ? camera_.position() : vertices_[size_t(id)].p;
+    }
+    // Length of the fog crossed between two endpoints: the distance, or up to the fog's
+    // boundary toward an infinite light.
+    float fog_length(int a, int b) const {
+        if (!end_.finite && (a == kLightEnd || b == kLightEnd)) return fog_exit_;
+        return length(endpoint(b) - endpoint(a));
+    }
+    // Distance density, at endpoint `id`, of a segment reaching it after `t` in the fog.
+    float distance_density(int id, const Ray& ray, float t) const {
+        if (!fog_) return 1.0f;
+        const bool medium_vertex =
+            id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
+        return medium_vertex ? fog_->pdf_scatter(ray, t) : fog_->probability_pass(ray, t);
+    }
+    // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
+    // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
+    SegmentDensities segment(int from, int to) const {
+        const Vec3 a = endpoint(from);
+        const Ray ray(a, normalize(endpoint(to) - a));
+        const float t = fog_length(from, to);
+        return SegmentDensities{distance_density(to, ray, t), distance_density(from, ray, t)};
+    }
+
+    // --- the integrator's recursion ---------------------------------------------------------
+
+    SubpathStates trace_states(const VcmMis& mis) const {
         const size_t m = vertices_.size();
-        // Light subpath: states after arriving at each vertex (eqs. 31-36).
-        std::vector<MisQuantities> light_states(m);
+        SubpathStates st;
+        st.light.resize(m);
+        st.eye.resize(m);
+        // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
         MisQuantities q =
             mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
         for (size_t i = 0; i < m; ++i) {
+            const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_light(i);
-            mis.arrive(q, distance2_to_light_side(i), i > 0 || end_.finite,
-                       abs_dot(vertices_[i].n, wo));
-            light_states[i] = q;
+            const SegmentDensities s = segment(int(i) - 1, int(i));
+            mis.arrive(q, distance2_to_light_side(i), i > 0 || end_.finite, v.cos(wo), s.toward_end,
+                       s.toward_start);
+            st.light[i] = q;
             if (i + 1 == m) break;
             const Vec3 wi = toward_eye(i);
-            const BsdfPdf pdf = surface(i, TransportMode::Importance).pdf(wo, wi);
-            mis.scatter(q, abs_dot(vertices_[i].n, wi), pdf.forward, pdf.reverse,
-                        vertices_[i].specular);
+            const BsdfPdf pdf = pdf_at(i, TransportMode::Importance, wo, wi);
+            mis.scatter(q, v.cos(wi), pdf.forward, pdf.reverse, v.specular, v.in_medium());
         }
-        // Eye subpath: states after arriving at each vertex, and at the light.
-        std::vector<MisQuantities> eye_states(m);
+        // Eye subpath (trace_eye_path): the first segment starts at the camera.
         q = mis.start_camera(camera_pdf_w(-toward_eye(m - 1)));
         for (size_t k = 0; k < m; ++k) {
             const size_t i = m - 1 - k;
+            const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_eye(i);
-            mis.arrive(q, distance2_to_eye_side(i), true, abs_dot(vertices_[i].n, wo));
-            eye_states[i] = q;
+            const SegmentDensities s = segment(int(i) + 1, int(i));
+            mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
+            st.eye[i] = q;
             const Vec3 wi = toward_light(i);
-            const BsdfPdf pdf = surface(i, TransportMode::Radiance).pdf(wo, wi);
-            mis.scatter(q, abs_dot(vertices_[i].n, wi), pdf.forward, pdf.reverse,
-                        vertices_[i].specular);
+            const BsdfPdf pdf = pdf_at(i, TransportMode::Radiance, wo, wi);
+            mis.scatter(q, v.cos(wi), pdf.forward, pdf.reverse, v.specular, v.in_medium());
         }
-        if (end_.finite) mis.arrive(q, distance2_to_light_side(0), true, end_.cos_light);
-        const MisQuantities eye_at_light = q;
+        // The eye subpath hits a finite light, or leaves the scene toward an infinite one.
+        const SegmentDensities s = segment(0, kLightEnd);
+        if (end_.finite)
+            mis.arrive(q, distance2_to_light_side(0), true, end_.cos_light, s.toward_end,
+                       s.toward_start);
+        else
+            mis.arrive(q, 0.0f, false, 1.0f, s.toward_end, s.toward_start);
+        st.eye_at_light = q;
+        return st;
+    }
 
+    // Every technique that can sample the current path with the enabled families.
+    std::vector<Technique> techniques(bool use_vc, bool use_vm) const {
+        const size_t m = vertices_.size();
+        std::vector<Technique> list;
+        if (use_vc && !end_.delta) list.push_back({TechniqueKind::Emission});
+        if (use_vc && !vertices_[0].specular) list.push_back({TechniqueKind::Direct});
+        for (size_t a = 0; use_vc && a + 1 < m; ++a)
+            if (!vertices_[a].specular && !vertices_[a + 1].specular)
+                list.push_back({TechniqueKind::Connection, a});
+        if (use_vc && !vertices_[m - 1].specular) list.push_back({TechniqueKind::Camera, m - 1});
+        for (size_t i = 0; use_vm && i < m; ++i)
+            if (!vertices_[i].specular) list.push_back({TechniqueKind::Merge, i});
+        return list;
+    }
+
+    // A technique's weight as the integrator computes it.
+    double weight(const VcmMis& mis, const SubpathStates& st, const Technique& t) const {
+        const size_t m = vertices_.size();
+        switch (t.kind) {
+            case TechniqueKind::Emission:  // eq. 43 (trace_eye_path, emission)
+                return mis.weight_emission(st.eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w);
+            case TechniqueKind::Direct: {  // eqs. 44-45 (direct_illumination)
+                const PathVertex& v = vertices_[0];
+                const Vec3 wo = toward_eye(0), wi = toward_light(0);
+                const BsdfPdf pdf = pdf_at(0, TransportMode::Radiance, wo, wi);
+                const SegmentDensities l = segment(0, kLightEnd);
+                return mis.weight_direct(st.eye[0], pdf.forward, pdf.reverse, end_.direct_pdf_w,
+                                         end_.emission_pdf_w, end_.direct_pdf_w, v.cos(wi),
+                                         end_.cos_light, end_.delta, v.in_medium(), l.toward_end,
+                                         l.toward_start);
+            }
+            case TechniqueKind::Connection: {  // eqs. 40-41 (connect_vertices)
+                const size_t a = t.vertex, b = a + 1;
+                const PathVertex &w = vertices_[a], &v = vertices_[b];
+                const Vec3 d = toward_eye(a);  // from the light vertex a to the eye vertex b
+                const float dist2 = length_squared(v.p - w.p);
+                const BsdfPdf pdf_eye = pdf_at(b, TransportMode::Radiance, toward_eye(b), -d);
+                const BsdfPdf pdf_light = pdf_at(a, TransportMode::Importance, toward_light(a), d);
+                const SegmentDensities l = segment(int(b), int(a));  // traced from the eye
+                const float eye_pdf_a = pdf_eye.forward * w.cos(d) * l.toward_end / dist2;
+                const float light_pdf_a = pdf_light.forward * v.cos(d) * l.toward_start / dist2;
+                return mis.weight_connection(st.light[a], st.eye[b], eye_pdf_a, light_pdf_a,
+                                             pdf_light.reverse, pdf_eye.reverse, w.in_medium(),
+                                             v.in_medium());
+            }
+            case TechniqueKind::Camera: {  // eq. 46 (connect_to_camera)
+                const size_t i = m - 1;
+                const PathVertex& v = vertices_[i];
+                const Vec3 d = toward_eye(i);
+                const float dist2 = distance2_to_eye_side(i);
+                const BsdfPdf pdf = pdf_at(i, TransportMode::Importance, toward_light(i), d);
+                const SegmentDensities l = segment(int(i), int(m));  // traced to the camera
+                const float camera_pdf_a = camera_pdf_w(-d) * v.cos(d) * l.toward_start / dist2;
+                return mis.weight_camera(st.light[i], camera_pdf_a, pdf.reverse, v.in_medium());
+            }
+            case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
+                const size_t i = t.vertex;
+                const BsdfPdf pdf =
+                    pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
+                return mis.weight_merge(st.light[i], st.eye[i], pdf.forward, pdf.reverse,
+                                        vertices_[i].in_medium());
+            }
+        }
+        return 0;
+    }
+
+    std::vector<double> weights(const VcmMis& mis, const std::vector<Technique>& list) const {
+        const SubpathStates st = trace_states(mis);
+        std::vector<double> w;
+        for (const Technique& t : list) w.push_back(weight(mis, st, t));
+        return w;
+    }
+
+    // --- the reference: every technique's density of the whole path -------------------------
+
+    // Directional density of scattering at vertex i; a delta lobe's is the same for every
+    // technique that samples it, and is left out (1).
+    double directional_pdf(size_t i, TransportMode mode, const Vec3& wo, const Vec3& wi) const {
+        return vertices_[i].specular ? 1.0 : double(pdf_at(i, mode, wo, wi).forward);
+    }
+
+    // p_k^power / sum_j p_j^power over the listed techniques, from the density p_k with which
+    // technique k samples the path (per unit area, or volume at medium vertices; the light end
+    // per unit solid angle for infinite lights).
+    std::vector<double> reference_weights(const std::vector<Technique>& list, int power,
+                                          double eta_surface, double eta_volume) const {
+        const size_t m = vertices_.size();
+        // light_fwd[i], eye_fwd[i]: the light (eye) subpath's density of vertex i given the
+        // vertices before it: direction, cosine at i, distance density at i, squared distance.
+        std::vector<double> light_fwd(m), eye_fwd(m);
+        for (size_t i = 0; i < m; ++i) {
+            const double directional =
+                i == 0 ? end_.emission_pdf_w
+                       : directional_pdf(i - 1, TransportMode::Importance, toward_light(i - 1),
+                                         toward_eye(i - 1));
+            const double dist2 = i > 0 || end_.finite ? distance2_to_light_side(i) : 1.0;
+            light_fwd[i] = directional * vertices_[i].cos(toward_light(i)) *
+                           segment(int(i) - 1, int(i)).toward_end / dist2;
+        }
+        for (size_t i = 0; i < m; ++i) {
+            const double directional =
+                i + 1 == m ? camera_pdf_w(-toward_eye(m - 1))
+                           : directional_pdf(i + 1, TransportMode::Radiance, toward_eye(i + 1),
+                                             toward_light(i + 1));
+            eye_fwd[i] = directional * vertices_[i].cos(toward_eye(i)) *
+                         segment(int(i) + 1, int(i)).toward_end / distance2_to_eye_side(i);
+        }
+        // The eye subpath's density of the light end (an infinite light's: solid angle).
+        const double eye_light =
+            directional_pdf(0, TransportMode::Radiance, toward_eye(0), toward_light(0)) *
+            segment(0, kLightEnd).toward_end *
+            (end_.finite ? end_.cos_light / distance2_to_light_side(0) : 1.0);
+        auto light_prefix = [&](size_t count) {  // vertices 0 .. count-1 from the light
+            double p = 1;
+            for (size_t i = 0; i < count; ++i) p *= light_fwd[i];
+            return p;
+        };
+        auto eye_suffix = [&](size_t from) {  // vertices m-1 .. from from the eye
+            double p = 1;
+            for (size_t i = from; i < m; ++i) p *= eye_fwd[i];
+            return p;
+        };
+        std::vector<double> p;
+        for (const Technique& t : list) {
+            switch (t.kind) {
+                case TechniqueKind::Emission:
+                    p.push_back(eye_suffix(0) * eye_light);
+                    break;
+                case TechniqueKind::Direct:
+                    p.push_back(end_.direct_pdf_a * eye_suffix(0));
+                    break;
+                case TechniqueKind::Connection:
+                    p.push_back(light_prefix(t.vertex + 1) * eye_suffix(t.vertex + 1));
+                    break;
+                case TechniqueKind::Camera:  // every light subpath is connected to the camera
+                    p.push_back(kLightPaths * light_prefix(m));
+                    break;
+                case TechniqueKind::Merge: {  // the light subpath ends within r of the eye's
+                    const double eta = vertices_[t.vertex].in_medium() ? eta_volume : eta_surface;
+                    p.push_back(eta * light_prefix(t.vertex + 1) * eye_suffix(t.vertex));
+                    break;
+                }
+            }
+        }
         double sum = 0;
-        // s = 0: the eye subpath hits the light (eq. 43).
-        if (use_vc && !end_.delta)
-            sum += mis.weight_emission(eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w);
-        // s = 1: next-event estimation from the first vertex (eqs. 44-45).
-        if (use_vc && !vertices_[0].specular) {
-            const Vec3 wo = toward_eye(0), wi = toward_light(0);
-            const BsdfPdf pdf = surface(0, TransportMode::Radiance).pdf(wo, wi);
-            sum += mis.weight_direct(eye_states[0], pdf.forward, pdf.reverse, end_.direct_pdf_w,
-                                     end_.emission_pdf_w, end_.direct_pdf_w,
-                                     abs_dot(vertices_[0].n, wi), end_.cos_light, end_.delta);
-        }
-        // s >= 2, t >= 2: connect light vertex a to eye vertex a + 1 (eqs. 40-41).
-        for (size_t a = 0; use_vc && a + 1 < m; ++a) {
-            const size_t b = a + 1;
-            if (vertices_[a].specular || vertices_[b].specular) continue;
-            const Vec3 d = toward_eye(a);  // from a to b
-            const float dist2 = length_squared(vertices_[b].p - vertices_[a].p);
-            const BsdfPdf eye_pdf = surface(b, TransportMode::Radiance).pdf(toward_eye(b), -d);
-            const BsdfPdf light_pdf = surface(a, TransportMode::Importance).pdf(toward_light(a), d);
-            const float eye_pdf_a = eye_pdf.forward * abs_dot(vertices_[a].n, d) / dist2;
-            const float light_pdf_a = light_pdf.forward * abs_dot(vertices_[b].n, d) / dist2;
-            sum += mis.weight_connection(light_states[a], eye_states[b], eye_pdf_a, light_pdf_a,
-                                         light_pdf.reverse, eye_pdf.reverse);
-        }
-        // t = 1: the last vertex connected to the camera (eq. 46).
-        if (use_vc && !vertices_[m - 1].specular) {
-            const Vec3 d = toward_eye(m - 1);
-            const float dist2 = distance2_to_eye_side(m - 1);
-            const BsdfPdf pdf =
-                surface(m - 1, TransportMode::Importance).pdf(toward_light(m - 1), d);
-            const float camera_pdf_a = camera_pdf_w(-d) * abs_dot(vertices_[m - 1].n, d) / dist2;
-            sum += mis.weight_camera(light_states[m - 1], camera_pdf_a, pdf.reverse);
-        }
-        // Merges at every non-specular vertex (eqs. 38-39).
-        for (size_t i = 0; use_vm && i < m; ++i) {
-            if (vertices_[i].specular) continue;
-            const BsdfPdf pdf =
-                surface(i, TransportMode::Radiance).pdf(toward_eye(i), toward_light(i));
-            sum += mis.weight_merge(light_states[i], eye_states[i], pdf.forward, pdf.reverse);
-        }
-        return sum;
+        for (double& x : p) sum += (x = std::pow(x, power));
+        for (double& x : p) x /= sum;
+        return p;
+    }
+
+    // Checks both properties for one family (with the listed techniques' weights).
+    void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
+                      const char* name) const {
+        const std::vector<Technique> list = techniques(use_vc, use_vm);
+        if (list.empty()) return;
+        const VcmMis mis(power, use_vc, use_vm, eta_surface, kLightPaths, eta_volume);
+        const std::vector<double> w = weights(mis, list);
+        const std::vector<double> reference =
+            reference_weights(list, power, eta_surface, eta_volume);
+        double sum = 0;
+        for (double x : w) sum += x;
+        // float arithmetic over a handful of terms: 1e-4 relative.
+        EXPECT_NEAR(sum, 1.0, 1e-4) << name;
+        for (size_t k = 0; k < list.size(); ++k)
+            EXPECT_NEAR(w[k], reference[k], 1e-4 + 1e-3 * reference[k])
+                << name << ": technique " << int(list[k].kind) << " at vertex " << list[k].vertex;
     }
 
     static Vec3 random_direction_above(Rng& rng, float min_cos) {
@@ -283,6 +526,9 @@ class MisSumTest : public ::testing::Test {
     PhongBsdf glossy_;
     ConductorBsdf mirror_;
     TriangleMesh rectangle_;
+    HomogeneousMedium fog_medium_;
+    const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
+    float fog_exit_ = 0;           // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
     LightKind kind_ = LightKind::Area;
@@ -290,6 +536,9 @@ class MisSumTest : public ::testing::Test {
     Vec3 light_point_, light_normal_, to_light_;
     LightEnd end_;
 };
+
+constexpr LightKind kAllLights[] = {LightKind::Area, LightKind::Point, LightKind::Directional,
+                                    LightKind::Constant};
 
 TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOne) {
     const std::vector<std::vector<Material>> paths = {
@@ -302,56 +551,144 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOne) {
         {Material::Glossy, Material::Diffuse, Material::Mirror, Material::Diffuse,
          Material::Glossy},
     };
-    const LightKind kinds[] = {LightKind::Area, LightKind::Point, LightKind::Directional,
-                               LightKind::Constant};
     Rng rng(StreamKey{2024, 0, 1, 0});
     int checked = 0;
     for (const auto& materials : paths)
-        for (LightKind kind : kinds)
+        for (LightKind kind : kAllLights)
             for (int trial = 0; trial < 20; ++trial) {
                 if (!build_path(rng, materials, kind)) continue;
                 for (int power : {1, 2}) {
-                    const double eta = kPi * 0.02 * 0.02 * kWidth * kHeight;
+                    const double eta = kPi * 0.02 * 0.02 * kLightPaths;
                     SCOPED_TRACE(::testing::Message()
                                  << "path of " << materials.size() << " vertices, light kind "
                                  << int(kind) << ", trial " << trial << ", power " << power);
-                    // A path with no non-specular vertex cannot be merged; one whose only
-                    // non-specular ends are delta cannot be connected: skip those families.
-                    bool has_diffuse = false;
-                    for (const PathVertex& v : vertices_) has_diffuse |= !v.specular;
-                    const double bpt =
-                        weight_sum(VcmMis(power, true, false, eta, kWidth * kHeight), true, false);
-                    const double vcm =
-                        weight_sum(VcmMis(power, true, true, eta, kWidth * kHeight), true, true);
-                    const double bpm =
-                        weight_sum(VcmMis(power, false, true, eta, kWidth * kHeight), false, true);
-                    // float arithmetic over a handful of terms: 1e-4 relative.
-                    if (bpt > 0) {
-                        EXPECT_NEAR(bpt, 1.0, 1e-4) << "BPT";
-                    }
-                    if (has_diffuse) {
-                        EXPECT_NEAR(vcm, 1.0, 1e-4) << "VCM";
-                        EXPECT_NEAR(bpm, 1.0, 1e-4) << "BPM";
-                    }
+                    check_family(power, true, false, eta, eta, "BPT");
+                    check_family(power, true, true, eta, eta, "VCM");
+                    check_family(power, false, true, eta, eta, "BPM");
                     ++checked;
                 }
             }
     EXPECT_GT(checked, 300);
 }
 
+// Paths in fog: medium vertices, surface vertices, and both, as a path in fog bouncing off walls.
+TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
+    using M = Material;
+    const std::vector<std::vector<Material>> paths = {
+        {M::Medium},
+        {M::Diffuse},
+        {M::Medium, M::Medium},
+        {M::Medium, M::Diffuse},
+        {M::Diffuse, M::Medium},
+        {M::Glossy, M::Medium, M::Diffuse},
+        {M::Medium, M::Mirror, M::Medium},
+        {M::Mirror, M::Medium, M::Glossy},
+        {M::Medium, M::Medium, M::Medium},
+        {M::Diffuse, M::Medium, M::Mirror, M::Medium, M::Glossy},
+        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+    };
+    Rng rng(StreamKey{2025, 0, 1, 0});
+    int checked = 0, with_medium_vertex = 0;
+    for (const auto& materials : paths)
+        for (LightKind kind : kAllLights)
+            for (int trial = 0; trial < 12; ++trial) {
+                if (!build_path(rng, materials, kind, true)) continue;
+                bool medium_vertex = false;
+                for (const PathVertex& v : vertices_) medium_vertex |= v.in_medium();
+                // Two radii: merging weak, and merging dominant at surfaces and strong in the
+                // medium; the volume eta differs from the surface eta by far either way.
+                for (double radius : {0.05, 0.15})
+                    for (int power : {1, 2}) {
+                        const double eta_surface = kPi * radius * radius * kLightPaths;
+                        const double eta_volume =
+                            4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
+                        SCOPED_TRACE(::testing::Message()
+                                     << "fog path of " << materials.size()
+                                     << " vertices, light kind " << int(kind) << ", trial " << trial
+                                     << ", radius " << radius << ", power " << power);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT");
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM");
+                        check_family(power, false, true, eta_surface, eta_volume, "BPM");
+                        ++checked;
+                        with_medium_vertex += medium_vertex;
+                    }
+            }
+    EXPECT_GT(checked, 500);
+    EXPECT_GT(with_medium_vertex, 400);
+}
+
+// The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
+// piece in the fog, and a piece in the fog followed by vacuum (toward an infinite light).
+TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
+    const Ray ray(Vec3(0.0f), Vec3(0, 0, 1));
+    const float t = 1.7f;
+    for (bool start_medium : {false, true})
+        for (bool end_medium : {false, true}) {
+            SegmentDensityBuilder one(start_medium);
+            one.add_piece(&fog_medium_, ray, t);
+            const SegmentDensities d = one.finish(end_medium);
+            const auto density = [&](bool medium) {
+                return medium ? fog_medium_.pdf_scatter(ray, t)
+                              : fog_medium_.probability_pass(ray, t);
+            };
+            EXPECT_FLOAT_EQ(d.toward_end, density(end_medium));
+            EXPECT_FLOAT_EQ(d.toward_start, density(start_medium));
+        }
+    for (bool start_medium : {false, true}) {
+        // From a vertex out of the fog to infinity, and from infinity into the fog to a vertex.
+        SegmentDensityBuilder out(start_medium);
+        out.add_piece(&fog_medium_, ray, t);
+        out.add_piece(nullptr, ray, kInfinity);
+        const SegmentDensities d_out = out.finish(false);
+        SegmentDensityBuilder in(false);
+        in.add_piece(nullptr, ray, 5.0f);
+        in.add_piece(&fog_medium_, ray, t);
+        const SegmentDensities d_in = in.finish(start_medium);
+        const float at_vertex =
+            start_medium ? fog_medium_.pdf_scatter(ray, t) : fog_medium_.probability_pass(ray, t);
+        EXPECT_FLOAT_EQ(d_out.toward_end, fog_medium_.probability_pass(ray, t));
+        EXPECT_FLOAT_EQ(d_out.toward_start, at_vertex);
+        EXPECT_FLOAT_EQ(d_in.toward_end, at_vertex);
+        EXPECT_FLOAT_EQ(d_in.toward_start, fog_medium_.probability_pass(ray, t));
+    }
+}
+
 // The test must be able to fail: dropping one technique breaks the sum.
 TEST_F(MisSumTest, DetectsAMissingTechnique) {
     Rng rng(StreamKey{7, 0, 1, 0});
     ASSERT_TRUE(build_path(rng, {Material::Diffuse, Material::Diffuse}, LightKind::Area));
-    const double eta = kPi * 0.02 * 0.02 * kWidth * kHeight;
-    const VcmMis bpt_mis(2, true, false, eta, kWidth * kHeight);
-    const double full = weight_sum(bpt_mis, true, false);
-    EXPECT_NEAR(full, 1.0, 1e-4);
+    const double eta = kPi * 0.02 * 0.02 * kLightPaths;
+    const VcmMis bpt_mis(2, true, false, eta, kLightPaths);
+    const std::vector<double> full = weights(bpt_mis, techniques(true, false));
+    double sum = 0;
+    for (double w : full) sum += w;
+    EXPECT_NEAR(sum, 1.0, 1e-4);
     // Merging weights alone (with connections' weights computed as if merging were on) must
     // not sum to one.
-    const double merges_only =
-        weight_sum(VcmMis(2, true, true, eta, kWidth * kHeight), false, true);
+    const std::vector<double> merges =
+        weights(VcmMis(2, true, true, eta, kLightPaths), techniques(false, true));
+    double merges_only = 0;
+    for (double w : merges) merges_only += w;
     EXPECT_LT(merges_only, 0.999);
+}
+
+// The reference catches what the sum cannot: medium vertices merged with the surface eta.
+TEST_F(MisSumTest, DetectsTheSurfaceEtaInTheMedium) {
+    Rng rng(StreamKey{8, 0, 1, 0});
+    ASSERT_TRUE(build_path(rng, {Material::Medium, Material::Medium}, LightKind::Area, true));
+    const double r = 0.1, eta_surface = kPi * r * r * kLightPaths;
+    const double eta_volume = 4.0 / 3.0 * kPi * r * r * r * kLightPaths;
+    const std::vector<Technique> list = techniques(true, true);
+    const std::vector<double> wrong =
+        weights(VcmMis(2, true, true, eta_surface, kLightPaths, eta_surface), list);
+    const std::vector<double> reference = reference_weights(list, 2, eta_surface, eta_volume);
+    double sum = 0, max_error = 0;
+    for (size_t k = 0; k < list.size(); ++k) {
+        sum += wrong[k];
+        max_error = std::max(max_error, std::abs(wrong[k] - reference[k]));
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-4);  // consistent, so the sum cannot tell
+    EXPECT_GT(max_error, 0.01);
 }
 
 }  // namespace
