@@ -229,6 +229,7 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
         // The scene's integrator, in the service's names (Mitsuba's "path" is "pt").
         std::string algorithm = bundle.integrator;
         if (algorithm.empty() || algorithm == "path") algorithm = "pt";
+        if (algorithm == "volpath") algorithm = "volpt";
         s.set_algorithm(algorithm);
     }
     if (!o.iterations_given && s.time_budget_seconds() <= 0) {

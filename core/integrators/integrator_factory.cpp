@@ -54,8 +54,8 @@ void check_algorithm_supports_scene(const std::string& algorithm, const Scene& s
     for (const auto& medium : scene.media())
         if (!medium->is_homogeneous())
             throw std::invalid_argument("algorithm \"" + algorithm +
-                                        "\" handles homogeneous media only; the scene has " +
-                                        medium->to_string() + " (use volpt)");
+                                        "\" handles homogeneous media only, and the scene has "
+                                        "a heterogeneous medium (use volpt)");
 }
 
 }  // namespace render
