@@ -1,6 +1,8 @@
 """Integration test 1: a job rendered by 2 workers (1 thread each) equals `render` of the same
 scene and settings in one process, up to floating-point summation order:
-|a-b| <= 1e-5 * max(|a|,|b|) + 1e-7 for every pixel and channel."""
+|a-b| <= 1e-5 * max(|a|,|b|) + 1e-7 for every pixel and channel. Also for scenes with
+participating media: a homogeneous one (vcm, volpt) and a heterogeneous grid (volpt), whose
+volume file travels with the job."""
 
 import sys
 
@@ -34,6 +36,28 @@ class TwoWorkersMatchRender(cluster.ClusterTestCase):
             with self.subTest(algorithm=algo):
                 msg = self.assertImagesMatch(out, ref)
                 print(f"{algo}: {msg}")
+
+
+    def test_media_scenes(self):
+        c = self.new_cluster()
+        c.start_server()
+        c.start_workers(2, threads=1)
+        c.wait_workers_registered(2)
+        cases = [(cluster.scene_path("smallupbp", "isosph.xml"), "vcm"),
+                 (cluster.scene_path("smallupbp", "isosph.xml"), "volpt"),
+                 (cluster.scene_path("smoke", "scene.xml"), "volpt")]
+        jobs = [(scene, algo, c.api.submit(scene, algorithm=algo, iterations=8,
+                                           resolution=RESOLUTION, seed=SEED,
+                                           name=f"media-{algo}"))
+                for scene, algo in cases]
+        for i, (scene, algo, job) in enumerate(jobs):
+            done = c.api.wait_job(job.id, timeout=120, procs=[c.server] + c.workers)
+            self.assertTrue(done.frames[0].done, str(done))
+            out = c.api.fetch_to(job.id, c.path(f"media-{i}.exr"))
+            ref = cluster.render_reference(scene, algo, 8, RESOLUTION, SEED)
+            with self.subTest(scene=scene, algorithm=algo):
+                msg = self.assertImagesMatch(out, ref)
+                print(f"{scene} {algo}: {msg}")
 
 
 if __name__ == "__main__":
