@@ -1,0 +1,57 @@
+// Seconds per iteration of every algorithm on the four reference Cornell boxes at their
+// reference resolution (512 x 512, from the scene files), with 1 and 2 threads. Each benchmark
+// iteration is one progressive iteration rendered the way `render` renders it: through
+// render_iterations() (and so make_integrator()), one iteration per call, with consecutive
+// global iteration indices (the merging radius shrinks as in a real run). The figure is the
+// wall-clock `real_time` of the JSON output (UseRealTime() is not set because it would append
+// "/real_time" to the names that scripts/benchlib/performance.py parses).
+
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <string>
+
+#include "bench/bench_scenes.h"
+#include "core/render/render_iterations.h"
+
+namespace render::bench {
+namespace {
+
+const char* const kAlgorithms[] = {"pt", "lt", "bpt", "ppm", "bpm", "vcm"};
+
+void iteration(benchmark::State& state, const std::string& name, const std::string& algorithm,
+               int threads) {
+    const Scene& s = scene(name);
+    RenderSettings settings;
+    settings.algorithm = algorithm;
+    settings.max_depth = s.settings.max_depth;
+    settings.rr_depth = s.settings.rr_depth;
+    settings.threads = threads;
+    tbb::global_control control(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    RenderStats stats;
+    uint64_t i = 1;
+    for (auto _ : state) {
+        IterationResult result = render_iterations(s, settings, 0, IterationRange{i, i + 1});
+        stats += result.stats;
+        benchmark::DoNotOptimize(result.sum.values().data());
+        ++i;
+    }
+    const double n = double(state.iterations());
+    state.counters["rays_per_iteration"] = double(stats.rays) / n;
+    state.counters["pixels"] = double(s.camera().width()) * double(s.camera().height());
+}
+
+[[maybe_unused]] const bool registered = [] {
+    for (const std::string& name : reference_scene_names())
+        for (const char* algorithm : kAlgorithms)
+            for (int threads : {1, 2})
+                benchmark::RegisterBenchmark(
+                    ("iteration/" + name + "/" + algorithm + "/threads:" + std::to_string(threads))
+                        .c_str(),
+                    iteration, name, std::string(algorithm), threads)
+                    ->Unit(benchmark::kMillisecond);
+    return true;
+}();
+
+}  // namespace
+}  // namespace render::bench

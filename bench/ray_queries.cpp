@@ -1,0 +1,114 @@
+// Ray queries: closest-hit and occlusion rays per second through Scene::intersect/occluded
+// ("ours": Embree plus filling the SurfaceInteraction) and through bare rtcIntersect1 /
+// rtcOccluded1 on the same RTCScene ("embree"), over the same precomputed rays (bench_scenes.h).
+// The ratio of the two is the cost of our wrapper.
+
+#include <benchmark/benchmark.h>
+#include <embree3/rtcore.h>
+
+#include <string>
+
+#include "bench/bench_scenes.h"
+
+namespace render::bench {
+namespace {
+
+void closest_ours(benchmark::State& state, const std::string& name) {
+    const Scene& s = scene(name);
+    const std::vector<Ray>& rays = bench::rays(name).closest;
+    for (auto _ : state) {
+        float sum = 0;
+        for (const Ray& ray : rays) {
+            SurfaceInteraction si;
+            if (s.intersect(ray, si)) sum += si.t + si.shading.n.x;
+        }
+        benchmark::DoNotOptimize(sum);
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
+void closest_embree(benchmark::State& state, const std::string& name) {
+    const RTCScene rtc = scene(name).embree_scene();
+    const std::vector<Ray>& rays = bench::rays(name).closest;
+    for (auto _ : state) {
+        float sum = 0;
+        for (const Ray& ray : rays) {
+            // The same ray set-up as Scene::intersect, without filling an interaction.
+            RTCIntersectContext context;
+            rtcInitIntersectContext(&context);
+            RTCRayHit rh;
+            rh.ray.org_x = ray.origin.x;
+            rh.ray.org_y = ray.origin.y;
+            rh.ray.org_z = ray.origin.z;
+            rh.ray.dir_x = ray.direction.x;
+            rh.ray.dir_y = ray.direction.y;
+            rh.ray.dir_z = ray.direction.z;
+            rh.ray.tnear = ray.t_min;
+            rh.ray.tfar = ray.t_max;
+            rh.ray.time = 0;
+            rh.ray.mask = 0xffffffffu;
+            rh.ray.id = 0;
+            rh.ray.flags = 0;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(rtc, &context, &rh);
+            if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) sum += rh.ray.tfar + rh.hit.Ng_x;
+        }
+        benchmark::DoNotOptimize(sum);
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
+void occluded_ours(benchmark::State& state, const std::string& name) {
+    const Scene& s = scene(name);
+    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    for (auto _ : state) {
+        int blocked = 0;
+        for (const Ray& ray : rays) blocked += s.occluded(ray) ? 1 : 0;
+        benchmark::DoNotOptimize(blocked);
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
+void occluded_embree(benchmark::State& state, const std::string& name) {
+    const RTCScene rtc = scene(name).embree_scene();
+    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    for (auto _ : state) {
+        int blocked = 0;
+        for (const Ray& ray : rays) {
+            RTCIntersectContext context;
+            rtcInitIntersectContext(&context);
+            RTCRay r;
+            r.org_x = ray.origin.x;
+            r.org_y = ray.origin.y;
+            r.org_z = ray.origin.z;
+            r.dir_x = ray.direction.x;
+            r.dir_y = ray.direction.y;
+            r.dir_z = ray.direction.z;
+            r.tnear = ray.t_min;
+            r.tfar = ray.t_max;
+            r.time = 0;
+            r.mask = 0xffffffffu;
+            r.id = 0;
+            r.flags = 0;
+            rtcOccluded1(rtc, &context, &r);
+            blocked += r.tfar < 0 ? 1 : 0;
+        }
+        benchmark::DoNotOptimize(blocked);
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
+[[maybe_unused]] const bool registered = [] {
+    for (const std::string& name : ray_scene_names()) {
+        benchmark::RegisterBenchmark(("rays/closest/ours/" + name).c_str(), closest_ours, name);
+        benchmark::RegisterBenchmark(("rays/closest/embree/" + name).c_str(), closest_embree, name);
+        benchmark::RegisterBenchmark(("rays/occluded/ours/" + name).c_str(), occluded_ours, name);
+        benchmark::RegisterBenchmark(("rays/occluded/embree/" + name).c_str(), occluded_embree,
+                                     name);
+    }
+    return true;
+}();
+
+}  // namespace
+}  // namespace render::bench
