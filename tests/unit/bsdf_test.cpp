@@ -521,7 +521,7 @@ std::string error_of(const Properties& props) {
 TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
     EXPECT_EQ(error_of(bsdf_props("velvet")),
               "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
-              "conductor, roughconductor, dielectric, roughdielectric, plastic, phong)");
+              "conductor, roughconductor, dielectric, roughdielectric, plastic, phong, null)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {

@@ -380,12 +380,26 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
          "<string>:3: <ref>: unknown id \"nope\""},
         {"<bsdf type=\"diffuse\" id=\"a\"/><bsdf type=\"diffuse\" id=\"a\"/>",
          "duplicate id \"a\""},
+        // Participating media (docs/media.md).
+        {"<medium type=\"fog\"/>", "<string>:3: unknown medium type \"fog\"|homogeneous"},
+        {"<medium type=\"homogeneous\"><float name=\"albedo\" value=\"1.5\"/></medium>",
+         "<string>:3: medium \"homogeneous\", parameter \"albedo\": must be in [0, 1]"},
+        {"<medium type=\"homogeneous\"><rgb name=\"sigma_t\" value=\"-1\"/></medium>",
+         "<string>:3: medium \"homogeneous\", parameter \"sigma_t\": must be finite and >= 0"},
+        {"<medium type=\"homogeneous\"><phase type=\"hg\"><float name=\"g\" value=\"1\"/>"
+         "</phase></medium>",
+         "<string>:3: phase \"hg\", parameter \"g\": must be in (-1, 1)"},
+        {"<medium type=\"homogeneous\"><phase type=\"rayleigh\"/></medium>",
+         "unknown phase function type \"rayleigh\""},
+        {"<shape type=\"sphere\"><ref name=\"interior\" id=\"gas\"/></shape>",
+         "<string>:3: <ref>: unknown medium \"gas\""},
+        {"<bsdf type=\"diffuse\" id=\"d\"/><shape type=\"sphere\"><ref name=\"interior\" "
+         "id=\"d\"/></shape>",
+         "\"d\" is not a medium"},
+        {"<medium type=\"homogeneous\" id=\"m\"/><shape type=\"sphere\"><ref "
+         "name=\"interior\" id=\"m\"/><ref name=\"interior\" id=\"m\"/></shape>",
+         "interior medium is given twice"},
         // not supported yet
-        {"<medium type=\"homogeneous\"/>",
-         "<string>:3: participating media (<medium>) are not "
-         "supported yet"},
-        {"<bsdf type=\"null\"/>", "<string>:3: the \"null\" bsdf|not supported yet"},
-        {"<shape type=\"sphere\"><ref name=\"interior\" id=\"gas\"/></shape>", "not supported yet"},
         {"<bsdf type=\"diffuse\"><texture type=\"bitmap\" name=\"reflectance\"/></bsdf>",
          "textures (<texture>) are not supported yet"},
         // structure
