@@ -54,6 +54,12 @@ const std::vector<std::string>& ray_scene_names() {
     return names;
 }
 
+const std::vector<std::string>& media_scene_names() {
+    static const std::vector<std::string> names = {"isosph", "glasssph", "volumetric-caustic",
+                                                   "smoke"};
+    return names;
+}
+
 const std::vector<std::string>& reference_scene_names() {
     static const std::vector<std::string> names = {"0-gbs_s", "1-glm_c", "2-gbs_p", "3-gbs_b"};
     return names;
@@ -61,8 +67,12 @@ const std::vector<std::string>& reference_scene_names() {
 
 std::filesystem::path scene_path(const std::string& name) {
     const std::filesystem::path root = RENDER_SOURCE_DIR;
-    if (name == "cornell-box" || name == "veach-mis" || name == "veach-bidir")
+    if (name == "cornell-box" || name == "veach-mis" || name == "veach-bidir" ||
+        name == "volumetric-caustic")
         return root / "scenes" / "bitterli" / name / "scene_v3.xml";
+    if (name == "isosph" || name == "glasssph")
+        return root / "scenes" / "smallupbp" / (name + ".xml");
+    if (name == "smoke") return root / "scenes" / "smoke" / "scene.xml";
     return root / "scenes" / "smallvcm" / (name + ".xml");
 }
 

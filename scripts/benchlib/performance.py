@@ -40,7 +40,9 @@ QUICK_FILTER = ("^(rays/(closest|occluded)/(ours|embree)/cornell-box"
 RAY_SCENES = ["cornell-box", "veach-mis", "veach-bidir", "0-gbs_s", "1-glm_c", "2-gbs_p",
               "3-gbs_b", "procedural-1M"]
 REFERENCE_SCENES = ["0-gbs_s", "1-glm_c", "2-gbs_p", "3-gbs_b"]
-ALGORITHMS = ["pt", "lt", "bpt", "ppm", "bpm", "vcm"]
+ALGORITHMS = ["pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm"]
+MEDIA_SCENES = ["isosph", "glasssph", "volumetric-caustic", "smoke"]
+MEDIA_ALGORITHMS = ["volpt", "bpt", "vcm"]
 PERF_TARGETS = ["iteration/1-glm_c/bpt/threads:1", "iteration/1-glm_c/vcm/threads:1"]
 
 
@@ -485,6 +487,22 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
                 "rays / iteration | M rays/s (2 threads) |")
             add("| --- | --- | --- | --- | --- | --- |")
             L.extend(rows)
+    add("")
+    add("**Participating media** ([media.md](media.md)): seconds per iteration at each media "
+        "scene's own resolution, 2 threads (the bidirectional algorithms refuse the smoke's "
+        "grid medium). On the surface-only boxes above, `volpt` against `pt` is what the "
+        "media-aware path tracer costs on a scene without media.")
+    add("")
+    add("| scene | " + " | ".join(f"{a} s / iteration" for a in MEDIA_ALGORITHMS) + " | pixels |")
+    add("| --- | " + " | ".join("---" for _ in MEDIA_ALGORITHMS) + " | --- |")
+    for scene in MEDIA_SCENES:
+        cells, pixels = [], None
+        for algo in MEDIA_ALGORITHMS:
+            b = results.get(f"iteration/{scene}/{algo}/threads:2")
+            cells.append(fmt(seconds_of(b)) if b else "–")
+            if b and b.get("pixels"):
+                pixels = b["pixels"]
+        add(f"| {scene} | " + " | ".join(cells) + f" | {fmt(pixels)} |")
     add("")
     if loaded:
         add("")
