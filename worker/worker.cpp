@@ -264,6 +264,11 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 IterationResult r = render_iterations(*scene, settings, lease.frame(), {i, i + 1});
                 const std::vector<double>& sum = r.sum.values();
                 const std::vector<double>& odd = r.odd_sum.values();
+                // The iteration contract sizes both buffers by the scene's camera; anything else
+                // is a broken build or a bug, never to be read past the end.
+                if (sum.size() != values || odd.size() != values)
+                    throw std::runtime_error("iteration result has " + std::to_string(sum.size()) +
+                                             " values, expected " + std::to_string(values));
                 for (size_t k = 0; k < values; ++k) result.sum[k] += sum[k];
                 if (r.odd_count > 0)
                     for (size_t k = 0; k < values; ++k) result.odd_sum[k] += odd[k];
