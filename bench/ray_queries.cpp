@@ -9,6 +9,7 @@
 #include <string>
 
 #include "bench/bench_scenes.h"
+#include "core/scene/embree_ray.h"
 
 namespace render::bench {
 namespace {
@@ -33,24 +34,10 @@ void closest_embree(benchmark::State& state, const std::string& name) {
     for (auto _ : state) {
         float sum = 0;
         for (const Ray& ray : rays) {
-            // The same ray set-up as Scene::intersect, without filling an interaction.
+            // The same ray set-up as Scene::intersect (embree_ray.h), no interaction filled.
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
-            RTCRayHit rh;
-            rh.ray.org_x = ray.origin.x;
-            rh.ray.org_y = ray.origin.y;
-            rh.ray.org_z = ray.origin.z;
-            rh.ray.dir_x = ray.direction.x;
-            rh.ray.dir_y = ray.direction.y;
-            rh.ray.dir_z = ray.direction.z;
-            rh.ray.tnear = ray.t_min;
-            rh.ray.tfar = ray.t_max;
-            rh.ray.time = 0;
-            rh.ray.mask = 0xffffffffu;
-            rh.ray.id = 0;
-            rh.ray.flags = 0;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            RTCRayHit rh = to_rtc_ray_hit(ray);
             rtcIntersect1(rtc, &context, &rh);
             if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) sum += rh.ray.tfar + rh.hit.Ng_x;
         }
@@ -78,19 +65,7 @@ void occluded_embree(benchmark::State& state, const std::string& name) {
         for (const Ray& ray : rays) {
             RTCIntersectContext context;
             rtcInitIntersectContext(&context);
-            RTCRay r;
-            r.org_x = ray.origin.x;
-            r.org_y = ray.origin.y;
-            r.org_z = ray.origin.z;
-            r.dir_x = ray.direction.x;
-            r.dir_y = ray.direction.y;
-            r.dir_z = ray.direction.z;
-            r.tnear = ray.t_min;
-            r.tfar = ray.t_max;
-            r.time = 0;
-            r.mask = 0xffffffffu;
-            r.id = 0;
-            r.flags = 0;
+            RTCRay r = to_rtc_ray(ray);
             rtcOccluded1(rtc, &context, &r);
             blocked += r.tfar < 0 ? 1 : 0;
         }

@@ -11,4 +11,11 @@ inline float power_heuristic(float pdf_a, float pdf_b) {
     return 1.0f / (1.0f + ratio * ratio);
 }
 
+// Power heuristic weight of the first of three techniques' densities (same measure).
+inline float power_heuristic3(float self, float other1, float other2) {
+    if (!(self > 0)) return 0.0f;
+    const float a = other1 / self, b = other2 / self;  // ratios avoid overflowing squares
+    return 1.0f / (1.0f + a * a + b * b);
+}
+
 }  // namespace render

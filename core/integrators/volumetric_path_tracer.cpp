@@ -13,13 +13,6 @@
 namespace render {
 namespace {
 
-// Power heuristic of the first of three techniques' densities (same measure).
-float power_heuristic3(float self, float other1, float other2) {
-    if (!(self > 0)) return 0.0f;
-    const float a = other1 / self, b = other2 / self;  // ratios avoid overflowing squares
-    return 1.0f / (1.0f + a * a + b * b);
-}
-
 // A medium segment: the ray that crossed it and the distance range (0, t_end) that distance
 // and equi-angular sampling covered.
 struct MediumSegment {
@@ -165,10 +158,6 @@ class Tracer {
     Rng& rng_;
     RenderStats& stats_;
 };
-
-// Index-matched boundaries crossed in a row before the path is given up (coincident null
-// surfaces would otherwise loop forever).
-constexpr int kMaxNullCrossings = 256;
 
 }  // namespace
 

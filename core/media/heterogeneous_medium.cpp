@@ -18,6 +18,22 @@ float advance(float t, float mu, Rng& rng) {
 
 }  // namespace
 
+// Tentative collisions along the ray over (0, t_max): exponential steps with each majorant
+// cell's rate, calling visit(t, majorant) at every one until visit returns false. Delta
+// tracking and ratio tracking differ only in what they do at a collision.
+template <typename Visit>
+void HeterogeneousMedium::for_each_tentative_collision(const Ray& ray, float t_max, Rng& rng,
+                                                       Visit&& visit) const {
+    MajorantGrid::Iterator it = majorants_.traverse(ray, 0.0f, t_max);
+    MajorantSegment seg;
+    while (it.next(seg)) {
+        const float mu = seg.majorant;
+        if (!(mu > 0)) continue;
+        for (float t = advance(seg.t0, mu, rng); t < seg.t1; t = advance(t, mu, rng))
+            if (!visit(t, mu)) return;
+    }
+}
+
 HeterogeneousMedium::HeterogeneousMedium(std::shared_ptr<const Volume> sigma_t,
                                          std::shared_ptr<const Volume> albedo, float scale,
                                          std::shared_ptr<const PhaseFunction> phase,
@@ -37,70 +53,58 @@ MediumSample HeterogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) 
     MediumSample s;
     s.t = t_max;
     Rgb w(1.0f);
-    MajorantGrid::Iterator it = majorants_.traverse(ray, 0.0f, t_max);
-    MajorantSegment seg;
-    while (it.next(seg)) {
-        const float mu = seg.majorant;
-        if (!(mu > 0)) continue;
-        float t = seg.t0;
-        while (true) {
-            t = advance(t, mu, rng);
-            if (!(t < seg.t1)) break;
-            const Vec3 p = ray.at(t);
-            const Rgb st = sigma_t(p);
-            if (grey_) {
-                // Classic delta tracking, the exact grey case of the estimator below (where
-                // w stays (1, 1, 1)): no rounding from the general weights.
-                if (rng.next_1d() * mu < st.r) {
-                    s.scattered = true;
-                    s.t = t;
-                    s.weight = albedo_->eval(p);
-                    return s;
-                }
-                continue;
-            }
-            // sigma_n >= 0 when the majorant bounds the density (majorant_grid.h).
-            const Rgb sn = clamp_non_negative(Rgb(mu) - st);
-            const float real = (w * st).average(), null = (w * sn).average();
-            const float total = real + null;
-            if (!(total > 0)) {  // w = 0: nothing left to estimate
-                s.weight = Rgb(0.0f);
-                return s;
-            }
-            if (rng.next_1d() * total < real) {
-                s.scattered = true;
-                s.t = t;
-                // w sigma_s / (mu P_r) with P_r = real / total.
-                s.weight = w * st * albedo_->eval(p) * (total / (mu * real));
-                return s;
-            }
-            w = w * sn * (total / (mu * null));
+    for_each_tentative_collision(ray, t_max, rng, [&](float t, float mu) {
+        const Vec3 p = ray.at(t);
+        const Rgb st = sigma_t(p);
+        if (grey_) {
+            // Classic delta tracking, the exact grey case of the estimator below (where
+            // w stays (1, 1, 1)): no rounding from the general weights.
+            if (!(rng.next_1d() * mu < st.r)) return true;
+            s.scattered = true;
+            s.t = t;
+            s.weight = albedo_->eval(p);
+            return false;
         }
-    }
-    s.weight = w;
+        // sigma_n >= 0 when the majorant bounds the density (majorant_grid.h).
+        const Rgb sn = clamp_non_negative(Rgb(mu) - st);
+        const float real = (w * st).average(), null = (w * sn).average();
+        const float total = real + null;
+        if (!(total > 0)) {  // w = 0: nothing left to estimate
+            w = Rgb(0.0f);
+            return false;
+        }
+        if (rng.next_1d() * total < real) {
+            s.scattered = true;
+            s.t = t;
+            // w sigma_s / (mu P_r) with P_r = real / total.
+            s.weight = w * st * albedo_->eval(p) * (total / (mu * real));
+            return false;
+        }
+        w = w * sn * (total / (mu * null));
+        return true;
+    });
+    if (!s.scattered) s.weight = w;
     return s;
 }
 
 Rgb HeterogeneousMedium::transmittance(const Ray& ray, float t_max, Rng& rng) const {
     Rgb tr(1.0f);
-    MajorantGrid::Iterator it = majorants_.traverse(ray, 0.0f, t_max);
-    MajorantSegment seg;
-    while (it.next(seg)) {
-        const float mu = seg.majorant;
-        if (!(mu > 0)) continue;
-        float t = seg.t0;
-        while (true) {
-            t = advance(t, mu, rng);
-            if (!(t < seg.t1)) break;
-            tr = tr * clamp_non_negative(Rgb(1.0f) - sigma_t(ray.at(t)) / mu);
-            const float m = tr.max();
-            if (!(m > 0)) return Rgb(0.0f);
-            if (m < kRouletteThreshold) {
-                if (rng.next_1d() >= m) return Rgb(0.0f);
-                tr = tr / m;
-            }
+    for_each_tentative_collision(ray, t_max, rng, [&](float t, float mu) {
+        tr = tr * clamp_non_negative(Rgb(1.0f) - sigma_t(ray.at(t)) / mu);
+        const float m = tr.max();
+        if (!(m > 0)) {
+            tr = Rgb(0.0f);
+            return false;
         }
-    }
+        if (m < kRouletteThreshold) {
+            if (rng.next_1d() >= m) {
+                tr = Rgb(0.0f);
+                return false;
+            }
+            tr = tr / m;
+        }
+        return true;
+    });
     return tr;
 }
 

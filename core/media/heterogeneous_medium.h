@@ -68,6 +68,9 @@ class HeterogeneousMedium final : public Medium {
     static constexpr float kRouletteThreshold = 0.1f;
 
   private:
+    template <typename Visit>
+    void for_each_tentative_collision(const Ray& ray, float t_max, Rng& rng, Visit&& visit) const;
+
     Rgb optical_depth(const Ray& ray, float t) const;
 
     std::shared_ptr<const Volume> sigma_t_, albedo_;

@@ -16,7 +16,7 @@ Rgb HomogeneousMedium::transmittance(float t) const {
     return tr;
 }
 
-MediumSample HomogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) const {
+MediumSample HomogeneousMedium::sample(const Ray&, float t_max, Rng& rng) const {
     // Spectral MIS (medium.h): sample with one channel, weight by the average density.
     const int channel = std::min(int(rng.next_1d() * 3.0f), 2);
     const float u = rng.next_1d();
@@ -35,7 +35,6 @@ MediumSample HomogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) co
         s.t = t_max;
         s.weight = probability > 0 ? tr / probability : Rgb(0.0f);
     }
-    (void)ray;
     return s;
 }
 

@@ -7,11 +7,6 @@
 #include "core/scene/scene.h"
 
 namespace render {
-namespace {
-// Null boundaries crossed in one segment before it is given up (coincident null surfaces).
-constexpr int kMaxNullCrossings = 256;
-}  // namespace
-
 void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, float length) {
     const float pass = medium ? medium->probability_pass(ray, length) : 1.0f;
     const float scatter = medium ? medium->pdf_scatter(ray, length) : 0.0f;
@@ -37,15 +32,6 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
 SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
                               bool start_in_medium, Rng& rng, RenderStats& stats) {
     SampledSegment out;
-    if (!medium && !scene.has_media()) {
-        // Surface-only scenes: one closest hit, every density 1.
-        ++stats.rays;
-        if (!scene.intersect(ray, out.si)) return out;
-        out.end = SegmentEnd::Surface;
-        out.position = out.si.p;
-        out.distance = out.si.t;
-        return out;
-    }
     SegmentDensityBuilder densities(start_in_medium);
     const Vec3 start = ray.origin;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {

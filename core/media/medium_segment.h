@@ -22,6 +22,10 @@ namespace render {
 class Medium;
 class Scene;
 
+// Index-matched boundaries crossed in one segment before a path gives up: stacks of coincident
+// null surfaces would otherwise loop forever.
+inline constexpr int kMaxNullCrossings = 256;
+
 struct SegmentDensities {
     float toward_end = 1;
     float toward_start = 1;

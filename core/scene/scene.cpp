@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
+#include "core/scene/embree_ray.h"
 #include "core/scene/error.h"
 #include "core/scene/properties.h"
 
@@ -99,21 +100,7 @@ void Scene::commit() {
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    RTCRayHit rh;
-    rh.ray.org_x = ray.origin.x;
-    rh.ray.org_y = ray.origin.y;
-    rh.ray.org_z = ray.origin.z;
-    rh.ray.dir_x = ray.direction.x;
-    rh.ray.dir_y = ray.direction.y;
-    rh.ray.dir_z = ray.direction.z;
-    rh.ray.tnear = ray.t_min;
-    rh.ray.tfar = ray.t_max;
-    rh.ray.time = 0;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    RTCRayHit rh = to_rtc_ray_hit(ray);
     rtcIntersect1(rtc_scene_, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     const Shape* shape = geometry_to_shape_[rh.hit.geomID];
@@ -124,19 +111,7 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
 bool Scene::occluded(const Ray& ray) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    RTCRay r;
-    r.org_x = ray.origin.x;
-    r.org_y = ray.origin.y;
-    r.org_z = ray.origin.z;
-    r.dir_x = ray.direction.x;
-    r.dir_y = ray.direction.y;
-    r.dir_z = ray.direction.z;
-    r.tnear = ray.t_min;
-    r.tfar = ray.t_max;
-    r.time = 0;
-    r.mask = 0xffffffffu;
-    r.id = 0;
-    r.flags = 0;
+    RTCRay r = to_rtc_ray(ray);
     rtcOccluded1(rtc_scene_, &context, &r);
     return r.tfar < 0;
 }

@@ -10,6 +10,7 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/pixel_statistics.h"
 #include "tests/support/test_scenes.h"
 
 namespace render {
@@ -39,23 +40,8 @@ std::string furnace_scene(const std::string& radius) {
 </scene>)";
 }
 
-struct PixelStatistics {
-    double mean = 0, standard_error = 0;
-};
-
-// Mean over pixels of the per-pixel averages, and its standard error from the spread of the
-// pixels (all pixels estimate the same value, independently).
-PixelStatistics pixel_statistics(const IterationResult& r, int channel) {
-    size_t n = r.sum.pixel_count();
-    double sum = 0, sum2 = 0;
-    for (size_t i = 0; i < n; ++i) {
-        double v = r.sum.channel(i, channel) / double(r.count);
-        sum += v;
-        sum2 += v * v;
-    }
-    double mean = sum / n, var = std::max(0.0, sum2 / n - mean * mean);
-    return {mean, std::sqrt(var / (n - 1))};
-}
+using testing::pixel_statistics;
+using testing::PixelStatistics;
 
 class Furnace : public ::testing::TestWithParam<std::tuple<std::string, std::string>> {};
 

@@ -11,27 +11,13 @@
 #include "core/math/constants.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/pixel_statistics.h"
 
 namespace render {
 namespace {
 
-struct PixelStatistics {
-    double mean = 0, standard_error = 0;
-};
-
-// Mean over pixels of the per-pixel averages and its standard error from the pixels' spread
-// (every pixel estimates the same value independently).
-PixelStatistics pixel_statistics(const IterationResult& r, int channel) {
-    const size_t n = r.sum.pixel_count();
-    double sum = 0, sum2 = 0;
-    for (size_t i = 0; i < n; ++i) {
-        const double v = r.sum.channel(i, channel) / double(r.count);
-        sum += v;
-        sum2 += v * v;
-    }
-    const double mean = sum / n, var = std::max(0.0, sum2 / n - mean * mean);
-    return {mean, std::sqrt(var / double(n - 1))};
-}
+using testing::pixel_statistics;
+using testing::PixelStatistics;
 
 IterationResult render(const std::string& xml, const std::string& algorithm, uint64_t iterations,
                        bool equiangular = true, int max_depth = -1, double radius_factor = 0) {
