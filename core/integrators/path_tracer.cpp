@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/integrators/direct_light.h"
 #include "core/integrators/mis.h"
 #include "core/materials/surface_bsdf.h"
 
@@ -61,22 +62,15 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
 
         // Next-event estimation.
         if (has_lights && si.bsdf->has_non_delta()) {
-            float select_pdf;
-            const Light* light = scene.sample_light(rng.next_1d(), &select_pdf);
-            Vec2 u_light = rng.next_2d();
-            LightIlluminateSample ls;
-            if (light && select_pdf > 0 && light->illuminate(si.p, u_light, ls) &&
-                ls.pdf_direct_w > 0) {
+            DirectLightSample dl;
+            if (sample_direct_light(scene, si.p, rng, dl)) {
+                const LightIlluminateSample& ls = dl.ls;
                 Rgb f = bsdf.f(wo, ls.wi);
                 if (!f.is_black()) {
-                    Ray shadow = std::isinf(ls.distance)
-                                     ? scene.spawn_ray_to_infinity(si.p, si.geometric_normal, ls.wi)
-                                     : scene.spawn_ray_to(si.p, si.geometric_normal,
-                                                          si.p + ls.wi * ls.distance, Vec3());
                     ++stats.rays;
-                    if (!scene.occluded(shadow)) {
-                        float light_pdf = select_pdf * ls.pdf_direct_w;
-                        float w = light->is_delta()
+                    if (!scene.occluded(dl.shadow_ray(scene, si.p, si.geometric_normal))) {
+                        float light_pdf = dl.pdf_w();
+                        float w = dl.light->is_delta()
                                       ? 1.0f
                                       : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi).forward);
                         const Rgb contribution =

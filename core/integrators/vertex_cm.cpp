@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/integrators/direct_light.h"
 #include "core/integrators/hash_grid.h"
 #include "core/integrators/pixel_loop.h"
 #include "core/integrators/vcm_mis.h"
@@ -420,26 +421,20 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
 
 Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
                                    Rng& rng, RenderStats& stats) const {
-    float pick = 0;
-    const Light* light = scene_.sample_light(rng.next_1d(), &pick);
-    const Vec2 u = rng.next_2d();
-    LightIlluminateSample ls;
-    if (!light || !(pick > 0) || !light->illuminate(v.p, u, ls) || !(ls.pdf_direct_w > 0))
-        return Rgb(0.0f);
+    DirectLightSample dl;
+    if (!sample_direct_light(scene_, v.p, rng, dl)) return Rgb(0.0f);
+    const LightIlluminateSample& ls = dl.ls;
     const auto [f, pdf] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
-    const Ray ray = std::isinf(ls.distance)
-                        ? scene_.spawn_ray_to_infinity(v.p, v.n, ls.wi)
-                        : scene_.spawn_ray_to(v.p, v.n, v.p + ls.wi * ls.distance, Vec3());
+    const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Eqs. (44) and (45).
-    const float weight = mis_.weight_direct(
-        state.mis, pdf.forward, pdf.reverse, pick * ls.pdf_direct_w, ls.pdf_emission_w,
-        ls.pdf_direct_w, v.cos(ls.wi), ls.cos_at_light, light->is_delta(), v.in_medium(),
-        l.densities.toward_end, l.densities.toward_start);
-    const Rgb contribution =
-        ls.radiance * f * (weight * v.shading_cos(ls.wi) / (pick * ls.pdf_direct_w));
+    const float weight =
+        mis_.weight_direct(state.mis, pdf.forward, pdf.reverse, dl.pdf_w(), ls.pdf_emission_w,
+                           ls.pdf_direct_w, v.cos(ls.wi), ls.cos_at_light, dl.light->is_delta(),
+                           v.in_medium(), l.densities.toward_end, l.densities.toward_start);
+    const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/integrators/direct_light.h"
 #include "core/integrators/mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/media/medium.h"
@@ -49,11 +50,9 @@ class Tracer {
     }
 
     // Transmittance from `p` along the light sample's direction to the light.
-    Rgb light_visibility(const Vec3& p, const Vec3& n, const LightIlluminateSample& ls,
+    Rgb light_visibility(const Vec3& p, const Vec3& n, const DirectLightSample& dl,
                          const Medium* medium) {
-        const Ray shadow = std::isinf(ls.distance)
-                               ? scene_.spawn_ray_to_infinity(p, n, ls.wi)
-                               : scene_.spawn_ray_to(p, n, p + ls.wi * ls.distance, Vec3());
+        const Ray shadow = dl.shadow_ray(scene_, p, n);
         if (!medium && !scene_.has_media()) {
             ++stats_.rays;
             return scene_.occluded(shadow) ? Rgb(0.0f) : Rgb(1.0f);
@@ -63,21 +62,19 @@ class Tracer {
 
     // Light sampling at a distance-sampled medium vertex (technique "DL").
     Rgb direct_light_in_medium(const ScatteringVertex& v, const Vec3& wo) {
-        float pick = 0;
-        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
-        const Vec2 u = rng_.next_2d();
-        LightIlluminateSample ls;
-        if (!light || !(pick > 0) || !light->illuminate(v.p, u, ls) || !(ls.pdf_direct_w > 0))
-            return Rgb(0.0f);
+        DirectLightSample dl;
+        if (!sample_direct_light(scene_, v.p, rng_, dl)) return Rgb(0.0f);
+        const LightIlluminateSample& ls = dl.ls;
         const float phase = v.segment.medium->phase().p(wo, ls.wi);
         if (!(phase > 0)) return Rgb(0.0f);
-        const float light_pdf = pick * ls.pdf_direct_w;
-        const float equiangular = equiangular_pdf(v.segment, light, v.p + ls.wi * ls.distance, v.t);
+        const float light_pdf = dl.pdf_w();
+        const float equiangular =
+            equiangular_pdf(v.segment, dl.light, v.p + ls.wi * ls.distance, v.t);
         const float w = power_heuristic3(v.distance_pdf * light_pdf,
-                                         light->is_delta() ? 0.0f : v.distance_pdf * phase,
+                                         dl.light->is_delta() ? 0.0f : v.distance_pdf * phase,
                                          equiangular * light_pdf);
         if (!(w > 0)) return Rgb(0.0f);
-        const Rgb tr = light_visibility(v.p, Vec3(0.0f), ls, v.segment.medium);
+        const Rgb tr = light_visibility(v.p, Vec3(0.0f), dl, v.segment.medium);
         return ls.radiance * tr * (phase * w / light_pdf);
     }
 
@@ -109,7 +106,11 @@ class Tracer {
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
-        const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), ls, segment.medium);
+        DirectLightSample dl;
+        dl.light = light;
+        dl.pick = pick;
+        dl.ls = ls;
+        const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), dl, segment.medium);
         return tr_to_q * sigma_s * ls.radiance * tr_to_light *
                (phase * w / (equiangular * light_pdf));
     }
@@ -117,20 +118,17 @@ class Tracer {
     // Light sampling at a surface vertex.
     Rgb direct_light_at_surface(const SurfaceInteraction& si, const SurfaceBsdf& bsdf,
                                 const Vec3& wo, const Medium* medium) {
-        float pick = 0;
-        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
-        const Vec2 u = rng_.next_2d();
-        LightIlluminateSample ls;
-        if (!light || !(pick > 0) || !light->illuminate(si.p, u, ls) || !(ls.pdf_direct_w > 0))
-            return Rgb(0.0f);
+        DirectLightSample dl;
+        if (!sample_direct_light(scene_, si.p, rng_, dl)) return Rgb(0.0f);
+        const LightIlluminateSample& ls = dl.ls;
         const auto [f, pdf] = bsdf.evaluate(wo, ls.wi);
         if (f.is_black()) return Rgb(0.0f);
-        const float light_pdf = pick * ls.pdf_direct_w;
-        const float w = light->is_delta() ? 1.0f : power_heuristic(light_pdf, pdf.forward);
+        const float light_pdf = dl.pdf_w();
+        const float w = dl.light->is_delta() ? 1.0f : power_heuristic(light_pdf, pdf.forward);
         // The shadow ray starts in the medium on the light's side of the surface.
         const bool same_side = dot(ls.wi, si.geometric_normal) * dot(wo, si.geometric_normal) > 0;
         const Medium* start = same_side ? medium : medium_after_transmission(si, ls.wi);
-        const Rgb tr = light_visibility(si.p, si.geometric_normal, ls, start);
+        const Rgb tr = light_visibility(si.p, si.geometric_normal, dl, start);
         return f * ls.radiance * tr * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
     }
 
