@@ -11,7 +11,7 @@
 
 #include "bench/bench_scenes.h"
 #include "core/integrators/hash_grid.h"
-#include "core/render/merge_radius.h"
+#include "core/integrators/merge_radius.h"
 #include "core/render/render_settings.h"
 
 namespace render::bench {

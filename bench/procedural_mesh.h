@@ -8,7 +8,7 @@
 #include <memory>
 
 #include "core/scene/scene.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render::bench {
 

@@ -22,9 +22,13 @@
 
 #include "client/bundle.h"
 #include "client/progress.h"
+#include "core/render/algorithms.h"
+#include "core/render/job_limits.h"
+#include "core/render/render_options.h"
+#include "core/util/arguments.h"
 #include "core/util/sha256.h"
 #include "render.grpc.pb.h"
-#include "worker/rpc_common.h"
+#include "service/rpc.h"
 
 namespace {
 
@@ -32,26 +36,27 @@ using namespace render::service;
 namespace v1 = render::v1;
 namespace fs = std::filesystem;
 
-constexpr const char* kUsage = R"(usage:
+struct SubmitOptions {
+    std::string scene;
+    v1::RenderSettings settings;
+    render::OptionMap options;  // the render options table's (core/render/render_options.h)
+    int priority = 0;
+    std::string name;
+    bool wait = false;
+    std::string out;
+    bool iterations_given = false;
+};
+
+render::ArgumentParser submit_parser(SubmitOptions& o);
+
+std::string usage() {
+    SubmitOptions unused;
+    return R"(usage:
   client [--server HOST:PORT] [--token T] COMMAND ...
 
 commands:
   submit SCENE.xml [options]   pack the scene and the files it references, upload what the
                                server lacks, submit a job and print its id
-      --algo NAME              pt, lt, bpt, ppm, bpm, vcm (default: the scene's integrator)
-      --iterations N           iterations per frame (default: the scene's sample_count)
-      --time S                 time budget per frame in seconds
-      --resolution WxH         override the film resolution
-      --seed S                 random seed (default 0)
-      --max-depth D            override the scene's max_depth (-1 = unbounded)
-      --radius-factor F        initial merging radius / scene radius (default 0.003)
-      --alpha A                merging radius reduction (default 0.75)
-      --light-paths N          light paths per iteration (default: one per pixel)
-      --priority P             higher runs first (default 0)
-      -D name=value            override a <default> of the scene (repeatable)
-      --name NAME              job name (default: the scene file's name)
-      --wait                   show progress until the job ends (as `watch`)
-      --out FILE.exr           wait, then fetch frame 0 into FILE.exr
   watch JOB                    progress until the job ends; exit status 1 unless it is DONE
   fetch JOB [--frame F] [--preview] --out FILE.exr
                                download a frame's EXR (--preview: the current average)
@@ -65,14 +70,18 @@ global options:
   --server HOST:PORT           default: env RENDER_SERVER, else 127.0.0.1:50051
   --token T                    bearer token (default: env RENDER_TOKEN)
 
+submit options (the render options are those of `render`, with the same meaning):
+)" + submit_parser(unused).help() +
+           "\nalgorithms (--algo):\n" + render::algorithms_help() + R"(
 Exit status: 0 on success, 1 on a failed call or job (the gRPC status is printed), 2 on
 bad usage.
 )";
+}
 
 constexpr double kRpcTimeout = 30.0;
 
 [[noreturn]] void usage_error(const std::string& message) {
-    std::cerr << "client: " << message << "\n\n" << kUsage;
+    std::cerr << "client: " << message << "\n\n" << usage();
     std::exit(2);
 }
 
@@ -81,14 +90,6 @@ struct RpcFailure : std::runtime_error {
         : std::runtime_error(call + " failed: " + describe(s)), status(s) {}
     grpc::Status status;
 };
-
-template <typename T>
-T parse_number(const std::string& flag, const std::string& text) {
-    std::istringstream in(text);
-    T value{};
-    if (!(in >> value) || !in.eof()) usage_error(flag + " expects a number, got \"" + text + "\"");
-    return value;
-}
 
 struct Connection {
     std::string address;
@@ -103,84 +104,50 @@ struct Connection {
 // ---------------------------------------------------------------------------------------------
 // submit
 
-struct SubmitOptions {
-    std::string scene;
-    v1::RenderSettings settings;
-    int priority = 0;
-    std::string name;
-    bool wait = false;
-    std::string out;
-    bool iterations_given = false;
-};
+render::ArgumentParser submit_parser(SubmitOptions& o) {
+    using render::UsageError;
+    render::ArgumentParser p;
+    v1::RenderSettings& s = o.settings;
+    p.value({"--algo"}, "NAME", "light-transport algorithm (default: the scene's integrator)",
+            [&](const std::string& v) { s.set_algorithm(v); });
+    p.value({"--iterations", "--spp"}, "N",
+            "iterations per frame (default: the scene's sample_count)", [&](const std::string& v) {
+                s.set_iterations(render::parse_iterations("--iterations", v));
+                o.iterations_given = true;
+            });
+    p.value({"--time"}, "S", "time budget per frame in seconds", [&](const std::string& v) {
+        s.set_time_budget_seconds(render::parse_time_budget("--time", v));
+    });
+    p.value({"--resolution"}, "WxH", "override the film resolution", [&](const std::string& v) {
+        auto [w, h] = render::parse_resolution("--resolution", v, render::kMaxFilmResolution);
+        s.set_width(uint32_t(w));
+        s.set_height(uint32_t(h));
+    });
+    p.value({"-D"}, "name=value", "override a <default> of the scene (repeatable)",
+            [&](const std::string& v) {
+                auto [name, value] = render::parse_define("-D", v);
+                (*s.mutable_defines())[name] = value;
+            });
+    render::add_render_options(p, o.options);
+    p.value({"--priority"}, "P", "higher runs first (default 0)",
+            [&](const std::string& v) { o.priority = render::parse_number<int>("--priority", v); });
+    p.value({"--name"}, "NAME", "job name (default: the scene file's name)",
+            [&](const std::string& v) { o.name = v; });
+    p.flag({"--wait"}, "show progress until the job ends (as `watch`)", [&] { o.wait = true; });
+    p.value({"--out", "-o"}, "FILE.exr", "wait, then fetch frame 0 into FILE.exr",
+            [&](const std::string& v) { o.out = v; });
+    p.positional([&](const std::string& v) {
+        if (!o.scene.empty()) throw UsageError("submit: more than one scene file given");
+        o.scene = v;
+    });
+    return p;
+}
 
 SubmitOptions parse_submit(const std::vector<std::string>& args) {
     SubmitOptions o;
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        auto value = [&]() -> std::string {
-            if (i + 1 >= args.size()) usage_error(a + " needs a value");
-            return args[++i];
-        };
-        v1::RenderSettings& s = o.settings;
-        if (a == "--algo") {
-            s.set_algorithm(value());
-        } else if (a == "--iterations" || a == "--spp") {
-            int64_t n = parse_number<int64_t>(a, value());
-            if (n < 1) usage_error(a + " must be at least 1");
-            s.set_iterations(uint64_t(n));
-            o.iterations_given = true;
-        } else if (a == "--time") {
-            double t = parse_number<double>(a, value());
-            if (!(t > 0)) usage_error("--time must be positive");
-            s.set_time_budget_seconds(t);
-        } else if (a == "--resolution") {
-            std::string v = value();
-            size_t x = v.find('x');
-            if (x == std::string::npos) usage_error("--resolution expects WxH, got \"" + v + "\"");
-            int w = parse_number<int>(a, v.substr(0, x)), h = parse_number<int>(a, v.substr(x + 1));
-            if (w < 1 || h < 1 || w > 16384 || h > 16384)
-                usage_error("--resolution must be between 1x1 and 16384x16384");
-            s.set_width(uint32_t(w));
-            s.set_height(uint32_t(h));
-        } else if (a == "--seed") {
-            s.set_seed(parse_number<uint64_t>(a, value()));
-        } else if (a == "--max-depth") {
-            s.set_max_depth(parse_number<int>(a, value()));
-            s.set_has_max_depth(true);
-        } else if (a == "--radius-factor") {
-            double f = parse_number<double>(a, value());
-            if (!(f > 0)) usage_error("--radius-factor must be positive");
-            s.set_radius_factor(f);
-        } else if (a == "--alpha") {
-            double al = parse_number<double>(a, value());
-            if (!(al > 0 && al <= 1)) usage_error("--alpha must be in (0, 1]");
-            s.set_alpha(al);
-        } else if (a == "--light-paths") {
-            int64_t n = parse_number<int64_t>(a, value());
-            if (n < 1) usage_error("--light-paths must be at least 1");
-            s.set_light_path_count(uint64_t(n));
-        } else if (a == "--priority") {
-            o.priority = parse_number<int>(a, value());
-        } else if (a == "-D" || (a.rfind("-D", 0) == 0 && a.size() > 2)) {
-            std::string def = a == "-D" ? value() : a.substr(2);
-            size_t eq = def.find('=');
-            if (eq == std::string::npos || eq == 0) usage_error("-D expects name=value");
-            (*s.mutable_defines())[def.substr(0, eq)] = def.substr(eq + 1);
-        } else if (a == "--name") {
-            o.name = value();
-        } else if (a == "--wait") {
-            o.wait = true;
-        } else if (a == "--out" || a == "-o") {
-            o.out = value();
-        } else if (!a.empty() && a[0] == '-') {
-            usage_error("submit: unknown option " + a);
-        } else if (o.scene.empty()) {
-            o.scene = a;
-        } else {
-            usage_error("submit: more than one scene file given");
-        }
-    }
+    submit_parser(o).parse(args);
     if (o.scene.empty()) usage_error("submit: no scene file given");
+    for (const auto& [name, value] : o.options) (*o.settings.mutable_options())[name] = value;
     return o;
 }
 
@@ -225,13 +192,7 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     SubmitOptions o = parse_submit(args);
     SceneBundleInfo bundle = collect_bundle(o.scene, defines_of(o.settings));
     v1::RenderSettings& s = o.settings;
-    if (s.algorithm().empty()) {
-        // The scene's integrator, in the service's names (Mitsuba's "path" is "pt").
-        std::string algorithm = bundle.integrator;
-        if (algorithm.empty() || algorithm == "path") algorithm = "pt";
-        if (algorithm == "volpath") algorithm = "volpt";
-        s.set_algorithm(algorithm);
-    }
+    // Without --algo the server takes the scene's integrator (Mitsuba's "path" is "pt").
     if (!o.iterations_given && s.time_budget_seconds() <= 0) {
         if (!bundle.sample_count)
             usage_error("submit: the scene has no sample_count; give --iterations or --time");
@@ -480,20 +441,14 @@ int cancel(const Connection& c, const std::string& job_id) {
 int bundle_command(const std::vector<std::string>& args) {
     std::string scene;
     std::map<std::string, std::string> defines;
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        if (a == "-D" || (a.rfind("-D", 0) == 0 && a.size() > 2)) {
-            if (a == "-D" && i + 1 >= args.size()) usage_error("-D needs a value");
-            std::string def = a == "-D" ? args[++i] : a.substr(2);
-            size_t eq = def.find('=');
-            if (eq == std::string::npos || eq == 0) usage_error("-D expects name=value");
-            defines[def.substr(0, eq)] = def.substr(eq + 1);
-        } else if (scene.empty() && !a.empty() && a[0] != '-') {
-            scene = a;
-        } else {
-            usage_error("bundle: unexpected argument " + a);
-        }
-    }
+    render::ArgumentParser p;
+    p.value({"-D"}, "name=value", "",
+            [&](const std::string& v) { defines.insert(render::parse_define("-D", v)); });
+    p.positional([&](const std::string& v) {
+        if (!scene.empty()) throw render::UsageError("bundle: unexpected argument " + v);
+        scene = v;
+    });
+    p.parse(args);
     if (scene.empty()) usage_error("bundle: no scene file given");
     SceneBundleInfo b = collect_bundle(scene, defines);
     std::printf("# root %s, scene %s, integrator %s, sample_count %s\n", b.root.c_str(),
@@ -510,18 +465,19 @@ int main(int argc, char** argv) {
     std::string server, token;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) server = env;
     std::vector<std::string> rest;
-    for (int i = 1; i < argc; ++i) {
-        std::string a = argv[i];
-        if (a == "--server" || a == "--token") {
-            if (i + 1 >= argc) usage_error(a + " needs a value");
-            (a == "--server" ? server : token) = argv[++i];
-        } else if (a == "--help" || a == "-h") {
-            std::cout << kUsage;
+    // Global options come before the command; everything from the command on is its own.
+    int first = 1;
+    for (; first < argc && argv[first][0] == '-'; ++first) {
+        const std::string a = argv[first];
+        if (a == "--help" || a == "-h") {
+            std::cout << usage();
             return 0;
-        } else {
-            rest.push_back(a);
         }
+        if (a != "--server" && a != "--token") usage_error("unknown option " + a);
+        if (first + 1 >= argc) usage_error(a + " needs a value");
+        (a == "--server" ? server : token) = argv[++first];
     }
+    rest.assign(argv + first, argv + argc);
     if (rest.empty()) usage_error("no command given");
     if (server.empty()) server = "127.0.0.1:50051";
     std::string command = rest[0];
@@ -553,21 +509,13 @@ int main(int argc, char** argv) {
             std::string job = job_arg("fetch"), out;
             uint32_t frame = 0;
             bool preview = false;
-            for (size_t i = 1; i < args.size(); ++i) {
-                const std::string& a = args[i];
-                auto value = [&]() -> std::string {
-                    if (i + 1 >= args.size()) usage_error(a + " needs a value");
-                    return args[++i];
-                };
-                if (a == "--frame")
-                    frame = parse_number<uint32_t>(a, value());
-                else if (a == "--preview")
-                    preview = true;
-                else if (a == "--out" || a == "-o")
-                    out = value();
-                else
-                    usage_error("fetch: unexpected argument " + a);
-            }
+            render::ArgumentParser p;
+            p.value({"--frame"}, "F", "", [&](const std::string& v) {
+                frame = render::parse_number<uint32_t>("--frame", v);
+            });
+            p.flag({"--preview"}, "", [&] { preview = true; });
+            p.value({"--out", "-o"}, "FILE.exr", "", [&](const std::string& v) { out = v; });
+            p.parse(std::vector<std::string>(args.begin() + 1, args.end()));
             if (out.empty()) usage_error("fetch: --out FILE.exr is required");
             return fetch(c, job, frame, preview, out);
         }
@@ -578,6 +526,8 @@ int main(int argc, char** argv) {
         if (command == "list") return list(c);
         if (command == "status") return status(c);
         usage_error("unknown command " + command);
+    } catch (const render::UsageError& e) {
+        usage_error(e.what());
     } catch (const RpcFailure& e) {
         std::fprintf(stderr, "client: %s (server %s)\n", e.what(), server.c_str());
         return 1;

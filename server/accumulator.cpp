@@ -14,7 +14,10 @@ namespace render::server {
 
 namespace {
 
-constexpr char kMagic[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '1'};
+// Version 2 adds the layer mode and the layers' sums after odd_sum; version 1 files (no
+// layers) are still read.
+constexpr char kMagic[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '2'};
+constexpr char kMagicVersion1[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '1'};
 
 template <typename T>
 void put(std::string& out, const T& v) {
@@ -39,21 +42,29 @@ void write_all(int fd, const char* data, size_t size, const std::filesystem::pat
 
 }  // namespace
 
-FrameAccumulator::FrameAccumulator(int width, int height) : width_(width), height_(height) {
+FrameAccumulator::FrameAccumulator(int width, int height, LayerMode layers)
+    : width_(width), height_(height) {
     result_.sum = AccumulationBuffer(width, height);
     result_.odd_sum = AccumulationBuffer(width, height);
+    result_.layers = TechniqueLayers(layers, width, height);
 }
 
 void FrameAccumulator::add(Range range, const std::vector<double>& sum,
-                           const std::vector<double>& odd_sum, uint64_t odd_count,
+                           const std::vector<double>& odd_sum,
+                           const std::vector<double>& layer_sums, uint64_t odd_count,
                            const RenderStats& stats) {
-    if (sum.size() != value_count() || odd_sum.size() != value_count())
+    const size_t n = value_count();
+    if (sum.size() != n || odd_sum.size() != n || layer_sums.size() != layer_count() * n)
         throw std::invalid_argument("accumulator: buffer size mismatch");
     auto& s = result_.sum.values();
     auto& o = result_.odd_sum.values();
     for (size_t i = 0; i < s.size(); ++i) {
         s[i] += sum[i];
         o[i] += odd_sum[i];
+    }
+    for (size_t l = 0; l < layer_count(); ++l) {
+        auto& values = result_.layers.buffer(l).values();
+        for (size_t i = 0; i < n; ++i) values[i] += layer_sums[l * n + i];
     }
     result_.count += range.size();
     result_.odd_count += odd_count;
@@ -71,6 +82,11 @@ Image FrameAccumulator::average() const {
     return result_.sum.average(double(result_.count));
 }
 
+std::vector<NamedLayer> FrameAccumulator::layer_averages() const {
+    return result_.count == 0 ? std::vector<NamedLayer>{}
+                              : result_.layers.named_averages(result_.count);
+}
+
 void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_seconds) const {
     std::string header;
     header.append(kMagic, sizeof kMagic);
@@ -82,6 +98,8 @@ void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_se
     put(header, uint64_t(result_.stats.rays));
     put(header, uint64_t(result_.stats.non_finite));
     put(header, double(elapsed_seconds));
+    put(header, uint32_t(result_.layers.mode()));
+    put(header, uint64_t(layer_count()));
     std::vector<Range> ranges = ranges_.ranges();
     put(header, uint64_t(ranges.size()));
     for (const Range& r : ranges) {
@@ -100,6 +118,11 @@ void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_se
         const auto& o = result_.odd_sum.values();
         write_all(fd, reinterpret_cast<const char*>(s.data()), s.size() * sizeof(double), tmp);
         write_all(fd, reinterpret_cast<const char*>(o.data()), o.size() * sizeof(double), tmp);
+        for (size_t l = 0; l < layer_count(); ++l) {
+            const auto& values = result_.layers.buffer(l).values();
+            write_all(fd, reinterpret_cast<const char*>(values.data()),
+                      values.size() * sizeof(double), tmp);
+        }
         write_all(fd, kMagic, sizeof kMagic, tmp);
         if (::fsync(fd) != 0)
             throw std::runtime_error("cannot sync " + tmp.string() + ": " + std::strerror(errno));
@@ -117,8 +140,10 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     std::ifstream in(file, std::ios::binary);
     if (!in) throw std::runtime_error("cannot open checkpoint " + file.string());
     char magic[8];
-    if (!in.read(magic, 8) || std::memcmp(magic, kMagic, 8) != 0)
+    if (!in.read(magic, 8) ||
+        (std::memcmp(magic, kMagic, 8) != 0 && std::memcmp(magic, kMagicVersion1, 8) != 0))
         throw std::runtime_error("checkpoint " + file.string() + " has a bad header");
+    const bool version1 = std::memcmp(magic, kMagicVersion1, 8) == 0;
     uint32_t width = 0, height = 0;
     uint64_t count = 0, odd_count = 0, samples = 0, rays = 0, non_finite = 0, n_ranges = 0;
     double elapsed = 0;
@@ -130,10 +155,19 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     get(in, rays, file);
     get(in, non_finite, file);
     get(in, elapsed, file);
+    uint32_t mode = 0;
+    uint64_t layers = 0;
+    if (!version1) {
+        get(in, mode, file);
+        get(in, layers, file);
+    }
     get(in, n_ranges, file);
-    if (width == 0 || height == 0 || width > 65536 || height > 65536 || n_ranges > (1u << 26))
+    if (width == 0 || height == 0 || width > 65536 || height > 65536 || n_ranges > (1u << 26) ||
+        mode > uint32_t(LayerMode::PathVertices))
         throw std::runtime_error("checkpoint " + file.string() + " has a bad header");
-    FrameAccumulator acc{int(width), int(height)};
+    FrameAccumulator acc{int(width), int(height), LayerMode(mode)};
+    if (layers != acc.layer_count())
+        throw std::runtime_error("checkpoint " + file.string() + " has a bad layer count");
     uint64_t total = 0;
     for (uint64_t i = 0; i < n_ranges; ++i) {
         Range r;
@@ -151,7 +185,13 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     if (!in.read(reinterpret_cast<char*>(s.data()), std::streamsize(s.size() * sizeof(double))) ||
         !in.read(reinterpret_cast<char*>(o.data()), std::streamsize(o.size() * sizeof(double))))
         throw std::runtime_error("checkpoint " + file.string() + " is truncated");
-    if (!in.read(magic, 8) || std::memcmp(magic, kMagic, 8) != 0)
+    for (size_t l = 0; l < acc.layer_count(); ++l) {
+        auto& values = acc.result_.layers.buffer(l).values();
+        if (!in.read(reinterpret_cast<char*>(values.data()),
+                     std::streamsize(values.size() * sizeof(double))))
+            throw std::runtime_error("checkpoint " + file.string() + " is truncated");
+    }
+    if (!in.read(magic, 8) || std::memcmp(magic, version1 ? kMagicVersion1 : kMagic, 8) != 0)
         throw std::runtime_error("checkpoint " + file.string() + " is truncated");
     acc.result_.count = count;
     acc.result_.odd_count = odd_count;
@@ -163,11 +203,12 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
 }
 
 void write_frame_exr(const std::filesystem::path& file, const Image& image,
-                     const std::map<std::string, std::string>& metadata) {
+                     const std::map<std::string, std::string>& metadata,
+                     const std::vector<NamedLayer>& layers) {
     std::filesystem::create_directories(file.parent_path());
     std::filesystem::path tmp = file;
     tmp += ".tmp.exr";
-    write_exr(tmp, image, metadata);
+    write_exr(tmp, image, metadata, layers);
     std::filesystem::rename(tmp, file);
 }
 

@@ -17,24 +17,30 @@ namespace render::server {
 
 class FrameAccumulator {
   public:
-    FrameAccumulator(int width, int height);
+    // `layers`: the job's per-technique layers (its `layers` option), merged like the sums.
+    FrameAccumulator(int width, int height, LayerMode layers = LayerMode::None);
 
     int width() const { return width_; }
     int height() const { return height_; }
     // Values per buffer (width * height * 3).
     size_t value_count() const { return size_t(width_) * height_ * 3; }
 
-    // Adds one range's sums. `sum` and `odd_sum` must have value_count() entries.
+    // Per-technique layers merged with the sums (0 without).
+    size_t layer_count() const { return result_.layers.size(); }
+
+    // Adds one range's sums. `sum` and `odd_sum` must have value_count() entries,
+    // `layer_sums` layer_count() * value_count() (the layers one after the other).
     void add(Range range, const std::vector<double>& sum, const std::vector<double>& odd_sum,
-             uint64_t odd_count, const RenderStats& stats);
+             const std::vector<double>& layer_sums, uint64_t odd_count, const RenderStats& stats);
 
     const IterationResult& result() const { return result_; }
     const IntervalSet& ranges() const { return ranges_; }
     uint64_t count() const { return result_.count; }
     // Estimated relative error of the current mean (1 when unknown).
     double relative_error() const;
-    // The mean image so far (black when nothing is merged).
+    // The mean image so far (black when nothing is merged), and its layers' means.
     Image average() const;
+    std::vector<NamedLayer> layer_averages() const;
 
     // Writes the checkpoint atomically; throws std::runtime_error on I/O failure.
     void save(const std::filesystem::path& file, double elapsed_seconds) const;
@@ -48,8 +54,9 @@ class FrameAccumulator {
     IntervalSet ranges_;
 };
 
-// Writes `image` as EXR with the metadata through core (no OpenImageIO here).
+// Writes `image` (and `layers`) as EXR with the metadata through core (no OpenImageIO here).
 void write_frame_exr(const std::filesystem::path& file, const Image& image,
-                     const std::map<std::string, std::string>& metadata);
+                     const std::map<std::string, std::string>& metadata,
+                     const std::vector<NamedLayer>& layers = {});
 
 }  // namespace render::server

@@ -1,17 +1,20 @@
 #include "server/job_manager.h"
 
-#include "core/integrators/integrator.h"
-
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <random>
 #include <set>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
+#include "core/render/algorithms.h"
+#include "core/render/image_metadata.h"
+#include "core/render/job_limits.h"
+#include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
 #include "server/validation.h"
+#include "service/request_options.h"
 
 namespace render::server {
 
@@ -39,12 +42,30 @@ Status invalid(const std::string& message) {
     return Status(StatusCode::INVALID_ARGUMENT, message);
 }
 
-// The scene file's integrator name in the service's names, or "" when it has none of them.
-std::string algorithm_from_scene(const std::string& integrator) {
-    if (integrator == "path" || integrator == "pt") return "pt";
-    if (integrator == "volpath" || integrator == "volpt") return "volpt";
-    if (is_supported_algorithm(integrator)) return integrator;
-    return "";
+// The job store is the record of what survives a restart; a failed write is logged and the
+// in-memory state goes on (the next checkpoint or restart reconciles it).
+template <typename Write>
+void store_or_log(const char* key, const std::string& id, Write&& write) {
+    try {
+        write();
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv(key, id).kv("error", e.what());
+    }
+}
+
+// The settings a job renders with: its stored options are complete (submit resolved them),
+// so the scene is not needed. A job stored by an older server may not resolve: then only its
+// algorithm is known (no layers), which is all the server needs of it.
+RenderSettings job_settings(const v1::SubmitJobRequest& request) {
+    try {
+        return resolve_render_settings(request.settings().algorithm(),
+                                       service::request_options(request.settings()),
+                                       SceneSettings{});
+    } catch (const std::invalid_argument&) {
+        RenderSettings settings;
+        settings.algorithm = request.settings().algorithm();
+        return settings;
+    }
 }
 
 std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& request,
@@ -54,81 +75,6 @@ std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& req
     if (frame < uint32_t(request.frames_size()))
         for (const auto& [k, v] : request.frames(int(frame)).defines()) defines[k] = v;
     return defines;
-}
-
-Status check_defines(const google::protobuf::Map<std::string, std::string>& defines,
-                     const std::string& where) {
-    if (defines.size() > 1000) return invalid(where + " has more than 1000 defines");
-    for (const auto& [k, v] : defines) {
-        if (k.empty()) return invalid(where + " has a define with an empty name");
-        if (k.size() > 256 || v.size() > 65536)
-            return invalid(where + " define \"" + k.substr(0, 64) + "\" is too long");
-    }
-    return Status::OK;
-}
-
-// Validation that needs neither the assets nor the scene.
-Status check_request(const v1::SubmitJobRequest& r) {
-    const v1::RenderSettings& s = r.settings();
-    if (r.name().size() > 1024) return invalid("name is longer than 1024 characters");
-    if (!s.algorithm().empty() && !is_supported_algorithm(s.algorithm()))
-        return invalid("settings.algorithm \"" + s.algorithm().substr(0, 64) +
-                       "\" is not one of pt, lt, bpt, ppm, bpm, vcm");
-    if (s.iterations() > kMaxIterations)
-        return invalid("settings.iterations " + std::to_string(s.iterations()) +
-                       " is out of range [1, 10000000]");
-    if (!std::isfinite(s.time_budget_seconds()) || s.time_budget_seconds() < 0 ||
-        s.time_budget_seconds() > kMaxTimeBudgetSeconds)
-        return invalid("settings.time_budget_seconds must be a finite number in [0, 2592000]");
-    if (s.width() > kMaxResolution || s.height() > kMaxResolution)
-        return invalid("settings.width/height " + std::to_string(s.width()) + "x" +
-                       std::to_string(s.height()) + " exceeds 8192");
-    if ((s.width() == 0) != (s.height() == 0))
-        return invalid("settings.width and settings.height must both be set or both be 0");
-    if (!std::isfinite(s.radius_factor()) || s.radius_factor() < 0)
-        return invalid("settings.radius_factor must be >= 0 (0 = default)");
-    if (!std::isfinite(s.alpha()) || s.alpha() < 0 || s.alpha() > 1)
-        return invalid("settings.alpha must be in (0, 1] (0 = default)");
-    if (s.has_max_depth() && (s.max_depth() < -1 || s.max_depth() > 100000))
-        return invalid("settings.max_depth must be -1 (unbounded) or in [0, 100000]");
-    if (s.light_path_count() > 100000000ull)
-        return invalid("settings.light_path_count exceeds 100000000");
-    if (Status st = check_defines(s.defines(), "settings"); !st.ok()) return st;
-    if (size_t(r.frames_size()) > kMaxFrames)
-        return invalid("frames: " + std::to_string(r.frames_size()) + " frames exceed 1000");
-    for (int i = 0; i < r.frames_size(); ++i)
-        if (Status st = check_defines(r.frames(i).defines(), "frames[" + std::to_string(i) + "]");
-            !st.ok())
-            return st;
-    const v1::SceneBundle& b = r.bundle();
-    if (b.files_size() == 0) return invalid("bundle.files is empty");
-    if (size_t(b.files_size()) > kMaxBundleFiles)
-        return Status(StatusCode::RESOURCE_EXHAUSTED, "bundle has more than 10000 files");
-    std::set<std::string> paths;
-    uint64_t total = 0;
-    for (const v1::BundleFile& f : b.files()) {
-        if (std::string e = check_bundle_path(f.path()); !e.empty())
-            return invalid("bundle path " + e);
-        if (!is_sha256_hex(f.sha256()))
-            return invalid("bundle file \"" + f.path() +
-                           "\": sha256 must be 64 lower-case hex digits");
-        if (!paths.insert(f.path()).second)
-            return invalid("bundle path \"" + f.path() + "\" appears twice");
-        total += f.size();
-        if (f.size() > kMaxAssetSize || total > kMaxBundleSize)
-            return Status(StatusCode::RESOURCE_EXHAUSTED, "bundle exceeds the size limit");
-    }
-    if (std::string e = check_bundle_path(b.scene_path()); !e.empty())
-        return invalid("bundle.scene_path " + e);
-    if (!paths.count(b.scene_path()))
-        return invalid("bundle.scene_path \"" + b.scene_path() + "\" is not one of bundle.files");
-    // A file and a folder of the same name cannot both exist.
-    for (const std::string& p : paths)
-        for (size_t slash = p.find('/'); slash != std::string::npos; slash = p.find('/', slash + 1))
-            if (paths.count(p.substr(0, slash)))
-                return invalid("bundle path \"" + p.substr(0, slash) +
-                               "\" is both a file and a folder");
-    return Status::OK;
 }
 
 }  // namespace
@@ -193,6 +139,9 @@ void JobManager::restore() {
                         std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
                     if (acc->width() != job->row.width || acc->height() != job->row.height)
                         throw std::runtime_error("checkpoint size differs from the job's");
+                    if (acc->layer_count() !=
+                        TechniqueLayers::names(job_settings(job->request).layers).size())
+                        throw std::runtime_error("checkpoint layers differ from the job's");
                     plan.merged = acc->ranges();
                     plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
                     data->relative_error = acc->relative_error();
@@ -231,7 +180,7 @@ void JobManager::has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsRe
 }
 
 Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
-    if (Status st = check_request(in); !st.ok()) return st;
+    if (Status st = check_submit_request(in); !st.ok()) return st;
     v1::SubmitJobRequest request = in;
     for (const v1::BundleFile& f : request.bundle().files()) {
         auto size = assets_.size(f.sha256());
@@ -263,41 +212,37 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         std::unique_ptr<Scene> scene =
             load_scene(scene_dir / request.bundle().scene_path(), frame_defines(request, 0));
         v1::RenderSettings* s = request.mutable_settings();
-        if (s->algorithm().empty()) {
-            s->set_algorithm(algorithm_from_scene(scene->settings.integrator));
-            if (s->algorithm().empty())
-                throw std::invalid_argument(
-                    "settings.algorithm is empty and the scene's "
-                    "integrator \"" +
-                    scene->settings.integrator +
-                    "\" is not one of pt, volpt, lt, bpt, ppm, bpm, vcm");
-        }
-        check_algorithm_supports_scene(s->algorithm(), *scene);
+        // The job stores the complete options its algorithm reads, resolved as `render` and
+        // the worker resolve them (defaults, the scene's values, the request's options), so
+        // every worker renders the same settings and the EXR header can record them.
+        const RenderSettings settings = resolve_render_settings(
+            s->algorithm().empty() ? scene->settings.integrator : s->algorithm(),
+            service::request_options(*s), scene->settings);
+        check_algorithm_supports_scene(settings.algorithm, *scene);
+        s->set_algorithm(settings.algorithm);
+        service::set_request_options(*s, render_settings_options(settings));
         if (s->iterations() == 0 && s->time_budget_seconds() == 0)
             s->set_iterations(uint64_t(std::max(1, scene->settings.sample_count)));
         if (s->iterations() > kMaxIterations)
-            throw std::invalid_argument("the scene's sample_count exceeds 10000000");
+            throw std::invalid_argument("the scene's sample_count exceeds " +
+                                        std::to_string(kMaxIterations));
         width = s->width() ? int(s->width()) : scene->camera().width();
         height = s->height() ? int(s->height()) : scene->camera().height();
-        if (width < 1 || height < 1 || width > int(kMaxResolution) || height > int(kMaxResolution))
+        if (width < 1 || height < 1 || width > kMaxFilmResolution || height > kMaxFilmResolution)
             throw std::invalid_argument("the film " + std::to_string(width) + "x" +
-                                        std::to_string(height) + " exceeds 8192");
+                                        std::to_string(height) + " exceeds " +
+                                        std::to_string(kMaxFilmResolution));
         s->set_width(uint32_t(width));
         s->set_height(uint32_t(height));
-    } catch (const SceneError& e) {
-        std::error_code ec;
-        fs::remove_all(job_dir, ec);
-        Log("warn", "submit_rejected").kv("reason", "scene").kv("error", e.what());
-        return invalid(std::string("scene error: ") + e.what());
-    } catch (const std::invalid_argument& e) {
-        std::error_code ec;
-        fs::remove_all(job_dir, ec);
-        return invalid(e.what());
     } catch (const std::exception& e) {
         std::error_code ec;
         fs::remove_all(job_dir, ec);
-        Log("warn", "submit_rejected").kv("reason", "load").kv("error", e.what());
-        return invalid(std::string("cannot load the scene: ") + e.what());
+        // Bad settings are the request's fault and say so; scene and load errors are prefixed.
+        const bool scene = dynamic_cast<const SceneError*>(&e) != nullptr;
+        const bool settings = !scene && dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
+        if (settings) return invalid(e.what());
+        Log("warn", "submit_rejected").kv("reason", scene ? "scene" : "load").kv("error", e.what());
+        return invalid(std::string(scene ? "scene error: " : "cannot load the scene: ") + e.what());
     }
 
     auto job = std::make_shared<JobData>();
@@ -398,11 +343,8 @@ void JobManager::set_state(JobData& job, JobState state, const std::string& erro
     scheduler_.set_state(job.row.id, state);
     job.row.state = int(state);
     job.row.error = error;
-    try {
-        store_.update_job_state(job.row.id, int(state), error);
-    } catch (const std::exception& e) {
-        Log("error", "store_failed").kv("job", job.row.id).kv("error", e.what());
-    }
+    store_or_log("job", job.row.id,
+                 [&] { store_.update_job_state(job.row.id, int(state), error); });
 }
 
 Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
@@ -476,7 +418,7 @@ Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* 
         {"render:relative_error_estimate", std::to_string(frame.acc->relative_error())},
     };
     try {
-        write_frame_exr(*file, frame.acc->average(), metadata);
+        write_frame_exr(*file, frame.acc->average(), metadata, frame.acc->layer_averages());
     } catch (const std::exception& e) {
         return Status(StatusCode::INTERNAL, std::string("cannot write the preview: ") + e.what());
     }
@@ -540,11 +482,8 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
     auto job = find(grant->job_id);
     if (job && job->row.state == int(JobState::Queued)) {
         job->row.state = int(JobState::Running);
-        try {
-            store_.update_job_state(job->row.id, int(JobState::Running), "");
-        } catch (const std::exception& e) {
-            Log("error", "store_failed").kv("job", job->row.id).kv("error", e.what());
-        }
+        store_or_log("job", job->row.id,
+                     [&] { store_.update_job_state(job->row.id, int(JobState::Running), ""); });
     }
     reply->set_granted(true);
     v1::Lease* l = reply->mutable_lease();
@@ -560,12 +499,10 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
             (*l->mutable_settings()->mutable_defines())[k] = v;
         *l->mutable_bundle() = job->request.bundle();
     }
-    try {
+    store_or_log("lease", grant->lease_id, [&] {
         store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
                             grant->range);
-    } catch (const std::exception& e) {
-        Log("error", "store_failed").kv("lease", grant->lease_id).kv("error", e.what());
-    }
+    });
     Log("info", "lease")
         .kv("lease", grant->lease_id)
         .kv("worker", grant->worker_id)
@@ -586,7 +523,8 @@ Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatR
     return Status::OK;
 }
 
-Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, bool* drop) {
+Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
+                                bool* drop) {
     *drop = false;
     std::lock_guard lock(mu_);
     std::optional<LeaseGrant> grant = scheduler_.find_lease(header.lease_id());
@@ -614,11 +552,17 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     if (!std::isfinite(header.render_seconds()) || header.render_seconds() < 0)
         return invalid("report render_seconds must be finite and >= 0");
     *values = size_t(job->row.width) * size_t(job->row.height) * 3;
+    *layers = TechniqueLayers::names(job_settings(job->request).layers).size();
+    if (header.layer_count() != *layers)
+        return invalid("report has " + std::to_string(header.layer_count()) +
+                       " technique layers, the job's layers option gives " +
+                       std::to_string(*layers));
     return Status::OK;
 }
 
 Status JobManager::report(const v1::ReportHeader& header, const std::vector<double>& sum,
-                          const std::vector<double>& odd_sum, bool* merged) {
+                          const std::vector<double>& odd_sum, const std::vector<double>& layer_sums,
+                          bool* merged) {
     *merged = false;
     LeaseGrant grant;
     std::shared_ptr<JobData> job;
@@ -627,11 +571,7 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         std::lock_guard lock(mu_);
         decision = scheduler_.begin_merge(header.lease_id(), header.render_seconds(), &grant);
         if (decision == MergeDecision::Accept) job = find(grant.job_id);
-        try {
-            store_.delete_lease(header.lease_id());
-        } catch (const std::exception& e) {
-            Log("error", "store_failed").kv("lease", header.lease_id()).kv("error", e.what());
-        }
+        store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
     }
     if (decision != MergeDecision::Accept || !job) {
         Log("warn", "report_dropped")
@@ -651,12 +591,13 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         std::lock_guard lock(frame.mu);
         const clock::time_point add_start = clock::now();
         if (!frame.acc)
-            frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height);
+            frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
+                                                           job_settings(job->request).layers);
         RenderStats stats;
         stats.samples = header.samples();
         stats.rays = header.rays();
         stats.non_finite = header.non_finite();
-        frame.acc->add(grant.range, sum, odd_sum, header.odd_count(), stats);
+        frame.acc->add(grant.range, sum, odd_sum, layer_sums, header.odd_count(), stats);
         frame.relative_error = frame.acc->relative_error();
         frame.non_finite = frame.acc->result().stats.non_finite;
         const clock::time_point checkpoint_start = clock::now();
@@ -715,27 +656,16 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         if (!frame.acc) {
             error = "frame " + std::to_string(index) + " has no merged sums";
         } else {
-            const v1::RenderSettings& s = job->request.settings();
-            std::map<std::string, std::string> metadata = {
-                {"render:job", job_id},
-                {"render:frame", std::to_string(index)},
-                {"render:scene", job->request.bundle().scene_path()},
-                {"render:algorithm", s.algorithm()},
-                {"render:iterations", std::to_string(frame.acc->count())},
-                {"render:seconds", std::to_string(progress.elapsed_seconds)},
-                {"render:seed", std::to_string(s.seed())},
-                {"render:relative_error_estimate", std::to_string(frame.acc->relative_error())},
-                {"render:non_finite_samples_dropped",
-                 std::to_string(frame.acc->result().stats.non_finite)},
-            };
-            if (s.radius_factor() > 0)
-                metadata["render:radius_factor"] = std::to_string(s.radius_factor());
-            if (s.alpha() > 0) metadata["render:alpha"] = std::to_string(s.alpha());
-            if (s.has_max_depth()) metadata["render:max_depth"] = std::to_string(s.max_depth());
-            for (const auto& [k, v] : frame_defines(job->request, index))
-                metadata["render:define:" + k] = v;
+            std::map<std::string, std::string> metadata = image_metadata(
+                job_settings(job->request),
+                {job->request.bundle().scene_path(), frame.acc->count(), progress.elapsed_seconds,
+                 frame.acc->relative_error(), frame.acc->result().stats.non_finite,
+                 frame_defines(job->request, index)});
+            metadata["render:job"] = job_id;
+            metadata["render:frame"] = std::to_string(index);
             try {
-                write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata);
+                write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata,
+                                frame.acc->layer_averages());
                 frame.relative_error = frame.acc->relative_error();
                 frame.acc.reset();
             } catch (const std::exception& e) {
@@ -750,13 +680,11 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         return;
     }
     bool job_done = scheduler_.finish_frame(job_id, index);
-    try {
+    store_or_log("job", job_id, [&] {
         store_.update_frame(job_id, index, true, progress.elapsed_seconds);
         std::error_code ec;
         fs::remove(checkpoint_path(job_id, index), ec);
-    } catch (const std::exception& e) {
-        Log("error", "store_failed").kv("job", job_id).kv("error", e.what());
-    }
+    });
     Log("info", "frame_done")
         .kv("job", job_id)
         .kv("frame", index)
@@ -776,11 +704,7 @@ void JobManager::checkpoint_all() {
         for (uint32_t i = 0; i < job->frames.size(); ++i) {
             FrameProgress p = scheduler_.progress(id, i);
             if (p.done) continue;
-            try {
-                store_.update_frame(id, i, false, p.elapsed_seconds);
-            } catch (const std::exception& e) {
-                Log("error", "store_failed").kv("job", id).kv("error", e.what());
-            }
+            store_or_log("job", id, [&] { store_.update_frame(id, i, false, p.elapsed_seconds); });
         }
     }
     Log("info", "checkpointed");

@@ -54,12 +54,16 @@ class JobManager {
     grpc::Status lease(const v1::LeaseRequest& request, v1::LeaseReply* reply);
     grpc::Status heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply);
     // Checks a report's header before its values are read: `values` receives the number of
-    // float64 values each of sum and odd_sum must have. `drop` is set (and OK returned) for a
-    // late or duplicate report, which is answered merged=false.
-    grpc::Status check_report(const v1::ReportHeader& header, size_t* values, bool* drop);
-    // Merges a report's sums exactly once; `merged` false when dropped.
+    // float64 values each of sum, odd_sum and the job's technique layers must have, `layers`
+    // how many layers follow the two sums. `drop` is set (and OK returned) for a late or
+    // duplicate report, which is answered merged=false.
+    grpc::Status check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
+                              bool* drop);
+    // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
+    // layers' sums one after the other (empty for a job without layers).
     grpc::Status report(const v1::ReportHeader& header, const std::vector<double>& sum,
-                        const std::vector<double>& odd_sum, bool* merged);
+                        const std::vector<double>& odd_sum, const std::vector<double>& layer_sums,
+                        bool* merged);
 
     // Expires leases, closes time budgets and finishes complete frames. Called periodically.
     void tick();

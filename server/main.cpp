@@ -21,6 +21,7 @@
 #include <string>
 #include <thread>
 
+#include "core/util/arguments.h"
 #include "core/util/log.h"
 #include "server/auth.h"
 #include "server/job_manager.h"
@@ -32,54 +33,64 @@ namespace {
 using namespace render;
 using namespace render::server;
 
-constexpr const char* kUsage =
-    "usage: server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS (30)]\n"
-    "              [--heartbeat SECONDS (2)]\n"
-    "The token may also come from the environment variable RENDER_TOKEN.\n";
-
-[[noreturn]] void usage_error(const std::string& message) {
-    std::cerr << "server: " << message << "\n" << kUsage;
-    std::exit(2);
-}
-
-double parse_seconds(const std::string& flag, const std::string& text) {
-    std::istringstream in(text);
-    double v = 0;
-    if (!(in >> v) || !in.eof() || !(v > 0) || v > 1e6)
-        usage_error(flag + " expects a positive number of seconds, got \"" + text + "\"");
-    return v;
-}
-
 struct Options {
     std::string listen;
     std::string token;
     ServerOptions server;
+    bool help = false;
 };
+
+double parse_seconds(const std::string& flag, const std::string& text) {
+    const double v = parse_number<double>(flag, text);
+    if (!(v > 0) || v > 1e6) throw UsageError(flag + " expects seconds in (0, 1e6], got " + text);
+    return v;
+}
+
+ArgumentParser make_parser(Options& o) {
+    ArgumentParser p;
+    p.value({"--listen"}, "HOST:PORT", "address to serve on (required; port 0: any free port)",
+            [&](const std::string& v) { o.listen = v; });
+    p.value({"--store"}, "DIR", "job store: database, assets, checkpoints, results (required)",
+            [&](const std::string& v) { o.server.store = v; });
+    p.value({"--token"}, "T",
+            "bearer token clients and workers must send (default: env "
+            "RENDER_TOKEN)",
+            [&](const std::string& v) { o.token = v; });
+    p.value({"--lease-timeout"}, "SECONDS",
+            "a lease not heartbeaten for this long expires (default 30)",
+            [&](const std::string& v) {
+                o.server.lease_timeout_seconds = parse_seconds("--lease-timeout", v);
+            });
+    p.value({"--heartbeat"}, "SECONDS", "how often workers heartbeat (default 2)",
+            [&](const std::string& v) {
+                o.server.heartbeat_seconds = parse_seconds("--heartbeat", v);
+            });
+    p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
+    return p;
+}
+
+std::string usage() {
+    Options unused;
+    return "usage: server --listen HOST:PORT --store DIR [options]\n\noptions:\n" +
+           make_parser(unused).help();
+}
+
+[[noreturn]] void usage_error(const std::string& message) {
+    std::cerr << "server: " << message << "\n\n" << usage();
+    std::exit(2);
+}
 
 Options parse(int argc, char** argv) {
     Options o;
     if (const char* env = std::getenv("RENDER_TOKEN")) o.token = env;
-    for (int i = 1; i < argc; ++i) {
-        std::string a = argv[i];
-        auto value = [&]() -> std::string {
-            if (i + 1 >= argc) usage_error(a + " needs a value");
-            return argv[++i];
-        };
-        if (a == "--listen")
-            o.listen = value();
-        else if (a == "--store")
-            o.server.store = value();
-        else if (a == "--token")
-            o.token = value();
-        else if (a == "--lease-timeout")
-            o.server.lease_timeout_seconds = parse_seconds(a, value());
-        else if (a == "--heartbeat")
-            o.server.heartbeat_seconds = parse_seconds(a, value());
-        else if (a == "--help" || a == "-h") {
-            std::cout << kUsage;
-            std::exit(0);
-        } else
-            usage_error("unknown argument " + a);
+    try {
+        make_parser(o).parse(argc, argv);
+    } catch (const UsageError& e) {
+        usage_error(e.what());
+    }
+    if (o.help) {
+        std::cout << usage();
+        std::exit(0);
     }
     if (o.listen.empty()) usage_error("--listen HOST:PORT is required");
     if (o.server.store.empty()) usage_error("--store DIR is required");

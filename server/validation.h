@@ -1,28 +1,32 @@
 #pragma once
 
-// Checks of untrusted request fields. Each returns an empty string when the value is fine,
-// otherwise a message naming the field.
+// Checks of untrusted request fields, each with a message naming the field.
 
 #include <cstdint>
 #include <string>
 
+#include <grpcpp/grpcpp.h>
+
+#include "render.pb.h"
+
 namespace render::server {
 
-// Limits of a job (see issue 4: input limits).
-inline constexpr uint64_t kMaxIterations = 10000000;
-inline constexpr uint32_t kMaxResolution = 8192;
+// Limits of a request (the limits of the render itself, shared with `render` and the client,
+// are in core/render/job_limits.h).
 inline constexpr size_t kMaxFrames = 1000;
 inline constexpr size_t kMaxBundleFiles = 10000;
 inline constexpr uint64_t kMaxAssetSize = 4ull << 30;    // 4 GiB per asset
 inline constexpr uint64_t kMaxBundleSize = 16ull << 30;  // 16 GiB per job
-inline constexpr double kMaxTimeBudgetSeconds = 30 * 24 * 3600.0;
 inline constexpr size_t kMaxPathLength = 1024;
 
 // A bundle path: relative, forward slashes, no "..", ".", empty or absolute parts.
 std::string check_bundle_path(const std::string& path);
 
-// One of pt, lt, bpt, ppm, bpm, vcm.
-bool is_supported_algorithm(const std::string& algorithm);
+// Everything about a SubmitJobRequest that can be checked without its assets and scene:
+// name, settings (algorithm, limits, options against the render options table), defines,
+// frames and the bundle's paths and sizes. INVALID_ARGUMENT or RESOURCE_EXHAUSTED naming the
+// field.
+grpc::Status check_submit_request(const v1::SubmitJobRequest& request);
 
 // A job id as the server makes them (letters, digits, '-'), so that it is safe in a path.
 bool is_safe_id(const std::string& id);

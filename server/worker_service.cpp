@@ -65,9 +65,9 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         return Status(StatusCode::INVALID_ARGUMENT, "a report must start with its header");
     const v1::ReportHeader header = chunk.header();
     const auto started = std::chrono::steady_clock::now();
-    size_t n = 0;
+    size_t n = 0, layers = 0;
     bool drop = false;
-    if (Status s = manager_.check_report(header, &n, &drop); !s.ok()) {
+    if (Status s = manager_.check_report(header, &n, &layers, &drop); !s.ok()) {
         Log("warn", "report_rejected")
             .kv("lease", header.lease_id())
             .kv("error", s.error_message());
@@ -80,9 +80,9 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         reply->set_merged(false);
         return Status::OK;
     }
-    std::vector<double> sum(n), odd_sum(n);
-    const size_t bytes_per_buffer = n * sizeof(double);
-    const size_t expected = 2 * bytes_per_buffer;
+    // sum, odd_sum, then the layers' sums: one float64 sequence, split after it is complete.
+    std::vector<double> values(n * (2 + layers));
+    const size_t expected = values.size() * sizeof(double);
     size_t received = 0;
     while (reader->Read(&chunk)) {
         if (chunk.has_header())
@@ -92,32 +92,26 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
             return Status(StatusCode::INVALID_ARGUMENT, "report has more than the expected " +
                                                             std::to_string(expected) +
                                                             " bytes of values");
-        size_t offset = 0;
-        while (offset < data.size()) {
-            size_t at = received + offset;
-            char* target = at < bytes_per_buffer
-                               ? reinterpret_cast<char*>(sum.data()) + at
-                               : reinterpret_cast<char*>(odd_sum.data()) + (at - bytes_per_buffer);
-            size_t room = at < bytes_per_buffer ? bytes_per_buffer - at : expected - at;
-            size_t take = std::min(room, data.size() - offset);
-            std::memcpy(target, data.data() + offset, take);
-            offset += take;
-        }
+        std::memcpy(reinterpret_cast<char*>(values.data()) + received, data.data(), data.size());
         received += data.size();
     }
     if (context->IsCancelled()) return Status(StatusCode::CANCELLED, "report cancelled");
     if (received != expected)
         return Status(StatusCode::INVALID_ARGUMENT,
                       "report has " + std::to_string(received) + " bytes of values, expected " +
-                          std::to_string(expected) + " (sum and odd_sum, " + std::to_string(n) +
+                          std::to_string(expected) + " (sum, odd_sum and " +
+                          std::to_string(layers) + " layers, " + std::to_string(n) +
                           " float64 each)");
-    for (size_t i = 0; i < n; ++i)
-        if (!std::isfinite(sum[i]) || !std::isfinite(odd_sum[i]))
+    for (size_t i = 0; i < values.size(); ++i)
+        if (!std::isfinite(values[i]))
             return Status(StatusCode::INVALID_ARGUMENT,
                           "report value " + std::to_string(i) + " is not finite");
+    const std::vector<double> sum(values.begin(), values.begin() + n),
+        odd_sum(values.begin() + n, values.begin() + 2 * n),
+        layer_sums(values.begin() + 2 * n, values.end());
     const auto received_at = std::chrono::steady_clock::now();
     bool merged = false;
-    if (Status s = manager_.report(header, sum, odd_sum, &merged); !s.ok()) return s;
+    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged); !s.ok()) return s;
     reply->set_merged(merged);
     // Cost of a report for the performance report (docs/performance.md): bytes on the wire
     // (header + values), time spent receiving the chunks and time spent merging (accumulate +

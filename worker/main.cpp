@@ -7,34 +7,51 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "core/util/arguments.h"
 #include "core/util/log.h"
-#include "worker/rpc_common.h"
+#include "service/rpc.h"
 #include "worker/worker.h"
 
 namespace {
 
+using namespace render;
 using namespace render::service;
 
-constexpr const char* kUsage = R"(usage:
-  worker --server HOST:PORT [--threads T] [--token T] [--cache DIR]
+ArgumentParser make_parser(WorkerOptions& o, std::string& token, bool& help) {
+    ArgumentParser p;
+    p.value({"--server"}, "HOST:PORT",
+            "the render server (default: env RENDER_SERVER, else 127.0.0.1:50051)",
+            [&](const std::string& v) { o.server = v; });
+    p.value({"--threads"}, "T", "render threads (default 0: all cores; never changes the image)",
+            [&](const std::string& v) {
+                o.threads = parse_number<int>("--threads", v);
+                if (o.threads < 0) throw UsageError("--threads must be >= 0");
+            });
+    p.value({"--token"}, "T", "bearer token (default: env RENDER_TOKEN)",
+            [&](const std::string& v) { token = v; });
+    p.value({"--cache"}, "DIR",
+            "asset cache (default: $XDG_CACHE_HOME/render-worker, else ~/.cache/render-worker, "
+            "else /tmp/render-worker-$UID)",
+            [&](const std::string& v) { o.cache_dir = v; });
+    p.flag({"--help", "-h"}, "this text", [&] { help = true; });
+    return p;
+}
 
-options:
-  --server HOST:PORT   the render server (default: env RENDER_SERVER, else 127.0.0.1:50051)
-  --threads T          render threads (default 0: all cores; never changes the image)
-  --token T            bearer token (default: env RENDER_TOKEN)
-  --cache DIR          asset cache (default: $XDG_CACHE_HOME/render-worker, else
-                       ~/.cache/render-worker, else /tmp/render-worker-$UID)
-
-Logs are key=value lines on stderr. SIGTERM/SIGINT: finish the current range, report it and
-exit 0; a second signal gives the range up at once.
-)";
+std::string usage() {
+    WorkerOptions unused_options;
+    std::string unused_token;
+    bool unused_help = false;
+    return "usage:\n  worker --server HOST:PORT [options]\n\noptions:\n" +
+           make_parser(unused_options, unused_token, unused_help).help() +
+           "\nLogs are key=value lines on stderr. SIGTERM/SIGINT: finish the current range, "
+           "report it and\nexit 0; a second signal gives the range up at once.\n";
+}
 
 [[noreturn]] void usage_error(const std::string& message) {
-    std::cerr << "worker: " << message << "\n\n" << kUsage;
+    std::cerr << "worker: " << message << "\n\n" << usage();
     std::exit(2);
 }
 
@@ -56,30 +73,15 @@ int main(int argc, char** argv) {
     WorkerOptions options;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) options.server = env;
     std::string token;
-    std::vector<std::string> args(argv + 1, argv + argc);
-    for (size_t i = 0; i < args.size(); ++i) {
-        const std::string& a = args[i];
-        auto value = [&]() -> std::string {
-            if (i + 1 >= args.size()) usage_error(a + " needs a value");
-            return args[++i];
-        };
-        if (a == "--server") {
-            options.server = value();
-        } else if (a == "--threads") {
-            std::string v = value();
-            std::istringstream in(v);
-            if (!(in >> options.threads) || !in.eof() || options.threads < 0)
-                usage_error("--threads expects a number >= 0, got \"" + v + "\"");
-        } else if (a == "--token") {
-            token = value();
-        } else if (a == "--cache") {
-            options.cache_dir = value();
-        } else if (a == "--help" || a == "-h") {
-            std::cout << kUsage;
-            return 0;
-        } else {
-            usage_error("unknown argument " + a);
-        }
+    bool help = false;
+    try {
+        make_parser(options, token, help).parse(argc, argv);
+    } catch (const UsageError& e) {
+        usage_error(e.what());
+    }
+    if (help) {
+        std::cout << usage();
+        return 0;
     }
     if (options.server.empty()) options.server = "127.0.0.1:50051";
     options.token = token_or_env(token);

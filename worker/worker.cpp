@@ -15,7 +15,8 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
-#include "worker/rpc_common.h"
+#include "service/request_options.h"
+#include "service/rpc.h"
 
 namespace render::service {
 
@@ -64,6 +65,7 @@ bool is_transient(grpc::StatusCode code) {
 
 struct RangeResult {
     std::vector<double> sum, odd_sum;
+    std::vector<std::vector<double>> layers;  // the technique layers' sums, in their order
     uint64_t count = 0, odd_count = 0;
     RenderStats stats;
     double seconds = 0;
@@ -233,14 +235,11 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 return fetch_asset(sha, sink);
             });
         scene = &scene_for(lease, scene_file);
+        // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
-        settings.algorithm = s.algorithm().empty() ? scene->settings.integrator : s.algorithm();
-        settings.seed = s.seed();
-        settings.max_depth = s.has_max_depth() ? s.max_depth() : scene->settings.max_depth;
-        settings.rr_depth = scene->settings.rr_depth;
-        if (s.radius_factor() != 0) settings.radius_factor = s.radius_factor();
-        if (s.alpha() != 0) settings.alpha = s.alpha();
-        settings.light_path_count = s.light_path_count();
+        settings = resolve_render_settings(
+            s.algorithm().empty() ? scene->settings.integrator : s.algorithm(), request_options(s),
+            scene->settings);
         settings.threads = options_.threads;
     } catch (const std::exception& e) {
         return fail(e.what());
@@ -254,6 +253,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     const size_t values = size_t(result.width) * size_t(result.height) * 3;
     result.sum.assign(values, 0.0);
     result.odd_sum.assign(values, 0.0);
+    result.layers.assign(TechniqueLayers::names(settings.layers).size(),
+                         std::vector<double>(values, 0.0));
     std::atomic<bool> abandon{false};
     std::mutex mutex;
     std::condition_variable done_cv;
@@ -274,6 +275,10 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 for (size_t k = 0; k < values; ++k) result.sum[k] += sum[k];
                 if (r.odd_count > 0)
                     for (size_t k = 0; k < values; ++k) result.odd_sum[k] += odd[k];
+                for (size_t l = 0; l < result.layers.size(); ++l) {
+                    const std::vector<double>& layer = r.layers.buffer(l).values();
+                    for (size_t k = 0; k < values; ++k) result.layers[l][k] += layer[k];
+                }
                 result.count += r.count;
                 result.odd_count += r.odd_count;
                 result.stats += r.stats;
@@ -349,10 +354,14 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
         header->set_rays(result.stats.rays);
         header->set_non_finite(result.stats.non_finite);
         header->set_render_seconds(result.seconds);
+        header->set_layer_count(uint32_t(result.layers.size()));
         bool ok = writer->Write(chunk);
-        // sum, then odd_sum, as one little-endian float64 sequence cut into <= 1 MiB chunks.
+        // sum, odd_sum, then the layers, as one little-endian float64 sequence cut into
+        // <= 1 MiB chunks.
         const size_t per_chunk = kMaxChunkBytes / sizeof(double);
-        for (const std::vector<double>* buffer : {&result.sum, &result.odd_sum}) {
+        std::vector<const std::vector<double>*> buffers = {&result.sum, &result.odd_sum};
+        for (const std::vector<double>& layer : result.layers) buffers.push_back(&layer);
+        for (const std::vector<double>* buffer : buffers) {
             for (size_t at = 0; ok && at < buffer->size(); at += per_chunk) {
                 size_t n = std::min(per_chunk, buffer->size() - at);
                 v1::ReportChunk values;

@@ -12,12 +12,6 @@
 
 namespace render {
 
-// An extra image stored as channels NAME.R, NAME.G, NAME.B after the main R, G, B.
-struct NamedLayer {
-    std::string name;
-    Image image;
-};
-
 // Writes linear float RGB OpenEXR; `metadata` becomes string attributes in the header and
 // `layers` extra channels (same size as `image`). Throws std::runtime_error with OIIO's
 // message on failure.

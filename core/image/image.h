@@ -4,6 +4,7 @@
 // iterations add into, so that summing many iterations or many workers loses nothing).
 
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "core/math/vec.h"
@@ -62,6 +63,12 @@ class AccumulationBuffer {
   private:
     int width_ = 0, height_ = 0;
     std::vector<double> rgb_;
+};
+
+// An extra image stored as channels NAME.R, NAME.G, NAME.B after the main R, G, B (write_exr).
+struct NamedLayer {
+    std::string name;
+    Image image;
 };
 
 }  // namespace render

@@ -13,14 +13,23 @@ int path_vertices_index(int s, int t) {
 
 }  // namespace
 
-TechniqueLayers::TechniqueLayers(LayerMode mode, int width, int height) : mode_(mode) {
+std::vector<std::string> TechniqueLayers::names(LayerMode mode) {
+    std::vector<std::string> names;
     if (mode == LayerMode::Techniques) {
-        names_ = {"connection", "merging"};
+        names = {"connection", "merging"};
     } else if (mode == LayerMode::PathVertices) {
         for (int n = 2; n <= kMaxVertices; ++n)
             for (int s = 0; s < n; ++s)
-                names_.push_back("s" + std::to_string(s) + "_t" + std::to_string(n - s));
+                names.push_back(std::string("s")
+                                    .append(std::to_string(s))
+                                    .append("_t")
+                                    .append(std::to_string(n - s)));
     }
+    return names;
+}
+
+TechniqueLayers::TechniqueLayers(LayerMode mode, int width, int height)
+    : mode_(mode), names_(names(mode)) {
     buffers_.assign(names_.size(), AccumulationBuffer(width, height));
 }
 
@@ -39,6 +48,16 @@ int TechniqueLayers::index(Technique kind, int s, int t) const {
 void TechniqueLayers::add(const TechniqueLayers& other) {
     for (size_t i = 0; i < buffers_.size() && i < other.buffers_.size(); ++i)
         buffers_[i].add(other.buffers_[i]);
+}
+
+std::vector<NamedLayer> TechniqueLayers::named_averages(uint64_t count) const {
+    std::vector<NamedLayer> out;
+    for (size_t i = 0; i < buffers_.size(); ++i) {
+        bool any = false;
+        for (double v : buffers_[i].values()) any |= v != 0;
+        if (any) out.push_back({names_[i], buffers_[i].average(double(count))});
+    }
+    return out;
 }
 
 }  // namespace render

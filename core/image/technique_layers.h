@@ -9,6 +9,7 @@
 //                 vertices (longer paths only reach the main image).
 // The layers of an iteration sum exactly like the image (they are part of IterationResult).
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -25,12 +26,15 @@ class TechniqueLayers {
 
     TechniqueLayers() = default;
     TechniqueLayers(LayerMode mode, int width, int height);
+    // The layers' names in the mode, in buffer order (also the order a worker reports them).
+    static std::vector<std::string> names(LayerMode mode);
 
     LayerMode mode() const { return mode_; }
     bool enabled() const { return mode_ != LayerMode::None; }
     size_t size() const { return buffers_.size(); }
     const std::string& name(size_t i) const { return names_[i]; }
     const AccumulationBuffer& buffer(size_t i) const { return buffers_[i]; }
+    AccumulationBuffer& buffer(size_t i) { return buffers_[i]; }
 
     // Layer receiving a contribution of technique `kind` with s light and t eye vertices, or
     // -1 when no layer records it.
@@ -39,6 +43,9 @@ class TechniqueLayers {
         if (index >= 0 && value.is_finite()) buffers_[size_t(index)].add(pixel, value);
     }
     void add(const TechniqueLayers& other);
+    // Each layer's mean over `count` iterations; layers that never received a contribution
+    // are left out (they would only fill the file with zeros).
+    std::vector<NamedLayer> named_averages(uint64_t count) const;
 
   private:
     LayerMode mode_ = LayerMode::None;

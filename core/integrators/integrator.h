@@ -8,10 +8,10 @@
 #include <cstdint>
 #include <memory>
 
+#include "core/base/render_stats.h"
 #include "core/image/image.h"
 #include "core/image/technique_layers.h"
 #include "core/math/ray.h"
-#include "core/render/render_settings.h"
 #include "core/sampling/rng.h"
 #include "core/scene/scene.h"
 
@@ -46,13 +46,5 @@ class PixelIntegrator : public Integrator {
     virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
                    const LayerSink& sink) const = 0;
 };
-
-// The integrator `settings.algorithm` names ("pt", "path", "eyelight"). Throws
-// std::invalid_argument naming the supported ones for anything else.
-std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings);
-
-// Throws std::invalid_argument when `algorithm` would render `scene` wrongly: pt and eyelight
-// ignore participating media, and the bidirectional family handles homogeneous media only.
-void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene);
 
 }  // namespace render

@@ -11,8 +11,8 @@
 
 #include <cstdint>
 
+#include "core/base/render_stats.h"
 #include "core/image/image.h"
-#include "core/render/render_settings.h"
 
 namespace render {
 

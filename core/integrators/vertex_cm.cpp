@@ -12,13 +12,13 @@
 
 #include "core/integrators/direct_light.h"
 #include "core/integrators/hash_grid.h"
+#include "core/integrators/medium_segment.h"
+#include "core/integrators/merge_radius.h"
 #include "core/integrators/pixel_loop.h"
 #include "core/integrators/vcm_mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
-#include "core/media/medium_segment.h"
-#include "core/render/merge_radius.h"
 
 namespace render {
 namespace {

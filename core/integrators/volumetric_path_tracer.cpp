@@ -4,11 +4,11 @@
 #include <cmath>
 
 #include "core/integrators/direct_light.h"
+#include "core/integrators/medium_segment.h"
 #include "core/integrators/mis.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/media/medium.h"
 #include "core/media/medium_interface.h"
-#include "core/media/medium_segment.h"
 #include "core/sampling/equiangular.h"
 
 namespace render {

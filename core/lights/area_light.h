@@ -15,8 +15,8 @@
 //   power():      pi * area * Le.
 // A zero-area shape emits nothing (every sampling routine fails, pdfs are 0).
 
+#include "core/base/shape.h"
 #include "core/lights/light.h"
-#include "core/scene/shape.h"
 
 namespace render {
 

@@ -8,9 +8,9 @@
 #include <limits>
 #include <sstream>
 
+#include "core/base/error.h"
 #include "core/lights/scene_disk.h"
 #include "core/math/constants.h"
-#include "core/scene/error.h"
 
 namespace render {
 namespace {

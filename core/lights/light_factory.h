@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <memory>
 
+#include "core/base/properties.h"
+#include "core/base/shape.h"
 #include "core/lights/light.h"
-#include "core/scene/properties.h"
-#include "core/scene/shape.h"
 
 namespace render {
 

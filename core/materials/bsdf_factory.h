@@ -4,8 +4,8 @@
 
 #include <memory>
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -5,9 +5,9 @@
 
 #include <string>
 
+#include "core/base/properties.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -4,9 +4,9 @@
 // Fresnel term of a complex IOR, times `specular_reflectance`. Without an IOR ("none") it is a
 // perfect mirror of reflectance `specular_reflectance`. One-sided.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
 #include "core/materials/ior.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -5,8 +5,8 @@
 // the specular_reflectance or specular_transmission tint (times the 1/eta^2 radiance scaling
 // of refraction in Radiance mode).
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

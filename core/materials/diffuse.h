@@ -3,8 +3,8 @@
 // Lambertian reflection, one-sided (Mitsuba's `diffuse`): f = reflectance / pi when both
 // directions are above the surface, zero otherwise. Samples the cosine-weighted hemisphere.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

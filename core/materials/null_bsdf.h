@@ -5,8 +5,8 @@
 // about media step through it without counting a bounce; the others see a delta transmission
 // with weight 1, which is the same light transport.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -8,8 +8,8 @@
 // mirror direction (samples below the surface are rejected), and reports the mixture pdf.
 // This is the glossy floor of the reference Cornell boxes.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

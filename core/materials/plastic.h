@@ -9,8 +9,8 @@
 // The delta specular lobe is chosen with probability proportional to F * mean(ks) against
 // (1 - F) * mean(kd), as in Mitsuba. One-sided.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -4,10 +4,10 @@
 // reflection model f = F(wo.m) D(m) G(wo, wi, m) / (4 cos_o cos_i), m = half vector, with a
 // Beckmann or GGX distribution and the exact conductor Fresnel term. One-sided.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -5,9 +5,9 @@
 // refraction on a Beckmann or GGX surface, one of the two chosen by the Fresnel term of the
 // sampled micro-normal. Either side may be the incident one.
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
 #include "core/materials/microfacet.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

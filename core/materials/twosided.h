@@ -4,8 +4,8 @@
 // below the surface is mirrored to the front side and evaluated there, by the front child or,
 // when two children are given, by the second one (the back side's material).
 
+#include "core/base/properties.h"
 #include "core/materials/bsdf.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

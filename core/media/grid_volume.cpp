@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 
 namespace render {
 namespace {

@@ -2,9 +2,9 @@
 
 #include <memory>
 
+#include "core/base/properties.h"
 #include "core/media/medium.h"
 #include "core/media/volume.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

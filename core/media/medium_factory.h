@@ -7,9 +7,9 @@
 #include <memory>
 #include <string>
 
+#include "core/base/properties.h"
 #include "core/media/medium.h"
 #include "core/media/phase_function.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -6,9 +6,9 @@
 // (null). A shape that declares no media therefore puts vacuum behind every transmission,
 // which is what a glass object in fog needs when its own inside is empty.
 
+#include "core/base/interaction.h"
+#include "core/base/shape.h"
 #include "core/math/vec.h"
-#include "core/scene/interaction.h"
-#include "core/scene/shape.h"
 
 namespace render {
 

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <sstream>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 
 namespace render {
 namespace {

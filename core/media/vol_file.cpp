@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 
 namespace render {
 namespace {

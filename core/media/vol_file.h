@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "core/scene/shape.h"
+#include "core/base/shape.h"
 
 namespace render {
 

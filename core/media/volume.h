@@ -7,8 +7,8 @@
 #include <array>
 #include <string>
 
+#include "core/base/shape.h"
 #include "core/math/vec.h"
-#include "core/scene/shape.h"
 
 namespace render {
 

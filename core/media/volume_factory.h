@@ -11,8 +11,8 @@
 #include <memory>
 #include <string>
 
+#include "core/base/properties.h"
 #include "core/media/volume.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "core/integrators/integrator.h"
+#include "core/render/algorithms.h"
 
 namespace render {
 

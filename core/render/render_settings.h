@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <string>
 
+#include "core/base/render_stats.h"
 #include "core/image/technique_layers.h"
 
 namespace render {
@@ -31,20 +32,6 @@ struct RenderSettings {
     bool equiangular = true;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
-};
-
-// Counters of one render call; merged by addition.
-struct RenderStats {
-    uint64_t samples = 0;     // camera samples (pixels x iterations)
-    uint64_t rays = 0;        // closest-hit plus shadow rays
-    uint64_t non_finite = 0;  // NaN/Inf samples dropped before reaching the image
-
-    RenderStats& operator+=(const RenderStats& o) {
-        samples += o.samples;
-        rays += o.rays;
-        non_finite += o.non_finite;
-        return *this;
-    }
 };
 
 }  // namespace render

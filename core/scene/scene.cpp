@@ -3,11 +3,11 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/base/error.h"
+#include "core/base/properties.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
 #include "core/scene/embree_ray.h"
-#include "core/scene/error.h"
-#include "core/scene/properties.h"
 
 namespace render {
 namespace {

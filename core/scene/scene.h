@@ -11,13 +11,13 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/base/interaction.h"
+#include "core/base/shape.h"
 #include "core/camera/perspective_camera.h"
 #include "core/lights/light.h"
 #include "core/materials/bsdf.h"
 #include "core/math/ray.h"
 #include "core/sampling/distribution.h"
-#include "core/scene/interaction.h"
-#include "core/scene/shape.h"
 
 namespace render {
 

@@ -29,7 +29,7 @@
 #include "core/image/image.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/triangle_mesh.h"
 #include "tests/support/test_scenes.h"
 
 namespace render {

@@ -24,8 +24,8 @@
 #include "core/lights/point_light.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
-#include "core/scene/shapes/sphere.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/sphere.h"
+#include "core/shapes/triangle_mesh.h"
 #include "tests/support/chi_square.h"
 
 namespace render::testing {

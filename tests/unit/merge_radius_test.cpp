@@ -1,4 +1,4 @@
-#include "core/render/merge_radius.h"
+#include "core/integrators/merge_radius.h"
 
 #include <gtest/gtest.h>
 

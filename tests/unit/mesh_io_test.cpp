@@ -11,9 +11,9 @@
 #include <fstream>
 #include <string>
 
-#include "core/scene/error.h"
-#include "core/scene/mesh_io/obj_reader.h"
-#include "core/scene/mesh_io/ply_reader.h"
+#include "core/base/error.h"
+#include "core/mesh_io/obj_reader.h"
+#include "core/mesh_io/ply_reader.h"
 
 namespace render {
 namespace {

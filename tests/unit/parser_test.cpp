@@ -11,11 +11,11 @@
 #include <random>
 #include <string>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/loader/version_upgrade.h"
-#include "core/scene/shapes/sphere.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/sphere.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 namespace {

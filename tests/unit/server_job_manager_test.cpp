@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <filesystem>
 
 #include "core/render/render_iterations.h"
@@ -81,13 +83,14 @@ struct ManagerTest : ::testing::Test {
         h.set_width(8);
         h.set_height(6);
         h.set_render_seconds(0.01);
-        size_t n = 0;
+        size_t n = 0, layers = 0;
         bool drop = false;
-        EXPECT_TRUE(m.check_report(h, &n, &drop).ok());
+        EXPECT_TRUE(m.check_report(h, &n, &layers, &drop).ok());
         if (drop) return false;
         EXPECT_EQ(n, 8u * 6u * 3u);
+        EXPECT_EQ(layers, 0u);
         bool merged = false;
-        EXPECT_TRUE(m.report(h, r.sum.values(), r.odd_sum.values(), &merged).ok());
+        EXPECT_TRUE(m.report(h, r.sum.values(), r.odd_sum.values(), {}, &merged).ok());
         return merged;
     }
 };
@@ -133,6 +136,54 @@ TEST_F(ManagerTest, RejectsBadRequestsWithPreciseCodes) {
     m.list(&list);
     EXPECT_EQ(list.jobs_size(), 1);
     EXPECT_EQ(m.get("job-nope", &job).error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+// The options map is checked against the render options table, typed legacy fields are folded
+// into it, and the stored job carries every option its algorithm reads.
+TEST_F(ManagerTest, OptionsAreCheckedAndStoredComplete) {
+    JobManager m(options);
+    v1::Job job;
+    auto good = request(m, 4);
+    auto refused = [&](const std::function<void(v1::RenderSettings&)>& change,
+                       const std::string& expected) {
+        auto r = good;
+        change(*r.mutable_settings());
+        grpc::Status st = m.submit(r, &job);
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << expected;
+        EXPECT_NE(st.error_message().find(expected), std::string::npos) << st.error_message();
+    };
+    refused([](v1::RenderSettings& s) { (*s.mutable_options())["radius"] = "1"; }, "radius");
+    refused([](v1::RenderSettings& s) { (*s.mutable_options())["mis"] = "maybe"; }, "mis");
+    refused([](v1::RenderSettings& s) { (*s.mutable_options())["alpha"] = "1.5"; }, "alpha");
+    refused(
+        [](v1::RenderSettings& s) {
+            s.set_algorithm("pt");
+            (*s.mutable_options())["radius_factor"] = "0.01";
+        },
+        "radius_factor");
+    refused(
+        [](v1::RenderSettings& s) {
+            s.set_algorithm("vcm");
+            s.set_alpha(0.5);
+            (*s.mutable_options())["alpha"] = "0.6";
+        },
+        "disagree");
+
+    auto r = good;
+    r.mutable_settings()->set_algorithm("vcm");
+    r.mutable_settings()->set_alpha(0.5);  // a typed field of older clients
+    (*r.mutable_settings()->mutable_options())["mis"] = "balance";
+    ASSERT_TRUE(m.submit(r, &job).ok());
+    const auto& stored = job.settings().options();
+    EXPECT_EQ(stored.at("alpha"), "0.5");
+    EXPECT_EQ(stored.at("mis"), "balance");
+    EXPECT_EQ(stored.at("radius_factor"), "0.003");  // the default, made explicit
+    EXPECT_EQ(stored.count("equiangular"), 0u);      // vcm does not read it
+    EXPECT_EQ(job.settings().alpha(), 0.0);          // folded into the map
+    r = good;
+    r.mutable_settings()->set_algorithm("path");  // an alias is stored by its name
+    ASSERT_TRUE(m.submit(r, &job).ok());
+    EXPECT_EQ(job.settings().algorithm(), "pt");
 }
 
 TEST_F(ManagerTest, RendersAJobAndDropsDuplicates) {

@@ -2,14 +2,14 @@
 
 #include <cmath>
 
+#include "core/base/error.h"
 #include "core/math/constants.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
-#include "core/scene/error.h"
 #include "core/scene/scene.h"
-#include "core/scene/shapes/disk.h"
-#include "core/scene/shapes/sphere.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/disk.h"
+#include "core/shapes/sphere.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 namespace {

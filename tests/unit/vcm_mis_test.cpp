@@ -21,8 +21,8 @@
 // eta = 4/3 pi r^3 N instead of pi r^2 N). Sampling a segment also samples its length, so each
 // segment has a distance density at either end: pdf_scatter(t) (per unit length) at a medium
 // vertex, probability_pass(t) at a surface vertex, the light or the camera (surface-like
-// endpoints), both from a real HomogeneousMedium (core/media/medium_segment.h). Directional and
-// constant lights are outside the fog: it fills a ball around the scene with a null boundary,
+// endpoints), both from a real HomogeneousMedium (core/integrators/medium_segment.h). Directional
+// and constant lights are outside the fog: it fills a ball around the scene with a null boundary,
 // so the segment toward such a light crosses the fog only up to the ball (the vacuum beyond is
 // passed with probability one), and its densities are those of that length.
 
@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "core/camera/perspective_camera.h"
+#include "core/integrators/medium_segment.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"
 #include "core/lights/directional_light.h"
@@ -47,10 +48,9 @@
 #include "core/math/constants.h"
 #include "core/media/henyey_greenstein.h"
 #include "core/media/homogeneous_medium.h"
-#include "core/media/medium_segment.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 namespace {

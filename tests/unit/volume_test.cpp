@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "core/base/error.h"
+#include "core/base/properties.h"
 #include "core/media/constant_volume.h"
 #include "core/media/grid_volume.h"
 #include "core/media/majorant_grid.h"
@@ -22,8 +24,6 @@
 #include "core/media/vol_file.h"
 #include "core/media/volume_factory.h"
 #include "core/sampling/rng.h"
-#include "core/scene/error.h"
-#include "core/scene/properties.h"
 
 namespace render {
 namespace {

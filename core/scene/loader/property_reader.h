@@ -5,9 +5,9 @@
 
 #include <string_view>
 
+#include "core/base/properties.h"
 #include "core/math/transform.h"
 #include "core/scene/loader/xml_element.h"
-#include "core/scene/properties.h"
 
 namespace render {
 

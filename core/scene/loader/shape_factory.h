@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <memory>
 
-#include "core/scene/properties.h"
-#include "core/scene/shape.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/base/properties.h"
+#include "core/base/shape.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 

@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 
 namespace render {
 

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <charconv>
 
+#include "core/mesh_io/file_bytes.h"
 #include "core/scene/loader/version_upgrade.h"
-#include "core/scene/mesh_io/file_bytes.h"
 
 namespace render {
 namespace {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "core/scene/error.h"
+#include "core/base/error.h"
 
 namespace render {
 

@@ -1,0 +1,81 @@
+#pragma once
+
+// Segments of bidirectional subpaths through participating media. A segment joins two
+// scattering vertices; on its way it may cross index-matched (null) boundaries, so it is made
+// of pieces, each in one medium or in vacuum. Bidirectional MIS needs the density of
+// distance sampling along the whole segment in both directions:
+//   toward_end   = P_pass of every piece but the last, times the last piece's density of a
+//                  scattering event at its end (medium vertex) or its P_pass (surface),
+//   toward_start = the same from the other end.
+// Densities come from Medium::pdf_scatter and probability_pass, which are exact for
+// homogeneous media; that is why the bidirectional family accepts homogeneous media only.
+
+#include <cstdint>
+
+#include "core/base/interaction.h"
+#include "core/base/render_stats.h"
+#include "core/math/ray.h"
+#include "core/sampling/rng.h"
+
+namespace render {
+
+class Medium;
+class Scene;
+
+// Index-matched boundaries crossed in one segment before a path gives up: stacks of coincident
+// null surfaces would otherwise loop forever.
+inline constexpr int kMaxNullCrossings = 256;
+
+struct SegmentDensities {
+    float toward_end = 1;
+    float toward_start = 1;
+};
+
+// Accumulates the densities of a segment piece by piece.
+class SegmentDensityBuilder {
+  public:
+    explicit SegmentDensityBuilder(bool start_in_medium) : start_in_medium_(start_in_medium) {}
+    // A piece of `length` along `ray` in `medium` (null: vacuum).
+    void add_piece(const Medium* medium, const Ray& ray, float length);
+    SegmentDensities finish(bool end_in_medium) const;
+
+  private:
+    bool start_in_medium_;
+    int pieces_ = 0;
+    float pass_before_last_ = 1;    // product of P_pass over all pieces but the last
+    float pass_after_first_ = 1;    // product of P_pass over all pieces but the first
+    float first_start_factor_ = 1;  // the first piece's density toward the segment's start
+    float last_pass_ = 1, last_scatter_ = 1;
+};
+
+// Where a sampled segment ended.
+enum class SegmentEnd { Surface, Medium, Escaped };
+
+struct SampledSegment {
+    SegmentEnd end = SegmentEnd::Escaped;
+    SurfaceInteraction si;           // the surface hit (end == Surface)
+    Vec3 position;                   // the vertex (surface hit or medium scattering point)
+    const Medium* medium = nullptr;  // the medium the segment ended in
+    Rgb weight{1.0f};                // product of the pieces' distance-sampling weights
+    SegmentDensities densities;
+    float distance = 0;  // from the ray's origin to the vertex
+};
+
+// Traces `ray` from a vertex (in a medium when `start_in_medium`) through null boundaries and
+// media, sampling distances, to the next scattering vertex: a non-null surface, a scattering
+// event in a medium, or nothing. Counts traced rays in `stats`.
+SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
+                              bool start_in_medium, Rng& rng, RenderStats& stats);
+
+struct SegmentConnection {
+    Rgb transmittance{0.0f};  // zero when a non-null surface blocks the segment
+    SegmentDensities densities;
+};
+
+// The deterministic segment between two vertices: `ray` as Scene::spawn_ray_to builds it
+// (t_max infinite toward an infinite light), starting in `medium`.
+SegmentConnection connect_segment(const Scene& scene, const Ray& ray, const Medium* medium,
+                                  bool start_in_medium, bool end_in_medium, Rng& rng,
+                                  RenderStats& stats);
+
+}  // namespace render

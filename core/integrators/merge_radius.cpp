@@ -1,0 +1,17 @@
+#include "core/integrators/merge_radius.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace render {
+
+double min_merge_radius() {
+    return 1e-18;
+}
+
+double merge_radius(double r1, double alpha, uint64_t iteration) {
+    double i = double(std::max<uint64_t>(iteration, 1));
+    return std::max(r1 * std::pow(i, 0.5 * (alpha - 1.0)), min_merge_radius());
+}
+
+}  // namespace render

@@ -1,0 +1,26 @@
+#pragma once
+
+// A small PLY reader (there is no Debian PLY library): ASCII, binary_little_endian and
+// binary_big_endian files. Reads the `vertex` element's x y z, optional nx ny nz and texture
+// coordinates (u v, s t, texture_u texture_v or texture_s texture_t), and the `face` element's
+// index list (`vertex_indices` or `vertex_index`, any integer count and index type). Polygons
+// are fan-triangulated. Other elements and properties are read and ignored.
+// Scene format reference: docs/scene-format.md (shape `ply`).
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include "core/shapes/triangle_mesh.h"
+
+namespace render {
+
+// Throws SceneError naming the file and the header line or element (e.g. "face 12") for bad
+// input: unknown format, malformed header, truncated data, out-of-range indices, non-finite
+// positions.
+MeshData read_ply(const std::filesystem::path& path);
+
+// The same from bytes in memory; `name` is used in messages.
+MeshData read_ply_from_memory(std::string_view bytes, const std::string& name);
+
+}  // namespace render

@@ -1,0 +1,169 @@
+#include "core/render/algorithms.h"
+
+#include <stdexcept>
+
+#include "core/integrators/eyelight.h"
+#include "core/integrators/path_tracer.h"
+#include "core/integrators/vertex_cm.h"
+#include "core/integrators/volumetric_path_tracer.h"
+#include "core/media/medium.h"
+#include "core/render/render_options.h"
+#include "core/scene/scene.h"
+
+namespace render {
+
+namespace {
+
+template <BidirectionalMode mode>
+std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
+    BidirectionalConfig config;
+    config.mode = mode;
+    config.max_depth = s.max_depth;
+    config.rr_depth = s.rr_depth;
+    config.radius_factor = s.radius_factor;
+    config.alpha = s.alpha;
+    config.light_path_count = s.light_path_count;
+    config.mis_power = s.mis_power;
+    return std::make_unique<VertexConnectionMerging>(config);
+}
+
+// The options of the bidirectional family; merging ones only where merging happens.
+const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "light_paths", "mis"};
+const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "light_paths",
+                                           "mis",       "radius_factor", "alpha"};
+
+const std::vector<Algorithm>& table() {
+    // One row per algorithm. A new algorithm: its integrator's own file(s) and a row here.
+    static const std::vector<Algorithm> rows = {
+        {"pt",
+         {"path"},
+         "path tracing with next-event estimation (surfaces only)",
+         {},
+         {"max_depth", "rr_depth"},
+         [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             return std::make_unique<PathTracer>(s.max_depth, s.rr_depth);
+         }},
+        {"volpt",
+         {"volpath"},
+         "volumetric path tracing: delta/ratio tracking, equi-angular sampling (any media)",
+         {true, true},
+         {"max_depth", "rr_depth", "equiangular"},
+         [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular);
+         }},
+        {"lt",
+         {},
+         "light tracing (homogeneous media)",
+         {true, false},
+         kConnecting,
+         make_bidirectional<BidirectionalMode::LightTracing>},
+        {"bpt",
+         {},
+         "bidirectional path tracing (homogeneous media)",
+         {true, false},
+         kConnecting,
+         make_bidirectional<BidirectionalMode::Bpt>},
+        {"ppm",
+         {},
+         "progressive photon mapping (homogeneous media: photon points)",
+         {true, false},
+         kMerging,
+         make_bidirectional<BidirectionalMode::Ppm>},
+        {"bpm",
+         {},
+         "bidirectional photon mapping (homogeneous media)",
+         {true, false},
+         kMerging,
+         make_bidirectional<BidirectionalMode::Bpm>},
+        {"vcm",
+         {},
+         "vertex connection and merging (homogeneous media)",
+         {true, false},
+         kMerging,
+         make_bidirectional<BidirectionalMode::Vcm>},
+        {"eyelight",
+         {},
+         "debug shading: |cos| at the first hit (surfaces only)",
+         {},
+         {},
+         [](const RenderSettings&) -> std::unique_ptr<Integrator> {
+             return std::make_unique<EyeLight>();
+         }},
+    };
+    return rows;
+}
+
+}  // namespace
+
+const std::vector<Algorithm>& algorithms() {
+    return table();
+}
+
+const Algorithm* find_algorithm(std::string_view name) {
+    for (const Algorithm& a : table()) {
+        if (a.name == name) return &a;
+        for (const std::string& alias : a.aliases)
+            if (alias == name) return &a;
+    }
+    return nullptr;
+}
+
+const Algorithm& find_algorithm_or_throw(std::string_view name) {
+    if (const Algorithm* a = find_algorithm(name)) return *a;
+    throw std::invalid_argument("unknown algorithm \"" + std::string(name.substr(0, 64)) +
+                                "\" (supported: " + algorithm_names() + ")");
+}
+
+std::string algorithm_names() {
+    std::string out;
+    for (const Algorithm& a : table()) out += (out.empty() ? "" : ", ") + a.name;
+    return out;
+}
+
+std::string algorithms_help() {
+    std::string out;
+    for (const Algorithm& a : table()) {
+        std::string head = "  " + a.name;
+        for (const std::string& alias : a.aliases) head += ", " + alias;
+        head.resize(std::max<size_t>(head.size() + 2, 24), ' ');
+        out += head + a.description + "\n";
+    }
+    return out;
+}
+
+bool algorithm_reads(const Algorithm& algorithm, const RenderOption& option) {
+    if (option.every_algorithm) return true;
+    for (const std::string& name : algorithm.options)
+        if (name == option.name) return true;
+    return false;
+}
+
+std::string algorithms_reading(const RenderOption& option) {
+    std::string out;
+    for (const Algorithm& a : table())
+        if (algorithm_reads(a, option)) out += (out.empty() ? "" : ", ") + a.name;
+    return out.empty() ? "none" : out;
+}
+
+std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
+    return find_algorithm_or_throw(settings.algorithm).create(settings);
+}
+
+void check_algorithm_supports_scene(const std::string& name, const Scene& scene) {
+    const Algorithm& algorithm = find_algorithm_or_throw(name);
+    bool homogeneous = false, grid = false;
+    for (const auto& medium : scene.media()) (medium->is_homogeneous() ? homogeneous : grid) = true;
+    const auto supported = [&](const Algorithm& a) {
+        return (!homogeneous || a.support.homogeneous_media) && (!grid || a.support.grid_media);
+    };
+    if (supported(algorithm)) return;
+    std::string can;
+    for (const Algorithm& a : table())
+        if (supported(a)) can += (can.empty() ? "" : ", ") + a.name;
+    throw std::invalid_argument(
+        "the scene has " +
+        std::string(grid ? "a heterogeneous (grid) medium" : "participating media") +
+        ", which algorithm \"" + algorithm.name + "\" does not render correctly (use " + can + ")");
+}
+
+}  // namespace render

@@ -1,0 +1,62 @@
+#pragma once
+
+// The algorithm table: one row per light-transport algorithm, with its name, aliases (scene-file
+// integrator names), what scenes it renders correctly, the options it reads and its factory.
+// Every list of algorithms, every "supported: ..." message and the --help text are derived from
+// it (docs/architecture.md, "adding an integrator").
+
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/integrators/integrator.h"
+#include "core/render/render_settings.h"
+
+namespace render {
+
+class Scene;
+struct RenderOption;
+
+// What a scene may contain for the algorithm to render it without bias. Every algorithm
+// renders surfaces.
+struct SceneSupport {
+    bool homogeneous_media = false;
+    bool grid_media = false;  // heterogeneous (grid) media
+};
+
+struct Algorithm {
+    std::string name;                  // as in --algo, the API and EXR headers
+    std::vector<std::string> aliases;  // other accepted names (Mitsuba's integrator types)
+    std::string description;           // one line for --help
+    SceneSupport support;
+    // Options it reads besides those every algorithm reads (RenderOption::every_algorithm).
+    std::vector<std::string> options;
+    std::unique_ptr<Integrator> (*create)(const RenderSettings&) = nullptr;
+};
+
+// Every algorithm, in --help order.
+const std::vector<Algorithm>& algorithms();
+
+// The algorithm of that name or alias, or nullptr.
+const Algorithm* find_algorithm(std::string_view name_or_alias);
+// The same; throws std::invalid_argument "unknown algorithm "x" (supported: ...)".
+const Algorithm& find_algorithm_or_throw(std::string_view name_or_alias);
+
+// "pt, volpt, lt, ...": the names, for messages.
+std::string algorithm_names();
+// "  pt      path tracing\n ...": name, aliases and description per line, for --help.
+std::string algorithms_help();
+
+bool algorithm_reads(const Algorithm& algorithm, const RenderOption& option);
+// "ppm, bpm, vcm": the algorithms that read the option.
+std::string algorithms_reading(const RenderOption& option);
+
+// The integrator for `settings` (settings.algorithm may be an alias).
+std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings);
+
+// Throws std::invalid_argument when the algorithm would render `scene` wrongly (media it does
+// not handle), naming the algorithms that can.
+void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene);
+
+}  // namespace render

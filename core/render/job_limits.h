@@ -1,0 +1,22 @@
+#pragma once
+
+// The limits of one render job, the same for `render`, the client and the server: the
+// iteration count, the time budget and the film size. The server also limits what a request
+// may carry (server/validation.h).
+
+#include <cstdint>
+#include <string>
+
+namespace render {
+
+inline constexpr uint64_t kMaxIterations = 10000000;
+inline constexpr double kMaxTimeBudgetSeconds = 30 * 24 * 3600.0;  // 30 days
+// Largest film side: an 8192^2 frame's two float64 sums take 3.2 GB at the server.
+inline constexpr int kMaxFilmResolution = 8192;
+
+// Checked command-line values (UsageError naming `flag`): iterations in [1, kMaxIterations],
+// a time budget in (0, kMaxTimeBudgetSeconds].
+uint64_t parse_iterations(const std::string& flag, const std::string& text);
+double parse_time_budget(const std::string& flag, const std::string& text);
+
+}  // namespace render

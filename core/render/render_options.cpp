@@ -1,0 +1,347 @@
+#include "core/render/render_options.h"
+
+#include <charconv>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/render/algorithms.h"
+#include "core/scene/scene.h"
+#include "core/util/arguments.h"
+
+#include <nlohmann/json.hpp>
+
+namespace render {
+
+namespace {
+
+int to_int(const std::string& text) {
+    return parse_number<int>("", text);
+}
+double to_real(const std::string& text) {
+    return parse_number<double>("", text);
+}
+
+const std::vector<RenderOption>& table() {
+    // One row per option. A new option: a row here, the field in RenderSettings, and its name
+    // in the rows of the algorithms that read it (algorithms.cpp).
+    static const std::vector<RenderOption> rows = [] {
+        std::vector<RenderOption> r;
+        {
+            RenderOption o;
+            o.name = "seed";
+            o.flag = "--seed";
+            o.metavar = "S";
+            o.type = OptionType::Unsigned;
+            o.help = "random seed: part of every random stream's key";
+            o.default_text = "0";
+            o.every_algorithm = true;
+            o.apply = [](RenderSettings& s, const std::string& v) {
+                s.seed = parse_number<uint64_t>("", v);
+            };
+            o.format = [](const RenderSettings& s) { return std::to_string(s.seed); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "max_depth";
+            o.flag = "--max-depth";
+            o.metavar = "D";
+            o.type = OptionType::Integer;
+            o.min = -1;
+            o.max = 2147483647;
+            o.help =
+                "longest path in segments (Mitsuba's meaning; -1 = unbounded, 1 = emitters "
+                "seen directly)";
+            o.default_text = "the scene's max_depth";
+            o.apply = [](RenderSettings& s, const std::string& v) { s.max_depth = to_int(v); };
+            o.format = [](const RenderSettings& s) { return std::to_string(s.max_depth); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "rr_depth";
+            o.flag = "--rr-depth";
+            o.metavar = "D";
+            o.type = OptionType::Integer;
+            o.min = 0;
+            o.max = 2147483647;
+            o.help = "path depth from which Russian roulette may end paths";
+            o.default_text = "the scene's rr_depth, else 5";
+            o.apply = [](RenderSettings& s, const std::string& v) { s.rr_depth = to_int(v); };
+            o.format = [](const RenderSettings& s) { return std::to_string(s.rr_depth); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "radius_factor";
+            o.flag = "--radius-factor";
+            o.metavar = "F";
+            o.type = OptionType::Real;
+            o.min = 0;
+            o.min_exclusive = true;
+            o.max = 1000;
+            o.help = "initial merging radius as a fraction of the scene's bounding-sphere radius";
+            o.default_text = format_real(RenderSettings().radius_factor);
+            o.apply = [](RenderSettings& s, const std::string& v) { s.radius_factor = to_real(v); };
+            o.format = [](const RenderSettings& s) { return format_real(s.radius_factor); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "alpha";
+            o.flag = "--alpha";
+            o.metavar = "A";
+            o.type = OptionType::Real;
+            o.min = 0;
+            o.min_exclusive = true;
+            o.max = 1;
+            o.help = "merging radius reduction: r_i = r_1 i^((A-1)/2)";
+            o.default_text = format_real(RenderSettings().alpha);
+            o.apply = [](RenderSettings& s, const std::string& v) { s.alpha = to_real(v); };
+            o.format = [](const RenderSettings& s) { return format_real(s.alpha); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "light_paths";
+            o.flag = "--light-paths";
+            o.metavar = "N";
+            o.type = OptionType::Integer;
+            o.min = 0;
+            o.max = 100000000;
+            o.help = "light paths per iteration (0 = one per pixel)";
+            o.default_text = "0";
+            o.apply = [](RenderSettings& s, const std::string& v) {
+                s.light_path_count = parse_number<uint64_t>("", v);
+            };
+            o.format = [](const RenderSettings& s) { return std::to_string(s.light_path_count); };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "mis";
+            o.flag = "--mis";
+            o.metavar = "power|balance";
+            o.type = OptionType::Choice;
+            o.choices = {"power", "balance"};
+            o.help = "multiple importance sampling heuristic of the bidirectional family";
+            o.default_text = "power";
+            o.apply = [](RenderSettings& s, const std::string& v) {
+                s.mis_power = v == "balance" ? 1 : 2;
+            };
+            o.format = [](const RenderSettings& s) -> std::string {
+                return s.mis_power == 1 ? "balance" : "power";
+            };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "equiangular";
+            o.flag = "--equiangular";
+            o.metavar = "on|off";
+            o.type = OptionType::Choice;
+            o.choices = {"on", "off"};
+            o.help =
+                "equi-angular sampling of scattering toward finite lights, combined by MIS "
+                "with distance sampling (off: distance sampling only)";
+            o.default_text = "on";
+            o.negated_flag = "--no-equiangular";
+            o.negated_value = "off";
+            o.apply = [](RenderSettings& s, const std::string& v) { s.equiangular = v == "on"; };
+            o.format = [](const RenderSettings& s) -> std::string {
+                return s.equiangular ? "on" : "off";
+            };
+            r.push_back(o);
+        }
+        {
+            RenderOption o;
+            o.name = "layers";
+            o.flag = "--layers";
+            o.metavar = "none|techniques|st";
+            o.type = OptionType::Choice;
+            o.choices = {"none", "techniques", "st"};
+            o.help =
+                "extra EXR layers: techniques (connection and merging parts), st (one per "
+                "(s, t) technique, paths of up to 6 vertices)";
+            o.default_text = "none";
+            o.every_algorithm = true;
+            o.apply = [](RenderSettings& s, const std::string& v) {
+                s.layers = v == "techniques" ? LayerMode::Techniques
+                           : v == "st"       ? LayerMode::PathVertices
+                                             : LayerMode::None;
+            };
+            o.format = [](const RenderSettings& s) -> std::string {
+                return s.layers == LayerMode::Techniques     ? "techniques"
+                       : s.layers == LayerMode::PathVertices ? "st"
+                                                             : "none";
+            };
+            r.push_back(o);
+        }
+        return r;
+    }();
+    return rows;
+}
+
+std::string join(const std::vector<std::string>& items, const char* separator) {
+    std::string out;
+    for (const std::string& s : items) out += (out.empty() ? "" : separator) + s;
+    return out;
+}
+
+std::string range_text(const RenderOption& o) {
+    std::string lo =
+        o.type == OptionType::Real ? format_real(o.min) : std::to_string(int64_t(o.min));
+    std::string hi =
+        o.type == OptionType::Real ? format_real(o.max) : std::to_string(int64_t(o.max));
+    return (o.min_exclusive ? "(" : "[") + lo + ", " + hi + "]";
+}
+
+}  // namespace
+
+const std::vector<RenderOption>& render_options() {
+    return table();
+}
+
+const RenderOption* find_render_option(std::string_view name) {
+    for (const RenderOption& o : table())
+        if (o.name == name) return &o;
+    return nullptr;
+}
+
+std::string render_option_names() {
+    std::vector<std::string> names;
+    for (const RenderOption& o : table()) names.push_back(o.name);
+    return join(names, ", ");
+}
+
+std::string format_real(double value) {
+    char buffer[64];
+    auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, value);
+    return ec == std::errc() ? std::string(buffer, end) : std::to_string(value);
+}
+
+std::string canonical_option_value(const RenderOption& o, const std::string& text) {
+    auto fail = [&](const std::string& what) -> std::invalid_argument {
+        return std::invalid_argument("option " + o.name + " (" + o.flag + ") expects " + what +
+                                     ", got \"" + text.substr(0, 64) + "\"");
+    };
+    try {
+        switch (o.type) {
+            case OptionType::Unsigned:
+                return std::to_string(parse_number<uint64_t>("", text));
+            case OptionType::Integer: {
+                const int64_t v = parse_number<int64_t>("", text);
+                if (double(v) < o.min || double(v) > o.max)
+                    throw fail("an integer in " + range_text(o));
+                return std::to_string(v);
+            }
+            case OptionType::Real: {
+                const double v = parse_number<double>("", text);
+                if (v < o.min || (o.min_exclusive && v == o.min) || v > o.max)
+                    throw fail("a number in " + range_text(o));
+                return format_real(v);
+            }
+            case OptionType::Choice:
+                for (const std::string& c : o.choices)
+                    if (c == text) return c;
+                throw fail("one of " + join(o.choices, ", "));
+        }
+    } catch (const UsageError&) {
+        if (o.type == OptionType::Real) throw fail("a number in " + range_text(o));
+        if (o.type == OptionType::Integer) throw fail("an integer in " + range_text(o));
+        throw fail("an unsigned integer");
+    }
+    throw fail("a valid value");
+}
+
+RenderSettings resolve_render_settings(const std::string& algorithm, const OptionMap& options,
+                                       const SceneSettings& scene) {
+    const Algorithm& a = find_algorithm_or_throw(algorithm);
+    RenderSettings settings;
+    settings.algorithm = a.name;
+    settings.max_depth = scene.max_depth;
+    settings.rr_depth = scene.rr_depth;
+    for (const auto& [name, value] : options) {
+        const RenderOption* o = find_render_option(name);
+        if (!o)
+            throw std::invalid_argument("unknown option \"" + name.substr(0, 64) +
+                                        "\" (options: " + render_option_names() + ")");
+        if (!algorithm_reads(a, *o))
+            throw std::invalid_argument("option " + name + " (" + o->flag +
+                                        ") is not read by algorithm " + a.name + " (read by " +
+                                        algorithms_reading(*o) + ")");
+        o->apply(settings, canonical_option_value(*o, value));
+    }
+    return settings;
+}
+
+OptionMap render_settings_options(const RenderSettings& settings) {
+    const Algorithm& a = find_algorithm_or_throw(settings.algorithm);
+    OptionMap out;
+    for (const RenderOption& o : table())
+        if (algorithm_reads(a, o)) out[o.name] = o.format(settings);
+    return out;
+}
+
+std::map<std::string, std::string> render_settings_metadata(const RenderSettings& settings) {
+    std::map<std::string, std::string> out = {{"render:algorithm", settings.algorithm}};
+    for (const auto& [name, value] : render_settings_options(settings))
+        out["render:" + name] = value;
+    return out;
+}
+
+void add_render_options(ArgumentParser& parser, OptionMap& options) {
+    for (const RenderOption& o : table()) {
+        std::string help =
+            o.help + " (default " + o.default_text + "; " +
+            (o.every_algorithm ? std::string("every algorithm") : algorithms_reading(o)) + ")";
+        parser.value({o.flag}, o.metavar, help, [&options, &o](const std::string& v) {
+            try {
+                options[o.name] = canonical_option_value(o, v);
+            } catch (const std::invalid_argument& e) {
+                throw UsageError(e.what());
+            }
+        });
+        if (!o.negated_flag.empty())
+            parser.flag({o.negated_flag}, "same as " + o.flag + " " + o.negated_value,
+                        [&options, &o] { options[o.name] = o.negated_value; });
+    }
+}
+
+std::string render_tables_json() {
+    nlohmann::json out;
+    out["algorithms"] = nlohmann::json::array();
+    for (const Algorithm& a : algorithms()) {
+        nlohmann::json options = nlohmann::json::array();
+        for (const RenderOption& o : table())
+            if (algorithm_reads(a, o)) options.push_back(o.name);
+        out["algorithms"].push_back({{"name", a.name},
+                                     {"aliases", a.aliases},
+                                     {"description", a.description},
+                                     {"homogeneous_media", a.support.homogeneous_media},
+                                     {"grid_media", a.support.grid_media},
+                                     {"options", options}});
+    }
+    out["options"] = nlohmann::json::array();
+    for (const RenderOption& o : table()) {
+        static const char* kTypes[] = {"integer", "unsigned", "real", "choice"};
+        std::vector<std::string> read_by;
+        for (const Algorithm& a : algorithms())
+            if (algorithm_reads(a, o)) read_by.push_back(a.name);
+        out["options"].push_back({{"name", o.name},
+                                  {"flag", o.flag},
+                                  {"type", kTypes[int(o.type)]},
+                                  {"help", o.help},
+                                  {"default", o.default_text},
+                                  {"min", o.min},
+                                  {"max", o.max},
+                                  {"min_exclusive", o.min_exclusive},
+                                  {"choices", o.choices},
+                                  {"negated_flag", o.negated_flag},
+                                  {"every_algorithm", o.every_algorithm},
+                                  {"read_by", read_by}});
+    }
+    return out.dump(2) + "\n";
+}
+
+}  // namespace render

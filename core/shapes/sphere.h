@@ -1,0 +1,34 @@
+#pragma once
+
+#include <string>
+
+#include "core/shapes/user_geometry.h"
+
+namespace render {
+
+// Analytic sphere (Embree user geometry; intersected in double precision, never tessellated).
+// Normals point outward unless flip_normals is set.
+class Sphere final : public AnalyticShape {
+  public:
+    Sphere(const Vec3& center, float radius, bool flip_normals, std::string name);
+
+    std::optional<double> nearest_hit(const float org[3], const float dir[3], float t_min,
+                                      float t_max) const override;
+    void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
+                          SurfaceInteraction& si) const override;
+    Aabb bounds() const override;
+    float surface_area() const override;
+    ShapeSample sample_area(Vec2 u) const override;
+    std::string to_string() const override;
+
+    Vec3 center() const { return center_; }
+    float radius() const { return radius_; }
+
+  private:
+    Vec3 center_;
+    float radius_;
+    bool flip_normals_;
+    std::string name_;
+};
+
+}  // namespace render

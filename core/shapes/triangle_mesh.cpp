@@ -1,0 +1,173 @@
+#include "core/shapes/triangle_mesh.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "core/base/error.h"
+#include "core/sampling/warp.h"
+
+namespace render {
+
+TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_normals,
+                           bool face_normals, std::string name)
+    : flip_normals_(flip_normals), name_(std::move(name)) {
+    if (data.indices.size() % 3 != 0)
+        throw SceneError(name_ + ": index count " + std::to_string(data.indices.size()) +
+                         " is not a multiple of 3");
+    for (uint32_t index : data.indices)
+        if (index >= data.positions.size())
+            throw SceneError(name_ + ": vertex index " + std::to_string(index) +
+                             " out of range (the mesh has " +
+                             std::to_string(data.positions.size()) + " vertices)");
+    if (to_world.is_singular()) throw SceneError(name_ + ": to_world transform is singular");
+
+    positions_.reserve(data.positions.size());
+    for (const Vec3& p : data.positions) {
+        Vec3 w = to_world.apply_point(p);
+        if (!is_finite(w)) throw SceneError(name_ + ": non-finite vertex position");
+        positions_.push_back(w);
+    }
+    if (!face_normals && data.normals.size() == data.positions.size()) {
+        normals_.reserve(data.normals.size());
+        for (const Vec3& n : data.normals) {
+            Vec3 w = to_world.apply_normal(n);
+            float len = length(w);
+            // A zero or broken normal falls back to the face normal at shading time.
+            normals_.push_back(len > 0 && std::isfinite(len) ? w / len : Vec3(0.0f));
+        }
+    }
+    if (data.uvs.size() == data.positions.size()) uvs_ = std::move(data.uvs);
+    indices_ = std::move(data.indices);
+
+    // A mirroring transform reverses the winding, so the face normal would disagree with the
+    // transformed normal (inverse transpose of the object normal, which Mitsuba's rectangle
+    // uses). Reversing the triangles keeps both on the same side, as pbrt does.
+    if (to_world.determinant3x3() < 0)
+        for (size_t i = 0; i + 2 < indices_.size(); i += 3)
+            std::swap(indices_[i + 1], indices_[i + 2]);
+    std::vector<float> areas(triangle_count());
+    double total = 0;
+    for (size_t i = 0; i < triangle_count(); ++i) {
+        const Vec3& p0 = positions_[indices_[3 * i]];
+        const Vec3& p1 = positions_[indices_[3 * i + 1]];
+        const Vec3& p2 = positions_[indices_[3 * i + 2]];
+        float a = 0.5f * length(cross(p1 - p0, p2 - p0));
+        areas[i] = std::isfinite(a) ? a : 0.0f;
+        total += areas[i];
+    }
+    area_ = float(total);
+    triangle_distribution_ = Distribution1D(std::move(areas));
+}
+
+unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    // Embree reads vertices as 16-byte loads; rtcSetNewGeometryBuffer pads the buffer for it.
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), positions_.size()));
+    for (size_t i = 0; i < positions_.size(); ++i) {
+        vertices[3 * i] = positions_[i].x;
+        vertices[3 * i + 1] = positions_[i].y;
+        vertices[3 * i + 2] = positions_[i].z;
+    }
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(uint32_t), triangle_count()));
+    std::copy(indices_.begin(), indices_.end(), indices);
+    rtcCommitGeometry(geometry);
+    unsigned id = rtcAttachGeometry(scene, geometry);
+    rtcReleaseGeometry(geometry);
+    return id;
+}
+
+void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
+                                    SurfaceInteraction& si) const {
+    uint32_t i0 = indices_[3 * prim_id], i1 = indices_[3 * prim_id + 1],
+             i2 = indices_[3 * prim_id + 2];
+    const Vec3 &p0 = positions_[i0], &p1 = positions_[i1], &p2 = positions_[i2];
+    float b0 = 1.0f - u - v;
+    // Interpolating the vertices is more accurate than origin + t * direction far from the
+    // ray origin.
+    si.p = p0 * b0 + p1 * u + p2 * v;
+    si.t = t;
+    Vec3 ng = cross(p1 - p0, p2 - p0);
+    float len = length(ng);
+    ng = len > 0 ? ng / len : (ray.direction * -1.0f);  // degenerate: face the ray
+    if (flip_normals_) ng = -ng;
+    si.geometric_normal = ng;
+
+    Vec3 ns = ng;
+    if (!normals_.empty()) {
+        Vec3 n = normals_[i0] * b0 + normals_[i1] * u + normals_[i2] * v;
+        float nlen = length(n);
+        if (nlen > 0 && std::isfinite(nlen)) {
+            ns = n / nlen;
+            if (flip_normals_) ns = -ns;
+        }
+    }
+    si.shading = Frame::from_normal(ns);
+    si.uv = uvs_.empty() ? Vec2(u, v) : uvs_[i0] * b0 + uvs_[i1] * u + uvs_[i2] * v;
+    si.shape = this;
+    si.bsdf = bsdf;
+    si.emitter = emitter;
+}
+
+Aabb TriangleMesh::bounds() const {
+    Aabb box;
+    for (const Vec3& p : positions_) box.expand(p);
+    return box;
+}
+
+ShapeSample TriangleMesh::sample_area(Vec2 u) const {
+    ShapeSample s;
+    if (area_ <= 0) return s;
+    float u_remapped;
+    size_t tri = triangle_distribution_.sample_discrete(u.x, nullptr, &u_remapped);
+    Vec2 b = warp::square_to_uniform_triangle(Vec2(u_remapped, u.y));
+    const Vec3& p0 = positions_[indices_[3 * tri]];
+    const Vec3& p1 = positions_[indices_[3 * tri + 1]];
+    const Vec3& p2 = positions_[indices_[3 * tri + 2]];
+    s.p = p0 * (1.0f - b.x - b.y) + p1 * b.x + p2 * b.y;
+    Vec3 n = normalize(cross(p1 - p0, p2 - p0));
+    s.n = flip_normals_ ? -n : n;
+    s.pdf_area = 1.0f / area_;
+    return s;
+}
+
+std::string TriangleMesh::to_string() const {
+    std::ostringstream out;
+    out << "TriangleMesh[" << name_ << ", " << triangle_count() << " triangles, area " << area_
+        << "]";
+    return out.str();
+}
+
+MeshData make_rectangle_mesh() {
+    MeshData m;
+    m.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+    m.normals = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}, {0, 0, 1}};
+    m.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    m.indices = {0, 1, 2, 0, 2, 3};
+    return m;
+}
+
+MeshData make_cube_mesh() {
+    // Six faces with their own vertices so that normals stay flat.
+    MeshData m;
+    const Vec3 normals[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    for (const Vec3& n : normals) {
+        // Two tangents with cross(s, t) = n so the winding faces outward.
+        Vec3 s = std::abs(n.x) > 0 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
+        Vec3 t = cross(n, s);
+        uint32_t base = uint32_t(m.positions.size());
+        const float corners[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+        for (const auto& c : corners) {
+            m.positions.push_back(n + s * c[0] + t * c[1]);
+            m.normals.push_back(n);
+            m.uvs.push_back(Vec2(0.5f * (c[0] + 1), 0.5f * (c[1] + 1)));
+        }
+        m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+    }
+    return m;
+}
+
+}  // namespace render

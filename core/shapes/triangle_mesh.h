@@ -1,0 +1,57 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/base/shape.h"
+#include "core/math/transform.h"
+#include "core/sampling/distribution.h"
+
+namespace render {
+
+// Raw triangle data as a file loader or a procedural generator produces it (object space).
+struct MeshData {
+    std::vector<Vec3> positions;
+    std::vector<Vec3> normals;      // per vertex; empty = none
+    std::vector<Vec2> uvs;          // per vertex; empty = none
+    std::vector<uint32_t> indices;  // 3 per triangle
+};
+
+// Triangle mesh in world space. Shading uses the interpolated vertex normals unless the mesh
+// has none or `face_normals` is set. Degenerate (zero-area) triangles are kept for
+// intersection but never sampled.
+class TriangleMesh final : public Shape {
+  public:
+    // Throws SceneError for out-of-range indices, non-finite positions or an index count that
+    // is not a multiple of 3.
+    TriangleMesh(MeshData data, const Transform& to_world, bool flip_normals, bool face_normals,
+                 std::string name);
+
+    unsigned attach(RTCDevice device, RTCScene scene) const override;
+    void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
+                          SurfaceInteraction& si) const override;
+    Aabb bounds() const override;
+    float surface_area() const override { return area_; }
+    ShapeSample sample_area(Vec2 u) const override;
+    std::string to_string() const override;
+
+    size_t triangle_count() const { return indices_.size() / 3; }
+    const std::vector<Vec3>& positions() const { return positions_; }
+
+  private:
+    std::vector<Vec3> positions_;
+    std::vector<Vec3> normals_;
+    std::vector<Vec2> uvs_;
+    std::vector<uint32_t> indices_;
+    bool flip_normals_;
+    float area_ = 0;
+    Distribution1D triangle_distribution_;  // by area
+    std::string name_;
+};
+
+// Procedural meshes with Mitsuba's object-space conventions.
+MeshData make_rectangle_mesh();  // [-1,1]^2 at z = 0, normal +z
+MeshData make_cube_mesh();       // [-1,1]^3, outward normals, flat faces
+
+}  // namespace render

@@ -1,0 +1,58 @@
+#include "core/shapes/user_geometry.h"
+
+#include <limits>
+
+namespace render {
+namespace {
+
+void analytic_bounds(const RTCBoundsFunctionArguments* args) {
+    Aabb b = static_cast<const AnalyticShape*>(args->geometryUserPtr)->bounds();
+    *args->bounds_o = RTCBounds{b.lo.x, b.lo.y, b.lo.z, 0.0f, b.hi.x, b.hi.y, b.hi.z, 0.0f};
+}
+
+// The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
+void analytic_intersect(const RTCIntersectFunctionNArguments* args) {
+    if (!args->valid[0]) return;
+    const auto* shape = static_cast<const AnalyticShape*>(args->geometryUserPtr);
+    auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
+    RTCRay& ray = rayhit->ray;
+    const float org[3] = {ray.org_x, ray.org_y, ray.org_z};
+    const float dir[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
+    std::optional<double> t = shape->nearest_hit(org, dir, ray.tnear, ray.tfar);
+    if (!t) return;
+    ray.tfar = float(*t);
+    RTCHit& hit = rayhit->hit;
+    hit.Ng_x = hit.Ng_y = hit.Ng_z = 0;  // computed by fill_interaction()
+    hit.u = hit.v = 0;
+    hit.primID = args->primID;
+    hit.geomID = args->geomID;
+    hit.instID[0] = args->context->instID[0];
+}
+
+void analytic_occluded(const RTCOccludedFunctionNArguments* args) {
+    if (!args->valid[0]) return;
+    const auto* shape = static_cast<const AnalyticShape*>(args->geometryUserPtr);
+    auto* ray = reinterpret_cast<RTCRay*>(args->ray);
+    const float org[3] = {ray->org_x, ray->org_y, ray->org_z};
+    const float dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
+    if (shape->nearest_hit(org, dir, ray->tnear, ray->tfar))
+        ray->tfar = -std::numeric_limits<float>::infinity();
+}
+
+}  // namespace
+
+unsigned AnalyticShape::attach(RTCDevice device, RTCScene scene) const {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(geometry, 1);
+    // Embree's API takes a non-const pointer; the callbacks only read the shape.
+    rtcSetGeometryUserData(geometry, const_cast<AnalyticShape*>(this));
+    rtcSetGeometryBoundsFunction(geometry, analytic_bounds, nullptr);
+    rtcSetGeometryIntersectFunction(geometry, analytic_intersect);
+    rtcSetGeometryOccludedFunction(geometry, analytic_occluded);
+    rtcCommitGeometry(geometry);
+    unsigned id = rtcAttachGeometry(scene, geometry);
+    rtcReleaseGeometry(geometry);
+    return id;
+}
+
+}  // namespace render

@@ -1,0 +1,253 @@
+// `render`: renders a scene file to an OpenEXR image on this machine, or compares two images.
+// Its options come from the algorithm table and the render options (core/render/): `render
+// --help` lists them.
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/base/error.h"
+#include "core/image/exr_io.h"
+#include "core/image/metrics.h"
+#include "core/render/algorithms.h"
+#include "core/render/image_metadata.h"
+#include "core/render/job_limits.h"
+#include "core/render/render_iterations.h"
+#include "core/render/render_options.h"
+#include "core/scene/loader/scene_loader.h"
+#include "core/util/arguments.h"
+#include "core/util/format_seconds.h"
+
+namespace {
+
+using namespace render;
+using Clock = std::chrono::steady_clock;
+
+struct Options {
+    std::string scene;
+    std::string out;
+    std::string png;
+    std::string algorithm;
+    std::optional<uint64_t> iterations;
+    std::optional<double> seconds;
+    int threads = 0;
+    int width = 0, height = 0;
+    std::map<std::string, std::string> defines;
+    OptionMap render_options;  // the table's options (core/render/render_options.h)
+    bool help = false;
+    bool describe = false;
+};
+
+ArgumentParser make_parser(Options& o) {
+    ArgumentParser p;
+    p.value({"--out", "-o"}, "FILE.exr", "output image (required)",
+            [&](const std::string& v) { o.out = v; });
+    p.value({"--algo"}, "NAME", "light-transport algorithm (default: the scene's integrator)",
+            [&](const std::string& v) { o.algorithm = v; });
+    p.value({"--iterations", "--spp"}, "N",
+            "progressive iterations, one sample per pixel each (default: the scene's sampler "
+            "sample_count)",
+            [&](const std::string& v) { o.iterations = parse_iterations("--iterations", v); });
+    p.value({"--time"}, "S", "stop after S seconds (with --iterations: whichever comes first)",
+            [&](const std::string& v) { o.seconds = parse_time_budget("--time", v); });
+    p.value({"--threads"}, "T", "worker threads (default: all cores; never changes the image)",
+            [&](const std::string& v) {
+                o.threads = parse_number<int>("--threads", v);
+                if (o.threads < 0) throw UsageError("--threads must be >= 0");
+            });
+    p.value({"--resolution"}, "WxH", "override the film resolution", [&](const std::string& v) {
+        std::tie(o.width, o.height) = parse_resolution("--resolution", v, kMaxFilmResolution);
+    });
+    p.value({"-D"}, "name=value", "override a <default> of the scene file (repeatable)",
+            [&](const std::string& v) {
+                o.defines.insert_or_assign(parse_define("-D", v).first,
+                                           parse_define("-D", v).second);
+            });
+    add_render_options(p, o.render_options);
+    p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
+            [&](const std::string& v) { o.png = v; });
+    p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
+    p.flag({"--describe-options"}, "print the algorithm and option tables as JSON and exit",
+           [&] { o.describe = true; });
+    p.positional([&](const std::string& v) {
+        if (!o.scene.empty()) throw UsageError("more than one scene file given");
+        o.scene = v;
+    });
+    return p;
+}
+
+std::string usage() {
+    Options unused;
+    return "usage:\n"
+           "  render SCENE.xml --out FILE.exr [options]\n"
+           "  render --compare TEST.exr REFERENCE.exr\n\n"
+           "options:\n" +
+           make_parser(unused).help() + "\nalgorithms (--algo):\n" + algorithms_help();
+}
+
+[[noreturn]] void usage_error(const std::string& message) {
+    std::cerr << "render: " << message << "\n\n" << usage();
+    std::exit(2);
+}
+
+Options parse_options(int argc, char** argv) {
+    Options o;
+    make_parser(o).parse(argc, argv);
+    if (o.help) {
+        std::cout << usage();
+        std::exit(0);
+    }
+    if (o.describe) {
+        std::cout << render_tables_json();
+        std::exit(0);
+    }
+    if (o.scene.empty()) throw UsageError("no scene file given");
+    if (o.out.empty()) throw UsageError("--out FILE.exr is required");
+    return o;
+}
+
+int compare(const std::string& test_file, const std::string& reference_file) {
+    Image test = read_image(test_file), reference = read_image(reference_file);
+    ImageComparison c = compare_images(test, reference);
+    std::printf("%-16s %14s %14s %14s\n", "metric", "R", "G", "B");
+    std::printf("%-16s %14.6g %14.6g %14.6g\n", "rmse", c.rmse[0], c.rmse[1], c.rmse[2]);
+    std::printf("%-16s %14.6g %14.6g %14.6g\n", "relative_mse", c.relative_mse[0],
+                c.relative_mse[1], c.relative_mse[2]);
+    std::printf("%-16s %14.6g %14.6g %14.6g\n", "mean_difference", c.mean_difference[0],
+                c.mean_difference[1], c.mean_difference[2]);
+    std::printf("overall: rmse %.6g, relative_mse %.6g, non-finite pixels %zu\n", c.rmse_all,
+                c.relative_mse_all, c.non_finite);
+    return 0;
+}
+
+// A progress bar on a terminal; a plain line every 10% (or every 10 s) otherwise.
+class Progress {
+  public:
+    Progress(std::optional<uint64_t> total, std::optional<double> budget)
+        : total_(total), budget_(budget), tty_(isatty(STDERR_FILENO)) {}
+
+    void update(uint64_t done, double elapsed) {
+        double fraction = 0;
+        if (total_) fraction = double(done) / double(*total_);
+        if (budget_) fraction = std::max(fraction, elapsed / *budget_);
+        fraction = std::min(fraction, 1.0);
+        double eta = fraction > 0 ? elapsed * (1.0 - fraction) / fraction : 0;
+        double rate = elapsed > 0 ? done / elapsed : 0;
+        if (tty_) {
+            if (elapsed - last_draw_ < 0.1 && fraction < 1.0) return;
+            last_draw_ = elapsed;
+            const int width = 30;
+            int filled = int(fraction * width);
+            std::fprintf(stderr, "\r[%s%s] %3d%%  %llu it  %.2f it/s  %s  ETA %s   ",
+                         std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+                         int(fraction * 100), (unsigned long long)done, rate,
+                         format_seconds(elapsed).c_str(), format_seconds(eta).c_str());
+        } else {
+            int decile = int(fraction * 10);
+            if (decile <= last_decile_ && elapsed - last_draw_ < 10.0) return;
+            last_decile_ = decile;
+            last_draw_ = elapsed;
+            std::fprintf(stderr, "progress: %3d%%  %llu iterations  %.2f it/s  %s  ETA %s\n",
+                         int(fraction * 100), (unsigned long long)done, rate,
+                         format_seconds(elapsed).c_str(), format_seconds(eta).c_str());
+        }
+    }
+    void finish() {
+        if (tty_) std::fprintf(stderr, "\n");
+    }
+
+  private:
+    std::optional<uint64_t> total_;
+    std::optional<double> budget_;
+    bool tty_;
+    double last_draw_ = -1;
+    int last_decile_ = -1;
+};
+
+int render_scene(const Options& o) {
+    auto t_load = Clock::now();
+    std::unique_ptr<Scene> scene = load_scene(o.scene, o.defines);
+    if (o.width > 0) scene->set_camera(scene->camera().with_resolution(o.width, o.height));
+    double load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
+
+    // The same resolution as the service's worker: defaults, the scene's values, the options.
+    RenderSettings settings =
+        resolve_render_settings(o.algorithm.empty() ? scene->settings.integrator : o.algorithm,
+                                o.render_options, scene->settings);
+    settings.threads = o.threads;
+    check_algorithm_supports_scene(settings.algorithm, *scene);
+
+    std::optional<uint64_t> total = o.iterations;
+    if (!total && !o.seconds) total = uint64_t(std::max(1, scene->settings.sample_count));
+    const int width = scene->camera().width(), height = scene->camera().height();
+    std::fprintf(stderr, "render: %s, %dx%d, %s, max_depth %d, %s (scene loaded in %.2fs)\n",
+                 o.scene.c_str(), width, height, settings.algorithm.c_str(), settings.max_depth,
+                 total ? (std::to_string(*total) + " iterations").c_str() : "time budget",
+                 load_seconds);
+
+    IterationResult accumulated;
+    accumulated.sum = AccumulationBuffer(width, height);
+    accumulated.odd_sum = AccumulationBuffer(width, height);
+    accumulated.layers = TechniqueLayers(settings.layers, width, height);
+    Progress progress(total, o.seconds);
+    auto t0 = Clock::now();
+    double elapsed = 0;
+    // One iteration per call: the sum over [1, N+1) equals one big call, and it lets the
+    // progress bar and the time budget act between iterations.
+    for (uint64_t i = 1;; ++i) {
+        if (total && i > *total) break;
+        if (o.seconds && elapsed >= *o.seconds && i > 1) break;
+        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{i, i + 1});
+        accumulated.sum.add(r.sum);
+        accumulated.odd_sum.add(r.odd_sum);
+        accumulated.count += r.count;
+        accumulated.odd_count += r.odd_count;
+        accumulated.stats += r.stats;
+        accumulated.layers.add(r.layers);
+        elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+        progress.update(accumulated.count, elapsed);
+    }
+    progress.finish();
+
+    Image image = accumulated.sum.average(double(accumulated.count));
+    const double error = estimate_relative_error(accumulated);
+    const auto metadata = image_metadata(settings, {o.scene, accumulated.count, elapsed, error,
+                                                    accumulated.stats.non_finite, o.defines});
+    write_exr(o.out, image, metadata, accumulated.layers.named_averages(accumulated.count));
+    if (!o.png.empty()) write_png_preview(o.png, image);
+
+    double samples_per_s = elapsed > 0 ? accumulated.stats.samples / elapsed : 0;
+    double rays_per_s = elapsed > 0 ? accumulated.stats.rays / elapsed : 0;
+    std::printf(
+        "%llu iterations in %.2f s: %.3g samples/s, %.3g rays/s, estimated relative error "
+        "%.3g, %llu non-finite samples dropped -> %s\n",
+        (unsigned long long)accumulated.count, elapsed, samples_per_s, rays_per_s, error,
+        (unsigned long long)accumulated.stats.non_finite, o.out.c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        if (argc >= 2 && std::string(argv[1]) == "--compare") {
+            if (argc != 4) usage_error("--compare needs exactly two images");
+            return compare(argv[2], argv[3]);
+        }
+        return render_scene(parse_options(argc, argv));
+    } catch (const UsageError& e) {
+        usage_error(e.what());
+    } catch (const SceneError& e) {
+        std::cerr << "render: scene error: " << e.what() << "\n";
+        return 1;
+    } catch (const std::exception& e) {
+        std::cerr << "render: error: " << e.what() << "\n";
+        return 1;
+    }
+}
