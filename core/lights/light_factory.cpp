@@ -3,17 +3,16 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/base/error.h"
+#include "core/base/plugin_table.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"
 #include "core/lights/directional_light.h"
 #include "core/lights/envmap_light.h"
 #include "core/lights/point_light.h"
-#include "core/scene/error.h"
 
 namespace render {
 namespace {
-
-constexpr const char* kSupported = "area, point, directional, constant, envmap";
 
 // Emitted quantities must be finite and non-negative: a negative or NaN radiance would
 // poison every image sample it touches.
@@ -69,31 +68,46 @@ std::unique_ptr<Light> make_envmap(const Properties& props,
     }
 }
 
+std::unique_ptr<Light> make_area(const Properties& props, const Shape* shape,
+                                 const std::filesystem::path&) {
+    return std::make_unique<AreaLight>(shape, get_emission(props, "radiance", Rgb(1.0f)));
+}
+
+std::unique_ptr<Light> make_constant(const Properties& props, const Shape*,
+                                     const std::filesystem::path&) {
+    return std::make_unique<ConstantLight>(get_emission(props, "radiance", Rgb(1.0f)));
+}
+
+// The registry: scene-file name -> factory. Only "area" is nested in a shape (it emits from
+// its surface); every other emitter stands alone.
+using LightFactory = std::unique_ptr<Light> (*)(const Properties&, const Shape*,
+                                                const std::filesystem::path&);
+const Plugin<LightFactory> kPlugins[] = {
+    {"area", make_area},
+    {"point",
+     [](const Properties& p, const Shape*, const std::filesystem::path&) { return make_point(p); }},
+    {"directional", [](const Properties& p, const Shape*,
+                       const std::filesystem::path&) { return make_directional(p); }},
+    {"constant", make_constant},
+    {"envmap", [](const Properties& p, const Shape*,
+                  const std::filesystem::path& dir) { return make_envmap(p, dir); }},
+};
+
 }  // namespace
 
 std::unique_ptr<Light> make_light(const Properties& props, const Shape* shape,
                                   const std::filesystem::path& scene_dir) {
-    const std::string& type = props.type();
-    if (type == "area") {
-        if (!shape)
-            throw SceneError(props.where(),
-                             "emitter \"area\" must be nested inside a shape (it emits from "
-                             "that shape's surface)");
-        return std::make_unique<AreaLight>(shape, get_emission(props, "radiance", Rgb(1.0f)));
-    }
-    bool known = type == "point" || type == "directional" || type == "constant" || type == "envmap";
-    if (!known)
+    const auto& plugin = find_plugin(kPlugins, props, "emitter");
+    const bool on_shape = props.type() == "area";
+    if (on_shape && !shape)
         throw SceneError(props.where(),
-                         "unknown emitter type \"" + type + "\" (supported: " + kSupported + ")");
-    if (shape)
-        throw SceneError(props.where(), "emitter \"" + type +
-                                            "\" cannot be nested inside a shape (only "
-                                            "\"area\" can)");
-    if (type == "point") return make_point(props);
-    if (type == "directional") return make_directional(props);
-    if (type == "constant")
-        return std::make_unique<ConstantLight>(get_emission(props, "radiance", Rgb(1.0f)));
-    return make_envmap(props, scene_dir);
+                         "emitter \"area\" must be nested inside a shape (it emits "
+                         "from that shape's surface)");
+    if (!on_shape && shape)
+        throw SceneError(props.where(), "emitter \"" + props.type() +
+                                            "\" cannot be nested inside a shape (only \"area\" "
+                                            "can)");
+    return plugin.create(props, shape, scene_dir);
 }
 
 }  // namespace render

@@ -1,5 +1,7 @@
 #include "core/materials/bsdf_factory.h"
 
+#include "core/base/plugin_table.h"
+
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
@@ -13,12 +15,7 @@
 namespace render {
 namespace {
 
-struct BsdfPlugin {
-    const char* name;
-    std::shared_ptr<const Bsdf> (*create)(const Properties&);
-};
-
-constexpr BsdfPlugin kPlugins[] = {
+constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] = {
     {"diffuse", &DiffuseBsdf::create},
     {"twosided", &TwoSidedBsdf::create},
     {"conductor", &ConductorBsdf::create},
@@ -33,13 +30,7 @@ constexpr BsdfPlugin kPlugins[] = {
 }  // namespace
 
 std::shared_ptr<const Bsdf> make_bsdf(const Properties& props) {
-    for (const BsdfPlugin& plugin : kPlugins)
-        if (props.type() == plugin.name) return plugin.create(props);
-    std::string supported;
-    for (const BsdfPlugin& plugin : kPlugins)
-        supported += std::string(supported.empty() ? "" : ", ") + plugin.name;
-    throw SceneError(props.where(),
-                     "unknown bsdf type \"" + props.type() + "\" (supported: " + supported + ")");
+    return find_plugin(kPlugins, props, "bsdf").create(props);
 }
 
 }  // namespace render

@@ -1,5 +1,7 @@
 #include "core/media/medium_factory.h"
 
+#include "core/base/plugin_table.h"
+
 #include <cmath>
 
 #include "core/media/constant_volume.h"
@@ -48,48 +50,70 @@ std::shared_ptr<const Medium> make_homogeneous(const Properties& props,
 }  // namespace
 
 std::shared_ptr<const PhaseFunction> make_phase(const Properties& props) {
-    if (props.type() == "isotropic") return std::make_shared<IsotropicPhase>();
-    if (props.type() == "hg") {
-        const float g = props.get_float("g", 0.8f);  // Mitsuba 3's default
-        if (!(g > -1.0f && g < 1.0f)) throw props.error("g", "must be in (-1, 1)");
-        return std::make_shared<HenyeyGreenstein>(g);
-    }
-    throw SceneError(props.where(), "unknown phase function type \"" + props.type() +
-                                        "\" (supported: isotropic, hg)");
+    static const Plugin<std::shared_ptr<const PhaseFunction> (*)(const Properties&)> kPhases[] = {
+        {"isotropic",
+         [](const Properties&) -> std::shared_ptr<const PhaseFunction> {
+             return std::make_shared<IsotropicPhase>();
+         }},
+        {"hg",
+         [](const Properties& p) -> std::shared_ptr<const PhaseFunction> {
+             const float g = p.get_float("g", 0.8f);  // Mitsuba 3's default
+             if (!(g > -1.0f && g < 1.0f)) throw p.error("g", "must be in (-1, 1)");
+             return std::make_shared<HenyeyGreenstein>(g);
+         }},
+    };
+    return find_plugin(kPhases, props, "phase function").create(props);
 }
+
+namespace {
+
+using Volumes = std::map<std::string, std::shared_ptr<const Volume>>;
+
+std::shared_ptr<const Medium> make_homogeneous_plugin(const Properties& props,
+                                                      std::shared_ptr<const PhaseFunction> phase,
+                                                      const Volumes& volumes) {
+    if (!volumes.empty())
+        throw SceneError(props.where(),
+                         "a homogeneous medium takes float or rgb coefficients, not volumes "
+                         "(use a heterogeneous medium for volume data)");
+    return make_homogeneous(props, std::move(phase));
+}
+
+std::shared_ptr<const Medium> make_heterogeneous_plugin(const Properties& props,
+                                                        std::shared_ptr<const PhaseFunction> phase,
+                                                        const Volumes& volumes) {
+    // Each coefficient is a nested <volume name="..."> or a plain float/rgb (a constant).
+    auto volume = [&](const std::string& name) -> std::shared_ptr<const Volume> {
+        auto it = volumes.find(name);
+        if (it != volumes.end()) {
+            if (props.has(name)) throw props.error(name, "given both as a value and as a <volume>");
+            return it->second;
+        }
+        if (!props.has(name)) return nullptr;  // the factory applies Mitsuba's default
+        return std::make_shared<ConstantVolume>(props.get_rgb(name));
+    };
+    for (const auto& [name, v] : volumes)
+        if (name != "sigma_t" && name != "albedo")
+            throw SceneError(props.where(), "heterogeneous medium: unknown volume \"" + name +
+                                                "\" (expected sigma_t or albedo)");
+    return make_heterogeneous_medium(props, volume("sigma_t"), volume("albedo"), std::move(phase));
+}
+
+const Plugin<std::shared_ptr<const Medium> (*)(
+    const Properties&, std::shared_ptr<const PhaseFunction>, const Volumes&)>
+    kMedia[] = {
+        {"homogeneous", make_homogeneous_plugin},
+        {"heterogeneous", make_heterogeneous_plugin},
+};
+
+}  // namespace
 
 std::shared_ptr<const Medium> make_medium(
     const Properties& props, std::shared_ptr<const PhaseFunction> phase,
     const std::map<std::string, std::shared_ptr<const Volume>>& volumes) {
+    const auto& plugin = find_plugin(kMedia, props, "medium");
     if (!phase) phase = std::make_shared<IsotropicPhase>();
-    if (props.type() == "homogeneous") {
-        if (!volumes.empty())
-            throw SceneError(props.where(),
-                             "a homogeneous medium takes float or rgb coefficients, not volumes "
-                             "(use a heterogeneous medium for volume data)");
-        return make_homogeneous(props, std::move(phase));
-    }
-    if (props.type() == "heterogeneous") {
-        // Each coefficient is a nested <volume name="..."> or a plain float/rgb (a constant).
-        auto volume = [&](const std::string& name) -> std::shared_ptr<const Volume> {
-            auto it = volumes.find(name);
-            if (it != volumes.end()) {
-                if (props.has(name))
-                    throw props.error(name, "given both as a value and as a <volume>");
-                return it->second;
-            }
-            if (!props.has(name)) return nullptr;  // the factory applies Mitsuba's default
-            return std::make_shared<ConstantVolume>(props.get_rgb(name));
-        };
-        for (const auto& [name, v] : volumes)
-            if (name != "sigma_t" && name != "albedo")
-                throw SceneError(props.where(), "heterogeneous medium: unknown volume \"" + name +
-                                                    "\" (expected sigma_t or albedo)");
-        return make_heterogeneous_medium(props, volume("sigma_t"), volume("albedo"),
-                                         std::move(phase));
-    }
-    throw SceneError(props.where(), "unknown medium type \"" + props.type() +
-                                        "\" (supported: homogeneous, heterogeneous)");
+    return plugin.create(props, std::move(phase), volumes);
 }
 
 }  // namespace render

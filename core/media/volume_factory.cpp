@@ -1,5 +1,7 @@
 #include "core/media/volume_factory.h"
 
+#include "core/base/plugin_table.h"
+
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
@@ -72,15 +74,18 @@ std::shared_ptr<const Volume> make_grid_volume(const Properties& props,
 }  // namespace
 
 std::shared_ptr<const Volume> make_volume(const Properties& props, const std::string& scene_dir) {
-    if (props.type() == "constvolume") {
-        const Rgb value = props.get_rgb("value", Rgb(1.0f));
-        if (!value.is_finite() || value.r < 0 || value.g < 0 || value.b < 0)
-            throw props.error("value", "must be finite and >= 0");
-        return std::make_shared<ConstantVolume>(value);
-    }
-    if (props.type() == "gridvolume") return make_grid_volume(props, scene_dir);
-    throw SceneError(props.where(), "unknown volume type \"" + props.type() +
-                                        "\" (supported: constvolume, gridvolume)");
+    static const Plugin<std::shared_ptr<const Volume> (*)(const Properties&, const std::string&)>
+        kVolumes[] = {
+            {"constvolume",
+             [](const Properties& p, const std::string&) -> std::shared_ptr<const Volume> {
+                 const Rgb value = p.get_rgb("value", Rgb(1.0f));
+                 if (!value.is_finite() || value.r < 0 || value.g < 0 || value.b < 0)
+                     throw p.error("value", "must be finite and >= 0");
+                 return std::make_shared<ConstantVolume>(value);
+             }},
+            {"gridvolume", make_grid_volume},
+        };
+    return find_plugin(kVolumes, props, "volume").create(props, scene_dir);
 }
 
 }  // namespace render

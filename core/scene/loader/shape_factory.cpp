@@ -1,13 +1,15 @@
 #include "core/scene/loader/shape_factory.h"
 
+#include "core/base/plugin_table.h"
+
 #include <cmath>
 #include <system_error>
 
-#include "core/scene/mesh_io/obj_reader.h"
-#include "core/scene/mesh_io/ply_reader.h"
-#include "core/scene/shapes/disk.h"
-#include "core/scene/shapes/sphere.h"
-#include "core/scene/shapes/triangle_mesh.h"
+#include "core/mesh_io/obj_reader.h"
+#include "core/mesh_io/ply_reader.h"
+#include "core/shapes/disk.h"
+#include "core/shapes/sphere.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 namespace {
@@ -118,19 +120,24 @@ void compute_vertex_normals(MeshData& mesh, const Transform& to_world) {
 }
 
 std::unique_ptr<Shape> make_shape(const Properties& props, const std::filesystem::path& scene_dir) {
-    const std::string& type = props.type();
-    if (type == "obj" || type == "ply") return make_file_mesh(props, scene_dir);
-    if (type == "rectangle") return make_mesh_shape(props, make_rectangle_mesh(), false);
-    if (type == "cube") return make_mesh_shape(props, make_cube_mesh(), false);
-    if (type == "sphere") return make_sphere(props);
-    if (type == "disk") {
-        Transform to_world = props.get_transform("to_world", Transform());
-        bool flip = props.get_bool("flip_normals", false);
-        if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
-        return std::make_unique<Disk>(to_world, flip, shape_name(props));
-    }
-    throw SceneError(props.where(), "unknown shape type \"" + type +
-                                        "\" (supported: rectangle, cube, sphere, disk, obj, ply)");
+    using Path = std::filesystem::path;
+    static const Plugin<std::unique_ptr<Shape> (*)(const Properties&, const Path&)> kShapes[] = {
+        {"rectangle", [](const Properties& p,
+                         const Path&) { return make_mesh_shape(p, make_rectangle_mesh(), false); }},
+        {"cube", [](const Properties& p,
+                    const Path&) { return make_mesh_shape(p, make_cube_mesh(), false); }},
+        {"sphere", [](const Properties& p, const Path&) { return make_sphere(p); }},
+        {"disk",
+         [](const Properties& p, const Path&) -> std::unique_ptr<Shape> {
+             Transform to_world = p.get_transform("to_world", Transform());
+             bool flip = p.get_bool("flip_normals", false);
+             if (to_world.is_singular()) throw p.error("to_world", "the transform is singular");
+             return std::make_unique<Disk>(to_world, flip, shape_name(p));
+         }},
+        {"obj", make_file_mesh},
+        {"ply", make_file_mesh},
+    };
+    return find_plugin(kShapes, props, "shape").create(props, scene_dir);
 }
 
 }  // namespace render
