@@ -8,7 +8,12 @@
 #include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -187,6 +192,39 @@ TEST(ChiSquareFamily, FewerChecksThanDeclaredAreReported) {
     EXPECT_FALSE(local.unfinished(current_test()));
     // A test that declared nothing and ran nothing is complete.
     EXPECT_FALSE(local.unfinished("Some.OtherTest"));
+}
+
+// A test that ends having run fewer checks than it declared fails through the family's gtest
+// listener, which needs a whole test run: this test runs the probe below in a child process
+// (this same executable) and expects it to fail with the family's message.
+ChiSquareFamily probe_family;  // its own family, so that the probe leaves `family` alone
+
+// Never runs on its own (DISABLED_); only as the child of the test after it.
+CHI_SQUARE_TEST(probe_family, ChiSquareProbe, DISABLED_DeclaresTwoRunsOne, 2) {
+    ChiSquareResult r = chi_square_test_discrete(probe_family, fair_coin_counts(), kFairCoin, 1000);
+    EXPECT_TRUE(r.passed) << r.message;
+}
+
+TEST(ChiSquareFamily, TestEndingWithFewerChecksThanDeclaredFails) {
+    char self[4096];
+    const ssize_t length = ::readlink("/proc/self/exe", self, sizeof(self) - 1);
+    ASSERT_GT(length, 0);
+    self[length] = 0;
+    const std::string command = std::string("'") + self +
+                                "' --gtest_also_run_disabled_tests "
+                                "--gtest_filter=ChiSquareProbe.DISABLED_DeclaresTwoRunsOne 2>&1";
+    FILE* child = ::popen(command.c_str(), "r");
+    ASSERT_NE(child, nullptr);
+    std::string output;
+    char buffer[4096];
+    while (size_t n = std::fread(buffer, 1, sizeof(buffer), child)) output.append(buffer, n);
+    const int status = ::pclose(child);
+    ASSERT_TRUE(WIFEXITED(status)) << output;
+    EXPECT_EQ(WEXITSTATUS(status), 1) << output;
+    EXPECT_NE(output.find("declared 2 chi-square checks but ran 1"), std::string::npos) << output;
+    EXPECT_NE(output.find("[  FAILED  ] ChiSquareProbe.DISABLED_DeclaresTwoRunsOne ("),
+              std::string::npos)
+        << output;
 }
 
 }  // namespace
