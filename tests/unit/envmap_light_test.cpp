@@ -90,9 +90,9 @@ CHI_SQUARE_TEST(family, EnvmapLight, SampledDirectionsChiSquare, 1) {
     // Histogram in the map's own chart (u, v) on cells aligned with the texels (4 x 4 cells
     // per texel). The claimed solid-angle density becomes pdf_w * |d omega / d(u, v)| =
     // pdf_w * 2 pi^2 sin theta there; each cell's probability integrates it with a 4 x 4
-    // midpoint rule (no node on a texel edge, where the density jumps; tests/support's
-    // Simpson cells would put nodes there). A rotated frame checks that sampling and lookup
-    // use the same transform; the bright texel holds most of the mass.
+    // midpoint rule (no node on a texel edge, where the density jumps), and
+    // chi_square_test_discrete compares the counts with them. A rotated frame checks that
+    // sampling and lookup use the same transform; the bright texel holds most of the mass.
     const int w = 8, h = 4, k = 4, nx = w * k, ny = h * k, samples = 1000000;
     Frame frame = *EnvmapLight::rotation_frame(Transform::rotate(Vec3(-1, 0.5f, 2), 75.0f));
     EnvmapLight light(pattern(w, h, 50.0f), w, h, frame);

@@ -100,9 +100,8 @@ void expect_well_formed(const DirectionSampler& sample, const DirectionPdf& pdf)
 }
 
 CHI_SQUARE_TEST(family, Warp, UniformHemisphere, 1) {
-    // Histogrammed over the hemisphere only: tests/support's Simpson cells include their edges,
-    // so a density that jumps to 0 on a cell edge (z = 0 on the whole sphere) would bias the
-    // expected counts; inside the cap the density is smooth.
+    // Histogrammed over the hemisphere only, where the density is smooth (on the whole sphere
+    // it jumps to 0 at z = 0).
     DirectionSampler s = warp::square_to_uniform_hemisphere;
     DirectionPdf p = [](const Vec3& w) { return warp::square_to_uniform_hemisphere_pdf(w); };
     expect_well_formed(s, p);
