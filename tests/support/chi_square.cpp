@@ -86,14 +86,19 @@ std::string current_test_name() {
 // printer), so the failure is the test's own.
 class ChiSquareFamily::Listener final : public ::testing::EmptyTestEventListener {
   public:
-    explicit Listener(const ChiSquareFamily* family) : family_(family) {}
+    explicit Listener(ChiSquareFamily* family) : family_(family) {}
+    // Every run of a test starts counting afresh (--gtest_repeat runs a test several times).
+    void OnTestStart(const ::testing::TestInfo& info) override { family_->ran_.erase(name(info)); }
     void OnTestEnd(const ::testing::TestInfo& info) override {
-        std::string name = std::string(info.test_suite_name()) + "." + info.name();
-        if (std::optional<std::string> error = family_->unfinished(name)) ADD_FAILURE() << *error;
+        if (std::optional<std::string> error = family_->unfinished(name(info)))
+            ADD_FAILURE() << *error;
     }
 
   private:
-    const ChiSquareFamily* family_;
+    static std::string name(const ::testing::TestInfo& info) {
+        return std::string(info.test_suite_name()) + "." + info.name();
+    }
+    ChiSquareFamily* family_;
 };
 
 ChiSquareFamily::ChiSquareFamily(double significance) : significance_(significance) {

@@ -4,6 +4,8 @@
 // whose exact geometry the tests know, a Monte Carlo irradiance estimator with its standard
 // error, relative comparisons, and an environment-map texel pattern.
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -138,15 +140,12 @@ inline void expect_estimate(const MeanEstimate& e, double reference) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Area light
+// Area-light and environment-map inputs (also used by the factory tests)
 
 // A 2 x 1 rectangle in the plane z = 1, facing down (-z).
 inline Parallelogram ceiling() {
     return Parallelogram(Vec3(-1, -0.5f, 1), Vec3(0, 1, 0), Vec3(2, 0, 0));
 }
-
-// ---------------------------------------------------------------------------------------
-// Environment map
 
 // A W x H map whose texel (col, row) has a distinct value, plus a bright texel.
 inline std::vector<Rgb> pattern(int w, int h, float bright) {

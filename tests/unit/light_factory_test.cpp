@@ -29,8 +29,8 @@ namespace {
 struct TempDir {
     std::filesystem::path path;
     TempDir() {
-        path =
-            std::filesystem::temp_directory_path() / ("light_test_" + std::to_string(::getpid()));
+        path = std::filesystem::temp_directory_path() /
+               ("light_factory_test_" + std::to_string(::getpid()));
         std::filesystem::create_directories(path);
     }
     ~TempDir() {
