@@ -24,6 +24,8 @@ namespace render {
 namespace {
 
 using testing::chi_square_test_sphere;
+using testing::ChiSquareDeclaration;
+using testing::ChiSquareFamily;
 using testing::ChiSquareOptions;
 using testing::ChiSquareResult;
 
@@ -163,15 +165,19 @@ std::vector<MicrofacetCase> microfacet_cases() {
     };
 }
 
-// Number of chi-square tests in this file, for the Sidak correction.
-const int kTestCount = int(all_cases().size() + microfacet_cases().size());
+// The chi-square checks of this file, Sidak-corrected together (tests/support/chi_square.h):
+// one per instance of each parameterised test.
+ChiSquareFamily family;
+const ChiSquareDeclaration kBsdfChecks(family, "BsdfChiSquare.SamplesFollowPdf", 1,
+                                       int(all_cases().size()));
+const ChiSquareDeclaration kMicrofacetChecks(family, "MicrofacetChiSquare.NormalsFollowPdf", 1,
+                                             int(microfacet_cases().size()));
 
 ChiSquareOptions options_for(uint64_t seed, bool narrow) {
     ChiSquareOptions options;
     options.resolution_x = narrow ? 128 : 64;  // phi
     options.resolution_y = narrow ? 64 : 32;   // cos theta; z = 0 falls on a cell boundary
     options.sample_count = 250000;
-    options.test_count = kTestCount;
     options.seed = seed;
     return options;
 }
@@ -191,7 +197,7 @@ TEST_P(BsdfChiSquare, SamplesFollowPdf) {
     };
     auto pdf = [&](const Vec3& wi) { return double(bsdf->pdf(wo, wi).forward); };
     const ChiSquareResult result = chi_square_test_sphere(
-        sample, pdf, options_for(std::hash<std::string>()(c.name), c.narrow));
+        family, sample, pdf, options_for(std::hash<std::string>()(c.name), c.narrow));
     EXPECT_TRUE(result.passed) << bsdf->to_string() << ", wo = " << wo << ": " << result.message;
     EXPECT_LE(result.pdf_integral, 1.0 + 1e-3) << result.message;
 }
@@ -209,8 +215,8 @@ TEST_P(MicrofacetChiSquare, NormalsFollowPdf) {
         return distribution.sample(w, rng.next_2d());
     };
     auto pdf = [&](const Vec3& m) { return double(distribution.pdf(w, m)); };
-    const ChiSquareResult result =
-        chi_square_test_sphere(sample, pdf, options_for(std::hash<std::string>()(c.name), false));
+    const ChiSquareResult result = chi_square_test_sphere(
+        family, sample, pdf, options_for(std::hash<std::string>()(c.name), false));
     EXPECT_TRUE(result.passed) << result.message;
     // Every sample is a valid normal, so the density must integrate to one.
     EXPECT_NEAR(result.pdf_integral, 1.0, 2e-3) << result.message;

@@ -25,6 +25,7 @@
 #include "core/materials/twosided.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
+#include "tests/support/statistics.h"
 
 namespace render {
 namespace {
@@ -230,20 +231,16 @@ struct Albedo {
 };
 Albedo estimate_albedo(const Bsdf& bsdf, const Vec3& wo, TransportMode mode, int n, uint64_t seed) {
     Rng rng(StreamKey{seed, 0, 1, 0});
-    double sum[3] = {}, sum2[3] = {};
+    testing::MeanAccumulator estimate[3];
     for (int i = 0; i < n; ++i) {
         const float u_lobe = rng.next_1d();
         std::optional<BsdfSample> s = bsdf.sample(wo, u_lobe, rng.next_2d(), mode);
-        if (!s) continue;
-        for (int c = 0; c < 3; ++c)
-            sum[c] += s->weight[c], sum2[c] += double(s->weight[c]) * s->weight[c];
+        for (int c = 0; c < 3; ++c) estimate[c].add(s ? s->weight[c] : 0.0);  // failed: 0
     }
     Albedo albedo;
     for (int c = 0; c < 3; ++c) {
-        const double mean = sum[c] / n;
-        const double variance = std::max(0.0, sum2[c] / n - mean * mean);
-        albedo.mean[c] = float(mean);
-        albedo.standard_error[c] = float(std::sqrt(variance / n));
+        albedo.mean[c] = float(estimate[c].mean());
+        albedo.standard_error[c] = float(estimate[c].standard_error());
     }
     return albedo;
 }

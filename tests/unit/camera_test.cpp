@@ -6,6 +6,7 @@
 #include "core/math/constants.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
+#include "tests/support/statistics.h"
 
 namespace render {
 namespace {
@@ -57,15 +58,13 @@ TEST(PerspectiveCamera, DirectionPdfIntegratesToOne) {
     PerspectiveCamera camera = test_camera();
     Rng rng(StreamKey{3, 0, 1, 0});
     const int n = 2000000;
-    double sum = 0, sum2 = 0;
+    testing::MeanAccumulator ratio;
     for (int i = 0; i < n; ++i) {
         Vec3 d = warp::square_to_uniform_sphere(rng.next_2d());
-        double v = camera.direction_pdf(d) / warp::square_to_uniform_sphere_pdf();
-        sum += v;
-        sum2 += v * v;
+        ratio.add(camera.direction_pdf(d) / warp::square_to_uniform_sphere_pdf());
     }
-    double mean = sum / n, se = std::sqrt((sum2 / n - mean * mean) / n);
-    EXPECT_NEAR(mean, 1.0, 5 * se) << "standard error " << se;
+    EXPECT_NEAR(ratio.mean(), 1.0, 5 * ratio.standard_error())
+        << "standard error " << ratio.standard_error();
 }
 
 TEST(PerspectiveCamera, DirectionPdfMatchesRasterDensity) {

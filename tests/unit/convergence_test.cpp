@@ -14,6 +14,7 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/statistics.h"
 
 namespace render {
 namespace {
@@ -57,15 +58,10 @@ BlockEstimate render_blocks(const Scene& scene, const std::string& algorithm,
     }
     BlockEstimate e{std::vector<double>(blocks * 3, 0.0), std::vector<double>(blocks * 3, 0.0)};
     for (int i = 0; i < blocks * 3; ++i) {
-        double sum = 0, sum2 = 0;
-        for (int b = 0; b < kBatches; ++b) {
-            sum += batch_means[b][i];
-            sum2 += batch_means[b][i] * batch_means[b][i];
-        }
-        const double mean = sum / kBatches;
-        const double variance = std::max(0.0, (sum2 - kBatches * mean * mean) / (kBatches - 1));
-        e.mean[i] = mean;
-        e.standard_error[i] = std::sqrt(variance / kBatches);
+        testing::MeanAccumulator m;
+        for (int b = 0; b < kBatches; ++b) m.add(batch_means[b][i]);
+        e.mean[i] = m.mean();
+        e.standard_error[i] = m.standard_error();
     }
     return e;
 }

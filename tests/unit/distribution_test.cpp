@@ -18,47 +18,10 @@
 namespace render::testing {
 namespace {
 
-constexpr int kChiSquareTests = 4;  // in this file, for the Sidak correction
-
-// Chi-square test against exact cell probabilities. The densities here are piecewise
-// constant, with jumps on cell edges; tests/support's chi_square_test_2d integrates each cell
-// with a closed Simpson rule whose nodes include the edges, so it would mix neighbouring
-// bins into the expected counts. The probability of each cell is instead computed exactly
-// (constant density times cell size), and the p-value comes from the same survival
-// function, regularized_gamma_q. Cells with expected count < 5 are pooled.
-struct ExactResult {
-    bool passed;
-    std::string message;
-};
-ExactResult chi_square_exact(const std::vector<double>& observed,
-                             const std::vector<double>& probability, int sample_count) {
-    std::vector<size_t> order(observed.size());
-    std::iota(order.begin(), order.end(), size_t(0));
-    std::sort(order.begin(), order.end(),
-              [&](size_t a, size_t b) { return probability[a] < probability[b]; });
-    double stat = 0, pooled_o = 0, pooled_e = 0;
-    int groups = 0;
-    for (size_t i : order) {
-        double e = probability[i] * sample_count;
-        if (e == 0) {
-            if (observed[i] > 0)
-                return {false, "cell " + std::to_string(i) + " has samples but probability 0"};
-            continue;
-        }
-        pooled_o += observed[i];
-        pooled_e += e;
-        if (pooled_e < 5) continue;
-        stat += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
-        pooled_o = pooled_e = 0;
-        ++groups;
-    }
-    if (pooled_e > 0) stat += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e, ++groups;
-    int dof = std::max(1, groups - 1);
-    double p = regularized_gamma_q(0.5 * dof, 0.5 * stat);
-    double alpha = 1.0 - std::pow(1.0 - 0.01, 1.0 / kChiSquareTests);
-    return {p >= alpha, "chi2 = " + std::to_string(stat) + ", dof = " + std::to_string(dof) +
-                            ", p = " + std::to_string(p) + ", alpha = " + std::to_string(alpha)};
-}
+// The chi-square checks of this file, Sidak-corrected together (tests/support/chi_square.h).
+// The densities here are piecewise constant with jumps on cell edges, so every check compares
+// against exact cell probabilities (chi_square_test_discrete) rather than integrated cells.
+ChiSquareFamily family;
 
 constexpr int kSamples = 1000000;
 
@@ -95,7 +58,7 @@ TEST(Distribution1D, DiscreteNeverPicksAZeroWeight) {
     }
 }
 
-TEST(Distribution1D, DiscreteChiSquare) {
+CHI_SQUARE_TEST(family, Distribution1D, DiscreteChiSquare, 1) {
     Distribution1D d(kWeights);
     const size_t n = kWeights.size();
     std::vector<double> observed(n, 0.0), probability(n);
@@ -103,11 +66,11 @@ TEST(Distribution1D, DiscreteChiSquare) {
     for (int i = 0; i < kSamples; ++i) observed[d.sample_discrete(rng.next_1d())] += 1;
     double sum = std::accumulate(kWeights.begin(), kWeights.end(), 0.0);
     for (size_t i = 0; i < n; ++i) probability[i] = kWeights[i] / sum;  // from the weights
-    ExactResult r = chi_square_exact(observed, probability, kSamples);
+    ChiSquareResult r = chi_square_test_discrete(family, observed, probability, kSamples);
     EXPECT_TRUE(r.passed) << r.message;
 }
 
-TEST(Distribution1D, ContinuousChiSquareAndPdf) {
+CHI_SQUARE_TEST(family, Distribution1D, ContinuousChiSquareAndPdf, 1) {
     Distribution1D d(kWeights);
     const int n = int(kWeights.size()), cells_per_bin = 4, cells = n * cells_per_bin;
     std::vector<double> observed(cells, 0.0), probability(cells);
@@ -127,7 +90,7 @@ TEST(Distribution1D, ContinuousChiSquareAndPdf) {
     for (int c = 0; c < cells; ++c)
         total += probability[c] = d.pdf_continuous((c + 0.5f) / cells) / cells;
     EXPECT_NEAR(total, 1.0, 1e-6);
-    ExactResult r = chi_square_exact(observed, probability, kSamples);
+    ChiSquareResult r = chi_square_test_discrete(family, observed, probability, kSamples);
     EXPECT_TRUE(r.passed) << r.message;
     // Density is weight / integral.
     for (int i = 0; i < n; ++i)
@@ -185,7 +148,9 @@ std::vector<float> map_weights() {
 // Histogram of Distribution2D samples on a grid aligned with the texels (k x k cells per
 // texel), against the cell probabilities of the claimed pdf (midpoint rule, exact for a
 // piecewise-constant density).
-ExactResult chi_square_2d(const Distribution2D& d, int width, int height, int k, uint64_t seed) {
+// A sample outside the unit square or with a pdf other than pdf() reports fails the test.
+ChiSquareResult chi_square_2d(const Distribution2D& d, int width, int height, int k,
+                              uint64_t seed) {
     const int nx = width * k, ny = height * k;
     std::vector<double> observed(size_t(nx * ny), 0.0), probability(size_t(nx * ny));
     Rng rng(StreamKey{seed, 0, 1, 0});
@@ -193,8 +158,11 @@ ExactResult chi_square_2d(const Distribution2D& d, int width, int height, int k,
         float pdf;
         Vec2 p = d.sample(rng.next_2d(), &pdf);
         if (!(p.x >= 0 && p.x < 1 && p.y >= 0 && p.y < 1) || !(pdf > 0) ||
-            std::abs(pdf - d.pdf(p)) > 1e-5f * pdf)
-            return {false, "bad sample"};
+            std::abs(pdf - d.pdf(p)) > 1e-5f * pdf) {
+            ADD_FAILURE() << "bad sample (" << p.x << ", " << p.y << ") with pdf " << pdf
+                          << " (pdf() says " << d.pdf(p) << ")";
+            break;
+        }
         observed[size_t(std::min(int(p.y * ny), ny - 1) * nx + std::min(int(p.x * nx), nx - 1))] +=
             1;
     }
@@ -202,12 +170,12 @@ ExactResult chi_square_2d(const Distribution2D& d, int width, int height, int k,
         for (int x = 0; x < nx; ++x)
             probability[size_t(y * nx + x)] =
                 d.pdf(Vec2((x + 0.5f) / nx, (y + 0.5f) / ny)) / (double(nx) * ny);
-    return chi_square_exact(observed, probability, kSamples);
+    return chi_square_test_discrete(family, observed, probability, kSamples);
 }
 
-TEST(Distribution2D, ChiSquare) {
+CHI_SQUARE_TEST(family, Distribution2D, ChiSquare, 1) {
     Distribution2D d(map_weights(), 6, 5);
-    ExactResult r = chi_square_2d(d, 6, 5, 2, 3);
+    ChiSquareResult r = chi_square_2d(d, 6, 5, 2, 3);
     EXPECT_TRUE(r.passed) << r.message;
 }
 
@@ -234,9 +202,9 @@ TEST(Distribution2D, PdfIsNormalisedWeights) {
     }
 }
 
-TEST(Distribution2D, AllZeroIsUniform) {
+CHI_SQUARE_TEST(family, Distribution2D, AllZeroIsUniform, 1) {
     Distribution2D d(std::vector<float>(4 * 3, 0.0f), 4, 3);
-    ExactResult r = chi_square_2d(d, 4, 3, 2, 4);
+    ChiSquareResult r = chi_square_2d(d, 4, 3, 2, 4);
     EXPECT_TRUE(r.passed) << r.message;
     EXPECT_NEAR(d.pdf(Vec2(0.3f, 0.7f)), 1.0f, 1e-6f);
 }

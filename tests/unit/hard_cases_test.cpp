@@ -30,6 +30,7 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/shapes/triangle_mesh.h"
+#include "tests/support/statistics.h"
 #include "tests/support/test_scenes.h"
 
 namespace render {
@@ -71,18 +72,10 @@ struct RenderSummary {
     double pixel(int x, int y, int c) const {
         return sum[3 * (size_t(y) * width + x) + c] / double(iterations);
     }
-    double mean(size_t r) const {
-        double s = 0;
-        for (double v : region_means[r]) s += v;
-        return s / double(region_means[r].size());
-    }
+    double mean(size_t r) const { return testing::batch_means(region_means[r]).mean; }
     // Standard error of mean(r) from the spread of the independent per-iteration means.
     double standard_error(size_t r) const {
-        const double m = mean(r);
-        const size_t n = region_means[r].size();
-        double s2 = 0;
-        for (double v : region_means[r]) s2 += (v - m) * (v - m);
-        return std::sqrt(s2 / double(n - 1) / double(n));
+        return testing::batch_means(region_means[r]).standard_error;
     }
     double total() const {
         double t = 0;

@@ -18,11 +18,13 @@
 #include "core/media/heterogeneous_medium_factory.h"
 #include "core/media/isotropic_phase.h"
 #include "tests/support/chi_square.h"
+#include "tests/support/statistics.h"
 
 namespace render::testing {
 namespace {
 
-constexpr int kChiSquareTests = 3;
+// The chi-square checks of this file, Sidak-corrected together (tests/support/chi_square.h).
+ChiSquareFamily family;
 constexpr double kSigmas = 5.0;  // tolerance of every mean, in standard errors
 
 // A grid of n voxels along x (1 along y and z) whose channel c samples the linear function
@@ -84,16 +86,7 @@ std::unique_ptr<HeterogeneousMedium> make_medium(const Line& s, bool grey, const
                                                  std::make_shared<IsotropicPhase>(), majorant_res);
 }
 
-struct Mean {
-    double sum = 0, sum2 = 0;
-    long n = 0;
-    void add(double x) { sum += x, sum2 += x * x, ++n; }
-    double mean() const { return sum / double(n); }
-    double standard_error() const {
-        const double m = mean();
-        return std::sqrt(std::max(sum2 / double(n) - m * m, 0.0) / double(n));
-    }
-};
+using Mean = MeanAccumulator;
 
 void expect_mean(const Mean& m, double expected, const std::string& what) {
     // A floor on the standard error for estimators with (almost) no variance.
@@ -143,7 +136,7 @@ TEST(HeterogeneousMedium, RatioTrackingMatchesAnalyticTransmittance) {
 // (e) Delta tracking's distances follow sigma_t(t) T(t) (chi-square over the segment inside
 // the grid, a dummy second dimension), it passes with probability T(t_max), and for grey
 // media its weights are those of classic delta tracking: the albedo, or exactly 1.
-TEST(HeterogeneousMedium, DeltaTrackingDistanceDistribution) {
+CHI_SQUARE_TEST(family, HeterogeneousMedium, DeltaTrackingDistanceDistribution, 3) {
     const Line setups[] = {
         {Ramp{8, Rgb(1.2f), Rgb(0.0f), 1.0f}},
         {Ramp{16, Rgb(0.3f), Rgb(2.5f), 1.5f}},
@@ -156,7 +149,6 @@ TEST(HeterogeneousMedium, DeltaTrackingDistanceDistribution) {
         options.resolution_x = 64;
         options.resolution_y = 1;
         options.sample_count = 400000;
-        options.test_count = kChiSquareTests;
         long passes = 0;
         auto sample = [&](Rng& rng) -> std::optional<Vec2> {
             const MediumSample ms = medium->sample(s.ray(), t_end, rng);
@@ -172,7 +164,7 @@ TEST(HeterogeneousMedium, DeltaTrackingDistanceDistribution) {
         };
         auto pdf = [&](Vec2 p) { return s.sigma(0, p.x) * s.tr(0, p.x); };
         const ChiSquareResult r =
-            chi_square_test_2d(sample, pdf, Rect{s.before, t_end, 0.0, 1.0}, options);
+            chi_square_test_2d(family, sample, pdf, Rect{s.before, t_end, 0.0, 1.0}, options);
         EXPECT_TRUE(r.passed) << r.message;
         EXPECT_NEAR(r.pdf_integral, 1.0 - s.tr(0, t_end), 1e-4);
         // The pass count is binomial.

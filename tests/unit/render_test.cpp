@@ -11,6 +11,7 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "tests/support/pixel_statistics.h"
+#include "tests/support/statistics.h"
 #include "tests/support/test_scenes.h"
 
 namespace render {
@@ -222,20 +223,16 @@ std::pair<double, double> image_mean(const Scene& scene, const std::string& algo
     RenderSettings settings;
     settings.algorithm = algorithm;
     settings.seed = 99;
-    double sum = 0, sum2 = 0;
+    testing::MeanAccumulator batch_means;
     for (int b = 0; b < batches; ++b) {
         const uint64_t first = 1 + uint64_t(b) * iterations_per_batch;
         IterationResult r = render_iterations(scene, settings, 0,
                                               IterationRange{first, first + iterations_per_batch});
         double total = 0;
         for (double v : r.sum.values()) total += v;
-        const double mean = total / (double(r.sum.values().size()) * iterations_per_batch);
-        sum += mean;
-        sum2 += mean * mean;
+        batch_means.add(total / (double(r.sum.values().size()) * iterations_per_batch));
     }
-    const double mean = sum / batches;
-    const double variance = std::max(0.0, (sum2 - batches * mean * mean) / (batches - 1));
-    return {mean, std::sqrt(variance / batches)};
+    return {batch_means.mean(), batch_means.standard_error()};
 }
 
 // A black plastic floor shows only its coating's reflection of a large light. Algorithms that

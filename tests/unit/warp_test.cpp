@@ -14,14 +14,8 @@
 namespace render::testing {
 namespace {
 
-// Number of chi-square tests in this file, for the Sidak correction.
-constexpr int kChiSquareTests = 11;
-
-ChiSquareOptions options() {
-    ChiSquareOptions o;
-    o.test_count = kChiSquareTests;
-    return o;
-}
+// The chi-square checks of this file, Sidak-corrected together (tests/support/chi_square.h).
+ChiSquareFamily family;
 
 using DirectionSampler = std::function<Vec3(Vec2)>;
 using DirectionPdf = std::function<double(const Vec3&)>;
@@ -34,7 +28,8 @@ void expect_passes(const ChiSquareResult& r) {
 // Directions on the whole sphere, histogrammed by chi_square_test_sphere.
 ChiSquareResult test_sphere(const DirectionSampler& sample, const DirectionPdf& pdf) {
     return chi_square_test_sphere(
-        [&](Rng& rng) -> std::optional<Vec3> { return sample(rng.next_2d()); }, pdf, options());
+        family, [&](Rng& rng) -> std::optional<Vec3> { return sample(rng.next_2d()); }, pdf,
+        ChiSquareOptions());
 }
 
 // Directions in the cap z >= z_min only (for narrow lobes, so that the histogram resolves
@@ -55,7 +50,8 @@ ChiSquareResult test_cap(const DirectionSampler& sample, const DirectionPdf& pdf
         float z = std::clamp(p.y, z_min + 1e-6f, 1.0f), r = std::sqrt(std::max(0.0f, 1.0f - z * z));
         return pdf(Vec3(r * std::cos(p.x), r * std::sin(p.x), z));
     };
-    return chi_square_test_2d(sample_2d, pdf_2d, Rect{0.0, 2.0 * M_PI, z_min, 1.0}, options());
+    return chi_square_test_2d(family, sample_2d, pdf_2d, Rect{0.0, 2.0 * M_PI, z_min, 1.0},
+                              ChiSquareOptions());
 }
 
 // Integral of a solid-angle pdf over the sphere, midpoint rule in (phi, z).
@@ -103,10 +99,9 @@ void expect_well_formed(const DirectionSampler& sample, const DirectionPdf& pdf)
     }
 }
 
-TEST(Warp, UniformHemisphere) {
-    // Histogrammed over the hemisphere only: tests/support's Simpson cells include their edges,
-    // so a density that jumps to 0 on a cell edge (z = 0 on the whole sphere) would bias the
-    // expected counts; inside the cap the density is smooth.
+CHI_SQUARE_TEST(family, Warp, UniformHemisphere, 1) {
+    // Histogrammed over the hemisphere only, where the density is smooth (on the whole sphere
+    // it jumps to 0 at z = 0).
     DirectionSampler s = warp::square_to_uniform_hemisphere;
     DirectionPdf p = [](const Vec3& w) { return warp::square_to_uniform_hemisphere_pdf(w); };
     expect_well_formed(s, p);
@@ -114,7 +109,7 @@ TEST(Warp, UniformHemisphere) {
     EXPECT_NEAR(integrate_sphere(p), 1.0, 1e-4);
 }
 
-TEST(Warp, CosineHemisphere) {
+CHI_SQUARE_TEST(family, Warp, CosineHemisphere, 1) {
     DirectionSampler s = warp::square_to_cosine_hemisphere;
     DirectionPdf p = [](const Vec3& w) { return warp::square_to_cosine_hemisphere_pdf(w); };
     expect_well_formed(s, p);
@@ -122,7 +117,7 @@ TEST(Warp, CosineHemisphere) {
     EXPECT_NEAR(integrate_sphere(p), 1.0, 1e-4);
 }
 
-TEST(Warp, UniformSphere) {
+CHI_SQUARE_TEST(family, Warp, UniformSphere, 1) {
     DirectionSampler s = warp::square_to_uniform_sphere;
     DirectionPdf p = [](const Vec3&) { return warp::square_to_uniform_sphere_pdf(); };
     expect_well_formed(s, p);
@@ -132,7 +127,7 @@ TEST(Warp, UniformSphere) {
 
 // Every cone is histogrammed over its own cap z >= cos_max, where its density is smooth (see
 // UniformHemisphere); all samples fall inside the cap.
-TEST(Warp, UniformCone) {
+CHI_SQUARE_TEST(family, Warp, UniformCone, 3) {
     for (float cos_max : {-0.5f, 0.3f, 0.95f}) {
         SCOPED_TRACE(cos_max);
         DirectionSampler s = [=](Vec2 u) { return warp::square_to_uniform_cone(u, cos_max); };
@@ -145,7 +140,7 @@ TEST(Warp, UniformCone) {
     }
 }
 
-TEST(Warp, PhongLobe) {
+CHI_SQUARE_TEST(family, Warp, PhongLobe, 3) {
     // (exponent, cap): for exponent 90 the cap z >= 0.8 holds all but 0.8^91 ~ 1e-9 of the
     // mass, and resolves the lobe far better than the whole-sphere histogram.
     for (auto [exponent, z_min] : {std::pair{1.0f, -1.0f}, {10.0f, -1.0f}, {90.0f, 0.8f}}) {
@@ -158,7 +153,7 @@ TEST(Warp, PhongLobe) {
     }
 }
 
-TEST(Warp, ConcentricDisk) {
+CHI_SQUARE_TEST(family, Warp, ConcentricDisk, 1) {
     // Chart (phi, r^2) on [0, 2 pi) x [0, 1]: dA = r dr dphi = 1/2 d(r^2) dphi, so the
     // chart density is pdf(p) / 2 and has no jump inside the domain (unlike a Cartesian grid
     // cut by the disk's rim).
@@ -173,7 +168,8 @@ TEST(Warp, ConcentricDisk) {
         Vec2 p(r * std::cos(c.x), r * std::sin(c.x));
         return 0.5 * warp::square_to_uniform_disk_pdf(p * 0.999999f);
     };
-    expect_passes(chi_square_test_2d(sample, pdf, Rect{0.0, 2.0 * M_PI, 0.0, 1.0}, options()));
+    expect_passes(chi_square_test_2d(family, sample, pdf, Rect{0.0, 2.0 * M_PI, 0.0, 1.0},
+                                     ChiSquareOptions()));
 
     auto cartesian_pdf = [](Vec2 p) { return double(warp::square_to_uniform_disk_pdf(p)); };
     EXPECT_NEAR(integrate_plane(cartesian_pdf, -1, 1, -1, 1), 1.0, 5e-3);
@@ -184,7 +180,7 @@ TEST(Warp, ConcentricDisk) {
     }
 }
 
-TEST(Warp, UniformTriangle) {
+CHI_SQUARE_TEST(family, Warp, UniformTriangle, 1) {
     // Chart (a, t) = (b1 + b2, b2 / (b1 + b2)) on [0, 1]^2, with |d(b1, b2) / d(a, t)| = a:
     // the chart density pdf(b) * a is smooth (no jump along the hypotenuse inside a cell).
     auto sample = [](Rng& rng) -> std::optional<Vec2> {
@@ -197,7 +193,8 @@ TEST(Warp, UniformTriangle) {
         Vec2 b(a * (1 - t), a * t);
         return double(warp::square_to_uniform_triangle_pdf(b * 0.999999f)) * a;
     };
-    expect_passes(chi_square_test_2d(sample, pdf, Rect{0.0, 1.0, 0.0, 1.0}, options()));
+    expect_passes(
+        chi_square_test_2d(family, sample, pdf, Rect{0.0, 1.0, 0.0, 1.0}, ChiSquareOptions()));
 
     auto barycentric_pdf = [](Vec2 b) { return double(warp::square_to_uniform_triangle_pdf(b)); };
     EXPECT_NEAR(integrate_plane(barycentric_pdf, 0, 1, 0, 1), 1.0, 5e-3);
