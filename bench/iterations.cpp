@@ -14,22 +14,21 @@
 #include <string>
 
 #include "bench/bench_scenes.h"
+#include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
+#include "core/render/render_options.h"
 
 namespace render::bench {
 namespace {
 
-const char* const kAlgorithms[] = {"pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm"};
-// On media scenes: volpt everywhere; the bidirectional ones where the medium is homogeneous.
+// On media scenes a representative subset (a path tracer, BPT, VCM), each where the algorithm
+// table says it renders the scene's media; every physically based algorithm on the boxes.
 const char* const kMediaAlgorithms[] = {"volpt", "bpt", "vcm"};
 
 void iteration(benchmark::State& state, const std::string& name, const std::string& algorithm,
                int threads) {
     const Scene& s = scene(name);
-    RenderSettings settings;
-    settings.algorithm = algorithm;
-    settings.max_depth = s.settings.max_depth;
-    settings.rr_depth = s.settings.rr_depth;
+    RenderSettings settings = resolve_render_settings(algorithm, {}, s.settings);
     settings.threads = threads;
     tbb::global_control control(tbb::global_control::max_allowed_parallelism, size_t(threads));
     RenderStats stats;
@@ -47,17 +46,23 @@ void iteration(benchmark::State& state, const std::string& name, const std::stri
 
 [[maybe_unused]] const bool registered = [] {
     for (const std::string& name : reference_scene_names())
-        for (const char* algorithm : kAlgorithms)
+        for (const Algorithm& algorithm : algorithms()) {
+            if (!algorithm.physically_based) continue;
             for (int threads : {1, 2})
-                benchmark::RegisterBenchmark(
-                    ("iteration/" + name + "/" + algorithm + "/threads:" + std::to_string(threads))
-                        .c_str(),
-                    iteration, name, std::string(algorithm), threads)
+                benchmark::RegisterBenchmark(("iteration/" + name + "/" + algorithm.name +
+                                              "/threads:" + std::to_string(threads))
+                                                 .c_str(),
+                                             iteration, name, algorithm.name, threads)
                     ->Unit(benchmark::kMillisecond);
+        }
     // Media scenes at their own resolution, 2 threads (what media cost per iteration).
     for (const std::string& name : media_scene_names())
         for (const char* algorithm : kMediaAlgorithms) {
-            if (name == "smoke" && std::string(algorithm) != "volpt") continue;  // grid medium
+            try {
+                check_algorithm_supports_scene(algorithm, scene(name));
+            } catch (const std::invalid_argument&) {
+                continue;  // e.g. the smoke's grid medium for the bidirectional family
+            }
             benchmark::RegisterBenchmark(
                 ("iteration/" + name + "/" + algorithm + "/threads:2").c_str(), iteration, name,
                 std::string(algorithm), 2)

@@ -88,7 +88,8 @@ const std::vector<Algorithm>& table() {
          {},
          [](const RenderSettings&) -> std::unique_ptr<Integrator> {
              return std::make_unique<EyeLight>();
-         }},
+         },
+         false},
     };
     return rows;
 }

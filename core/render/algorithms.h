@@ -33,6 +33,9 @@ struct Algorithm {
     // Options it reads besides those every algorithm reads (RenderOption::every_algorithm).
     std::vector<std::string> options;
     std::unique_ptr<Integrator> (*create)(const RenderSettings&) = nullptr;
+    // Converges to the image the scene describes (false for debug shading): such algorithms
+    // take part in the furnace, iteration-contract and convergence tests automatically.
+    bool physically_based = true;
 };
 
 // Every algorithm, in --help order.

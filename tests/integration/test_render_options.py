@@ -41,7 +41,7 @@ def other_value(option):
     if kind == "unsigned":
         return "99"
     if kind == "integer":
-        return str(int(option["min"]) + 2)
+        return str(int(option["min"]) + 3)  # max_depth 2: direct light; light_paths 3
     # real: three times the default when that is in range, else the middle of the range
     try:
         value = float(default) * 3
@@ -54,9 +54,11 @@ def other_value(option):
 
 def pick_algorithm(option, tables):
     """The reader of `option` that reads the most options (the one most exposed to a
-    mix-up), and a scene on which the option matters."""
-    readers = [a for a in tables["algorithms"] if a["name"] in option["read_by"]]
-    algorithm = max(readers, key=lambda a: len(a["options"]))
+    mix-up; the last in table order among equals, which for the bidirectional family is VCM,
+    where every option matters), and a scene on which the option matters."""
+    readers = [(len(a["options"]), i, a) for i, a in enumerate(tables["algorithms"])
+               if a["name"] in option["read_by"]]
+    algorithm = max(readers, key=lambda r: r[:2])[2]
     media = algorithm["grid_media"] and algorithm["homogeneous_media"]
     scene = (cluster.scene_path("smallupbp", "isosph.xml") if media
              else cluster.scene_path("smallvcm", "1-glm_c.xml"))

@@ -10,6 +10,7 @@
 
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/algorithms.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/statistics.h"
 #include "tests/support/test_scenes.h"
@@ -67,8 +68,7 @@ TEST_P(Furnace, RadianceIsOneEverywhere) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, Furnace,
-                         ::testing::Combine(::testing::Values("pt", "volpt", "lt", "bpt", "ppm",
-                                                              "bpm", "vcm"),
+                         ::testing::Combine(::testing::ValuesIn(testing::physically_based_algorithms()),
                                             ::testing::Values("1", "1e-3", "1e4")));
 
 std::unique_ptr<Scene> cornell_box(int size) {
@@ -113,7 +113,7 @@ TEST_P(IterationContract, ThreadCountDoesNotChangeTheImage) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Algorithms, IterationContract,
-                         ::testing::Values("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm"));
+                         ::testing::ValuesIn(testing::physically_based_algorithms()));
 
 TEST(IterationKeys, SeedFrameAndIterationChangeTheNoise) {
     auto scene = cornell_box(16);
