@@ -26,9 +26,10 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
             for (const Light* light : scene.background_lights()) {
                 LightRadiance le = light->radiance(Vec3(), Vec3(), ray.direction);
                 if (le.radiance.is_black()) continue;
-                float w = prev_delta ? 1.0f
-                                     : power_heuristic(prev_bsdf_pdf,
-                                                       scene.light_pdf(light) * le.pdf_direct_a);
+                float w = prev_delta
+                              ? 1.0f
+                              : power_heuristic(prev_bsdf_pdf, scene.light_pick_probability(light) *
+                                                                   le.pdf_direct_a);
                 const Rgb contribution = beta * le.radiance * w;
                 L += contribution;
                 // Emission found by the eye: s = 0 light vertices, t = depth + 1 eye vertices.
@@ -44,7 +45,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                 if (!prev_delta) {
                     // Light sampling's density for this point, converted to solid angle.
                     float cos_light = abs_dot(si.geometric_normal, ray.direction);
-                    float light_pdf = cos_light > 0 ? scene.light_pdf(si.emitter) *
+                    float light_pdf = cos_light > 0 ? scene.light_pick_probability(si.emitter) *
                                                           le.pdf_direct_a * si.t * si.t / cos_light
                                                     : 0.0f;
                     w = power_heuristic(prev_bsdf_pdf, light_pdf);

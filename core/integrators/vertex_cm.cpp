@@ -242,13 +242,13 @@ Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) con
 // --- light subpaths ---------------------------------------------------------------------------
 
 bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const {
-    float pick_pdf = 0;
-    const Light* light = scene_.sample_light(rng.next_1d(), &pick_pdf);
+    float pick_probability = 0;
+    const Light* light = scene_.sample_light(rng.next_1d(), &pick_probability);
     Vec2 u_position = rng.next_2d(), u_direction = rng.next_2d();
     LightEmitSample e;
-    if (!light || !(pick_pdf > 0) || !light->emit(u_position, u_direction, e)) return false;
-    const float emission_pdf_w = e.pdf_emission_w * pick_pdf;
-    const float direct_pdf_a = e.pdf_direct_a * pick_pdf;
+    if (!light || !(pick_probability > 0) || !light->emit(u_position, u_direction, e)) return false;
+    const float emission_pdf_w = e.pdf_emission_w * pick_probability;
+    const float direct_pdf_a = e.pdf_direct_a * pick_probability;
     if (!(emission_pdf_w > 0)) return false;
 
     state.throughput = e.energy / emission_pdf_w;
@@ -414,9 +414,9 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // specular chains, which nothing else can sample; every other path is left to the light
     // subpaths (connections to the camera, or merging).
     if (!use_vc_) return state.specular_path ? le.radiance : Rgb(0.0f);
-    const float pick = scene_.light_pdf(light);
-    return le.radiance *
-           mis_.weight_emission(state.mis, le.pdf_direct_a * pick, le.pdf_emission_w * pick);
+    const float pick_probability = scene_.light_pick_probability(light);
+    return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
+                                              le.pdf_emission_w * pick_probability);
 }
 
 Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,

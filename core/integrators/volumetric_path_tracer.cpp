@@ -81,12 +81,13 @@ class Tracer {
     // Equi-angular sampling of single scattering on a segment (technique "EL"): the light
     // point first, then the distance, then the connection.
     Rgb equiangular_inscattering(const MediumSegment& segment) {
-        float pick = 0;
-        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
+        float pick_probability = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick_probability);
         const Vec2 u = rng_.next_2d();
         const float u_t = rng_.next_1d();
         Vec3 light_point;
-        if (!light || !(pick > 0) || !light->sample_position(u, light_point)) return Rgb(0.0f);
+        if (!light || !(pick_probability > 0) || !light->sample_position(u, light_point))
+            return Rgb(0.0f);
         const EquiAngularSampler sampler(segment.ray.origin, segment.ray.direction, light_point,
                                          0.0f, segment.t_end);
         const float t = sampler.sample(u_t);
@@ -99,7 +100,7 @@ class Tracer {
         const float phase = medium.phase().p(-segment.ray.direction, ls.wi);
         const Rgb sigma_s = medium.sigma_s(q);
         if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
-        const float light_pdf = pick * ls.pdf_direct_w;
+        const float light_pdf = pick_probability * ls.pdf_direct_w;
         const float distance = medium.pdf_scatter(segment.ray, t);
         const float w = power_heuristic3(equiangular * light_pdf, distance * light_pdf,
                                          light->is_delta() ? 0.0f : distance * phase);
@@ -108,7 +109,7 @@ class Tracer {
         if (tr_to_q.is_black()) return Rgb(0.0f);
         DirectLightSample dl;
         dl.light = light;
-        dl.pick = pick;
+        dl.pick_probability = pick_probability;
         dl.ls = ls;
         const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), dl, segment.medium);
         return tr_to_q * sigma_s * ls.radiance * tr_to_light *
@@ -138,7 +139,7 @@ class Tracer {
     float emission_weight(const ScatteringVertex& v, const Light* light, const Vec3& light_point,
                           float pdf_direct_a, float cos_light, bool solid_angle) const {
         if (v.delta) return 1.0f;
-        float light_pdf = scene_.light_pdf(light) * pdf_direct_a;
+        float light_pdf = scene_.light_pick_probability(light) * pdf_direct_a;
         if (!solid_angle) {
             if (!(cos_light > 0)) return 0.0f;
             light_pdf *= length_squared(light_point - v.p) / cos_light;

@@ -21,9 +21,10 @@ class Distribution1D {
     float integral() const { return integral_; }  // sum(weights) / size()
     float weight(size_t i) const { return func_[i]; }
 
-    // Discrete sampling: index i with probability discrete_pdf(i).
-    size_t sample_discrete(float u, float* pdf = nullptr, float* u_remapped = nullptr) const;
-    float discrete_pdf(size_t i) const;
+    // Discrete sampling: index i with probability discrete_probability(i).
+    size_t sample_discrete(float u, float* probability = nullptr,
+                           float* u_remapped = nullptr) const;
+    float discrete_probability(size_t i) const;
 
     // Continuous sampling on [0, 1): returns x with density pdf(x) = weight(i) / integral().
     float sample_continuous(float u, float* pdf = nullptr, size_t* index = nullptr) const;

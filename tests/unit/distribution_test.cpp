@@ -71,11 +71,11 @@ TEST(Distribution1D, DiscreteProbabilitiesAreNormalisedWeights) {
     EXPECT_FLOAT_EQ(d.integral(), sum / float(kWeights.size()));
     double total = 0;
     for (size_t i = 0; i < kWeights.size(); ++i) {
-        EXPECT_FLOAT_EQ(d.discrete_pdf(i), kWeights[i] / sum) << i;
-        total += d.discrete_pdf(i);
+        EXPECT_FLOAT_EQ(d.discrete_probability(i), kWeights[i] / sum) << i;
+        total += d.discrete_probability(i);
     }
     EXPECT_NEAR(total, 1.0, 1e-6);
-    EXPECT_EQ(d.discrete_pdf(kWeights.size()), 0.0f);  // out of range
+    EXPECT_EQ(d.discrete_probability(kWeights.size()), 0.0f);  // out of range
 }
 
 TEST(Distribution1D, DiscreteNeverPicksAZeroWeight) {
@@ -85,11 +85,11 @@ TEST(Distribution1D, DiscreteNeverPicksAZeroWeight) {
     // Exactly on the cdf's steps, where ties between bins are decided.
     for (float c : {1.0f / 6.5f, 4.0f / 6.5f, 6.0f / 6.5f}) us.push_back(c);
     for (float u : us) {
-        float pdf, remapped;
-        size_t i = d.sample_discrete(u, &pdf, &remapped);
+        float probability, remapped;
+        size_t i = d.sample_discrete(u, &probability, &remapped);
         ASSERT_LT(i, kWeights.size());
         EXPECT_GT(kWeights[i], 0.0f) << "u = " << u;
-        EXPECT_FLOAT_EQ(pdf, d.discrete_pdf(i));
+        EXPECT_FLOAT_EQ(probability, d.discrete_probability(i));
         EXPECT_GE(remapped, 0.0f);
         EXPECT_LT(remapped, 1.0f);
     }
@@ -145,7 +145,7 @@ TEST(Distribution1D, ContinuousChiSquareAndPdf) {
 
 TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
     Distribution1D d(std::vector<float>(5, 0.0f));
-    for (size_t i = 0; i < 5; ++i) EXPECT_FLOAT_EQ(d.discrete_pdf(i), 0.2f);
+    for (size_t i = 0; i < 5; ++i) EXPECT_FLOAT_EQ(d.discrete_probability(i), 0.2f);
     for (float u : {0.0f, 0.3f, 0.5f, kOneMinusEpsilon}) {
         float pdf;
         float x = d.sample_continuous(u, &pdf);
@@ -154,7 +154,7 @@ TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
     }
     // Non-finite and negative weights count as zero.
     Distribution1D e({-1.0f, std::nanf(""), 2.0f, kInfinity});
-    EXPECT_FLOAT_EQ(e.discrete_pdf(2), 1.0f);
+    EXPECT_FLOAT_EQ(e.discrete_probability(2), 1.0f);
     EXPECT_EQ(e.sample_discrete(0.0f), 2u);
     EXPECT_EQ(e.sample_discrete(kOneMinusEpsilon), 2u);
 }
@@ -162,11 +162,11 @@ TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
 TEST(Distribution1D, SingleBin) {
     Distribution1D d({4.0f});
     EXPECT_FLOAT_EQ(d.integral(), 4.0f);
-    EXPECT_FLOAT_EQ(d.discrete_pdf(0), 1.0f);
+    EXPECT_FLOAT_EQ(d.discrete_probability(0), 1.0f);
     for (float u : {0.0f, 0.25f, kOneMinusEpsilon}) {
-        float pdf;
-        EXPECT_EQ(d.sample_discrete(u, &pdf), 0u);
-        EXPECT_FLOAT_EQ(pdf, 1.0f);
+        float probability, pdf;
+        EXPECT_EQ(d.sample_discrete(u, &probability), 0u);
+        EXPECT_FLOAT_EQ(probability, 1.0f);
         EXPECT_FLOAT_EQ(d.sample_continuous(u, &pdf), u);
         EXPECT_FLOAT_EQ(pdf, 1.0f);
     }
