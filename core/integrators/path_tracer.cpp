@@ -73,7 +73,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                         float light_pdf = dl.pdf_w();
                         float w = dl.light->is_delta()
                                       ? 1.0f
-                                      : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi).forward);
+                                      : power_heuristic(light_pdf, bsdf.pdf_w(wo, ls.wi).forward);
                         const Rgb contribution =
                             beta * f * ls.radiance * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
                         L += contribution;
@@ -89,7 +89,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
         if (!bs || bs->weight.is_black()) break;
         beta *= bs->weight;
         prev_delta = bs->delta;
-        prev_bsdf_pdf = bs->pdf.forward;
+        prev_bsdf_pdf = bs->pdf_w.forward;
 
         if (depth >= rr_depth_) {
             // Survive with probability proportional to the throughput (capped so that paths

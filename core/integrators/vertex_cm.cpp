@@ -66,11 +66,11 @@ struct Vertex {
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u) const {
         if (!phase) return bsdf->sample(wo, u_lobe, u);
         const PhaseSample ps = phase->sample(wo, u);
-        if (!(ps.pdf > 0)) return std::nullopt;
+        if (!(ps.pdf_w > 0)) return std::nullopt;
         BsdfSample bs;
         bs.wi = ps.wi;
         bs.weight = Rgb(1.0f);
-        bs.pdf = BsdfPdf{ps.pdf, ps.pdf};
+        bs.pdf_w = BsdfPdf{ps.pdf_w, ps.pdf_w};
         return bs;
     }
     // The medium on the side of direction d, for a path that arrived from wo: a surface keeps
@@ -354,9 +354,10 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     const float cos_out = v.cos(bs->wi);
     if (!(cos_out > 0)) return false;
 
-    if (!bs->delta && !(bs->pdf.forward > 0)) return false;
+    if (!bs->delta && !(bs->pdf_w.forward > 0)) return false;
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
-    mis_.scatter(state.mis, cos_out, bs->pdf.forward, bs->pdf.reverse, bs->delta, v.in_medium());
+    mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta,
+                 v.in_medium());
     state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 

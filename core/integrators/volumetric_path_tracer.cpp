@@ -221,8 +221,8 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                     sink.add(Technique::Connection, 1, depth + 2, c);
                 }
                 const PhaseSample ps = medium->phase().sample(wo, rng.next_2d());
-                if (!(ps.pdf > 0)) break;
-                v.direction_pdf = ps.pdf;
+                if (!(ps.pdf_w > 0)) break;
+                v.direction_pdf = ps.pdf_w;
                 prev = v;
                 if (!survives_roulette(depth, beta, rng)) break;
                 ray = Ray(v.p, ps.wi);
@@ -284,7 +284,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
         prev = ScatteringVertex{};
         prev.p = si.p;
         prev.delta = bs->delta;
-        prev.direction_pdf = bs->pdf.forward;
+        prev.direction_pdf = bs->pdf_w.forward;
         if (!survives_roulette(depth, beta, rng)) break;
         ray = scene.spawn_ray(si.p, si.geometric_normal, bs->wi);
         ++depth;

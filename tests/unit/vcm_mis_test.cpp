@@ -264,7 +264,7 @@ class MisSumTest : public ::testing::Test {
             const float p = v.phase->p(wo, wi);
             return BsdfPdf{p, p};
         }
-        return surface(i, mode).pdf(wo, wi);
+        return surface(i, mode).pdf_w(wo, wi);
     }
     float camera_pdf_w(const Vec3& dir) const {
         return camera_.direction_pdf(dir) * float(kWidth * kHeight);
