@@ -140,7 +140,7 @@ class Iteration {
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
     // (the report's camera pdf with the image plane measured in pixels).
     float camera_pixel_pdf_w(const Vec3& dir) const {
-        return camera_.direction_pdf(dir) * float(pixel_count_);
+        return camera_.direction_pdf_w(dir) * float(pixel_count_);
     }
 
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;

@@ -71,16 +71,16 @@ Distribution2D::Distribution2D(const std::vector<float>& weights, size_t width, 
     marginal_ = Distribution1D(std::move(row_sums));
 }
 
-Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
+Vec2 Distribution2D::sample(Vec2 u, float* pdf_a) const {
     float pdf_row, pdf_col;
     size_t row;
     float y = marginal_.sample_continuous(u.y, &pdf_row, &row);
     float x = conditional_[row].sample_continuous(u.x, &pdf_col);
-    if (pdf) *pdf = pdf_row * pdf_col;
+    if (pdf_a) *pdf_a = pdf_row * pdf_col;
     return {x, y};
 }
 
-float Distribution2D::pdf(Vec2 p) const {
+float Distribution2D::pdf_a(Vec2 p) const {
     if (conditional_.empty() || !(p.y >= 0 && p.y < 1)) return 0.0f;
     size_t row = std::min(size_t(p.y * float(conditional_.size())), conditional_.size() - 1);
     return marginal_.pdf_continuous(p.y) * conditional_[row].pdf_continuous(p.x);

@@ -42,9 +42,9 @@ class Distribution2D {
     // weights[row * width + col]; rows are along v (y), columns along u (x).
     Distribution2D(const std::vector<float>& weights, size_t width, size_t height);
 
-    // Point in [0,1)^2 with density pdf(p) w.r.t. the unit square's area.
-    Vec2 sample(Vec2 u, float* pdf = nullptr) const;
-    float pdf(Vec2 p) const;
+    // Point in [0,1)^2 with density pdf_a(p) w.r.t. the unit square's area.
+    Vec2 sample(Vec2 u, float* pdf_a = nullptr) const;
+    float pdf_a(Vec2 p) const;
 
   private:
     std::vector<Distribution1D> conditional_;  // one per row

@@ -60,7 +60,7 @@ TEST(PerspectiveCamera, DirectionPdfIntegratesToOne) {
     double sum = 0, sum2 = 0;
     for (int i = 0; i < n; ++i) {
         Vec3 d = warp::square_to_uniform_sphere(rng.next_2d());
-        double v = camera.direction_pdf(d) / warp::square_to_uniform_sphere_pdf();
+        double v = camera.direction_pdf_w(d) / warp::square_to_uniform_sphere_pdf();
         sum += v;
         sum2 += v * v;
     }
@@ -79,7 +79,7 @@ TEST(PerspectiveCamera, DirectionPdfMatchesRasterDensity) {
         Vec3 dy = camera.generate_ray(raster + Vec2(0, h)).direction - d;
         double solid_angle_per_pixel = length(cross(dx, dy)) / (h * h);
         double expected = 1.0 / (solid_angle_per_pixel * 64 * 48);
-        EXPECT_NEAR(camera.direction_pdf(d), expected, 2e-3 * expected);
+        EXPECT_NEAR(camera.direction_pdf_w(d), expected, 2e-3 * expected);
     }
 }
 

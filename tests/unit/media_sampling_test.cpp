@@ -272,7 +272,7 @@ std::shared_ptr<const PhaseFunction> isotropic() {
 // cells, and the pass-through event as a 65th cell [t_max, t_max * 65 / 64] of density
 // P(pass) / width (the sample lands at its centre); a dummy second coordinate (one cell).
 ChiSquareResult distance_chi_square(const Medium& medium, float t_max,
-                                    const std::function<double(double)>& pdf_scatter,
+                                    const std::function<double(double)>& pdf_scatter_l,
                                     double probability_pass, uint64_t seed) {
     const int cells = 64;
     const double width = double(t_max) / cells;
@@ -280,7 +280,7 @@ ChiSquareResult distance_chi_square(const Medium& medium, float t_max,
         MediumSample s = medium.sample(kRay, t_max, rng);
         return Vec2(s.scattered ? s.t : float(t_max + 0.5 * width), 0.5f);
     };
-    auto pdf = [&](Vec2 p) { return p.x < t_max ? pdf_scatter(p.x) : probability_pass / width; };
+    auto pdf = [&](Vec2 p) { return p.x < t_max ? pdf_scatter_l(p.x) : probability_pass / width; };
     ChiSquareOptions o = options(seed);
     o.resolution_x = cells + 1;
     o.resolution_y = 1;
@@ -383,7 +383,7 @@ double mis_probability_pass(const Rgb& sigma_t, double t) {
     return sum / 3;
 }
 
-// (c) pdf_scatter and probability_pass describe sample()'s distribution (what bidirectional
+// (c) pdf_scatter_l and probability_pass describe sample()'s distribution (what bidirectional
 // MIS relies on), and equal the closed forms.
 TEST(MediaDistance, PdfScatterAndProbabilityPassMatchSamples) {
     struct Case {
@@ -397,16 +397,16 @@ TEST(MediaDistance, PdfScatterAndProbabilityPassMatchSamples) {
         SCOPED_TRACE(::testing::Message() << "sigma_t = " << k.sigma_t);
         HomogeneousMedium medium(k.sigma_t - k.sigma_s, k.sigma_s, isotropic());
         ChiSquareResult r = distance_chi_square(
-            medium, k.t_max, [&](double t) { return medium.pdf_scatter(kRay, float(t)); },
+            medium, k.t_max, [&](double t) { return medium.pdf_scatter_l(kRay, float(t)); },
             medium.probability_pass(kRay, k.t_max), ++seed);
         EXPECT_TRUE(r.passed) << r.message;
         EXPECT_NEAR(r.pdf_integral, 1.0, 1e-4) << r.message;
         for (double t : {0.0, 0.001, 0.01, 0.1, 0.3, 1.0, 10.0}) {
             double pdf = mis_pdf_scatter(k.sigma_t, t), pass = mis_probability_pass(k.sigma_t, t);
-            EXPECT_NEAR(medium.pdf_scatter(kRay, float(t)), pdf, 1e-5 * pdf + 1e-30) << t;
+            EXPECT_NEAR(medium.pdf_scatter_l(kRay, float(t)), pdf, 1e-5 * pdf + 1e-30) << t;
             EXPECT_NEAR(medium.probability_pass(kRay, float(t)), pass, 1e-5 * pass + 1e-30) << t;
         }
-        EXPECT_EQ(medium.pdf_scatter(kRay, kInfinity), 0.0f);
+        EXPECT_EQ(medium.pdf_scatter_l(kRay, kInfinity), 0.0f);
         EXPECT_NEAR(medium.probability_pass(kRay, kInfinity), k.sigma_t[0] == 0 ? 1.0 / 3.0 : 0.0,
                     1e-7);
     }
@@ -446,7 +446,7 @@ TEST(MediaDistance, EdgeCasesStayFinite) {
                         float albedo = k.sigma_t[c] > 0 ? k.sigma_s[c] / k.sigma_t[c] : 0.0f;
                         ASSERT_LE(s.weight[c], 3.0f * albedo * (1 + 1e-5f)) << c;
                     }
-                    float pdf = medium.pdf_scatter(kRay, s.t);
+                    float pdf = medium.pdf_scatter_l(kRay, s.t);
                     ASSERT_TRUE(std::isfinite(pdf) && pdf > 0) << pdf;
                 } else {
                     ++passes;
@@ -461,7 +461,7 @@ TEST(MediaDistance, EdgeCasesStayFinite) {
             Rgb tr = medium.transmittance(kRay, t_max, unused);
             EXPECT_TRUE(tr.is_finite()) << tr;
             EXPECT_TRUE(std::isfinite(medium.probability_pass(kRay, t_max)));
-            EXPECT_TRUE(std::isfinite(medium.pdf_scatter(kRay, t_max)));
+            EXPECT_TRUE(std::isfinite(medium.pdf_scatter_l(kRay, t_max)));
             if (k.sigma_t.is_black()) {
                 // A vacuum: always passes with weight exactly 1.
                 EXPECT_EQ(passes, n);
@@ -621,11 +621,11 @@ void expect_equiangular_well_formed(const EquiAngularSampler& sampler, float t0,
         float u = i == 0 ? 0.0f : (i == 1 ? kOneMinusEpsilon : (i == 2 ? 0.5f : rng.next_1d()));
         float t = sampler.sample(u);
         ASSERT_TRUE(t >= t0 && t <= t1) << "u = " << u << ": t = " << t;
-        float pdf = sampler.pdf(t);
+        float pdf = sampler.pdf_l(t);
         ASSERT_TRUE(std::isfinite(pdf) && pdf > 0) << "t = " << t << ": pdf = " << pdf;
     }
-    EXPECT_EQ(sampler.pdf(std::nextafter(t0, -kInfinity)), 0.0f);
-    EXPECT_EQ(sampler.pdf(std::nextafter(t1, kInfinity)), 0.0f);
+    EXPECT_EQ(sampler.pdf_l(std::nextafter(t0, -kInfinity)), 0.0f);
+    EXPECT_EQ(sampler.pdf_l(std::nextafter(t1, kInfinity)), 0.0f);
 }
 
 // The ordinary configurations: chi-square in t and, independently of how the sampler
@@ -646,7 +646,7 @@ TEST(MediaEquiAngular, ChiSquare) {
         EquiAngularSampler sampler(kOrigin, kDirection, light, k.t0, k.t1);
         expect_equiangular_well_formed(sampler, k.t0, k.t1);
         auto [delta, distance] = foot_and_distance(light);
-        auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
+        auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
         EXPECT_NEAR(integrate_graded(pdf, k.t0, k.t1, delta, 0.01 * distance), 1.0, 1e-4);
 
         ChiSquareResult r =
@@ -694,7 +694,7 @@ TEST(MediaEquiAngular, Guards) {
         // The spike of the on-line cases is as wide as the sampler's clamped distance
         // (1e-6 of the problem's size); grade the integration down to well below it.
         const double h = std::max(distance, 1e-9 * std::max(double(k.t1 - k.t0), std::abs(delta)));
-        auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
+        auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
         EXPECT_NEAR(integrate_graded(pdf, k.t0, k.t1, delta, h), 1.0, 1e-3);
         // Chi-square only where the density is not a sub-float spike (in the foot-inside case
         // nearly every sample is the same float).
@@ -713,8 +713,8 @@ TEST(MediaEquiAngular, TinyRange) {
             EquiAngularCase k{"tiny", double(t0) + 0.3 * (t1 - t0), distance, t0, t1};
             EquiAngularSampler sampler(kOrigin, kDirection, light_position(k), t0, t1);
             expect_equiangular_well_formed(sampler, t0, t1);
-            auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
-            // pdf() sees t rounded to a float, so integrate it over each float's rounding
+            auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
+            // pdf_l() sees t rounded to a float, so integrate it over each float's rounding
             // cell (the points closer to it than to its neighbours), clipped to [t0, t1].
             double integral = 0;
             for (float t = t0; t <= t1; t = std::nextafter(t, kInfinity)) {

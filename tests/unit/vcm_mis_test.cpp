@@ -19,7 +19,7 @@
 // (Material::Medium: the fog's Henyey-Greenstein phase function and no normal, so cosines are 1,
 // the phase value is the density in both directions, and merging there uses photon points with
 // eta = 4/3 pi r^3 N instead of pi r^2 N). Sampling a segment also samples its length, so each
-// segment has a distance density at either end: pdf_scatter(t) (per unit length) at a medium
+// segment has a distance density at either end: pdf_scatter_l(t) (per unit length) at a medium
 // vertex, probability_pass(t) at a surface vertex, the light or the camera (surface-like
 // endpoints), both from a real HomogeneousMedium (core/media/medium_segment.h). Directional and
 // constant lights are outside the fog: it fills a ball around the scene with a null boundary,
@@ -267,7 +267,7 @@ class MisSumTest : public ::testing::Test {
         return surface(i, mode).pdf_w(wo, wi);
     }
     float camera_pdf_w(const Vec3& dir) const {
-        return camera_.direction_pdf(dir) * float(kWidth * kHeight);
+        return camera_.direction_pdf_w(dir) * float(kWidth * kHeight);
     }
 
     // --- segment densities ------------------------------------------------------------------
@@ -288,7 +288,7 @@ class MisSumTest : public ::testing::Test {
         if (!fog_) return 1.0f;
         const bool medium_vertex =
             id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        return medium_vertex ? fog_->pdf_scatter(ray, t) : fog_->probability_pass(ray, t);
+        return medium_vertex ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
     }
     // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
     // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
@@ -628,7 +628,7 @@ TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
             one.add_piece(&fog_medium_, ray, t);
             const SegmentDensities d = one.finish(end_medium);
             const auto density = [&](bool medium) {
-                return medium ? fog_medium_.pdf_scatter(ray, t)
+                return medium ? fog_medium_.pdf_scatter_l(ray, t)
                               : fog_medium_.probability_pass(ray, t);
             };
             EXPECT_FLOAT_EQ(d.toward_end, density(end_medium));
@@ -645,7 +645,7 @@ TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
         in.add_piece(&fog_medium_, ray, t);
         const SegmentDensities d_in = in.finish(start_medium);
         const float at_vertex =
-            start_medium ? fog_medium_.pdf_scatter(ray, t) : fog_medium_.probability_pass(ray, t);
+            start_medium ? fog_medium_.pdf_scatter_l(ray, t) : fog_medium_.probability_pass(ray, t);
         EXPECT_FLOAT_EQ(d_out.toward_end, fog_medium_.probability_pass(ray, t));
         EXPECT_FLOAT_EQ(d_out.toward_start, at_vertex);
         EXPECT_FLOAT_EQ(d_in.toward_end, at_vertex);
