@@ -380,7 +380,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
     const Vec3 d = to_camera / std::sqrt(dist2);
-    const auto [f, pdf] = v.evaluate(wo, d);
+    const auto [f, pdf_w] = v.evaluate(wo, d);
     if (f.is_black()) return;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_.position(), Vec3());
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), false, rng, stats);
@@ -388,9 +388,11 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
     const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
-    const float weight =
-        light_trace_only_ ? 1.0f
-                          : mis_.weight_camera(state.mis, camera_pdf_a, pdf.reverse, v.in_medium());
+    const float weight = light_trace_only_
+                             ? 1.0f
+                             : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
+                                                              .light_reverse_w = pdf_w.reverse,
+                                                              .light_medium = v.in_medium()});
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
@@ -425,16 +427,24 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     DirectLightSample dl;
     if (!sample_direct_light(scene_, v.p, rng, dl)) return Rgb(0.0f);
     const LightIlluminateSample& ls = dl.ls;
-    const auto [f, pdf] = v.evaluate(wo, ls.wi);
+    const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Eqs. (44) and (45).
     const float weight =
-        mis_.weight_direct(state.mis, pdf.forward, pdf.reverse, dl.pdf_w(), ls.pdf_emission_w,
-                           ls.pdf_direct_w, v.cos(ls.wi), ls.cos_at_light, dl.light->is_delta(),
-                           v.in_medium(), l.densities.toward_end, l.densities.toward_start);
+        mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
+                                       .bsdf_reverse_w = pdf_w.reverse,
+                                       .light_pdf_w = dl.pdf_w(),
+                                       .emission_pdf_w = ls.pdf_emission_w,
+                                       .direct_pdf_w = ls.pdf_direct_w,
+                                       .cos_here = v.cos(ls.wi),
+                                       .cos_light = ls.cos_at_light,
+                                       .delta_light = dl.light->is_delta(),
+                                       .eye_medium = v.in_medium(),
+                                       .pass_to_light_probability = l.densities.toward_end,
+                                       .distance_from_light = l.densities.toward_start});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -447,21 +457,25 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
     d = d / std::sqrt(dist2);
-    const auto [f_eye, pdf_eye] = v.evaluate(wo, d);
+    const auto [f_eye, eye_pdf_w] = v.evaluate(wo, d);
     if (f_eye.is_black()) return Rgb(0.0f);
-    const auto [f_light, pdf_light] = w.evaluate(lv.wo, -d);
+    const auto [f_light, light_pdf_w] = w.evaluate(lv.wo, -d);
     if (f_light.is_black()) return Rgb(0.0f);
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).
-    const float eye_pdf_a = pdf_eye.forward * w.cos(d) * l.densities.toward_end / dist2;
-    const float light_pdf_a = pdf_light.forward * v.cos(d) * l.densities.toward_start / dist2;
+    const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
+    const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
     // Eqs. (40) and (41).
-    const float weight =
-        mis_.weight_connection(lv.mis, state.mis, eye_pdf_a, light_pdf_a, pdf_light.reverse,
-                               pdf_eye.reverse, w.in_medium(), v.in_medium());
+    const float weight = mis_.weight_connection(lv.mis, state.mis,
+                                                {.eye_pdf_a = eye_pdf_a,
+                                                 .light_pdf_a = light_pdf_a,
+                                                 .light_reverse_w = light_pdf_w.reverse,
+                                                 .eye_reverse_w = eye_pdf_w.reverse,
+                                                 .light_medium = w.in_medium(),
+                                                 .eye_medium = v.in_medium()});
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return Rgb(0.0f);
@@ -477,12 +491,14 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         const LightVertex& lv = light_vertices_[index[i]];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
-        const auto [f, pdf] = v.evaluate(wo, lv.wo);
+        const auto [f, pdf_w] = v.evaluate(wo, lv.wo);
         if (f.is_black()) return;
         float weight = 1.0f;
         if (!ppm_) {
             // Eqs. (38) and (39).
-            weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse, medium);
+            weight = mis_.weight_merge(
+                lv.mis, state.mis,
+                {.eye_forward_w = pdf_w.forward, .eye_reverse_w = pdf_w.reverse, .medium = medium});
         }
         Rgb photon = lv.throughput;
         if (medium) {
