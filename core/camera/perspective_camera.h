@@ -5,7 +5,8 @@
 //
 // For light tracing it also provides the importance We and the raster position of a world
 // point. With the image plane at distance 1 and area A (in camera units), a pinhole's
-// importance is We = 1 / (A cos^4 theta), and the pdf of a camera ray direction is the same.
+// importance is We = 1 / (A cos^4 theta), and the solid-angle density of a camera ray direction
+// is We cos theta = 1 / (A cos^3 theta) (direction_pdf_w).
 
 #include <optional>
 
