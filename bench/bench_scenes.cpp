@@ -109,8 +109,8 @@ const RaySet& rays(const std::string& name) {
             const Vec3 d =
                 Frame::from_normal(n).to_world(warp::square_to_cosine_hemisphere(rng.next_2d()));
             set.closest.push_back(s.spawn_ray(si.p, n, d));
-            float pick_pdf = 0;
-            const Light* light = s.sample_light(rng.next_1d(), &pick_pdf);
+            float pick_probability = 0;
+            const Light* light = s.sample_light(rng.next_1d(), &pick_probability);
             LightIlluminateSample ls;
             if (!light || !light->illuminate(si.p, rng.next_2d(), ls)) continue;
             set.shadow.push_back(std::isinf(ls.distance)
@@ -126,8 +126,8 @@ std::vector<Vec3> light_vertex_positions(const Scene& scene, uint64_t path_count
     std::vector<Vec3> positions;
     for (uint64_t p = 0; p < path_count; ++p) {
         Rng rng(StreamKey{kSeed, 0, 1, (uint64_t(1) << 62) + p});
-        float pick_pdf = 0;
-        const Light* light = scene.sample_light(rng.next_1d(), &pick_pdf);
+        float pick_probability = 0;
+        const Light* light = scene.sample_light(rng.next_1d(), &pick_probability);
         const Vec2 u_position = rng.next_2d(), u_direction = rng.next_2d();
         LightEmitSample e;
         if (!light || !light->emit(u_position, u_direction, e)) continue;

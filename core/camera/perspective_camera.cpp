@@ -47,7 +47,7 @@ std::optional<Vec2> PerspectiveCamera::raster_position(const Vec3& p) const {
     return raster;
 }
 
-float PerspectiveCamera::direction_pdf(const Vec3& dir) const {
+float PerspectiveCamera::direction_pdf_w(const Vec3& dir) const {
     // Camera-space direction without the translation; to_camera may scale, so renormalise.
     Vec3 local = normalize(to_camera_.apply_vector(dir));
     if (local.z <= 0) return 0.0f;

@@ -5,7 +5,8 @@
 //
 // For light tracing it also provides the importance We and the raster position of a world
 // point. With the image plane at distance 1 and area A (in camera units), a pinhole's
-// importance is We = 1 / (A cos^4 theta), and the pdf of a camera ray direction is the same.
+// importance is We = 1 / (A cos^4 theta), and the solid-angle density of a camera ray direction
+// is We cos theta = 1 / (A cos^3 theta) (direction_pdf_w).
 
 #include <optional>
 
@@ -39,8 +40,8 @@ class PerspectiveCamera {
     std::optional<Vec2> raster_position(const Vec3& p) const;
 
     // Solid-angle density 1 / (A cos^3) of generate_ray producing world direction `dir` for a
-    // uniformly chosen raster position; zero outside the image. We = direction_pdf / cos.
-    float direction_pdf(const Vec3& dir) const;
+    // uniformly chosen raster position; zero outside the image. We = direction_pdf_w / cos.
+    float direction_pdf_w(const Vec3& dir) const;
 
     // Area of the image plane at distance 1 from the pinhole.
     float image_plane_area() const { return image_plane_area_; }

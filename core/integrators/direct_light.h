@@ -15,10 +15,10 @@ namespace render {
 
 struct DirectLightSample {
     const Light* light = nullptr;
-    float pick = 0;  // the light's selection probability
+    float pick_probability = 0;  // the light's selection probability (discrete)
     LightIlluminateSample ls;
     // Selection probability times the light's solid-angle density at the receiver.
-    float pdf_w() const { return pick * ls.pdf_direct_w; }
+    float pdf_w() const { return pick_probability * ls.pdf_direct_w; }
     // The shadow ray from receiver p (geometric normal n; zero in a medium) to the sample.
     Ray shadow_ray(const Scene& scene, const Vec3& p, const Vec3& n) const {
         return std::isinf(ls.distance) ? scene.spawn_ray_to_infinity(p, n, ls.wi)
@@ -29,9 +29,9 @@ struct DirectLightSample {
 // False when there is nothing to connect to (no light, or a sample without energy or density).
 inline bool sample_direct_light(const Scene& scene, const Vec3& receiver, Rng& rng,
                                 DirectLightSample& out) {
-    out.light = scene.sample_light(rng.next_1d(), &out.pick);
+    out.light = scene.sample_light(rng.next_1d(), &out.pick_probability);
     const Vec2 u = rng.next_2d();
-    return out.light && out.pick > 0 && out.light->illuminate(receiver, u, out.ls) &&
+    return out.light && out.pick_probability > 0 && out.light->illuminate(receiver, u, out.ls) &&
            out.ls.pdf_direct_w > 0;
 }
 

@@ -9,7 +9,7 @@
 namespace render {
 void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, float length) {
     const float pass = medium ? medium->probability_pass(ray, length) : 1.0f;
-    const float scatter = medium ? medium->pdf_scatter(ray, length) : 0.0f;
+    const float scatter = medium ? medium->pdf_scatter_l(ray, length) : 0.0f;
     if (pieces_ == 0) {
         first_start_factor_ = start_in_medium_ ? scatter : pass;
     } else {

@@ -7,7 +7,7 @@
 //   toward_end   = P_pass of every piece but the last, times the last piece's density of a
 //                  scattering event at its end (medium vertex) or its P_pass (surface),
 //   toward_start = the same from the other end.
-// Densities come from Medium::pdf_scatter and probability_pass, which are exact for
+// Densities come from Medium::pdf_scatter_l and probability_pass, which are exact for
 // homogeneous media; that is why the bidirectional family accepts homogeneous media only.
 
 #include <cstdint>

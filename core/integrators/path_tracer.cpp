@@ -26,9 +26,10 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
             for (const Light* light : scene.background_lights()) {
                 LightRadiance le = light->radiance(Vec3(), Vec3(), ray.direction);
                 if (le.radiance.is_black()) continue;
-                float w = prev_delta ? 1.0f
-                                     : power_heuristic(prev_bsdf_pdf,
-                                                       scene.light_pdf(light) * le.pdf_direct_a);
+                float w = prev_delta
+                              ? 1.0f
+                              : power_heuristic(prev_bsdf_pdf, scene.light_pick_probability(light) *
+                                                                   le.pdf_direct_a);
                 const Rgb contribution = beta * le.radiance * w;
                 L += contribution;
                 // Emission found by the eye: s = 0 light vertices, t = depth + 1 eye vertices.
@@ -44,7 +45,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                 if (!prev_delta) {
                     // Light sampling's density for this point, converted to solid angle.
                     float cos_light = abs_dot(si.geometric_normal, ray.direction);
-                    float light_pdf = cos_light > 0 ? scene.light_pdf(si.emitter) *
+                    float light_pdf = cos_light > 0 ? scene.light_pick_probability(si.emitter) *
                                                           le.pdf_direct_a * si.t * si.t / cos_light
                                                     : 0.0f;
                     w = power_heuristic(prev_bsdf_pdf, light_pdf);
@@ -72,7 +73,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
                         float light_pdf = dl.pdf_w();
                         float w = dl.light->is_delta()
                                       ? 1.0f
-                                      : power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi).forward);
+                                      : power_heuristic(light_pdf, bsdf.pdf_w(wo, ls.wi).forward);
                         const Rgb contribution =
                             beta * f * ls.radiance * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
                         L += contribution;
@@ -88,7 +89,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
         if (!bs || bs->weight.is_black()) break;
         beta *= bs->weight;
         prev_delta = bs->delta;
-        prev_bsdf_pdf = bs->pdf.forward;
+        prev_bsdf_pdf = bs->pdf_w.forward;
 
         if (depth >= rr_depth_) {
             // Survive with probability proportional to the throughput (capped so that paths

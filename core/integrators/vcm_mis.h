@@ -7,7 +7,8 @@
 // (vertex_cm.cpp) and the test that checks that the weights of all techniques sampling one
 // path sum to one (tests/unit/vcm_mis_test.cpp) use these same functions.
 //
-// Densities in solid angle (_w) or area (_a); "mis(p)" is p^beta (beta = 2: power heuristic,
+// Densities in solid angle (_w) or area (_a; volume at a medium vertex); selection
+// probabilities are discrete (_probability); "mis(p)" is p^beta (beta = 2: power heuristic,
 // beta = 1: balance heuristic). Russian roulette is not part of any density here: the weights
 // only need to sum to one over the techniques, and roulette is compensated in the throughput.
 
@@ -20,6 +21,62 @@ namespace render {
 // where the merge happens. With one eta everywhere this is the report's arithmetic exactly.
 struct MisQuantities {
     float dVCM = 0, dVC = 0, dVM = 0;
+};
+
+// What each technique's weight needs besides the subpaths' MisQuantities, as named fields
+// (call sites use designated initialisers). Defaults mean: surface vertices, no media on the
+// way.
+
+// Eqs. (44) and (45): next-event estimation from an eye vertex (the receiver).
+struct DirectTechnique {
+    // The receiver's densities toward the light (forward) and back along the eye path (reverse).
+    float bsdf_forward_w = 0;
+    float bsdf_reverse_w = 0;
+    // Selection probability times the light's solid-angle density at the receiver.
+    float light_pdf_w = 0;
+    // The light's own densities (the selection probability cancels in their ratio).
+    float emission_pdf_w = 0;
+    float direct_pdf_w = 0;
+    float cos_here = 0;   // at the receiver (1 in a medium)
+    float cos_light = 0;  // at the light
+    bool delta_light = false;
+    bool eye_medium = false;  // the receiver is a medium vertex
+    // Through media: the probability of passing every medium toward the light, and the
+    // distance density of reaching the receiver from the light (per unit length at a medium
+    // receiver, the probability of passing every medium at a surface).
+    float pass_to_light_probability = 1.0f;
+    float distance_from_light = 1.0f;
+};
+
+// Eqs. (40) and (41): connecting an eye vertex to a light vertex.
+struct ConnectionTechnique {
+    // The eye vertex's density of sampling the light vertex (area, or volume for a medium
+    // vertex, with the distance sampling through media included); light_pdf_a the reverse.
+    float eye_pdf_a = 0;
+    float light_pdf_a = 0;
+    // Each vertex's density back along its own subpath given the connection direction.
+    float light_reverse_w = 0;
+    float eye_reverse_w = 0;
+    bool light_medium = false;
+    bool eye_medium = false;
+};
+
+// Eq. (46): a light vertex connected to the camera.
+struct CameraTechnique {
+    // The camera's density of the vertex (area or volume, per unit pixel area).
+    float camera_pdf_a = 0;
+    // The vertex's density back along the light subpath given the direction to the camera.
+    float light_reverse_w = 0;
+    bool light_medium = false;
+};
+
+// Eqs. (38) and (39): merging an eye vertex with a light vertex.
+struct MergeTechnique {
+    // The eye vertex's density of continuing toward the light vertex's predecessor, and back
+    // along the eye subpath.
+    float eye_forward_w = 0;
+    float eye_reverse_w = 0;
+    bool medium = false;  // both vertices are in a medium (otherwise both at surfaces)
 };
 
 class VcmMis {
@@ -84,22 +141,23 @@ class VcmMis {
     }
 
     // Eqs. (34)-(36), first half: leaving a vertex in a sampled direction with |cos| = cos_out
-    // (1 in a medium), forward density pdf_forward and reverse density pdf_reverse. At a
-    // specular vertex the two densities are equal and cancel, and no technique ends there, so
-    // dVCM becomes 0. `medium`: the vertex is in a medium (merging there uses photon points).
-    void scatter(MisQuantities& q, float cos_out, float pdf_forward, float pdf_reverse,
-                 bool specular, bool medium = false) const {
+    // (1 in a medium), forward density forward_w and reverse density reverse_w. At a specular
+    // vertex the two (then discrete lobe probabilities) are equal and cancel, and no technique
+    // ends there, so dVCM becomes 0. `medium`: the vertex is in a medium (merging there uses
+    // photon points).
+    void scatter(MisQuantities& q, float cos_out, float forward_w, float reverse_w, bool specular,
+                 bool medium = false) const {
         if (specular) {
             q.dVCM = 0;
             q.dVC *= mis(cos_out);
             q.dVM *= mis(cos_out);
             return;
         }
-        const float g = mis(cos_out / pdf_forward);
+        const float g = mis(cos_out / forward_w);
         const float vm = vm_weight_factor_[medium];
-        q.dVC = g * (q.dVC * mis(pdf_reverse) + q.dVCM + vm);
-        q.dVM = g * (q.dVM * mis(pdf_reverse) + (use_vc_ ? q.dVCM : 0.0f) + vm);
-        q.dVCM = mis(1.0f / pdf_forward);
+        q.dVC = g * (q.dVC * mis(reverse_w) + q.dVCM + vm);
+        q.dVM = g * (q.dVM * mis(reverse_w) + (use_vc_ ? q.dVCM : 0.0f) + vm);
+        q.dVCM = mis(1.0f / forward_w);
     }
 
     // Eq. (43): the eye subpath hit an emitter. direct_pdf_a and emission_pdf_w include the
@@ -110,61 +168,44 @@ class VcmMis {
         return 1.0f / (1.0f + w_camera);
     }
 
-    // Eqs. (44) and (45): next-event estimation. light_pdf_w = selection probability times
-    // the light's solid-angle density at the receiver; emission_pdf_w and direct_pdf_w are the
-    // light's own densities (the selection probability cancels in their ratio); cos_here is at
-    // the receiver (1 in a medium), cos_light at the light; bsdf_* are the receiver's densities
-    // toward the light (forward) and back along the eye path (reverse). Through media,
-    // distance_to_light is the probability of passing every medium toward the light, and
-    // distance_from_light the distance density of reaching the receiver from the light.
-    float weight_direct(const MisQuantities& eye, float bsdf_forward, float bsdf_reverse,
-                        float light_pdf_w, float emission_pdf_w, float direct_pdf_w, float cos_here,
-                        float cos_light, bool delta_light, bool eye_medium = false,
-                        float distance_to_light = 1.0f, float distance_from_light = 1.0f) const {
+    // Eqs. (44) and (45): next-event estimation (DirectTechnique above).
+    float weight_direct(const MisQuantities& eye, const DirectTechnique& t) const {
         const float w_light =
-            delta_light ? 0.0f : mis(bsdf_forward * distance_to_light / light_pdf_w);
+            t.delta_light ? 0.0f
+                          : mis(t.bsdf_forward_w * t.pass_to_light_probability / t.light_pdf_w);
         const float w_camera =
-            cos_light > 0
-                ? mis(emission_pdf_w * cos_here * distance_from_light /
-                      (direct_pdf_w * cos_light)) *
-                      (vm_weight_factor_[eye_medium] + eye.dVCM + eye.dVC * mis(bsdf_reverse))
+            t.cos_light > 0
+                ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
+                      (t.direct_pdf_w * t.cos_light)) *
+                      (vm_weight_factor_[t.eye_medium] + eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w))
                 : 0.0f;
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
-    // Eqs. (40) and (41): connecting an eye vertex to a light vertex. eye_pdf_a: the eye
-    // vertex's density of sampling the light vertex (area, or volume for a medium vertex, with
-    // the distance sampling through media included); light_pdf_a: the reverse; *_reverse are
-    // each vertex's densities back along its own subpath given the connection direction.
-    float weight_connection(const MisQuantities& light, const MisQuantities& eye, float eye_pdf_a,
-                            float light_pdf_a, float light_reverse_w, float eye_reverse_w,
-                            bool light_medium = false, bool eye_medium = false) const {
-        const float w_light = mis(eye_pdf_a) * (vm_weight_factor_[light_medium] + light.dVCM +
-                                                light.dVC * mis(light_reverse_w));
-        const float w_camera = mis(light_pdf_a) * (vm_weight_factor_[eye_medium] + eye.dVCM +
-                                                   eye.dVC * mis(eye_reverse_w));
+    // Eqs. (40) and (41): connecting an eye vertex to a light vertex (ConnectionTechnique).
+    float weight_connection(const MisQuantities& light, const MisQuantities& eye,
+                            const ConnectionTechnique& t) const {
+        const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] + light.dVCM +
+                                                  light.dVC * mis(t.light_reverse_w));
+        const float w_camera = mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + eye.dVCM +
+                                                     eye.dVC * mis(t.eye_reverse_w));
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
-    // Eq. (46): a light vertex connected to the camera. camera_pdf_a is the camera's density
-    // of the vertex (area or volume, per unit pixel area); light_reverse_w the vertex's density
-    // back along the light subpath given the direction to the camera.
-    float weight_camera(const MisQuantities& light, float camera_pdf_a, float light_reverse_w,
-                        bool light_medium = false) const {
+    // Eq. (46): a light vertex connected to the camera (CameraTechnique).
+    float weight_camera(const MisQuantities& light, const CameraTechnique& t) const {
         const float w_light =
-            mis(camera_pdf_a / light_path_count_) *
-            (vm_weight_factor_[light_medium] + light.dVCM + light.dVC * mis(light_reverse_w));
+            mis(t.camera_pdf_a / light_path_count_) *
+            (vm_weight_factor_[t.light_medium] + light.dVCM + light.dVC * mis(t.light_reverse_w));
         return 1.0f / (w_light + 1.0f);
     }
 
-    // Eqs. (38) and (39): merging an eye vertex with a light vertex (both at surfaces, or both
-    // in a medium when `medium`). eye_forward_w: the eye vertex's density of continuing toward
-    // the light vertex's predecessor; eye_reverse_w: back along the eye subpath.
-    float weight_merge(const MisQuantities& light, const MisQuantities& eye, float eye_forward_w,
-                       float eye_reverse_w, bool medium = false) const {
-        const float vc = vc_weight_factor_[medium], inverse_eta = inverse_eta_[medium];
-        const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(eye_forward_w);
-        const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(eye_reverse_w);
+    // Eqs. (38) and (39): merging an eye vertex with a light vertex (MergeTechnique).
+    float weight_merge(const MisQuantities& light, const MisQuantities& eye,
+                       const MergeTechnique& t) const {
+        const float vc = vc_weight_factor_[t.medium], inverse_eta = inverse_eta_[t.medium];
+        const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(t.eye_forward_w);
+        const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(t.eye_reverse_w);
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 

@@ -66,11 +66,11 @@ struct Vertex {
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u) const {
         if (!phase) return bsdf->sample(wo, u_lobe, u);
         const PhaseSample ps = phase->sample(wo, u);
-        if (!(ps.pdf > 0)) return std::nullopt;
+        if (!(ps.pdf_w > 0)) return std::nullopt;
         BsdfSample bs;
         bs.wi = ps.wi;
         bs.weight = Rgb(1.0f);
-        bs.pdf = BsdfPdf{ps.pdf, ps.pdf};
+        bs.pdf_w = BsdfPdf{ps.pdf_w, ps.pdf_w};
         return bs;
     }
     // The medium on the side of direction d, for a path that arrived from wo: a surface keeps
@@ -140,7 +140,7 @@ class Iteration {
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
     // (the report's camera pdf with the image plane measured in pixels).
     float camera_pixel_pdf_w(const Vec3& dir) const {
-        return camera_.direction_pdf(dir) * float(pixel_count_);
+        return camera_.direction_pdf_w(dir) * float(pixel_count_);
     }
 
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;
@@ -242,13 +242,13 @@ Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) con
 // --- light subpaths ---------------------------------------------------------------------------
 
 bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const {
-    float pick_pdf = 0;
-    const Light* light = scene_.sample_light(rng.next_1d(), &pick_pdf);
+    float pick_probability = 0;
+    const Light* light = scene_.sample_light(rng.next_1d(), &pick_probability);
     Vec2 u_position = rng.next_2d(), u_direction = rng.next_2d();
     LightEmitSample e;
-    if (!light || !(pick_pdf > 0) || !light->emit(u_position, u_direction, e)) return false;
-    const float emission_pdf_w = e.pdf_emission_w * pick_pdf;
-    const float direct_pdf_a = e.pdf_direct_a * pick_pdf;
+    if (!light || !(pick_probability > 0) || !light->emit(u_position, u_direction, e)) return false;
+    const float emission_pdf_w = e.pdf_emission_w * pick_probability;
+    const float direct_pdf_a = e.pdf_direct_a * pick_probability;
     if (!(emission_pdf_w > 0)) return false;
 
     state.throughput = e.energy / emission_pdf_w;
@@ -354,9 +354,10 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     const float cos_out = v.cos(bs->wi);
     if (!(cos_out > 0)) return false;
 
-    if (!bs->delta && !(bs->pdf.forward > 0)) return false;
+    if (!bs->delta && !(bs->pdf_w.forward > 0)) return false;
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
-    mis_.scatter(state.mis, cos_out, bs->pdf.forward, bs->pdf.reverse, bs->delta, v.in_medium());
+    mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta,
+                 v.in_medium());
     state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 
@@ -379,7 +380,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
     const Vec3 d = to_camera / std::sqrt(dist2);
-    const auto [f, pdf] = v.evaluate(wo, d);
+    const auto [f, pdf_w] = v.evaluate(wo, d);
     if (f.is_black()) return;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_.position(), Vec3());
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), false, rng, stats);
@@ -387,9 +388,11 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
     const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
-    const float weight =
-        light_trace_only_ ? 1.0f
-                          : mis_.weight_camera(state.mis, camera_pdf_a, pdf.reverse, v.in_medium());
+    const float weight = light_trace_only_
+                             ? 1.0f
+                             : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
+                                                              .light_reverse_w = pdf_w.reverse,
+                                                              .light_medium = v.in_medium()});
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
@@ -414,9 +417,9 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // specular chains, which nothing else can sample; every other path is left to the light
     // subpaths (connections to the camera, or merging).
     if (!use_vc_) return state.specular_path ? le.radiance : Rgb(0.0f);
-    const float pick = scene_.light_pdf(light);
-    return le.radiance *
-           mis_.weight_emission(state.mis, le.pdf_direct_a * pick, le.pdf_emission_w * pick);
+    const float pick_probability = scene_.light_pick_probability(light);
+    return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
+                                              le.pdf_emission_w * pick_probability);
 }
 
 Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
@@ -424,16 +427,24 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     DirectLightSample dl;
     if (!sample_direct_light(scene_, v.p, rng, dl)) return Rgb(0.0f);
     const LightIlluminateSample& ls = dl.ls;
-    const auto [f, pdf] = v.evaluate(wo, ls.wi);
+    const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Eqs. (44) and (45).
     const float weight =
-        mis_.weight_direct(state.mis, pdf.forward, pdf.reverse, dl.pdf_w(), ls.pdf_emission_w,
-                           ls.pdf_direct_w, v.cos(ls.wi), ls.cos_at_light, dl.light->is_delta(),
-                           v.in_medium(), l.densities.toward_end, l.densities.toward_start);
+        mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
+                                       .bsdf_reverse_w = pdf_w.reverse,
+                                       .light_pdf_w = dl.pdf_w(),
+                                       .emission_pdf_w = ls.pdf_emission_w,
+                                       .direct_pdf_w = ls.pdf_direct_w,
+                                       .cos_here = v.cos(ls.wi),
+                                       .cos_light = ls.cos_at_light,
+                                       .delta_light = dl.light->is_delta(),
+                                       .eye_medium = v.in_medium(),
+                                       .pass_to_light_probability = l.densities.toward_end,
+                                       .distance_from_light = l.densities.toward_start});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -446,21 +457,25 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
     d = d / std::sqrt(dist2);
-    const auto [f_eye, pdf_eye] = v.evaluate(wo, d);
+    const auto [f_eye, eye_pdf_w] = v.evaluate(wo, d);
     if (f_eye.is_black()) return Rgb(0.0f);
-    const auto [f_light, pdf_light] = w.evaluate(lv.wo, -d);
+    const auto [f_light, light_pdf_w] = w.evaluate(lv.wo, -d);
     if (f_light.is_black()) return Rgb(0.0f);
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).
-    const float eye_pdf_a = pdf_eye.forward * w.cos(d) * l.densities.toward_end / dist2;
-    const float light_pdf_a = pdf_light.forward * v.cos(d) * l.densities.toward_start / dist2;
+    const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
+    const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
     // Eqs. (40) and (41).
-    const float weight =
-        mis_.weight_connection(lv.mis, state.mis, eye_pdf_a, light_pdf_a, pdf_light.reverse,
-                               pdf_eye.reverse, w.in_medium(), v.in_medium());
+    const float weight = mis_.weight_connection(lv.mis, state.mis,
+                                                {.eye_pdf_a = eye_pdf_a,
+                                                 .light_pdf_a = light_pdf_a,
+                                                 .light_reverse_w = light_pdf_w.reverse,
+                                                 .eye_reverse_w = eye_pdf_w.reverse,
+                                                 .light_medium = w.in_medium(),
+                                                 .eye_medium = v.in_medium()});
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return Rgb(0.0f);
@@ -476,12 +491,14 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         const LightVertex& lv = light_vertices_[index[i]];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
-        const auto [f, pdf] = v.evaluate(wo, lv.wo);
+        const auto [f, pdf_w] = v.evaluate(wo, lv.wo);
         if (f.is_black()) return;
         float weight = 1.0f;
         if (!ppm_) {
             // Eqs. (38) and (39).
-            weight = mis_.weight_merge(lv.mis, state.mis, pdf.forward, pdf.reverse, medium);
+            weight = mis_.weight_merge(
+                lv.mis, state.mis,
+                {.eye_forward_w = pdf_w.forward, .eye_reverse_w = pdf_w.reverse, .medium = medium});
         }
         Rgb photon = lv.throughput;
         if (medium) {

@@ -27,11 +27,11 @@ struct MediumSegment {
 struct ScatteringVertex {
     Vec3 p;
     bool delta = true;  // camera or delta lobe: nothing else samples what it finds
-    float direction_pdf = 0;
+    float direction_pdf_w = 0;
     bool in_medium = false;
     MediumSegment segment;  // the segment the medium vertex lies on
     float t = 0;            // its distance along that segment
-    float distance_pdf = 0;
+    float distance_pdf_l = 0;
 };
 
 class Tracer {
@@ -39,14 +39,14 @@ class Tracer {
     Tracer(const Scene& scene, bool equiangular, Rng& rng, RenderStats& stats)
         : scene_(scene), equiangular_(equiangular), rng_(rng), stats_(stats) {}
 
-    // Density of equi-angular sampling producing distance t on `segment` toward light point
-    // `light_point` (zero when the technique is not used for this light or segment).
-    float equiangular_pdf(const MediumSegment& segment, const Light* light, const Vec3& light_point,
-                          float t) const {
+    // Density (per unit length) of equi-angular sampling producing distance t on `segment` toward
+    // light point `light_point` (zero when the technique is not used for this light or segment).
+    float equiangular_pdf_l(const MediumSegment& segment, const Light* light,
+                            const Vec3& light_point, float t) const {
         if (!equiangular_ || !light->is_finite() || !std::isfinite(segment.t_end)) return 0.0f;
         return EquiAngularSampler(segment.ray.origin, segment.ray.direction, light_point, 0.0f,
                                   segment.t_end)
-            .pdf(t);
+            .pdf_l(t);
     }
 
     // Transmittance from `p` along the light sample's direction to the light.
@@ -67,30 +67,31 @@ class Tracer {
         const LightIlluminateSample& ls = dl.ls;
         const float phase = v.segment.medium->phase().p(wo, ls.wi);
         if (!(phase > 0)) return Rgb(0.0f);
-        const float light_pdf = dl.pdf_w();
+        const float light_pdf_w = dl.pdf_w();
         const float equiangular =
-            equiangular_pdf(v.segment, dl.light, v.p + ls.wi * ls.distance, v.t);
-        const float w = power_heuristic3(v.distance_pdf * light_pdf,
-                                         dl.light->is_delta() ? 0.0f : v.distance_pdf * phase,
-                                         equiangular * light_pdf);
+            equiangular_pdf_l(v.segment, dl.light, v.p + ls.wi * ls.distance, v.t);
+        const float w = power_heuristic3(v.distance_pdf_l * light_pdf_w,
+                                         dl.light->is_delta() ? 0.0f : v.distance_pdf_l * phase,
+                                         equiangular * light_pdf_w);
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr = light_visibility(v.p, Vec3(0.0f), dl, v.segment.medium);
-        return ls.radiance * tr * (phase * w / light_pdf);
+        return ls.radiance * tr * (phase * w / light_pdf_w);
     }
 
     // Equi-angular sampling of single scattering on a segment (technique "EL"): the light
     // point first, then the distance, then the connection.
     Rgb equiangular_inscattering(const MediumSegment& segment) {
-        float pick = 0;
-        const Light* light = scene_.sample_light(rng_.next_1d(), &pick);
+        float pick_probability = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick_probability);
         const Vec2 u = rng_.next_2d();
         const float u_t = rng_.next_1d();
         Vec3 light_point;
-        if (!light || !(pick > 0) || !light->sample_position(u, light_point)) return Rgb(0.0f);
+        if (!light || !(pick_probability > 0) || !light->sample_position(u, light_point))
+            return Rgb(0.0f);
         const EquiAngularSampler sampler(segment.ray.origin, segment.ray.direction, light_point,
                                          0.0f, segment.t_end);
         const float t = sampler.sample(u_t);
-        const float equiangular = sampler.pdf(t);
+        const float equiangular = sampler.pdf_l(t);
         if (!(equiangular > 0)) return Rgb(0.0f);
         const Vec3 q = segment.ray.at(t);
         LightIlluminateSample ls;  // the same u picks the same light point (light.h)
@@ -99,20 +100,20 @@ class Tracer {
         const float phase = medium.phase().p(-segment.ray.direction, ls.wi);
         const Rgb sigma_s = medium.sigma_s(q);
         if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
-        const float light_pdf = pick * ls.pdf_direct_w;
-        const float distance = medium.pdf_scatter(segment.ray, t);
-        const float w = power_heuristic3(equiangular * light_pdf, distance * light_pdf,
+        const float light_pdf_w = pick_probability * ls.pdf_direct_w;
+        const float distance = medium.pdf_scatter_l(segment.ray, t);
+        const float w = power_heuristic3(equiangular * light_pdf_w, distance * light_pdf_w,
                                          light->is_delta() ? 0.0f : distance * phase);
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
         DirectLightSample dl;
         dl.light = light;
-        dl.pick = pick;
+        dl.pick_probability = pick_probability;
         dl.ls = ls;
         const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), dl, segment.medium);
         return tr_to_q * sigma_s * ls.radiance * tr_to_light *
-               (phase * w / (equiangular * light_pdf));
+               (phase * w / (equiangular * light_pdf_w));
     }
 
     // Light sampling at a surface vertex.
@@ -121,15 +122,15 @@ class Tracer {
         DirectLightSample dl;
         if (!sample_direct_light(scene_, si.p, rng_, dl)) return Rgb(0.0f);
         const LightIlluminateSample& ls = dl.ls;
-        const auto [f, pdf] = bsdf.evaluate(wo, ls.wi);
+        const auto [f, pdf_w] = bsdf.evaluate(wo, ls.wi);
         if (f.is_black()) return Rgb(0.0f);
-        const float light_pdf = dl.pdf_w();
-        const float w = dl.light->is_delta() ? 1.0f : power_heuristic(light_pdf, pdf.forward);
+        const float light_pdf_w = dl.pdf_w();
+        const float w = dl.light->is_delta() ? 1.0f : power_heuristic(light_pdf_w, pdf_w.forward);
         // The shadow ray starts in the medium on the light's side of the surface.
         const bool same_side = dot(ls.wi, si.geometric_normal) * dot(wo, si.geometric_normal) > 0;
         const Medium* start = same_side ? medium : medium_after_transmission(si, ls.wi);
         const Rgb tr = light_visibility(si.p, si.geometric_normal, dl, start);
-        return f * ls.radiance * tr * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf);
+        return f * ls.radiance * tr * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf_w);
     }
 
     // MIS weight of emission from `light` at `light_point` found by sampling a direction at
@@ -138,16 +139,16 @@ class Tracer {
     float emission_weight(const ScatteringVertex& v, const Light* light, const Vec3& light_point,
                           float pdf_direct_a, float cos_light, bool solid_angle) const {
         if (v.delta) return 1.0f;
-        float light_pdf = scene_.light_pdf(light) * pdf_direct_a;
-        if (!solid_angle) {
+        float light_pdf_w = scene_.light_pick_probability(light) * pdf_direct_a;
+        if (!solid_angle) {  // area density so far: convert it to solid angle
             if (!(cos_light > 0)) return 0.0f;
-            light_pdf *= length_squared(light_point - v.p) / cos_light;
+            light_pdf_w *= length_squared(light_point - v.p) / cos_light;
         }
-        if (!v.in_medium) return power_heuristic(v.direction_pdf, light_pdf);
+        if (!v.in_medium) return power_heuristic(v.direction_pdf_w, light_pdf_w);
         const float equiangular =
-            solid_angle ? 0.0f : equiangular_pdf(v.segment, light, light_point, v.t);
-        return power_heuristic3(v.distance_pdf * v.direction_pdf, v.distance_pdf * light_pdf,
-                                equiangular * light_pdf);
+            solid_angle ? 0.0f : equiangular_pdf_l(v.segment, light, light_point, v.t);
+        return power_heuristic3(v.distance_pdf_l * v.direction_pdf_w,
+                                v.distance_pdf_l * light_pdf_w, equiangular * light_pdf_w);
     }
 
   private:
@@ -212,7 +213,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                 v.in_medium = true;
                 v.segment = segment;
                 v.t = ms.t;
-                v.distance_pdf = medium->pdf_scatter(ray, ms.t);
+                v.distance_pdf_l = medium->pdf_scatter_l(ray, ms.t);
                 const Vec3 wo = -ray.direction;
                 if (has_lights) {
                     const Rgb c = beta * tracer.direct_light_in_medium(v, wo);
@@ -220,8 +221,8 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                     sink.add(Technique::Connection, 1, depth + 2, c);
                 }
                 const PhaseSample ps = medium->phase().sample(wo, rng.next_2d());
-                if (!(ps.pdf > 0)) break;
-                v.direction_pdf = ps.pdf;
+                if (!(ps.pdf_w > 0)) break;
+                v.direction_pdf_w = ps.pdf_w;
                 prev = v;
                 if (!survives_roulette(depth, beta, rng)) break;
                 ray = Ray(v.p, ps.wi);
@@ -283,7 +284,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
         prev = ScatteringVertex{};
         prev.p = si.p;
         prev.delta = bs->delta;
-        prev.direction_pdf = bs->pdf.forward;
+        prev.direction_pdf_w = bs->pdf_w.forward;
         if (!survives_roulette(depth, beta, rng)) break;
         ray = scene.spawn_ray(si.p, si.geometric_normal, bs->wi);
         ++depth;

@@ -145,7 +145,7 @@ EnvmapLight::Lookup EnvmapLight::lookup(const Vec3& wi) const {
     // sin(theta) from the direction itself (not from v) so that it vanishes only at the poles.
     float sin_theta = std::sqrt(d.x * d.x + d.z * d.z);
     if (sin_theta > 0) {
-        float pdf = distribution_.pdf(uv) / (2.0f * kPi * kPi * sin_theta);
+        float pdf = distribution_.pdf_a(uv) / (2.0f * kPi * kPi * sin_theta);
         result.pdf_w = std::isfinite(pdf) ? pdf : 0.0f;
     }
     return result;

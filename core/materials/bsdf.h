@@ -38,7 +38,8 @@ enum BsdfLobe : uint32_t {
                     kLobeGlossyTransmission,
 };
 
-// Both directional densities of one pair of directions, in solid angle:
+// Both directional densities of one pair of directions, in solid angle (fields of this type are
+// named pdf_w):
 // forward = p(wi | wo), the density with which sample(wo) produces wi;
 // reverse = p(wo | wi), the density with which sample(wi) would produce wo.
 // Bidirectional MIS needs both; they differ for every non-symmetric sampling scheme.
@@ -49,12 +50,12 @@ struct BsdfPdf {
 
 struct BsdfSample {
     Vec3 wi;
-    // f(wo, wi) * |cos(wi)| / pdf.forward, including the lobe selection probability. For a delta
-    // lobe it is the lobe's throughput divided by its selection probability.
+    // f(wo, wi) * |cos(wi)| / pdf_w.forward, including the lobe selection probability. For a
+    // delta lobe it is the lobe's throughput divided by its selection probability.
     Rgb weight;
-    // Densities as in BsdfPdf. For delta lobes these are the discrete lobe selection
-    // probabilities (the convention of SmallVCM), and `delta` is true.
-    BsdfPdf pdf;
+    // Solid-angle densities as in BsdfPdf. For delta lobes these are instead the discrete lobe
+    // selection probabilities (the convention of SmallVCM), and `delta` is true.
+    BsdfPdf pdf_w;
     bool delta = false;
     uint32_t lobe = kLobeNone;
     // Relative IOR along the sampled direction (eta_inside/eta_outside when entering), 1 for
@@ -69,8 +70,8 @@ class Bsdf {
     // f(wo, wi) without the cosine factor. Zero for delta lobes.
     virtual Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const = 0;
 
-    // Directional densities of sample() for the non-delta lobes. Zero for delta lobes.
-    virtual BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const = 0;
+    // Solid-angle densities of sample() for the non-delta lobes. Zero for delta lobes.
+    virtual BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const = 0;
 
     // Samples wi given wo. `u_lobe` picks a lobe, `u` samples within it. Returns nothing when
     // the sample is invalid (below the surface, total internal reflection with zero weight...).

@@ -26,7 +26,7 @@ std::optional<BsdfSample> ConductorBsdf::sample(const Vec3& wo, float, Vec2, Tra
     BsdfSample s;
     s.wi = reflect_z(wo);
     s.weight = reflectance(wo.z);
-    s.pdf = {1.0f, 1.0f};
+    s.pdf_w = {1.0f, 1.0f};
     s.delta = true;
     s.lobe = kLobeDeltaReflection;
     return s;

@@ -32,7 +32,7 @@ std::optional<BsdfSample> DielectricBsdf::sample(const Vec3& wo, float u_lobe, V
         s.wi = reflect_z(wo);
         s.weight = specular_reflectance_;
         // The mirrored direction has the same cosine, hence the same selection probability.
-        s.pdf = {reflectance, reflectance};
+        s.pdf_w = {reflectance, reflectance};
         s.lobe = kLobeDeltaReflection;
         return s;
     }
@@ -41,7 +41,7 @@ std::optional<BsdfSample> DielectricBsdf::sample(const Vec3& wo, float u_lobe, V
     s.weight = specular_transmission_;
     // Radiance is compressed into the smaller solid angle of the denser side.
     if (mode == TransportMode::Radiance) s.weight *= fresnel.eta_ti * fresnel.eta_ti;
-    s.pdf = {1.0f - reflectance, 1.0f - fresnel_dielectric(s.wi.z, eta_).reflectance};
+    s.pdf_w = {1.0f - reflectance, 1.0f - fresnel_dielectric(s.wi.z, eta_).reflectance};
     s.lobe = kLobeDeltaTransmission;
     s.eta = fresnel.eta_it;
     return s;

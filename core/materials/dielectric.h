@@ -20,7 +20,7 @@ class DielectricBsdf final : public Bsdf {
     static std::shared_ptr<const Bsdf> create(const Properties& props);
 
     Rgb f(const Vec3&, const Vec3&, TransportMode) const override { return Rgb(0.0f); }
-    BsdfPdf pdf(const Vec3&, const Vec3&) const override { return {}; }
+    BsdfPdf pdf_w(const Vec3&, const Vec3&) const override { return {}; }
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
                                      TransportMode mode) const override;
     uint32_t lobes() const override { return kLobeDeltaReflection | kLobeDeltaTransmission; }

@@ -17,7 +17,7 @@ Rgb DiffuseBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode) const {
     return reflectance_ * kInvPi;
 }
 
-BsdfPdf DiffuseBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf DiffuseBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     if (wo.z <= 0 || wi.z <= 0) return {};
     return {wi.z * kInvPi, wo.z * kInvPi};
 }
@@ -29,7 +29,7 @@ std::optional<BsdfSample> DiffuseBsdf::sample(const Vec3& wo, float, Vec2 u, Tra
     BsdfSample s;
     s.wi = wi;
     s.weight = reflectance_;  // (R / pi) cos / (cos / pi)
-    s.pdf = {wi.z * kInvPi, wo.z * kInvPi};
+    s.pdf_w = {wi.z * kInvPi, wo.z * kInvPi};
     s.lobe = kLobeDiffuseReflection;
     return s;
 }

@@ -10,7 +10,7 @@ std::optional<BsdfSample> NullBsdf::sample(const Vec3& wo, float, Vec2, Transpor
     BsdfSample s;
     s.wi = -wo;
     s.weight = Rgb(1.0f);
-    s.pdf = BsdfPdf{1.0f, 1.0f};  // discrete, like every delta lobe (bsdf.h)
+    s.pdf_w = BsdfPdf{1.0f, 1.0f};  // discrete, like every delta lobe (bsdf.h)
     s.delta = true;
     s.lobe = kLobeNull;
     return s;

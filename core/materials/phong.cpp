@@ -46,7 +46,7 @@ float PhongBsdf::sample_density(const Vec3& wo, const Vec3& wi) const {
     return specular_sampling_weight_ * specular + (1.0f - specular_sampling_weight_) * diffuse;
 }
 
-BsdfPdf PhongBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf PhongBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {sample_density(wo, wi), sample_density(wi, wo)};
 }
 
@@ -64,9 +64,9 @@ std::optional<BsdfSample> PhongBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u
         s.lobe = kLobeDiffuseReflection;
     }
     if (s.wi.z <= 0) return std::nullopt;  // the specular lobe dipped below the surface
-    s.pdf = pdf(wo, s.wi);
-    if (!(s.pdf.forward > 0)) return std::nullopt;
-    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf.forward);
+    s.pdf_w = pdf_w(wo, s.wi);
+    if (!(s.pdf_w.forward > 0)) return std::nullopt;
+    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf_w.forward);
     if (!s.weight.is_finite()) return std::nullopt;
     return s;
 }

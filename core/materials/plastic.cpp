@@ -53,7 +53,7 @@ float PlasticBsdf::sample_density(const Vec3& wo, const Vec3& wi) const {
     return (1.0f - specular_probability(wo.z)) * wi.z * kInvPi;
 }
 
-BsdfPdf PlasticBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf PlasticBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {sample_density(wo, wi), sample_density(wi, wo)};
 }
 
@@ -66,16 +66,16 @@ std::optional<BsdfSample> PlasticBsdf::sample(const Vec3& wo, float u_lobe, Vec2
         const float F = fresnel_dielectric(wo.z, eta_).reflectance;
         s.wi = reflect_z(wo);
         s.weight = specular_reflectance_ * (F / p_specular);
-        s.pdf = {p_specular, p_specular};  // the mirror direction has the same cosine
+        s.pdf_w = {p_specular, p_specular};  // the mirror direction has the same cosine
         s.delta = true;
         s.lobe = kLobeDeltaReflection;
         return s;
     }
     s.wi = warp::square_to_cosine_hemisphere(u);
     if (s.wi.z <= 0) return std::nullopt;
-    s.pdf = pdf(wo, s.wi);
-    if (!(s.pdf.forward > 0)) return std::nullopt;
-    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf.forward);
+    s.pdf_w = pdf_w(wo, s.wi);
+    if (!(s.pdf_w.forward > 0)) return std::nullopt;
+    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf_w.forward);
     s.lobe = kLobeDiffuseReflection;
     return s;
 }

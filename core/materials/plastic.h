@@ -25,7 +25,7 @@ class PlasticBsdf final : public Bsdf {
     static std::shared_ptr<const Bsdf> create(const Properties& props);
 
     Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
-    BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const override;
+    BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const override;
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
                                      TransportMode mode) const override;
     uint32_t lobes() const override { return kLobeDeltaReflection | kLobeDiffuseReflection; }

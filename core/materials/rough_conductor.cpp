@@ -46,7 +46,7 @@ float RoughConductorBsdf::sample_density(const Vec3& wo, const Vec3& wi) const {
     return std::isfinite(result) ? result : 0.0f;
 }
 
-BsdfPdf RoughConductorBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf RoughConductorBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {sample_density(wo, wi), sample_density(wi, wo)};
 }
 
@@ -59,9 +59,9 @@ std::optional<BsdfSample> RoughConductorBsdf::sample(const Vec3& wo, float, Vec2
     // Weight from the same f and pdf that evaluation reports, so MIS sees consistent values.
     BsdfSample s;
     s.wi = wi;
-    s.pdf = pdf(wo, wi);
-    if (!(s.pdf.forward > 0)) return std::nullopt;
-    s.weight = f(wo, wi, mode) * (wi.z / s.pdf.forward);
+    s.pdf_w = pdf_w(wo, wi);
+    if (!(s.pdf_w.forward > 0)) return std::nullopt;
+    s.weight = f(wo, wi, mode) * (wi.z / s.pdf_w.forward);
     if (!s.weight.is_finite()) return std::nullopt;
     s.lobe = kLobeGlossyReflection;
     return s;

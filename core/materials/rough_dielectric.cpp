@@ -81,7 +81,7 @@ float RoughDielectricBsdf::sample_density(const Vec3& wo, const Vec3& wi) const 
     return std::isfinite(result) ? result : 0.0f;
 }
 
-BsdfPdf RoughDielectricBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf RoughDielectricBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {sample_density(wo, wi), sample_density(wi, wo)};
 }
 
@@ -105,9 +105,9 @@ std::optional<BsdfSample> RoughDielectricBsdf::sample(const Vec3& wo, float u_lo
         s.eta = fresnel.eta_it;
     }
     // Weight from the same f and pdf that evaluation reports, so MIS sees consistent values.
-    s.pdf = pdf(wo, s.wi);
-    if (!(s.pdf.forward > 0)) return std::nullopt;
-    s.weight = f(wo, s.wi, mode) * (std::abs(s.wi.z) / s.pdf.forward);
+    s.pdf_w = pdf_w(wo, s.wi);
+    if (!(s.pdf_w.forward > 0)) return std::nullopt;
+    s.weight = f(wo, s.wi, mode) * (std::abs(s.wi.z) / s.pdf_w.forward);
     if (!s.weight.is_finite()) return std::nullopt;
     return s;
 }

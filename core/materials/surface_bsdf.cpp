@@ -27,17 +27,17 @@ Rgb SurfaceBsdf::f(const Vec3& wo, const Vec3& wi) const {
     return bsdf_.f(wo_local, wi_local, mode_) * shading_correction(wo, wi);
 }
 
-BsdfPdf SurfaceBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
+BsdfPdf SurfaceBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return {};
-    return bsdf_.pdf(wo_local, wi_local);
+    return bsdf_.pdf_w(wo_local, wi_local);
 }
 
 BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
     const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return {};
     return {bsdf_.f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
-            bsdf_.pdf(wo_local, wi_local)};
+            bsdf_.pdf_w(wo_local, wi_local)};
 }
 
 std::optional<BsdfSample> SurfaceBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u) const {

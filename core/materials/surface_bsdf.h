@@ -12,10 +12,11 @@
 
 namespace render {
 
-// f and both directional densities of one direction pair, from one frame conversion.
+// f and both directional (solid-angle) densities of one direction pair, from one frame
+// conversion.
 struct BsdfEvaluation {
     Rgb f;
-    BsdfPdf pdf;
+    BsdfPdf pdf_w;
 };
 
 class SurfaceBsdf {
@@ -26,8 +27,8 @@ class SurfaceBsdf {
 
     // f(wo, wi) for world directions, corrected for shading normals (Importance mode).
     Rgb f(const Vec3& wo, const Vec3& wi) const;
-    BsdfPdf pdf(const Vec3& wo, const Vec3& wi) const;
-    // f and pdf together: connections and merges need both for the same pair.
+    BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const;
+    // f and pdf_w together: connections and merges need both for the same pair.
     BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const;
     // Sampled world direction; the weight includes |cos| w.r.t. the shading normal and the
     // shading-normal correction.

@@ -33,9 +33,9 @@ Rgb TwoSidedBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
     return Rgb(0.0f);
 }
 
-BsdfPdf TwoSidedBsdf::pdf(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z > 0) return front_->pdf(wo, wi);
-    if (wo.z < 0) return back_->pdf(flip_z(wo), flip_z(wi));
+BsdfPdf TwoSidedBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z > 0) return front_->pdf_w(wo, wi);
+    if (wo.z < 0) return back_->pdf_w(flip_z(wo), flip_z(wi));
     return {};
 }
 

@@ -125,7 +125,7 @@ Rgb HeterogeneousMedium::optical_depth(const Ray& ray, float t) const {
     return tau;
 }
 
-float HeterogeneousMedium::pdf_scatter(const Ray& ray, float t) const {
+float HeterogeneousMedium::pdf_scatter_l(const Ray& ray, float t) const {
     const Rgb tau = optical_depth(ray, t), st = sigma_t(ray.at(t));
     Rgb pdf;
     for (int c = 0; c < 3; ++c) pdf[c] = st[c] > 0 ? st[c] * std::exp(-tau[c]) : 0.0f;

@@ -51,9 +51,9 @@ class HeterogeneousMedium final : public Medium {
 
     // The smooth approximation allowed by medium.h: the homogeneous formulas with the optical
     // depth tau(t) estimated deterministically by the midpoint rule on each majorant cell the
-    // ray crosses (one density look-up per cell): pdf_scatter = avg(sigma_t(t) exp(-tau(t))),
+    // ray crosses (one density look-up per cell): pdf_scatter_l = avg(sigma_t(t) exp(-tau(t))),
     // probability_pass = avg(exp(-tau(t))). Exact for constant volumes.
-    float pdf_scatter(const Ray& ray, float t) const override;
+    float pdf_scatter_l(const Ray& ray, float t) const override;
     float probability_pass(const Ray& ray, float t) const override;
 
     Rgb sigma_s(const Vec3& p) const override;

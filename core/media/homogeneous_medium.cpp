@@ -42,7 +42,7 @@ Rgb HomogeneousMedium::transmittance(const Ray&, float t_max, Rng&) const {
     return transmittance(t_max);
 }
 
-float HomogeneousMedium::pdf_scatter(const Ray&, float t) const {
+float HomogeneousMedium::pdf_scatter_l(const Ray&, float t) const {
     return (sigma_t_ * transmittance(t)).average();
 }
 

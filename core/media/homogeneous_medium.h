@@ -14,7 +14,7 @@ class HomogeneousMedium final : public Medium {
 
     MediumSample sample(const Ray& ray, float t_max, Rng& rng) const override;
     Rgb transmittance(const Ray& ray, float t_max, Rng& rng) const override;
-    float pdf_scatter(const Ray& ray, float t) const override;
+    float pdf_scatter_l(const Ray& ray, float t) const override;
     float probability_pass(const Ray& ray, float t) const override;
     Rgb sigma_s(const Vec3&) const override { return sigma_s_; }
     Rgb sigma_t(const Vec3&) const override { return sigma_t_; }

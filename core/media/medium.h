@@ -46,10 +46,10 @@ class Medium {
     virtual Rgb transmittance(const Ray& ray, float t_max, Rng& rng) const = 0;
 
     // Densities of sample()'s distance sampling, for MIS: per unit length of a scattering event
-    // at t, and the probability of passing beyond t. Exact for homogeneous media. Heterogeneous
-    // media return a smooth approximation (weights built from it still sum to one, so MIS
-    // stays unbiased; only its variance reduction is approximate).
-    virtual float pdf_scatter(const Ray& ray, float t) const = 0;
+    // at t (pdf_scatter_l), and the probability of passing beyond t. Exact for homogeneous
+    // media. Heterogeneous media return a smooth approximation (weights built from it still sum
+    // to one, so MIS stays unbiased; only its variance reduction is approximate).
+    virtual float pdf_scatter_l(const Ray& ray, float t) const = 0;
     virtual float probability_pass(const Ray& ray, float t) const = 0;
 
     // Local coefficients, per unit length.

@@ -16,7 +16,7 @@ namespace render {
 
 struct PhaseSample {
     Vec3 wi;
-    float pdf = 0;  // solid angle; equals the phase function's value
+    float pdf_w = 0;  // solid angle; equals the phase function's value
 };
 
 class PhaseFunction {

@@ -26,20 +26,20 @@ Distribution1D::Distribution1D(std::vector<float> weights) : func_(std::move(wei
     }
 }
 
-size_t Distribution1D::sample_discrete(float u, float* pdf, float* u_remapped) const {
+size_t Distribution1D::sample_discrete(float u, float* probability, float* u_remapped) const {
     // Largest i with cdf_[i] <= u, among bins of non-zero probability.
     size_t n = func_.size();
     auto it = std::upper_bound(cdf_.begin(), cdf_.end(), double(u));
     size_t i = size_t(std::clamp<ptrdiff_t>((it - cdf_.begin()) - 1, 0, ptrdiff_t(n) - 1));
     while (i + 1 < n && cdf_[i + 1] == cdf_[i]) ++i;  // skip empty bins at ties
     double p = cdf_[i + 1] - cdf_[i];
-    if (pdf) *pdf = float(p);
+    if (probability) *probability = float(p);
     if (u_remapped)
         *u_remapped = p > 0 ? std::min(float((u - cdf_[i]) / p), kOneMinusEpsilon) : 0.0f;
     return i;
 }
 
-float Distribution1D::discrete_pdf(size_t i) const {
+float Distribution1D::discrete_probability(size_t i) const {
     return i < func_.size() ? float(cdf_[i + 1] - cdf_[i]) : 0.0f;
 }
 
@@ -55,7 +55,7 @@ float Distribution1D::sample_continuous(float u, float* pdf, size_t* index) cons
 float Distribution1D::pdf_continuous(float x) const {
     if (func_.empty() || !(x >= 0 && x < 1)) return 0.0f;
     size_t i = std::min(size_t(x * float(func_.size())), func_.size() - 1);
-    return discrete_pdf(i) * float(func_.size());
+    return discrete_probability(i) * float(func_.size());
 }
 
 Distribution2D::Distribution2D(const std::vector<float>& weights, size_t width, size_t height) {
@@ -71,16 +71,16 @@ Distribution2D::Distribution2D(const std::vector<float>& weights, size_t width, 
     marginal_ = Distribution1D(std::move(row_sums));
 }
 
-Vec2 Distribution2D::sample(Vec2 u, float* pdf) const {
+Vec2 Distribution2D::sample(Vec2 u, float* pdf_a) const {
     float pdf_row, pdf_col;
     size_t row;
     float y = marginal_.sample_continuous(u.y, &pdf_row, &row);
     float x = conditional_[row].sample_continuous(u.x, &pdf_col);
-    if (pdf) *pdf = pdf_row * pdf_col;
+    if (pdf_a) *pdf_a = pdf_row * pdf_col;
     return {x, y};
 }
 
-float Distribution2D::pdf(Vec2 p) const {
+float Distribution2D::pdf_a(Vec2 p) const {
     if (conditional_.empty() || !(p.y >= 0 && p.y < 1)) return 0.0f;
     size_t row = std::min(size_t(p.y * float(conditional_.size())), conditional_.size() - 1);
     return marginal_.pdf_continuous(p.y) * conditional_[row].pdf_continuous(p.x);

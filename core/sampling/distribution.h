@@ -21,9 +21,10 @@ class Distribution1D {
     float integral() const { return integral_; }  // sum(weights) / size()
     float weight(size_t i) const { return func_[i]; }
 
-    // Discrete sampling: index i with probability discrete_pdf(i).
-    size_t sample_discrete(float u, float* pdf = nullptr, float* u_remapped = nullptr) const;
-    float discrete_pdf(size_t i) const;
+    // Discrete sampling: index i with probability discrete_probability(i).
+    size_t sample_discrete(float u, float* probability = nullptr,
+                           float* u_remapped = nullptr) const;
+    float discrete_probability(size_t i) const;
 
     // Continuous sampling on [0, 1): returns x with density pdf(x) = weight(i) / integral().
     float sample_continuous(float u, float* pdf = nullptr, size_t* index = nullptr) const;
@@ -41,9 +42,9 @@ class Distribution2D {
     // weights[row * width + col]; rows are along v (y), columns along u (x).
     Distribution2D(const std::vector<float>& weights, size_t width, size_t height);
 
-    // Point in [0,1)^2 with density pdf(p) w.r.t. the unit square's area.
-    Vec2 sample(Vec2 u, float* pdf = nullptr) const;
-    float pdf(Vec2 p) const;
+    // Point in [0,1)^2 with density pdf_a(p) w.r.t. the unit square's area.
+    Vec2 sample(Vec2 u, float* pdf_a = nullptr) const;
+    float pdf_a(Vec2 p) const;
 
   private:
     std::vector<Distribution1D> conditional_;  // one per row

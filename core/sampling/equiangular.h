@@ -8,13 +8,13 @@
 // sampling cannot.
 //
 // Guards: a light (almost) on the ray's line makes D -> 0 and the density a spike, so D is
-// clamped to a small fraction of the problem's size; sample() and pdf() apply the same clamp, so
+// clamped to a small fraction of the problem's size; sample() and pdf_l() apply the same clamp, so
 // they always describe the same distribution.
 //
 // Precision: the angles atan((t - delta) / D) crowd together near +-pi/2 when the light is
 // (nearly) on the line outside the range or far away along it, where floats of theta are
 // ~1e-7 apart and tan(theta) turns a one-ulp step into a large step in t (samples then fall on
-// a handful of distances that pdf() does not describe). So everything is computed in double
+// a handful of distances that pdf_l() does not describe). So everything is computed in double
 // and relative to t0: the angle range is Delta = atan2(D (t1 - t0), D^2 + a0 a1) with
 // a_i = t_i - delta (no difference of nearly equal angles), and a sample at angle phi past
 // theta0 is t0 + sin(phi) (D^2 + a0^2) / (D cos(phi) - a0 sin(phi)) (tangent addition; the
@@ -59,7 +59,7 @@ class EquiAngularSampler {
     }
 
     // Density per unit length at t (zero outside [t0, t1]).
-    float pdf(float t) const {
+    float pdf_l(float t) const {
         if (!(t >= t0_ && t <= t1_)) return 0.0f;
         if (uniform_) return 1.0f / (t1_ - t0_);
         const double x = t - delta_;

@@ -93,7 +93,7 @@ void Scene::commit() {
     }
     light_distribution_ = Distribution1D(weights);
     for (size_t i = 0; i < lights_.size(); ++i)
-        light_pdf_[lights_[i].get()] = light_distribution_.discrete_pdf(i);
+        light_pick_probability_[lights_[i].get()] = light_distribution_.discrete_probability(i);
     committed_ = true;
 }
 
@@ -144,18 +144,18 @@ Ray Scene::spawn_ray_to_infinity(const Vec3& p, const Vec3& n, const Vec3& d) co
     return spawn_ray(p, n, d);
 }
 
-const Light* Scene::sample_light(float u, float* pdf) const {
+const Light* Scene::sample_light(float u, float* pick_probability) const {
     if (lights_.empty()) {
-        if (pdf) *pdf = 0;
+        if (pick_probability) *pick_probability = 0;
         return nullptr;
     }
-    size_t i = light_distribution_.sample_discrete(u, pdf);
+    size_t i = light_distribution_.sample_discrete(u, pick_probability);
     return lights_[i].get();
 }
 
-float Scene::light_pdf(const Light* light) const {
-    auto it = light_pdf_.find(light);
-    return it == light_pdf_.end() ? 0.0f : it->second;
+float Scene::light_pick_probability(const Light* light) const {
+    auto it = light_pick_probability_.find(light);
+    return it == light_pick_probability_.end() ? 0.0f : it->second;
 }
 
 }  // namespace render

@@ -83,9 +83,10 @@ class Scene {
     // Lights hit by escaping rays (constant, envmap).
     const std::vector<const Light*>& background_lights() const { return background_lights_; }
 
-    // Light selection proportional to power (luminance).
-    const Light* sample_light(float u, float* pdf) const;
-    float light_pdf(const Light* light) const;
+    // Light selection proportional to power (luminance): a discrete probability per light,
+    // not a density.
+    const Light* sample_light(float u, float* pick_probability) const;
+    float light_pick_probability(const Light* light) const;
 
     const SceneSphere& bounding_sphere() const { return sphere_; }
     // The committed Embree scene, for benchmarks that compare against bare Embree queries.
@@ -104,7 +105,7 @@ class Scene {
     const Medium* camera_medium_ = nullptr;
     bool has_media_ = false;
     Distribution1D light_distribution_;
-    std::unordered_map<const Light*, float> light_pdf_;
+    std::unordered_map<const Light*, float> light_pick_probability_;
     PerspectiveCamera camera_;
     SceneSphere sphere_;
     Aabb bounds_;

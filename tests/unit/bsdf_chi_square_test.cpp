@@ -1,6 +1,6 @@
 // Chi-square goodness-of-fit tests of every non-delta BSDF lobe: the directions sample()
-// returns must follow the density pdf() reports. For BSDFs with delta lobes only the non-delta
-// samples are histogrammed; pdf() reports the non-delta density including its selection
+// returns must follow the density pdf_w() reports. For BSDFs with delta lobes only the non-delta
+// samples are histogrammed; pdf_w() reports the non-delta density including its selection
 // probability, so both sides describe the same sub-distribution (integral < 1).
 
 #include <gtest/gtest.h>
@@ -195,7 +195,7 @@ TEST_P(BsdfChiSquare, SamplesFollowPdf) {
         if (!s || s->delta) return std::nullopt;
         return s->wi;
     };
-    auto pdf = [&](const Vec3& wi) { return double(bsdf->pdf(wo, wi).forward); };
+    auto pdf = [&](const Vec3& wi) { return double(bsdf->pdf_w(wo, wi).forward); };
     const ChiSquareResult result = chi_square_test_sphere(
         family, sample, pdf, options_for(std::hash<std::string>()(c.name), c.narrow));
     EXPECT_TRUE(result.passed) << bsdf->to_string() << ", wo = " << wo << ": " << result.message;

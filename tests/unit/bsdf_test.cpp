@@ -124,20 +124,20 @@ TEST(Bsdf, SampleAgreesWithEvalAndPdf) {
                     ASSERT_TRUE(std::isfinite(s->eta) && s->eta > 0);
                     if (s->delta) {
                         EXPECT_TRUE(s->lobe & kLobeDelta);
-                        EXPECT_GT(s->pdf.forward, 0.0f);
-                        EXPECT_LE(s->pdf.forward, 1.0f);
-                        EXPECT_GT(s->pdf.reverse, 0.0f);
-                        EXPECT_LE(s->pdf.reverse, 1.0f);
+                        EXPECT_GT(s->pdf_w.forward, 0.0f);
+                        EXPECT_LE(s->pdf_w.forward, 1.0f);
+                        EXPECT_GT(s->pdf_w.reverse, 0.0f);
+                        EXPECT_LE(s->pdf_w.reverse, 1.0f);
                         continue;
                     }
                     EXPECT_TRUE(s->lobe & kLobeNonDelta);
-                    const BsdfPdf pdf = bsdf.pdf(wo, s->wi);
-                    EXPECT_TRUE(close(pdf.forward, s->pdf.forward, 1e-4)) << wo << " " << s->wi;
-                    EXPECT_TRUE(close(pdf.reverse, s->pdf.reverse, 1e-4)) << wo << " " << s->wi;
-                    EXPECT_TRUE(close(bsdf.pdf(s->wi, wo).forward, s->pdf.reverse, 1e-4))
+                    const BsdfPdf pdf_w = bsdf.pdf_w(wo, s->wi);
+                    EXPECT_TRUE(close(pdf_w.forward, s->pdf_w.forward, 1e-4)) << wo << " " << s->wi;
+                    EXPECT_TRUE(close(pdf_w.reverse, s->pdf_w.reverse, 1e-4)) << wo << " " << s->wi;
+                    EXPECT_TRUE(close(bsdf.pdf_w(s->wi, wo).forward, s->pdf_w.reverse, 1e-4))
                         << wo << " " << s->wi;
                     const Rgb expected =
-                        bsdf.f(wo, s->wi, mode) * (std::abs(s->wi.z) / pdf.forward);
+                        bsdf.f(wo, s->wi, mode) * (std::abs(s->wi.z) / pdf_w.forward);
                     EXPECT_TRUE(close(expected, s->weight, 1e-4, 1e-7)) << wo << " " << s->wi;
                     ++checked;
                 }
@@ -155,24 +155,24 @@ TEST(Bsdf, EvalAndPdfAreFiniteAndReverseIsSwappedForward) {
         const std::vector<Vec3> dirs = test_directions(rng, 150);
         for (const Vec3& wo : dirs)
             for (const Vec3& wi : dirs) {
-                const BsdfPdf pdf = bsdf.pdf(wo, wi);
-                ASSERT_TRUE(std::isfinite(pdf.forward) && pdf.forward >= 0) << wo << wi;
-                ASSERT_TRUE(std::isfinite(pdf.reverse) && pdf.reverse >= 0) << wo << wi;
-                EXPECT_EQ(pdf.reverse, bsdf.pdf(wi, wo).forward) << wo << wi;
+                const BsdfPdf pdf_w = bsdf.pdf_w(wo, wi);
+                ASSERT_TRUE(std::isfinite(pdf_w.forward) && pdf_w.forward >= 0) << wo << wi;
+                ASSERT_TRUE(std::isfinite(pdf_w.reverse) && pdf_w.reverse >= 0) << wo << wi;
+                EXPECT_EQ(pdf_w.reverse, bsdf.pdf_w(wi, wo).forward) << wo << wi;
                 for (TransportMode mode : {kRadiance, kImportance}) {
                     const Rgb f = bsdf.f(wo, wi, mode);
                     ASSERT_TRUE(f.is_finite()) << wo << wi;
                     ASSERT_GE(std::min(f.r, std::min(f.g, f.b)), 0.0f) << wo << wi;
                     // A value with zero density could never be sampled.
                     if (!f.is_black()) {
-                        EXPECT_GT(pdf.forward, 0.0f) << wo << wi;
+                        EXPECT_GT(pdf_w.forward, 0.0f) << wo << wi;
                     }
                 }
             }
         // Delta BSDFs report nothing to evaluation.
         if (bsdf.is_delta()) {
             EXPECT_TRUE(bsdf.f(dirs[0], reflect_z(dirs[0]), kRadiance).is_black());
-            EXPECT_EQ(bsdf.pdf(dirs[0], reflect_z(dirs[0])).forward, 0.0f);
+            EXPECT_EQ(bsdf.pdf_w(dirs[0], reflect_z(dirs[0])).forward, 0.0f);
         }
     }
 }
@@ -339,10 +339,10 @@ TEST(Bsdf, ConductorWithoutFresnelIsAPerfectMirror) {
             EXPECT_EQ(s->wi, Vec3(-wo.x, -wo.y, wo.z));
             EXPECT_TRUE(s->delta);
             EXPECT_EQ(s->lobe, kLobeDeltaReflection);
-            EXPECT_EQ(s->pdf.forward, 1.0f);
-            EXPECT_EQ(s->pdf.reverse, 1.0f);
+            EXPECT_EQ(s->pdf_w.forward, 1.0f);
+            EXPECT_EQ(s->pdf_w.reverse, 1.0f);
             EXPECT_TRUE(mirror.f(wo, s->wi, mode).is_black());
-            EXPECT_EQ(mirror.pdf(wo, s->wi).forward, 0.0f);
+            EXPECT_EQ(mirror.pdf_w(wo, s->wi).forward, 0.0f);
         }
     }
     EXPECT_FALSE(mirror.sample(direction(-0.5f), 0.5f, Vec2(0.5f, 0.5f), kRadiance));
@@ -379,15 +379,15 @@ TEST(Bsdf, DielectricFresnelAndRefraction) {
     std::optional<BsdfSample> r = glass.sample(Vec3(0, 0, 1), 0.01f, Vec2(), kRadiance);
     ASSERT_TRUE(r);
     EXPECT_EQ(r->lobe, kLobeDeltaReflection);
-    EXPECT_NEAR(r->pdf.forward, 0.04f, 1e-6f);
-    EXPECT_NEAR(r->pdf.reverse, 0.04f, 1e-6f);
+    EXPECT_NEAR(r->pdf_w.forward, 0.04f, 1e-6f);
+    EXPECT_NEAR(r->pdf_w.reverse, 0.04f, 1e-6f);
     EXPECT_EQ(r->weight, Rgb(1.0f));
     EXPECT_EQ(r->wi, Vec3(0, 0, 1));
 
     std::optional<BsdfSample> t = glass.sample(Vec3(0, 0, 1), 0.5f, Vec2(), kRadiance);
     ASSERT_TRUE(t);
     EXPECT_EQ(t->lobe, kLobeDeltaTransmission);
-    EXPECT_NEAR(t->pdf.forward, 0.96f, 1e-6f);
+    EXPECT_NEAR(t->pdf_w.forward, 0.96f, 1e-6f);
     EXPECT_NEAR(t->wi.z, -1.0f, 1e-6f);
     EXPECT_NEAR(t->eta, 1.5f, 1e-6f);
     EXPECT_TRUE(close(t->weight, Rgb(1.0f / 2.25f), 1e-6));
@@ -404,7 +404,7 @@ TEST(Bsdf, DielectricFresnelAndRefraction) {
     EXPECT_NEAR(std::sqrt(1 - wo.z * wo.z), 1.5f * std::sqrt(1 - t->wi.z * t->wi.z), 1e-5f);
     EXPECT_NEAR(t->wi.x * wo.y - t->wi.y * wo.x, 0.0f, 1e-6f);  // same plane of incidence
     EXPECT_LT(t->wi.x * wo.x, 0.0f);                            // opposite side of the normal
-    EXPECT_NEAR(t->pdf.reverse, t->pdf.forward, 1e-5f);         // Fresnel is symmetric
+    EXPECT_NEAR(t->pdf_w.reverse, t->pdf_w.forward, 1e-5f);     // Fresnel is symmetric
 
     // Total internal reflection beyond the critical angle (sin > 1 / 1.5) from inside.
     const Vec3 inside = direction(-0.5f);
@@ -413,7 +413,7 @@ TEST(Bsdf, DielectricFresnelAndRefraction) {
         std::optional<BsdfSample> s = glass.sample(inside, u, Vec2(), kRadiance);
         ASSERT_TRUE(s);
         EXPECT_EQ(s->lobe, kLobeDeltaReflection);
-        EXPECT_EQ(s->pdf.forward, 1.0f);
+        EXPECT_EQ(s->pdf_w.forward, 1.0f);
     }
     EXPECT_FALSE(glass.sample(Vec3(1, 0, 0), 0.5f, Vec2(), kRadiance));
 }

@@ -61,7 +61,7 @@ TEST(PerspectiveCamera, DirectionPdfIntegratesToOne) {
     testing::MeanAccumulator ratio;
     for (int i = 0; i < n; ++i) {
         Vec3 d = warp::square_to_uniform_sphere(rng.next_2d());
-        ratio.add(camera.direction_pdf(d) / warp::square_to_uniform_sphere_pdf());
+        ratio.add(camera.direction_pdf_w(d) / warp::square_to_uniform_sphere_pdf());
     }
     EXPECT_NEAR(ratio.mean(), 1.0, 5 * ratio.standard_error())
         << "standard error " << ratio.standard_error();
@@ -78,7 +78,7 @@ TEST(PerspectiveCamera, DirectionPdfMatchesRasterDensity) {
         Vec3 dy = camera.generate_ray(raster + Vec2(0, h)).direction - d;
         double solid_angle_per_pixel = length(cross(dx, dy)) / (h * h);
         double expected = 1.0 / (solid_angle_per_pixel * 64 * 48);
-        EXPECT_NEAR(camera.direction_pdf(d), expected, 2e-3 * expected);
+        EXPECT_NEAR(camera.direction_pdf_w(d), expected, 2e-3 * expected);
     }
 }
 

@@ -38,7 +38,7 @@ std::shared_ptr<const PhaseFunction> isotropic() {
 // cells, and the pass-through event as a 65th cell [t_max, t_max * 65 / 64] of density
 // P(pass) / width (the sample lands at its centre); a dummy second coordinate (one cell).
 ChiSquareResult distance_chi_square(const Medium& medium, float t_max,
-                                    const std::function<double(double)>& pdf_scatter,
+                                    const std::function<double(double)>& pdf_scatter_l,
                                     double probability_pass, uint64_t seed) {
     const int cells = 64;
     const double width = double(t_max) / cells;
@@ -46,7 +46,7 @@ ChiSquareResult distance_chi_square(const Medium& medium, float t_max,
         MediumSample s = medium.sample(kRay, t_max, rng);
         return Vec2(s.scattered ? s.t : float(t_max + 0.5 * width), 0.5f);
     };
-    auto pdf = [&](Vec2 p) { return p.x < t_max ? pdf_scatter(p.x) : probability_pass / width; };
+    auto pdf = [&](Vec2 p) { return p.x < t_max ? pdf_scatter_l(p.x) : probability_pass / width; };
     ChiSquareOptions o;
     o.seed = seed;
     o.resolution_x = cells + 1;
@@ -140,7 +140,7 @@ TEST(MediaDistance, ChromaticSpectralMisIsUnbiasedAndBounded) {
 }
 
 // Independent closed forms of the spectral-MIS densities.
-double mis_pdf_scatter(const Rgb& sigma_t, double t) {
+double mis_pdf_scatter_l(const Rgb& sigma_t, double t) {
     double sum = 0;
     for (int c = 0; c < 3; ++c) sum += sigma_t[c] * std::exp(-double(sigma_t[c]) * t);
     return sum / 3;
@@ -151,7 +151,7 @@ double mis_probability_pass(const Rgb& sigma_t, double t) {
     return sum / 3;
 }
 
-// (c) pdf_scatter and probability_pass describe sample()'s distribution (what bidirectional
+// (c) pdf_scatter_l and probability_pass describe sample()'s distribution (what bidirectional
 // MIS relies on), and equal the closed forms.
 // One check per case.
 CHI_SQUARE_TEST(family, MediaDistance, PdfScatterAndProbabilityPassMatchSamples, 2) {
@@ -166,16 +166,16 @@ CHI_SQUARE_TEST(family, MediaDistance, PdfScatterAndProbabilityPassMatchSamples,
         SCOPED_TRACE(::testing::Message() << "sigma_t = " << k.sigma_t);
         HomogeneousMedium medium(k.sigma_t - k.sigma_s, k.sigma_s, isotropic());
         ChiSquareResult r = distance_chi_square(
-            medium, k.t_max, [&](double t) { return medium.pdf_scatter(kRay, float(t)); },
+            medium, k.t_max, [&](double t) { return medium.pdf_scatter_l(kRay, float(t)); },
             medium.probability_pass(kRay, k.t_max), ++seed);
         EXPECT_TRUE(r.passed) << r.message;
         EXPECT_NEAR(r.pdf_integral, 1.0, 1e-4) << r.message;
         for (double t : {0.0, 0.001, 0.01, 0.1, 0.3, 1.0, 10.0}) {
-            double pdf = mis_pdf_scatter(k.sigma_t, t), pass = mis_probability_pass(k.sigma_t, t);
-            EXPECT_NEAR(medium.pdf_scatter(kRay, float(t)), pdf, 1e-5 * pdf + 1e-30) << t;
+            double pdf = mis_pdf_scatter_l(k.sigma_t, t), pass = mis_probability_pass(k.sigma_t, t);
+            EXPECT_NEAR(medium.pdf_scatter_l(kRay, float(t)), pdf, 1e-5 * pdf + 1e-30) << t;
             EXPECT_NEAR(medium.probability_pass(kRay, float(t)), pass, 1e-5 * pass + 1e-30) << t;
         }
-        EXPECT_EQ(medium.pdf_scatter(kRay, kInfinity), 0.0f);
+        EXPECT_EQ(medium.pdf_scatter_l(kRay, kInfinity), 0.0f);
         EXPECT_NEAR(medium.probability_pass(kRay, kInfinity), k.sigma_t[0] == 0 ? 1.0 / 3.0 : 0.0,
                     1e-7);
     }
@@ -215,7 +215,7 @@ TEST(MediaDistance, EdgeCasesStayFinite) {
                         float albedo = k.sigma_t[c] > 0 ? k.sigma_s[c] / k.sigma_t[c] : 0.0f;
                         ASSERT_LE(s.weight[c], 3.0f * albedo * (1 + 1e-5f)) << c;
                     }
-                    float pdf = medium.pdf_scatter(kRay, s.t);
+                    float pdf = medium.pdf_scatter_l(kRay, s.t);
                     ASSERT_TRUE(std::isfinite(pdf) && pdf > 0) << pdf;
                 } else {
                     ++passes;
@@ -230,7 +230,7 @@ TEST(MediaDistance, EdgeCasesStayFinite) {
             Rgb tr = medium.transmittance(kRay, t_max, unused);
             EXPECT_TRUE(tr.is_finite()) << tr;
             EXPECT_TRUE(std::isfinite(medium.probability_pass(kRay, t_max)));
-            EXPECT_TRUE(std::isfinite(medium.pdf_scatter(kRay, t_max)));
+            EXPECT_TRUE(std::isfinite(medium.pdf_scatter_l(kRay, t_max)));
             if (k.sigma_t.is_black()) {
                 // A vacuum: always passes with weight exactly 1.
                 EXPECT_EQ(passes, n);

@@ -34,11 +34,11 @@ TEST(Distribution1D, DiscreteProbabilitiesAreNormalisedWeights) {
     EXPECT_FLOAT_EQ(d.integral(), sum / float(kWeights.size()));
     double total = 0;
     for (size_t i = 0; i < kWeights.size(); ++i) {
-        EXPECT_FLOAT_EQ(d.discrete_pdf(i), kWeights[i] / sum) << i;
-        total += d.discrete_pdf(i);
+        EXPECT_FLOAT_EQ(d.discrete_probability(i), kWeights[i] / sum) << i;
+        total += d.discrete_probability(i);
     }
     EXPECT_NEAR(total, 1.0, 1e-6);
-    EXPECT_EQ(d.discrete_pdf(kWeights.size()), 0.0f);  // out of range
+    EXPECT_EQ(d.discrete_probability(kWeights.size()), 0.0f);  // out of range
 }
 
 TEST(Distribution1D, DiscreteNeverPicksAZeroWeight) {
@@ -48,11 +48,11 @@ TEST(Distribution1D, DiscreteNeverPicksAZeroWeight) {
     // Exactly on the cdf's steps, where ties between bins are decided.
     for (float c : {1.0f / 6.5f, 4.0f / 6.5f, 6.0f / 6.5f}) us.push_back(c);
     for (float u : us) {
-        float pdf, remapped;
-        size_t i = d.sample_discrete(u, &pdf, &remapped);
+        float probability, remapped;
+        size_t i = d.sample_discrete(u, &probability, &remapped);
         ASSERT_LT(i, kWeights.size());
         EXPECT_GT(kWeights[i], 0.0f) << "u = " << u;
-        EXPECT_FLOAT_EQ(pdf, d.discrete_pdf(i));
+        EXPECT_FLOAT_EQ(probability, d.discrete_probability(i));
         EXPECT_GE(remapped, 0.0f);
         EXPECT_LT(remapped, 1.0f);
     }
@@ -108,7 +108,7 @@ CHI_SQUARE_TEST(family, Distribution1D, ContinuousChiSquareAndPdf, 1) {
 
 TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
     Distribution1D d(std::vector<float>(5, 0.0f));
-    for (size_t i = 0; i < 5; ++i) EXPECT_FLOAT_EQ(d.discrete_pdf(i), 0.2f);
+    for (size_t i = 0; i < 5; ++i) EXPECT_FLOAT_EQ(d.discrete_probability(i), 0.2f);
     for (float u : {0.0f, 0.3f, 0.5f, kOneMinusEpsilon}) {
         float pdf;
         float x = d.sample_continuous(u, &pdf);
@@ -117,7 +117,7 @@ TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
     }
     // Non-finite and negative weights count as zero.
     Distribution1D e({-1.0f, std::nanf(""), 2.0f, kInfinity});
-    EXPECT_FLOAT_EQ(e.discrete_pdf(2), 1.0f);
+    EXPECT_FLOAT_EQ(e.discrete_probability(2), 1.0f);
     EXPECT_EQ(e.sample_discrete(0.0f), 2u);
     EXPECT_EQ(e.sample_discrete(kOneMinusEpsilon), 2u);
 }
@@ -125,11 +125,11 @@ TEST(Distribution1D, AllZeroWeightsFallBackToUniform) {
 TEST(Distribution1D, SingleBin) {
     Distribution1D d({4.0f});
     EXPECT_FLOAT_EQ(d.integral(), 4.0f);
-    EXPECT_FLOAT_EQ(d.discrete_pdf(0), 1.0f);
+    EXPECT_FLOAT_EQ(d.discrete_probability(0), 1.0f);
     for (float u : {0.0f, 0.25f, kOneMinusEpsilon}) {
-        float pdf;
-        EXPECT_EQ(d.sample_discrete(u, &pdf), 0u);
-        EXPECT_FLOAT_EQ(pdf, 1.0f);
+        float probability, pdf;
+        EXPECT_EQ(d.sample_discrete(u, &probability), 0u);
+        EXPECT_FLOAT_EQ(probability, 1.0f);
         EXPECT_FLOAT_EQ(d.sample_continuous(u, &pdf), u);
         EXPECT_FLOAT_EQ(pdf, 1.0f);
     }
@@ -148,7 +148,7 @@ std::vector<float> map_weights() {
 // Histogram of Distribution2D samples on a grid aligned with the texels (k x k cells per
 // texel), against the cell probabilities of the claimed pdf (midpoint rule, exact for a
 // piecewise-constant density).
-// A sample outside the unit square or with a pdf other than pdf() reports fails the test.
+// A sample outside the unit square or with a pdf other than pdf_a() reports fails the test.
 ChiSquareResult chi_square_2d(const Distribution2D& d, int width, int height, int k,
                               uint64_t seed) {
     const int nx = width * k, ny = height * k;
@@ -158,9 +158,9 @@ ChiSquareResult chi_square_2d(const Distribution2D& d, int width, int height, in
         float pdf;
         Vec2 p = d.sample(rng.next_2d(), &pdf);
         if (!(p.x >= 0 && p.x < 1 && p.y >= 0 && p.y < 1) || !(pdf > 0) ||
-            std::abs(pdf - d.pdf(p)) > 1e-5f * pdf) {
+            std::abs(pdf - d.pdf_a(p)) > 1e-5f * pdf) {
             ADD_FAILURE() << "bad sample (" << p.x << ", " << p.y << ") with pdf " << pdf
-                          << " (pdf() says " << d.pdf(p) << ")";
+                          << " (pdf_a() says " << d.pdf_a(p) << ")";
             break;
         }
         observed[size_t(std::min(int(p.y * ny), ny - 1) * nx + std::min(int(p.x * nx), nx - 1))] +=
@@ -169,7 +169,7 @@ ChiSquareResult chi_square_2d(const Distribution2D& d, int width, int height, in
     for (int y = 0; y < ny; ++y)
         for (int x = 0; x < nx; ++x)
             probability[size_t(y * nx + x)] =
-                d.pdf(Vec2((x + 0.5f) / nx, (y + 0.5f) / ny)) / (double(nx) * ny);
+                d.pdf_a(Vec2((x + 0.5f) / nx, (y + 0.5f) / ny)) / (double(nx) * ny);
     return chi_square_test_discrete(family, observed, probability, kSamples);
 }
 
@@ -186,13 +186,13 @@ TEST(Distribution2D, PdfIsNormalisedWeights) {
     for (int y = 0; y < 5; ++y)
         for (int x = 0; x < 6; ++x) {
             Vec2 p((x + 0.5f) / 6, (y + 0.5f) / 5);
-            // pdf w.r.t. the unit square = weight / (sum / cells).
-            EXPECT_NEAR(d.pdf(p), w[y * 6 + x] / (sum / 30.0), 1e-5) << x << ", " << y;
-            integral += d.pdf(p) / 30.0;
+            // pdf_a w.r.t. the unit square = weight / (sum / cells).
+            EXPECT_NEAR(d.pdf_a(p), w[y * 6 + x] / (sum / 30.0), 1e-5) << x << ", " << y;
+            integral += d.pdf_a(p) / 30.0;
         }
     EXPECT_NEAR(integral, 1.0, 1e-6);
-    EXPECT_EQ(d.pdf(Vec2(0.5f, 1.0f)), 0.0f);
-    EXPECT_EQ(d.pdf(Vec2(0.5f, -0.1f)), 0.0f);
+    EXPECT_EQ(d.pdf_a(Vec2(0.5f, 1.0f)), 0.0f);
+    EXPECT_EQ(d.pdf_a(Vec2(0.5f, -0.1f)), 0.0f);
     for (Vec2 u :
          {Vec2(0, 0), Vec2(kOneMinusEpsilon, kOneMinusEpsilon), Vec2(0, kOneMinusEpsilon)}) {
         float pdf;
@@ -206,7 +206,7 @@ CHI_SQUARE_TEST(family, Distribution2D, AllZeroIsUniform, 1) {
     Distribution2D d(std::vector<float>(4 * 3, 0.0f), 4, 3);
     ChiSquareResult r = chi_square_2d(d, 4, 3, 2, 4);
     EXPECT_TRUE(r.passed) << r.message;
-    EXPECT_NEAR(d.pdf(Vec2(0.3f, 0.7f)), 1.0f, 1e-6f);
+    EXPECT_NEAR(d.pdf_a(Vec2(0.3f, 0.7f)), 1.0f, 1e-6f);
 }
 
 }  // namespace

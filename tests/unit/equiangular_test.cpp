@@ -53,11 +53,11 @@ void expect_equiangular_well_formed(const EquiAngularSampler& sampler, float t0,
         float u = i == 0 ? 0.0f : (i == 1 ? kOneMinusEpsilon : (i == 2 ? 0.5f : rng.next_1d()));
         float t = sampler.sample(u);
         ASSERT_TRUE(t >= t0 && t <= t1) << "u = " << u << ": t = " << t;
-        float pdf = sampler.pdf(t);
+        float pdf = sampler.pdf_l(t);
         ASSERT_TRUE(std::isfinite(pdf) && pdf > 0) << "t = " << t << ": pdf = " << pdf;
     }
-    EXPECT_EQ(sampler.pdf(std::nextafter(t0, -kInfinity)), 0.0f);
-    EXPECT_EQ(sampler.pdf(std::nextafter(t1, kInfinity)), 0.0f);
+    EXPECT_EQ(sampler.pdf_l(std::nextafter(t0, -kInfinity)), 0.0f);
+    EXPECT_EQ(sampler.pdf_l(std::nextafter(t1, kInfinity)), 0.0f);
 }
 
 // The ordinary configurations: chi-square in t and, independently of how the sampler
@@ -79,7 +79,7 @@ CHI_SQUARE_TEST(family, MediaEquiAngular, ChiSquare, 8) {
         EquiAngularSampler sampler(kOrigin, kDirection, light, k.t0, k.t1);
         expect_equiangular_well_formed(sampler, k.t0, k.t1);
         auto [delta, distance] = foot_and_distance(light);
-        auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
+        auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
         EXPECT_NEAR(integrate_graded(pdf, k.t0, k.t1, delta, 0.01 * distance), 1.0, 1e-4);
 
         ChiSquareResult r = chi_square_test_1d(
@@ -129,7 +129,7 @@ CHI_SQUARE_TEST(family, MediaEquiAngular, Guards, 5) {
         // The spike of the on-line cases is as wide as the sampler's clamped distance
         // (1e-6 of the problem's size); grade the integration down to well below it.
         const double h = std::max(distance, 1e-9 * std::max(double(k.t1 - k.t0), std::abs(delta)));
-        auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
+        auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
         EXPECT_NEAR(integrate_graded(pdf, k.t0, k.t1, delta, h), 1.0, 1e-3);
         // Chi-square only where the density is not a sub-float spike (in the foot-inside case
         // nearly every sample is the same float).
@@ -148,8 +148,8 @@ TEST(MediaEquiAngular, TinyRange) {
             EquiAngularCase k{"tiny", double(t0) + 0.3 * (t1 - t0), distance, t0, t1};
             EquiAngularSampler sampler(kOrigin, kDirection, light_position(k), t0, t1);
             expect_equiangular_well_formed(sampler, t0, t1);
-            auto pdf = [&](double t) { return double(sampler.pdf(float(t))); };
-            // pdf() sees t rounded to a float, so integrate it over each float's rounding
+            auto pdf = [&](double t) { return double(sampler.pdf_l(float(t))); };
+            // pdf_l() sees t rounded to a float, so integrate it over each float's rounding
             // cell (the points closer to it than to its neighbours), clipped to [t0, t1].
             double integral = 0;
             for (float t = t0; t <= t1; t = std::nextafter(t, kInfinity)) {

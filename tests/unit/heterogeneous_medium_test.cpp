@@ -262,7 +262,7 @@ TEST(HeterogeneousMedium, PdfApproximation) {
     auto medium = make_medium(s, true, Rgb(0.5f));
     for (float t : {0.1f, 0.5f, 0.9f, 1.25f, 5.0f}) {
         EXPECT_NEAR(medium->probability_pass(s.ray(), t), s.tr(0, t), 1e-5) << t;
-        EXPECT_NEAR(medium->pdf_scatter(s.ray(), t), s.sigma(0, t) * s.tr(0, t), 1e-5) << t;
+        EXPECT_NEAR(medium->pdf_scatter_l(s.ray(), t), s.sigma(0, t) * s.tr(0, t), 1e-5) << t;
     }
     const Line ramp{Ramp{32, Rgb(0.2f), Rgb(3.0f), 2.0f}};
     auto m2 = make_medium(ramp, true, Rgb(0.5f));
@@ -271,7 +271,7 @@ TEST(HeterogeneousMedium, PdfApproximation) {
     const int n = 20000;
     const float t_end = ramp.before + ramp.ramp.length;
     for (int i = 0; i < n; ++i)
-        integral += m2->pdf_scatter(ramp.ray(), t_end * (i + 0.5f) / n) * t_end / n;
+        integral += m2->pdf_scatter_l(ramp.ray(), t_end * (i + 0.5f) / n) * t_end / n;
     EXPECT_NEAR(integral, 1.0 - m2->probability_pass(ramp.ray(), t_end), 0.02);
     EXPECT_NEAR(m2->probability_pass(ramp.ray(), t_end), ramp.tr(0, t_end),
                 0.05 * ramp.tr(0, t_end));

@@ -89,9 +89,9 @@ void expect_well_formed(const PhaseFunction& phase, const Vec3& wo) {
         PhaseSample s = phase.sample(wo, u);
         ASSERT_TRUE(is_finite(s.wi)) << "u = " << u.x << ", " << u.y;
         ASSERT_NEAR(length(s.wi), 1.0f, 1e-5f);
-        ASSERT_TRUE(std::isfinite(s.pdf) && s.pdf > 0) << s.pdf;
+        ASSERT_TRUE(std::isfinite(s.pdf_w) && s.pdf_w > 0) << s.pdf_w;
         float p = phase.p(wo, s.wi);
-        ASSERT_NEAR(s.pdf, p, 2e-3f * p) << "u = " << u.x << ", " << u.y;
+        ASSERT_NEAR(s.pdf_w, p, 2e-3f * p) << "u = " << u.x << ", " << u.y;
     }
 }
 

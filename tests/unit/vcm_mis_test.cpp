@@ -19,7 +19,7 @@
 // (Material::Medium: the fog's Henyey-Greenstein phase function and no normal, so cosines are 1,
 // the phase value is the density in both directions, and merging there uses photon points with
 // eta = 4/3 pi r^3 N instead of pi r^2 N). Sampling a segment also samples its length, so each
-// segment has a distance density at either end: pdf_scatter(t) (per unit length) at a medium
+// segment has a distance density at either end: pdf_scatter_l(t) (per unit length) at a medium
 // vertex, probability_pass(t) at a surface vertex, the light or the camera (surface-like
 // endpoints), both from a real HomogeneousMedium (core/integrators/medium_segment.h). Directional
 // and constant lights are outside the fog: it fills a ball around the scene with a null boundary,
@@ -264,10 +264,10 @@ class MisSumTest : public ::testing::Test {
             const float p = v.phase->p(wo, wi);
             return BsdfPdf{p, p};
         }
-        return surface(i, mode).pdf(wo, wi);
+        return surface(i, mode).pdf_w(wo, wi);
     }
     float camera_pdf_w(const Vec3& dir) const {
-        return camera_.direction_pdf(dir) * float(kWidth * kHeight);
+        return camera_.direction_pdf_w(dir) * float(kWidth * kHeight);
     }
 
     // --- segment densities ------------------------------------------------------------------
@@ -288,7 +288,7 @@ class MisSumTest : public ::testing::Test {
         if (!fog_) return 1.0f;
         const bool medium_vertex =
             id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        return medium_vertex ? fog_->pdf_scatter(ray, t) : fog_->probability_pass(ray, t);
+        return medium_vertex ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
     }
     // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
     // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
@@ -318,8 +318,8 @@ class MisSumTest : public ::testing::Test {
             st.light[i] = q;
             if (i + 1 == m) break;
             const Vec3 wi = toward_eye(i);
-            const BsdfPdf pdf = pdf_at(i, TransportMode::Importance, wo, wi);
-            mis.scatter(q, v.cos(wi), pdf.forward, pdf.reverse, v.specular, v.in_medium());
+            const BsdfPdf pdf_w = pdf_at(i, TransportMode::Importance, wo, wi);
+            mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
         }
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
         q = mis.start_camera(camera_pdf_w(-toward_eye(m - 1)));
@@ -331,8 +331,8 @@ class MisSumTest : public ::testing::Test {
             mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
             st.eye[i] = q;
             const Vec3 wi = toward_light(i);
-            const BsdfPdf pdf = pdf_at(i, TransportMode::Radiance, wo, wi);
-            mis.scatter(q, v.cos(wi), pdf.forward, pdf.reverse, v.specular, v.in_medium());
+            const BsdfPdf pdf_w = pdf_at(i, TransportMode::Radiance, wo, wi);
+            mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
         }
         // The eye subpath hits a finite light, or leaves the scene toward an infinite one.
         const SegmentDensities s = segment(0, kLightEnd);
@@ -369,43 +369,59 @@ class MisSumTest : public ::testing::Test {
             case TechniqueKind::Direct: {  // eqs. 44-45 (direct_illumination)
                 const PathVertex& v = vertices_[0];
                 const Vec3 wo = toward_eye(0), wi = toward_light(0);
-                const BsdfPdf pdf = pdf_at(0, TransportMode::Radiance, wo, wi);
+                const BsdfPdf pdf_w = pdf_at(0, TransportMode::Radiance, wo, wi);
                 const SegmentDensities l = segment(0, kLightEnd);
-                return mis.weight_direct(st.eye[0], pdf.forward, pdf.reverse, end_.direct_pdf_w,
-                                         end_.emission_pdf_w, end_.direct_pdf_w, v.cos(wi),
-                                         end_.cos_light, end_.delta, v.in_medium(), l.toward_end,
-                                         l.toward_start);
+                return mis.weight_direct(st.eye[0], {.bsdf_forward_w = pdf_w.forward,
+                                                     .bsdf_reverse_w = pdf_w.reverse,
+                                                     .light_pdf_w = end_.direct_pdf_w,
+                                                     .emission_pdf_w = end_.emission_pdf_w,
+                                                     .direct_pdf_w = end_.direct_pdf_w,
+                                                     .cos_here = v.cos(wi),
+                                                     .cos_light = end_.cos_light,
+                                                     .delta_light = end_.delta,
+                                                     .eye_medium = v.in_medium(),
+                                                     .pass_to_light_probability = l.toward_end,
+                                                     .distance_from_light = l.toward_start});
             }
             case TechniqueKind::Connection: {  // eqs. 40-41 (connect_vertices)
                 const size_t a = t.vertex, b = a + 1;
                 const PathVertex &w = vertices_[a], &v = vertices_[b];
                 const Vec3 d = toward_eye(a);  // from the light vertex a to the eye vertex b
                 const float dist2 = length_squared(v.p - w.p);
-                const BsdfPdf pdf_eye = pdf_at(b, TransportMode::Radiance, toward_eye(b), -d);
-                const BsdfPdf pdf_light = pdf_at(a, TransportMode::Importance, toward_light(a), d);
+                const BsdfPdf eye_pdf_w = pdf_at(b, TransportMode::Radiance, toward_eye(b), -d);
+                const BsdfPdf light_pdf_w =
+                    pdf_at(a, TransportMode::Importance, toward_light(a), d);
                 const SegmentDensities l = segment(int(b), int(a));  // traced from the eye
-                const float eye_pdf_a = pdf_eye.forward * w.cos(d) * l.toward_end / dist2;
-                const float light_pdf_a = pdf_light.forward * v.cos(d) * l.toward_start / dist2;
-                return mis.weight_connection(st.light[a], st.eye[b], eye_pdf_a, light_pdf_a,
-                                             pdf_light.reverse, pdf_eye.reverse, w.in_medium(),
-                                             v.in_medium());
+                const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.toward_end / dist2;
+                const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.toward_start / dist2;
+                return mis.weight_connection(st.light[a], st.eye[b],
+                                             {.eye_pdf_a = eye_pdf_a,
+                                              .light_pdf_a = light_pdf_a,
+                                              .light_reverse_w = light_pdf_w.reverse,
+                                              .eye_reverse_w = eye_pdf_w.reverse,
+                                              .light_medium = w.in_medium(),
+                                              .eye_medium = v.in_medium()});
             }
             case TechniqueKind::Camera: {  // eq. 46 (connect_to_camera)
                 const size_t i = m - 1;
                 const PathVertex& v = vertices_[i];
                 const Vec3 d = toward_eye(i);
                 const float dist2 = distance2_to_eye_side(i);
-                const BsdfPdf pdf = pdf_at(i, TransportMode::Importance, toward_light(i), d);
+                const BsdfPdf pdf_w = pdf_at(i, TransportMode::Importance, toward_light(i), d);
                 const SegmentDensities l = segment(int(i), int(m));  // traced to the camera
                 const float camera_pdf_a = camera_pdf_w(-d) * v.cos(d) * l.toward_start / dist2;
-                return mis.weight_camera(st.light[i], camera_pdf_a, pdf.reverse, v.in_medium());
+                return mis.weight_camera(st.light[i], {.camera_pdf_a = camera_pdf_a,
+                                                       .light_reverse_w = pdf_w.reverse,
+                                                       .light_medium = v.in_medium()});
             }
             case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
                 const size_t i = t.vertex;
-                const BsdfPdf pdf =
+                const BsdfPdf pdf_w =
                     pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
-                return mis.weight_merge(st.light[i], st.eye[i], pdf.forward, pdf.reverse,
-                                        vertices_[i].in_medium());
+                return mis.weight_merge(st.light[i], st.eye[i],
+                                        {.eye_forward_w = pdf_w.forward,
+                                         .eye_reverse_w = pdf_w.reverse,
+                                         .medium = vertices_[i].in_medium()});
             }
         }
         return 0;
@@ -628,7 +644,7 @@ TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
             one.add_piece(&fog_medium_, ray, t);
             const SegmentDensities d = one.finish(end_medium);
             const auto density = [&](bool medium) {
-                return medium ? fog_medium_.pdf_scatter(ray, t)
+                return medium ? fog_medium_.pdf_scatter_l(ray, t)
                               : fog_medium_.probability_pass(ray, t);
             };
             EXPECT_FLOAT_EQ(d.toward_end, density(end_medium));
@@ -645,7 +661,7 @@ TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
         in.add_piece(&fog_medium_, ray, t);
         const SegmentDensities d_in = in.finish(start_medium);
         const float at_vertex =
-            start_medium ? fog_medium_.pdf_scatter(ray, t) : fog_medium_.probability_pass(ray, t);
+            start_medium ? fog_medium_.pdf_scatter_l(ray, t) : fog_medium_.probability_pass(ray, t);
         EXPECT_FLOAT_EQ(d_out.toward_end, fog_medium_.probability_pass(ray, t));
         EXPECT_FLOAT_EQ(d_out.toward_start, at_vertex);
         EXPECT_FLOAT_EQ(d_in.toward_end, at_vertex);
