@@ -32,67 +32,64 @@ const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "light_pa
 const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "light_paths",
                                            "mis",       "radius_factor", "alpha"};
 
+// Rows name only the fields they set; the others keep their member defaults (GCC's
+// -Wextra would warn about every omitted field of a designated initializer).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
 const std::vector<Algorithm>& table() {
     // One row per algorithm. A new algorithm: its integrator's own file(s) and a row here.
     static const std::vector<Algorithm> rows = {
-        {"pt",
-         {"path"},
-         "path tracing with next-event estimation (surfaces only)",
-         {},
-         {"max_depth", "rr_depth"},
-         [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+        {.name = "pt",
+         .aliases = {"path"},
+         .description = "path tracing with next-event estimation (surfaces only)",
+         .options = {"max_depth", "rr_depth"},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<PathTracer>(s.max_depth, s.rr_depth);
          }},
-        {"volpt",
-         {"volpath"},
-         "volumetric path tracing: delta/ratio tracking, equi-angular sampling (any media)",
-         {true, true},
-         {"max_depth", "rr_depth", "equiangular"},
-         [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+        {.name = "volpt",
+         .aliases = {"volpath"},
+         .description =
+             "volumetric path tracing: delta/ratio tracking, equi-angular sampling (any media)",
+         .support = {.homogeneous_media = true, .grid_media = true},
+         .options = {"max_depth", "rr_depth", "equiangular"},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular);
          }},
-        {"lt",
-         {},
-         "light tracing (homogeneous media)",
-         {true, false},
-         kConnecting,
-         make_bidirectional<BidirectionalMode::LightTracing>},
-        {"bpt",
-         {},
-         "bidirectional path tracing (homogeneous media)",
-         {true, false},
-         kConnecting,
-         make_bidirectional<BidirectionalMode::Bpt>},
-        {"ppm",
-         {},
-         "progressive photon mapping (homogeneous media: photon points)",
-         {true, false},
-         kMerging,
-         make_bidirectional<BidirectionalMode::Ppm>},
-        {"bpm",
-         {},
-         "bidirectional photon mapping (homogeneous media)",
-         {true, false},
-         kMerging,
-         make_bidirectional<BidirectionalMode::Bpm>},
-        {"vcm",
-         {},
-         "vertex connection and merging (homogeneous media)",
-         {true, false},
-         kMerging,
-         make_bidirectional<BidirectionalMode::Vcm>},
-        {"eyelight",
-         {},
-         "debug shading: |cos| at the first hit (surfaces only)",
-         {},
-         {},
-         [](const RenderSettings&) -> std::unique_ptr<Integrator> {
+        {.name = "lt",
+         .description = "light tracing (homogeneous media)",
+         .support = {.homogeneous_media = true},
+         .options = kConnecting,
+         .create = make_bidirectional<BidirectionalMode::LightTracing>},
+        {.name = "bpt",
+         .description = "bidirectional path tracing (homogeneous media)",
+         .support = {.homogeneous_media = true},
+         .options = kConnecting,
+         .create = make_bidirectional<BidirectionalMode::Bpt>},
+        {.name = "ppm",
+         .description = "progressive photon mapping (homogeneous media: photon points)",
+         .support = {.homogeneous_media = true},
+         .options = kMerging,
+         .create = make_bidirectional<BidirectionalMode::Ppm>},
+        {.name = "bpm",
+         .description = "bidirectional photon mapping (homogeneous media)",
+         .support = {.homogeneous_media = true},
+         .options = kMerging,
+         .create = make_bidirectional<BidirectionalMode::Bpm>},
+        {.name = "vcm",
+         .description = "vertex connection and merging (homogeneous media)",
+         .support = {.homogeneous_media = true},
+         .options = kMerging,
+         .create = make_bidirectional<BidirectionalMode::Vcm>},
+        {.name = "eyelight",
+         .description = "debug shading: |cos| at the first hit (surfaces only)",
+         .create = [](const RenderSettings&) -> std::unique_ptr<Integrator> {
              return std::make_unique<EyeLight>();
          },
-         false},
+         .physically_based = false},
     };
     return rows;
 }
+#pragma GCC diagnostic pop
 
 }  // namespace
 

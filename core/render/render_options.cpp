@@ -21,166 +21,128 @@ double to_real(const std::string& text) {
     return parse_number<double>("", text);
 }
 
+// Rows name only the fields they set; the others keep their member defaults (GCC's
+// -Wextra would warn about every omitted field of a designated initializer).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
 const std::vector<RenderOption>& table() {
     // One row per option. A new option: a row here, the field in RenderSettings, and its name
     // in the rows of the algorithms that read it (algorithms.cpp).
-    static const std::vector<RenderOption> rows = [] {
-        std::vector<RenderOption> r;
-        {
-            RenderOption o;
-            o.name = "seed";
-            o.flag = "--seed";
-            o.metavar = "S";
-            o.type = OptionType::Unsigned;
-            o.help = "random seed: part of every random stream's key";
-            o.default_text = "0";
-            o.every_algorithm = true;
-            o.apply = [](RenderSettings& s, const std::string& v) {
-                s.seed = parse_number<uint64_t>("", v);
-            };
-            o.format = [](const RenderSettings& s) { return std::to_string(s.seed); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "max_depth";
-            o.flag = "--max-depth";
-            o.metavar = "D";
-            o.type = OptionType::Integer;
-            o.min = -1;
-            o.max = 2147483647;
-            o.help =
-                "longest path in segments (Mitsuba's meaning; -1 = unbounded, 1 = emitters "
-                "seen directly)";
-            o.default_text = "the scene's max_depth";
-            o.apply = [](RenderSettings& s, const std::string& v) { s.max_depth = to_int(v); };
-            o.format = [](const RenderSettings& s) { return std::to_string(s.max_depth); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "rr_depth";
-            o.flag = "--rr-depth";
-            o.metavar = "D";
-            o.type = OptionType::Integer;
-            o.min = 0;
-            o.max = 2147483647;
-            o.help = "path depth from which Russian roulette may end paths";
-            o.default_text = "the scene's rr_depth, else 5";
-            o.apply = [](RenderSettings& s, const std::string& v) { s.rr_depth = to_int(v); };
-            o.format = [](const RenderSettings& s) { return std::to_string(s.rr_depth); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "radius_factor";
-            o.flag = "--radius-factor";
-            o.metavar = "F";
-            o.type = OptionType::Real;
-            o.min = 0;
-            o.min_exclusive = true;
-            o.max = 1000;
-            o.help = "initial merging radius as a fraction of the scene's bounding-sphere radius";
-            o.default_text = format_real(RenderSettings().radius_factor);
-            o.apply = [](RenderSettings& s, const std::string& v) { s.radius_factor = to_real(v); };
-            o.format = [](const RenderSettings& s) { return format_real(s.radius_factor); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "alpha";
-            o.flag = "--alpha";
-            o.metavar = "A";
-            o.type = OptionType::Real;
-            o.min = 0;
-            o.min_exclusive = true;
-            o.max = 1;
-            o.help = "merging radius reduction: r_i = r_1 i^((A-1)/2)";
-            o.default_text = format_real(RenderSettings().alpha);
-            o.apply = [](RenderSettings& s, const std::string& v) { s.alpha = to_real(v); };
-            o.format = [](const RenderSettings& s) { return format_real(s.alpha); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "light_paths";
-            o.flag = "--light-paths";
-            o.metavar = "N";
-            o.type = OptionType::Integer;
-            o.min = 0;
-            o.max = 100000000;
-            o.help = "light paths per iteration (0 = one per pixel)";
-            o.default_text = "0";
-            o.apply = [](RenderSettings& s, const std::string& v) {
-                s.light_path_count = parse_number<uint64_t>("", v);
-            };
-            o.format = [](const RenderSettings& s) { return std::to_string(s.light_path_count); };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "mis";
-            o.flag = "--mis";
-            o.metavar = "power|balance";
-            o.type = OptionType::Choice;
-            o.choices = {"power", "balance"};
-            o.help = "multiple importance sampling heuristic of the bidirectional family";
-            o.default_text = "power";
-            o.apply = [](RenderSettings& s, const std::string& v) {
-                s.mis_power = v == "balance" ? 1 : 2;
-            };
-            o.format = [](const RenderSettings& s) -> std::string {
-                return s.mis_power == 1 ? "balance" : "power";
-            };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "equiangular";
-            o.flag = "--equiangular";
-            o.metavar = "on|off";
-            o.type = OptionType::Choice;
-            o.choices = {"on", "off"};
-            o.help =
-                "equi-angular sampling of scattering toward finite lights, combined by MIS "
-                "with distance sampling (off: distance sampling only)";
-            o.default_text = "on";
-            o.negated_flag = "--no-equiangular";
-            o.negated_value = "off";
-            o.apply = [](RenderSettings& s, const std::string& v) { s.equiangular = v == "on"; };
-            o.format = [](const RenderSettings& s) -> std::string {
-                return s.equiangular ? "on" : "off";
-            };
-            r.push_back(o);
-        }
-        {
-            RenderOption o;
-            o.name = "layers";
-            o.flag = "--layers";
-            o.metavar = "none|techniques|st";
-            o.type = OptionType::Choice;
-            o.choices = {"none", "techniques", "st"};
-            o.help =
-                "extra EXR layers: techniques (connection and merging parts), st (one per "
-                "(s, t) technique, paths of up to 6 vertices)";
-            o.default_text = "none";
-            o.every_algorithm = true;
-            o.apply = [](RenderSettings& s, const std::string& v) {
-                s.layers = v == "techniques" ? LayerMode::Techniques
-                           : v == "st"       ? LayerMode::PathVertices
-                                             : LayerMode::None;
-            };
-            o.format = [](const RenderSettings& s) -> std::string {
-                return s.layers == LayerMode::Techniques     ? "techniques"
-                       : s.layers == LayerMode::PathVertices ? "st"
-                                                             : "none";
-            };
-            r.push_back(o);
-        }
-        return r;
-    }();
+    static const std::vector<RenderOption> rows = {
+        {.name = "seed",
+         .flag = "--seed",
+         .metavar = "S",
+         .type = OptionType::Unsigned,
+         .help = "random seed: part of every random stream's key",
+         .default_text = "0",
+         .every_algorithm = true,
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.seed = parse_number<uint64_t>("", v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.seed); }},
+        {.name = "max_depth",
+         .flag = "--max-depth",
+         .metavar = "D",
+         .type = OptionType::Integer,
+         .help = "longest path in segments (Mitsuba's meaning; -1 = unbounded, 1 = emitters "
+                 "seen directly)",
+         .min = -1,
+         .max = 2147483647,
+         .default_text = "the scene's max_depth",
+         .apply = [](RenderSettings& s, const std::string& v) { s.max_depth = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.max_depth); }},
+        {.name = "rr_depth",
+         .flag = "--rr-depth",
+         .metavar = "D",
+         .type = OptionType::Integer,
+         .help = "path depth from which Russian roulette may end paths",
+         .min = 0,
+         .max = 2147483647,
+         .default_text = "the scene's rr_depth, else 5",
+         .apply = [](RenderSettings& s, const std::string& v) { s.rr_depth = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.rr_depth); }},
+        {.name = "radius_factor",
+         .flag = "--radius-factor",
+         .metavar = "F",
+         .type = OptionType::Real,
+         .help = "initial merging radius as a fraction of the scene's bounding-sphere radius",
+         .min = 0,
+         .max = 1000,
+         .min_exclusive = true,
+         .default_text = format_real(RenderSettings().radius_factor),
+         .apply = [](RenderSettings& s, const std::string& v) { s.radius_factor = to_real(v); },
+         .format = [](const RenderSettings& s) { return format_real(s.radius_factor); }},
+        {.name = "alpha",
+         .flag = "--alpha",
+         .metavar = "A",
+         .type = OptionType::Real,
+         .help = "merging radius reduction: r_i = r_1 i^((A-1)/2)",
+         .min = 0,
+         .max = 1,
+         .min_exclusive = true,
+         .default_text = format_real(RenderSettings().alpha),
+         .apply = [](RenderSettings& s, const std::string& v) { s.alpha = to_real(v); },
+         .format = [](const RenderSettings& s) { return format_real(s.alpha); }},
+        {.name = "light_paths",
+         .flag = "--light-paths",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light paths per iteration (0 = one per pixel)",
+         .min = 0,
+         .max = 100000000,
+         .default_text = "0",
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.light_path_count = parse_number<uint64_t>("", v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.light_path_count); }},
+        {.name = "mis",
+         .flag = "--mis",
+         .metavar = "power|balance",
+         .type = OptionType::Choice,
+         .help = "multiple importance sampling heuristic of the bidirectional family",
+         .choices = {"power", "balance"},
+         .default_text = "power",
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.mis_power = v == "balance" ? 1 : 2; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.mis_power == 1 ? "balance" : "power";
+         }},
+        {.name = "equiangular",
+         .flag = "--equiangular",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "equi-angular sampling of scattering toward finite lights, combined by MIS "
+                 "with distance sampling (off: distance sampling only)",
+         .choices = {"on", "off"},
+         .default_text = "on",
+         .negated_flag = "--no-equiangular",
+         .negated_value = "off",
+         .apply = [](RenderSettings& s, const std::string& v) { s.equiangular = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.equiangular ? "on" : "off";
+         }},
+        {.name = "layers",
+         .flag = "--layers",
+         .metavar = "none|techniques|st",
+         .type = OptionType::Choice,
+         .help = "extra EXR layers: techniques (connection and merging parts), st (one per "
+                 "(s, t) technique, paths of up to 6 vertices)",
+         .choices = {"none", "techniques", "st"},
+         .default_text = "none",
+         .every_algorithm = true,
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.layers = v == "techniques" ? LayerMode::Techniques
+                            : v == "st"       ? LayerMode::PathVertices
+                                              : LayerMode::None;
+             },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.layers == LayerMode::Techniques     ? "techniques"
+                    : s.layers == LayerMode::PathVertices ? "st"
+                                                          : "none";
+         }},
+    };
     return rows;
 }
+#pragma GCC diagnostic pop
 
 std::string join(const std::vector<std::string>& items, const char* separator) {
     std::string out;
