@@ -116,6 +116,56 @@ TEST(JobStore, PersistsJobsFramesAndRanges) {
     fs::remove_all(dir);
 }
 
+// A job with technique layers merges, checkpoints and restores them with the sums.
+TEST(FrameAccumulator, LayersRoundTripThroughTheCheckpoint) {
+    fs::path dir = temp_dir("ckpt-layers");
+    FrameAccumulator acc(2, 1, render::LayerMode::Techniques);
+    ASSERT_EQ(acc.layer_count(), 2u);  // connection, merging
+    std::vector<double> sum = {1, 2, 3, 4, 5, 6}, odd = {1, 1, 1, 1, 1, 1};
+    std::vector<double> layers = {1, 0, 3, 0, 5, 0, 0, 2, 0, 4, 0, 6};
+    EXPECT_THROW(acc.add({1, 2}, sum, odd, {}, 1, {}), std::invalid_argument);
+    acc.add({1, 2}, sum, odd, layers, 1, {});
+    acc.add({2, 3}, sum, odd, layers, 0, {});
+    acc.save(dir / "f.ckpt", 1.0);
+    FrameAccumulator back = FrameAccumulator::load(dir / "f.ckpt", nullptr);
+    ASSERT_EQ(back.layer_count(), 2u);
+    EXPECT_EQ(back.result().layers.buffer(1).values()[5], 12.0);
+    std::vector<render::NamedLayer> averages = back.layer_averages();
+    ASSERT_EQ(averages.size(), 2u);
+    EXPECT_EQ(averages[0].name, "connection");
+    EXPECT_EQ(averages[1].image.at(size_t(1)).b, 6.0f);
+    fs::remove_all(dir);
+}
+
+// Checkpoints written before layers existed (format 1) are still read.
+TEST(FrameAccumulator, ReadsFormatOneCheckpoints) {
+    fs::path dir = temp_dir("ckpt-v1");
+    std::string bytes = "RCKP0001";
+    auto put = [&](auto v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    put(uint32_t(1));  // width
+    put(uint32_t(1));  // height
+    put(uint64_t(2));  // count
+    put(uint64_t(1));  // odd count
+    put(uint64_t(2));  // samples
+    put(uint64_t(9));  // rays
+    put(uint64_t(0));  // non-finite
+    put(double(3.5));  // elapsed seconds
+    put(uint64_t(1));  // ranges
+    put(uint64_t(1));
+    put(uint64_t(3));
+    for (double v : {2.0, 4.0, 6.0, 1.0, 2.0, 3.0}) put(v);  // sum, odd_sum
+    bytes += "RCKP0001";
+    fs::create_directories(dir);
+    std::ofstream(dir / "old.ckpt", std::ios::binary) << bytes;
+    double elapsed = 0;
+    FrameAccumulator acc = FrameAccumulator::load(dir / "old.ckpt", &elapsed);
+    EXPECT_EQ(acc.count(), 2u);
+    EXPECT_EQ(acc.layer_count(), 0u);
+    EXPECT_EQ(elapsed, 3.5);
+    EXPECT_EQ(acc.average().at(size_t(0)).b, 3.0f);
+    fs::remove_all(dir);
+}
+
 TEST(FrameAccumulator, CheckpointRoundTrip) {
     fs::path dir = temp_dir("ckpt");
     FrameAccumulator acc(2, 1);
