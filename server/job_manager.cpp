@@ -77,6 +77,20 @@ std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& req
     return defines;
 }
 
+// The EXR header of a frame's image, with the keys `render` writes (image_metadata) plus the
+// job and frame.
+std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
+                                                  const std::string& job_id, uint32_t index,
+                                                  const FrameAccumulator& acc, double seconds) {
+    std::map<std::string, std::string> metadata =
+        image_metadata(job_settings(request),
+                       {request.bundle().scene_path(), acc.count(), seconds, acc.relative_error(),
+                        acc.result().stats.non_finite, frame_defines(request, index)});
+    metadata["render:job"] = job_id;
+    metadata["render:frame"] = std::to_string(index);
+    return metadata;
+}
+
 }  // namespace
 
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
@@ -411,12 +425,9 @@ Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* 
     }
     *file = assets_.tmp_dir() / ("preview-" + request.job_id() + "-" +
                                  std::to_string(request.frame()) + "-" + random_hex(8) + ".exr");
-    std::map<std::string, std::string> metadata = {
-        {"render:job", request.job_id()},
-        {"render:preview", "1"},
-        {"render:iterations", std::to_string(frame.acc->count())},
-        {"render:relative_error_estimate", std::to_string(frame.acc->relative_error())},
-    };
+    std::map<std::string, std::string> metadata = frame_metadata(
+        job->request, request.job_id(), request.frame(), *frame.acc, progress.elapsed_seconds);
+    metadata["render:preview"] = "1";
     try {
         write_frame_exr(*file, frame.acc->average(), metadata, frame.acc->layer_averages());
     } catch (const std::exception& e) {
@@ -656,13 +667,8 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         if (!frame.acc) {
             error = "frame " + std::to_string(index) + " has no merged sums";
         } else {
-            std::map<std::string, std::string> metadata = image_metadata(
-                job_settings(job->request),
-                {job->request.bundle().scene_path(), frame.acc->count(), progress.elapsed_seconds,
-                 frame.acc->relative_error(), frame.acc->result().stats.non_finite,
-                 frame_defines(job->request, index)});
-            metadata["render:job"] = job_id;
-            metadata["render:frame"] = std::to_string(index);
+            const std::map<std::string, std::string> metadata =
+                frame_metadata(job->request, job_id, index, *frame.acc, progress.elapsed_seconds);
             try {
                 write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata,
                                 frame.acc->layer_averages());
