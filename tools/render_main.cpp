@@ -66,8 +66,8 @@ ArgumentParser make_parser(Options& o) {
     });
     p.value({"-D"}, "name=value", "override a <default> of the scene file (repeatable)",
             [&](const std::string& v) {
-                o.defines.insert_or_assign(parse_define("-D", v).first,
-                                           parse_define("-D", v).second);
+                auto [name, value] = parse_define("-D", v);
+                o.defines[name] = value;
             });
     add_render_options(p, o.render_options);
     p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
