@@ -114,6 +114,7 @@ class Iteration {
           camera_(scene.camera()),
           light_trace_only_(config.mode == BidirectionalMode::LightTracing),
           ppm_(config.mode == BidirectionalMode::Ppm),
+          vpl_(config.mode == BidirectionalMode::Vpl),
           use_vc_(config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm),
           use_vm_(config.mode == BidirectionalMode::Ppm || config.mode == BidirectionalMode::Bpm ||
                   config.mode == BidirectionalMode::Vcm),
@@ -131,7 +132,9 @@ class Iteration {
           vm_normalization_(float(1.0 / eta_vcm_)),
           vm_normalization_volume_(float(1.0 / eta_vcm_volume_)),
           mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_),
-               eta_vcm_volume_) {}
+               eta_vcm_volume_),
+          vpl_clamp2_(vpl_clamp_squared(config, scene, key.iteration)),
+          vpl_scale_(float(1.0 / double(light_path_count_))) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
@@ -170,13 +173,25 @@ class Iteration {
     const Scene& scene_;
     IterationKey key_;
     const PerspectiveCamera& camera_;
-    bool light_trace_only_, ppm_, use_vc_, use_vm_;
+    // The squared distance clamp of VPL connections in iteration i (0: unclamped).
+    static double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,
+                                    uint64_t iteration) {
+        if (!(config.vpl_clamp > 0)) return 0;
+        double d = config.vpl_clamp * scene.bounding_sphere().radius;
+        if (config.vpl_clamp_schedule == VplClampSchedule::Shrinking)
+            d *= std::pow(double(iteration), -0.25);
+        return d * d;
+    }
+
+    bool light_trace_only_, ppm_, vpl_, use_vc_, use_vm_;
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
     double radius_;
     double eta_vcm_, eta_vcm_volume_;
     float vm_normalization_, vm_normalization_volume_;
     VcmMis mis_;
+    float vpl_clamp2_;  // squared distance clamp of VPL connections (0: none)
+    float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
 
     std::vector<LightVertex> light_vertices_;
     std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
@@ -282,7 +297,7 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
-            if (use_vc_ || use_vm_)
+            if (use_vc_ || use_vm_ || vpl_)
                 vertices.push_back(
                     LightVertex{*v, wo, state.throughput, state.path_length, state.mis});
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
@@ -432,19 +447,20 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
-    // Eqs. (44) and (45).
+    // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const float weight =
-        mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
-                                       .bsdf_reverse_w = pdf_w.reverse,
-                                       .light_pdf_w = dl.pdf_w(),
-                                       .emission_pdf_w = ls.pdf_emission_w,
-                                       .direct_pdf_w = ls.pdf_direct_w,
-                                       .cos_here = v.cos(ls.wi),
-                                       .cos_light = ls.cos_at_light,
-                                       .delta_light = dl.light->is_delta(),
-                                       .eye_medium = v.in_medium(),
-                                       .pass_to_light_probability = l.densities.toward_end,
-                                       .distance_from_light = l.densities.toward_start});
+        vpl_ ? 1.0f
+             : mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
+                                              .bsdf_reverse_w = pdf_w.reverse,
+                                              .light_pdf_w = dl.pdf_w(),
+                                              .emission_pdf_w = ls.pdf_emission_w,
+                                              .direct_pdf_w = ls.pdf_direct_w,
+                                              .cos_here = v.cos(ls.wi),
+                                              .cos_light = ls.cos_at_light,
+                                              .delta_light = dl.light->is_delta(),
+                                              .eye_medium = v.in_medium(),
+                                              .pass_to_light_probability = l.densities.toward_end,
+                                              .distance_from_light = l.densities.toward_start});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -468,6 +484,15 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     // medium, with the distance sampling through media).
     const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
     const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
+    if (vpl_) {
+        // A VPL connection is the only technique for its paths: weight 1, and the estimator
+        // averages over the N_L light paths of the iteration.
+        const float geometry =
+            v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, vpl_clamp2_) * vpl_scale_;
+        const Rgb contribution = f_eye * f_light * geometry;
+        if (contribution.is_black()) return Rgb(0.0f);
+        return contribution * visibility(l, ray, stats);
+    }
     // Eqs. (40) and (41).
     const float weight = mis_.weight_connection(lv.mis, state.mis,
                                                 {.eye_pdf_a = eye_pdf_a,
@@ -554,8 +579,18 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         // Light tracing and PPM leave every non-delta scattering of the eye path to the light
         // paths (camera connections or the one merge); the eye continues only through delta
         // lobes, including the delta lobes of mixed materials such as plastic's coating.
-        const bool eye_ends_at_non_delta = light_trace_only_ || ppm_;
+        const bool eye_ends_at_non_delta = light_trace_only_ || ppm_ || vpl_;
         if (v->has_non_delta() && !light_trace_only_) {
+            if (vpl_) {
+                add(Technique::Connection, 1,
+                    state.throughput * direct_illumination(state, *v, wo, rng, stats));
+                for (const LightVertex& lv : light_vertices_) {
+                    if (lv.path_length + 1 + state.path_length > max_length_) continue;
+                    add(Technique::Connection, lv.path_length + 1,
+                        state.throughput * lv.throughput *
+                            connect_vertices(lv, *v, wo, state, rng, stats));
+                }
+            }
             if (use_vc_) {
                 add(Technique::Connection, 1,
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));

@@ -20,6 +20,16 @@ enum class BidirectionalMode {
     Ppm,           // merging at the first non-specular eye vertex, no MIS (Hachisuka 2008)
     Bpm,           // merging at every eye vertex, MIS between merges
     Vcm,           // connections and merges, full MIS
+    // Many-light rendering (instant radiosity): the non-delta vertices of the iteration's light
+    // paths are virtual point lights; the eye follows delta lobes and, at its first non-delta
+    // vertex, adds next-event estimation and a connection to every VPL, all with weight 1.
+    Vpl,
+};
+
+// How the VPL connection's distance clamp changes over iterations (BidirectionalConfig).
+enum class VplClampSchedule {
+    Fixed,      // d_min in every iteration: biased, bounded variance
+    Shrinking,  // d_min * i^(-1/4): consistent (docs/algorithms.md, many-light rendering)
 };
 
 struct BidirectionalConfig {
@@ -30,6 +40,10 @@ struct BidirectionalConfig {
     double alpha = 0.75;
     uint64_t light_path_count = 0;  // 0 = one per pixel
     int mis_power = 2;              // 2 = power heuristic, 1 = balance heuristic
+    // Vpl: the connection's geometry term uses max(distance, d_min) with d_min = vpl_clamp x
+    // the scene's bounding-sphere radius (0: unclamped, unbiased).
+    double vpl_clamp = 0;
+    VplClampSchedule vpl_clamp_schedule = VplClampSchedule::Shrinking;
 };
 
 class VertexConnectionMerging final : public Integrator {

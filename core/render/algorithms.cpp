@@ -80,6 +80,22 @@ const std::vector<Algorithm>& table() {
          .support = {.homogeneous_media = true},
          .options = kMerging,
          .create = make_bidirectional<BidirectionalMode::Vcm>},
+        {.name = "vpl",
+         .aliases = {"instant_radiosity"},
+         .description = "many-light rendering: virtual point lights from light paths (surfaces "
+                        "only; no caustics through delta vertices)",
+         .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule"},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config;
+             config.mode = BidirectionalMode::Vpl;
+             config.max_depth = s.max_depth;
+             config.rr_depth = s.rr_depth;
+             config.light_path_count = s.vpl_paths;
+             config.vpl_clamp = s.vpl_clamp;
+             config.vpl_clamp_schedule =
+                 s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "eyelight",
          .description = "debug shading: |cos| at the first hit (surfaces only)",
          .create = [](const RenderSettings&) -> std::unique_ptr<Integrator> {

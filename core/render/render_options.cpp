@@ -119,6 +119,44 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.equiangular ? "on" : "off";
          }},
+        {.name = "vpl_paths",
+         .flag = "--vpl-paths",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light paths per iteration whose non-delta vertices become virtual point "
+                 "lights (each pixel connects to all of them)",
+         .min = 1,
+         .max = 1000000,
+         .default_text = std::to_string(RenderSettings().vpl_paths),
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.vpl_paths = parse_number<uint64_t>("", v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.vpl_paths); }},
+        {.name = "vpl_clamp",
+         .flag = "--vpl-clamp",
+         .metavar = "C",
+         .type = OptionType::Real,
+         .help = "clamp the VPL geometry term at distance C x the scene's bounding-sphere "
+                 "radius (biased; 0 = off)",
+         .min = 0,
+         .max = 1,
+         .default_text = "0",
+         .apply = [](RenderSettings& s, const std::string& v) { s.vpl_clamp = to_real(v); },
+         .format = [](const RenderSettings& s) { return format_real(s.vpl_clamp); }},
+        {.name = "vpl_clamp_schedule",
+         .flag = "--vpl-clamp-schedule",
+         .metavar = "shrinking|fixed",
+         .type = OptionType::Choice,
+         .help = "shrinking: the clamp distance falls as i^(-1/4) with the iteration index, so "
+                 "the image converges to the unclamped one; fixed: the same clamp every "
+                 "iteration",
+         .choices = {"shrinking", "fixed"},
+         .default_text = "shrinking",
+         .effective_with = {{"vpl_clamp", "0.05"}},
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.vpl_clamp_shrinking = v == "shrinking"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.vpl_clamp_shrinking ? "shrinking" : "fixed";
+         }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",
@@ -257,6 +295,8 @@ void add_render_options(ArgumentParser& parser, OptionMap& options) {
         std::string help =
             o.help + " (default " + o.default_text + "; " +
             (o.every_algorithm ? std::string("every algorithm") : algorithms_reading(o)) + ")";
+        for (const auto& [name, value] : o.effective_with)
+            help += "; has an effect only with " + find_render_option(name)->flag + " set";
         parser.value({o.flag}, o.metavar, help, [&options, &o](const std::string& v) {
             try {
                 options[o.name] = canonical_option_value(o, v);
@@ -301,6 +341,7 @@ std::string render_tables_json() {
                                   {"choices", o.choices},
                                   {"negated_flag", o.negated_flag},
                                   {"every_algorithm", o.every_algorithm},
+                                  {"effective_with", o.effective_with},
                                   {"read_by", read_by}});
     }
     return out.dump(2) + "\n";

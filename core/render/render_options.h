@@ -13,6 +13,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "core/render/render_settings.h"
@@ -47,6 +48,9 @@ struct RenderOption {
     bool every_algorithm = false;
     // A flag that sets the option to `negated_value` ("--no-equiangular"), kept for scripts.
     std::string negated_flag, negated_value;
+    // Values of other options without which this one has no effect (the clamp schedule needs a
+    // clamp): said in --help, and used by the service test to exercise the option.
+    std::vector<std::pair<std::string, std::string>> effective_with;
     // Writes a canonical value (canonical_option_value) into the settings, and reads it back.
     void (*apply)(RenderSettings&, const std::string&) = nullptr;
     std::string (*format)(const RenderSettings&) = nullptr;

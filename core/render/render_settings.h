@@ -30,6 +30,12 @@ struct RenderSettings {
     // volpt: equi-angular sampling of single scattering toward finite lights, combined by MIS
     // with distance sampling (off: distance sampling only, for comparisons).
     bool equiangular = true;
+    // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
+    // the optional distance clamp of their geometry term (a fraction of the scene's
+    // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).
+    uint64_t vpl_paths = 64;
+    double vpl_clamp = 0;
+    bool vpl_clamp_shrinking = true;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -114,19 +114,27 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
             algorithm, scene = pick_algorithm(option, tables)
             value = other_value(option)
             # --seed is also given by the harness; the later flag wins in both programs.
-            cases.append((option["name"], algorithm, scene, [option["flag"], value], value))
+            # Options that matter only together with another (the clamp schedule needs a clamp)
+            # get that one too, in both renders and in the default render.
+            needs = []
+            for other, other_value in option["effective_with"]:
+                flag = next(o["flag"] for o in tables["options"] if o["name"] == other)
+                needs += [flag, other_value]
+            cases.append((option["name"], algorithm, scene, needs + [option["flag"], value],
+                          value, needs))
             if option["negated_flag"]:
-                cases.append((option["name"], algorithm, scene, [option["negated_flag"]], None))
+                cases.append((option["name"], algorithm, scene, needs + [option["negated_flag"]],
+                              None, needs))
         # Every option of the tables is exercised.
         self.assertEqual({name for name, *_ in cases}, {o["name"] for o in tables["options"]})
 
-        for i, (name, algorithm, scene, extra, value) in enumerate(cases):
+        for i, (name, algorithm, scene, extra, value, needs) in enumerate(cases):
             with self.subTest(option=name, flags=" ".join(extra), algorithm=algorithm["name"]):
                 local = c.path(f"render-{i}.exr")
                 default = c.path(f"default-{i}.exr")
                 service = c.path(f"service-{i}.exr")
                 self.render(c, scene, algorithm["name"], local, extra)
-                self.render(c, scene, algorithm["name"], default, [])
+                self.render(c, scene, algorithm["name"], default, needs)
                 self.submit(c, scene, algorithm["name"], service, extra)
                 a, a_channels, a_header = read_exr(local)
                 b, b_channels, b_header = read_exr(service)

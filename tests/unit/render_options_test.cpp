@@ -166,7 +166,9 @@ TEST(RenderOptions, NamesAndFlagsAreUnique) {
     for (const RenderOption& o : render_options()) {
         EXPECT_TRUE(names.insert(o.name).second) << o.name;
         EXPECT_TRUE(flags.insert(o.flag).second) << o.flag;
-        if (!o.negated_flag.empty()) EXPECT_TRUE(flags.insert(o.negated_flag).second);
+        if (!o.negated_flag.empty()) {
+            EXPECT_TRUE(flags.insert(o.negated_flag).second);
+        }
         EXPECT_EQ(find_render_option(o.name), &o);
         EXPECT_EQ(
             o.flag, "--" +
@@ -182,6 +184,11 @@ TEST(RenderOptions, NamesAndFlagsAreUnique) {
         ASSERT_NE(o.apply, nullptr);
         ASSERT_NE(o.format, nullptr);
         EXPECT_NO_THROW(reader_of(o)) << o.name << " is read by no algorithm";
+        for (const auto& [name, value] : o.effective_with) {
+            const RenderOption* other = find_render_option(name);
+            ASSERT_NE(other, nullptr) << o.name << " needs unknown option " << name;
+            EXPECT_NO_THROW(canonical_option_value(*other, value)) << o.name << " needs " << name;
+        }
     }
 }
 
@@ -199,7 +206,9 @@ TEST(RenderOptions, ValuesRoundTripThroughTheSettings) {
             EXPECT_EQ(canonical_option_value(o, canonical), canonical) << o.name;
             RenderSettings s = resolve_render_settings(a.name, {{o.name, values[i]}}, scene);
             EXPECT_EQ(o.format(s), canonical) << o.name << " = " << values[i];
-            if (i == 0) EXPECT_NE(canonical, default_value) << o.name;
+            if (i == 0) {
+                EXPECT_NE(canonical, default_value) << o.name;
+            }
         }
     }
 }
