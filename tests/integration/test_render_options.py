@@ -117,9 +117,9 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
             # Options that matter only together with another (the clamp schedule needs a clamp)
             # get that one too, in both renders and in the default render.
             needs = []
-            for other, other_value in option["effective_with"]:
+            for other, needed in option["effective_with"]:
                 flag = next(o["flag"] for o in tables["options"] if o["name"] == other)
-                needs += [flag, other_value]
+                needs += [flag, needed]
             cases.append((option["name"], algorithm, scene, needs + [option["flag"], value],
                           value, needs))
             if option["negated_flag"]:
