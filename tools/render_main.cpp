@@ -217,8 +217,11 @@ int render_scene(const Options& o) {
 
     Image image = accumulated.sum.average(double(accumulated.count));
     const double error = estimate_relative_error(accumulated);
-    const auto metadata = image_metadata(settings, {o.scene, accumulated.count, elapsed, error,
-                                                    accumulated.stats.non_finite, o.defines});
+    RenderedImageFacts facts{
+        o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.defines};
+    facts.vpl_candidates = accumulated.stats.vpl_candidates;
+    facts.vpl_accepted = accumulated.stats.vpl_accepted;
+    const auto metadata = image_metadata(settings, facts);
     write_exr(o.out, image, metadata, accumulated.layers.named_averages(accumulated.count));
     if (!o.png.empty()) write_png_preview(o.png, image);
 
@@ -229,6 +232,11 @@ int render_scene(const Options& o) {
         "%.3g, %llu non-finite samples dropped -> %s\n",
         (unsigned long long)accumulated.count, elapsed, samples_per_s, rays_per_s, error,
         (unsigned long long)accumulated.stats.non_finite, o.out.c_str());
+    if (accumulated.stats.vpl_candidates > 0)
+        std::printf("VPLs: %.1f candidates per iteration, %.1f %% accepted (importance-driven)\n",
+                    double(accumulated.stats.vpl_candidates) / double(accumulated.count),
+                    100.0 * double(accumulated.stats.vpl_accepted) /
+                        double(accumulated.stats.vpl_candidates));
     return 0;
 }
 

@@ -324,11 +324,16 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         log_warn("lease_abandoned").kv("lease", lease.lease_id());
         return Outcome::Dropped;
     }
-    log_info("rendered")
-        .kv("lease", lease.lease_id())
-        .kv("iterations", result.count)
-        .kv("seconds", result.seconds)
-        .kv("it_per_s", result.seconds > 0 ? double(result.count) / result.seconds : 0.0);
+    {
+        Log line = log_info("rendered");
+        line.kv("lease", lease.lease_id())
+            .kv("iterations", result.count)
+            .kv("seconds", result.seconds)
+            .kv("it_per_s", result.seconds > 0 ? double(result.count) / result.seconds : 0.0);
+        if (result.stats.vpl_candidates > 0)  // importance-driven VPLs: the acceptance rate
+            line.kv("vpl_acceptance",
+                    double(result.stats.vpl_accepted) / double(result.stats.vpl_candidates));
+    }
     return report(lease, result);
 }
 

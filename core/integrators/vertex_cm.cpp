@@ -25,6 +25,11 @@ namespace {
 
 // Light paths draw from streams disjoint from the pixels' (stream = pixel index).
 constexpr uint64_t kLightStreamBase = uint64_t(1) << 62;
+// Importance records (camera points of the importance-driven VPL distribution) and the
+// acceptance draws of VPL candidates use streams of their own.
+constexpr uint64_t kRecordStreamBase = kLightStreamBase + (uint64_t(1) << 60);
+constexpr uint64_t kAcceptStreamBase = kLightStreamBase + (uint64_t(2) << 60);
+constexpr uint64_t kImportanceStreamBase = kLightStreamBase + (uint64_t(3) << 60);
 // Light paths are traced in fixed chunks whose splats are added in chunk order, so the image
 // does not depend on the number of threads.
 constexpr uint64_t kLightPathChunk = 256;
@@ -137,6 +142,9 @@ class Iteration {
           vpl_scale_(float(1.0 / double(light_path_count_))) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
+    // vpl with the importance-driven distribution: keeps each light vertex with its
+    // probability P_k (dividing its throughput by P_k) and drops the others.
+    void select_vpls(RenderStats& stats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
   private:
@@ -168,6 +176,19 @@ class Iteration {
     Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
                          const SubpathState& state, Rng& rng, RenderStats& stats) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
+    // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
+    // throughputs): f_v G f_light V / N_L, with G's distance clamped at sqrt(clamp2).
+    Rgb vpl_connection(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
+                       float clamp2, Rng& rng, RenderStats& stats) const;
+    // An importance record: the first non-delta vertex of a camera path through a random
+    // image position, with the eye throughput that reaches it.
+    struct Record {
+        Vertex vertex;
+        Vec3 wo;
+        Rgb throughput;
+        int path_length;
+    };
+    std::optional<Record> trace_record(uint64_t index, RenderStats& stats) const;
 
     const BidirectionalConfig& config_;
     const Scene& scene_;
@@ -484,15 +505,6 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     // medium, with the distance sampling through media).
     const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
     const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
-    if (vpl_) {
-        // A VPL connection is the only technique for its paths: weight 1, and the estimator
-        // averages over the N_L light paths of the iteration.
-        const float geometry =
-            v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, vpl_clamp2_) * vpl_scale_;
-        const Rgb contribution = f_eye * f_light * geometry;
-        if (contribution.is_black()) return Rgb(0.0f);
-        return contribution * visibility(l, ray, stats);
-    }
     // Eqs. (40) and (41).
     const float weight = mis_.weight_connection(lv.mis, state.mis,
                                                 {.eye_pdf_a = eye_pdf_a,
@@ -505,6 +517,99 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
+}
+
+Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
+                              Rng& rng, RenderStats& stats) const {
+    const Vertex& w = lv.vertex;
+    Vec3 d = w.p - v.p;
+    const float dist2 = length_squared(d);
+    if (!(dist2 > 0)) return Rgb(0.0f);
+    d = d / std::sqrt(dist2);
+    const Rgb f_eye = v.evaluate(wo, d).f;
+    if (f_eye.is_black()) return Rgb(0.0f);
+    const Rgb f_light = w.evaluate(lv.wo, -d).f;
+    if (f_light.is_black()) return Rgb(0.0f);
+    // A VPL connection is the only technique for its paths: weight 1, and the estimator
+    // averages over the N_L light paths of the iteration.
+    const float geometry =
+        v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, clamp2) * vpl_scale_;
+    const Rgb contribution = f_eye * f_light * geometry;
+    if (contribution.is_black()) return Rgb(0.0f);
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
+    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
+    return contribution * visibility(l, ray, stats);
+}
+
+std::optional<Iteration::Record> Iteration::trace_record(uint64_t index, RenderStats& stats) const {
+    Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kRecordStreamBase + index});
+    const Vec2 u = rng.next_2d();
+    Ray ray =
+        camera_.generate_ray(Vec2(u.x * float(camera_.width()), u.y * float(camera_.height())));
+    SubpathState state;
+    state.throughput = Rgb(1.0f);
+    state.medium = scene_.camera_medium();
+    for (;; ++state.path_length) {
+        SampledSegment seg;
+        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+        if (!v || state.path_length >= max_length_) return std::nullopt;
+        if (v->has_non_delta())
+            return Record{*v, -ray.direction, state.throughput, state.path_length};
+        if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return std::nullopt;
+    }
+}
+
+void Iteration::select_vpls(RenderStats& stats) {
+    const size_t candidates = light_vertices_.size();
+    stats.vpl_candidates += candidates;
+    if (candidates == 0) return;
+    std::vector<Record> records;
+    for (int j = 0; j < config_.importance_records; ++j)
+        if (std::optional<Record> r = trace_record(uint64_t(j), stats)) records.push_back(*r);
+    // phi_k: the VPL's mean luminance over the records (escaped records count as zero). The
+    // records' own connections are clamped at 1 % of the scene radius at least, so that a VPL
+    // lying on a record cannot take all the importance: this shapes P_k only, never the bias.
+    const double radius = scene_.bounding_sphere().radius;
+    const float record_clamp2 = std::max(vpl_clamp2_, float(1e-4 * radius * radius));
+    std::vector<double> phi(candidates, 0.0);
+    tbb::combinable<RenderStats> local_stats;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates), [&](const tbb::blocked_range<
+                                                                     size_t>& range) {
+        RenderStats& local = local_stats.local();
+        for (size_t k = range.begin(); k < range.end(); ++k) {
+            const LightVertex& lv = light_vertices_[k];
+            Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kImportanceStreamBase + k});
+            double sum = 0;
+            for (const Record& r : records) {
+                if (lv.path_length + 1 + r.path_length > max_length_) continue;
+                const Rgb c = r.throughput * lv.throughput *
+                              vpl_connection(lv, r.vertex, r.wo, record_clamp2, rng, local);
+                const double y = c.luminance();
+                if (std::isfinite(y) && y > 0) sum += y;
+            }
+            phi[k] = sum / double(config_.importance_records);
+        }
+    });
+    local_stats.combine_each([&](const RenderStats& s) { stats += s; });
+    double total = 0;
+    for (double p : phi) total += p;
+    // Keep candidate k with P_k (fixed before any draw, so E[kept / P_k] = 1 for each k).
+    std::vector<LightVertex> kept;
+    kept.reserve(candidates);
+    for (size_t k = 0; k < candidates; ++k) {
+        double p = 1.0;
+        if (total > 0 && std::isfinite(total))
+            p = std::max(std::min(double(candidates) * phi[k] / total, 1.0),
+                         config_.vpl_min_probability);
+        Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kAcceptStreamBase + k});
+        if (p < 1.0 && !(double(rng.next_1d()) < p)) continue;
+        LightVertex v = light_vertices_[k];
+        v.throughput = v.throughput * float(1.0 / p);
+        kept.push_back(std::move(v));
+    }
+    stats.vpl_accepted += kept.size();
+    light_vertices_ = std::move(kept);
+    path_ends_.clear();  // vpl connects to every vertex; paths are no longer needed
 }
 
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
@@ -588,7 +693,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > max_length_) continue;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, *v, wo, state, rng, stats));
+                            vpl_connection(lv, *v, wo, vpl_clamp2_, rng, stats));
                 }
             }
             if (use_vc_) {
@@ -624,7 +729,11 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
                                                RenderStats& stats) const {
     Iteration iteration(config_, scene, key);
     std::vector<Splat> splats;
-    if (!scene.lights().empty()) iteration.trace_light_paths(stats, splats);
+    if (!scene.lights().empty()) {
+        iteration.trace_light_paths(stats, splats);
+        if (config_.mode == BidirectionalMode::Vpl && config_.vpl_importance)
+            iteration.select_vpls(stats);
+    }
     for (const Splat& splat : splats) {
         if (!splat.value.is_finite()) {
             ++stats.non_finite;

@@ -44,6 +44,13 @@ struct BidirectionalConfig {
     // the scene's bounding-sphere radius (0: unclamped, unbiased).
     double vpl_clamp = 0;
     VplClampSchedule vpl_clamp_schedule = VplClampSchedule::Shrinking;
+    // Vpl: the importance-driven VPL distribution (Georgiev and Slusallek 2010). Each candidate
+    // VPL k is kept with P_k = max(min(M phi_k / phi, 1), vpl_min_probability) and its power
+    // divided by P_k; phi_k is its contribution to `importance_records` camera points of the
+    // same iteration, phi the sum over the M candidates.
+    bool vpl_importance = false;
+    int importance_records = 100;
+    double vpl_min_probability = 0.05;
 };
 
 class VertexConnectionMerging final : public Integrator {

@@ -84,7 +84,8 @@ const std::vector<Algorithm>& table() {
          .aliases = {"instant_radiosity"},
          .description = "many-light rendering: virtual point lights from light paths (surfaces "
                         "only; no caustics through delta vertices)",
-         .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule"},
+         .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
+                     "vpl_distribution", "importance_records", "vpl_min_probability"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config;
              config.mode = BidirectionalMode::Vpl;
@@ -94,6 +95,9 @@ const std::vector<Algorithm>& table() {
              config.vpl_clamp = s.vpl_clamp;
              config.vpl_clamp_schedule =
                  s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+             config.vpl_importance = s.vpl_importance;
+             config.importance_records = s.importance_records;
+             config.vpl_min_probability = s.vpl_min_probability;
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "eyelight",

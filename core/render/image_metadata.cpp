@@ -1,5 +1,7 @@
 #include "core/render/image_metadata.h"
 
+#include <algorithm>
+
 #include "core/render/render_options.h"
 
 namespace render {
@@ -13,6 +15,12 @@ std::map<std::string, std::string> image_metadata(const RenderSettings& settings
     out["render:relative_error_estimate"] = format_real(facts.relative_error);
     out["render:non_finite_samples_dropped"] = std::to_string(facts.non_finite);
     for (const auto& [name, value] : facts.defines) out["render:define:" + name] = value;
+    if (facts.vpl_candidates > 0) {
+        out["render:vpl_acceptance"] =
+            format_real(double(facts.vpl_accepted) / double(facts.vpl_candidates));
+        out["render:vpl_candidates_per_iteration"] = format_real(
+            double(facts.vpl_candidates) / double(std::max<uint64_t>(1, facts.iterations)));
+    }
     return out;
 }
 

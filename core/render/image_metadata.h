@@ -18,6 +18,9 @@ struct RenderedImageFacts {
     double relative_error = 0;                   // estimate_relative_error()
     uint64_t non_finite = 0;                     // non-finite samples dropped
     std::map<std::string, std::string> defines;  // -D overrides, as render:define:NAME
+    // vpl with the importance-driven distribution: VPL candidates and accepted ones over all
+    // iterations (render:vpl_acceptance, render:vpl_candidates_per_iteration when non-zero).
+    uint64_t vpl_candidates = 0, vpl_accepted = 0;
 };
 
 std::map<std::string, std::string> image_metadata(const RenderSettings& settings,

@@ -157,6 +157,46 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.vpl_clamp_shrinking ? "shrinking" : "fixed";
          }},
+        {.name = "vpl_distribution",
+         .flag = "--vpl-distribution",
+         .metavar = "uniform|importance",
+         .type = OptionType::Choice,
+         .help = "importance: keep each VPL with a probability from its estimated contribution "
+                 "to the image (camera points of the same iteration), dividing its power by it "
+                 "(unbiased); uniform: keep every VPL",
+         .choices = {"uniform", "importance"},
+         .default_text = "uniform",
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.vpl_importance = v == "importance"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.vpl_importance ? "importance" : "uniform";
+         }},
+        {.name = "importance_records",
+         .flag = "--importance-records",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "camera points per iteration that estimate each VPL's contribution (one shadow "
+                 "ray per point and VPL)",
+         .min = 1,
+         .max = 100000,
+         .default_text = "100",
+         .effective_with = {{"vpl_distribution", "importance"}},
+         .apply = [](RenderSettings& s, const std::string& v) { s.importance_records = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.importance_records); }},
+        {.name = "vpl_min_probability",
+         .flag = "--vpl-min-probability",
+         .metavar = "P",
+         .type = OptionType::Real,
+         .help = "lowest probability of keeping a VPL (> 0: a VPL no camera point sees is still "
+                 "kept sometimes, which keeps the estimator unbiased)",
+         .min = 0,
+         .max = 1,
+         .min_exclusive = true,
+         .default_text = "0.05",
+         .effective_with = {{"vpl_distribution", "importance"}},
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.vpl_min_probability = to_real(v); },
+         .format = [](const RenderSettings& s) { return format_real(s.vpl_min_probability); }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

@@ -36,6 +36,11 @@ struct RenderSettings {
     uint64_t vpl_paths = 64;
     double vpl_clamp = 0;
     bool vpl_clamp_shrinking = true;
+    // vpl: the importance-driven VPL distribution (Georgiev and Slusallek 2010): camera points
+    // per iteration that estimate each VPL's contribution, and the lowest acceptance probability.
+    bool vpl_importance = false;
+    int importance_records = 100;
+    double vpl_min_probability = 0.05;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

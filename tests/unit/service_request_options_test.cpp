@@ -49,7 +49,8 @@ TEST(RequestOptions, StoredOptionsReplaceTheTypedFields) {
     s.set_alpha(0.5);
     s.set_has_max_depth(true);
     s.set_max_depth(3);
-    (*s.mutable_options())["stale"] = "x";
+    const std::string stale_name = "stale", stale_value = "x";
+    (*s.mutable_options())[stale_name] = stale_value;
     set_request_options(s, {{"alpha", "0.5"}, {"max_depth", "3"}, {"seed", "11"}});
     EXPECT_EQ(s.alpha(), 0.0);
     EXPECT_FALSE(s.has_max_depth());

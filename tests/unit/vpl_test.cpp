@@ -1,0 +1,89 @@
+// Many-light rendering (vpl) and its importance-driven VPL distribution: exact identities that
+// need no statistics. (Convergence against pt and between the distributions is in
+// convergence_test; furnace and iteration contract in render_test, as for every algorithm.)
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "core/render/render_iterations.h"
+#include "core/render/render_options.h"
+#include "core/scene/loader/scene_loader.h"
+
+namespace render {
+namespace {
+
+std::unique_ptr<Scene> two_rooms() {
+    return load_scene(std::string(RENDER_SOURCE_DIR) + "/scenes/tests/two-rooms.xml",
+                      {{"resx", "24"}, {"resy", "24"}});
+}
+
+IterationResult render(const Scene& scene, const OptionMap& options, uint64_t first, uint64_t end,
+                       int threads = 0) {
+    RenderSettings settings = resolve_render_settings("vpl", options, scene.settings);
+    settings.seed = 5;
+    settings.threads = threads;
+    return render_iterations(scene, settings, 0, IterationRange{first, end});
+}
+
+// With P_min = 1 every candidate is kept with probability 1 and weight 1: the importance pass
+// (records, their shadow rays) must not change a single pixel, since it draws from streams of
+// its own.
+TEST(Vpl, ImportanceWithMinimumProbabilityOneIsTheUniformImage) {
+    auto scene = two_rooms();
+    const IterationResult uniform = render(*scene, {}, 1, 3);
+    const IterationResult importance =
+        render(*scene, {{"vpl_distribution", "importance"}, {"vpl_min_probability", "1"}}, 1, 3);
+    EXPECT_EQ(importance.sum.values(), uniform.sum.values());
+    EXPECT_EQ(importance.stats.vpl_accepted, importance.stats.vpl_candidates);
+    EXPECT_GT(importance.stats.vpl_candidates, 0u);
+    EXPECT_EQ(uniform.stats.vpl_candidates, 0u) << "uniform VPLs are not counted as candidates";
+}
+
+// On two-rooms most VPLs light the room the camera does not see: the distribution keeps a
+// minority of them (the paper reports 7-33 % on its scenes), at least P_min of them in
+// expectation, and never more than all.
+TEST(Vpl, ImportanceKeepsFewVplsWhenTheLightIsAroundTheCorner) {
+    auto scene = two_rooms();
+    const IterationResult r = render(*scene, {{"vpl_distribution", "importance"}}, 1, 9);
+    ASSERT_GT(r.stats.vpl_candidates, 100u);
+    const double acceptance = double(r.stats.vpl_accepted) / double(r.stats.vpl_candidates);
+    EXPECT_LT(acceptance, 0.6);
+    EXPECT_GT(acceptance, 0.05 * 0.5);  // P_min = 0.05; half of it leaves room for chance
+    EXPECT_EQ(r.stats.non_finite, 0u);
+}
+
+// The iteration contract with the importance pass: thread counts and split ranges give the same
+// image (the records, estimates and draws are keyed by iteration and index, never by thread).
+TEST(Vpl, ImportanceDistributionKeepsTheIterationContract) {
+    auto scene = two_rooms();
+    const OptionMap importance = {{"vpl_distribution", "importance"}};
+    const IterationResult one_thread = render(*scene, importance, 1, 5, 1);
+    const IterationResult two_threads = render(*scene, importance, 1, 5, 2);
+    EXPECT_EQ(one_thread.sum.values(), two_threads.sum.values());
+    const IterationResult first = render(*scene, importance, 1, 3, 2);
+    const IterationResult second = render(*scene, importance, 3, 5, 2);
+    for (size_t i = 0; i < one_thread.sum.values().size(); ++i)
+        ASSERT_NEAR(first.sum.values()[i] + second.sum.values()[i], one_thread.sum.values()[i],
+                    1e-9 * std::abs(one_thread.sum.values()[i]) + 1e-12);
+}
+
+// Clamping the distance of the geometry term only ever removes energy (near touching surfaces).
+TEST(Vpl, AFixedClampNeverBrightensAPixel) {
+    auto scene = load_scene(
+        std::string(RENDER_SOURCE_DIR) + "/scenes/bitterli/cornell-box/scene_v3.xml", {});
+    scene->set_camera(scene->camera().with_resolution(24, 24));
+    const IterationResult unclamped = render(*scene, {}, 1, 2);
+    const IterationResult clamped =
+        render(*scene, {{"vpl_clamp", "0.2"}, {"vpl_clamp_schedule", "fixed"}}, 1, 2);
+    double lost = 0;
+    for (size_t i = 0; i < unclamped.sum.values().size(); ++i) {
+        // Same VPLs, same shadow rays: each term can only shrink (float rounding aside).
+        EXPECT_LE(clamped.sum.values()[i], unclamped.sum.values()[i] * (1 + 1e-5) + 1e-9);
+        lost += unclamped.sum.values()[i] - clamped.sum.values()[i];
+    }
+    EXPECT_GT(lost, 0.0) << "a clamp of 20 % of the scene radius must remove something";
+}
+
+}  // namespace
+}  // namespace render
