@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 #include "core/render/render_iterations.h"
@@ -83,6 +84,36 @@ TEST(Vpl, AFixedClampNeverBrightensAPixel) {
         lost += unclamped.sum.values()[i] - clamped.sum.values()[i];
     }
     EXPECT_GT(lost, 0.0) << "a clamp of 20 % of the scene radius must remove something";
+}
+
+// Candidates are never all rejected: the VPL with the largest estimate has M phi_k / phi >= 1,
+// so it is kept with probability 1; when no record sees any VPL (phi = 0) every candidate is
+// kept. Checked iteration by iteration, with a P_min so small that anything else would show.
+TEST(Vpl, EveryIterationKeepsAtLeastOneCandidate) {
+    auto scene = two_rooms();
+    for (uint64_t i = 1; i <= 16; ++i) {
+        const IterationResult r = render(*scene,
+                                         {{"vpl_distribution", "importance"},
+                                          {"vpl_min_probability", "1e-9"},
+                                          {"importance_records", "3"}},
+                                         i, i + 1);
+        if (r.stats.vpl_candidates > 0) {
+            EXPECT_GE(r.stats.vpl_accepted, 1u) << "iteration " << i;
+        }
+        EXPECT_EQ(r.stats.non_finite, 0u);
+    }
+}
+
+// Unclamped connections to VPLs next to the shading point (the Cornell box's corners: the
+// distance goes to 0 and G to infinity) stay finite: the estimator is unbiased with infinite
+// variance there, but no sample may be NaN or Inf.
+TEST(Vpl, VplsAtTouchingSurfacesGiveFiniteSamples) {
+    auto scene = load_scene(
+        std::string(RENDER_SOURCE_DIR) + "/scenes/bitterli/cornell-box/scene_v3.xml", {});
+    scene->set_camera(scene->camera().with_resolution(32, 32));
+    const IterationResult r = render(*scene, {{"vpl_paths", "512"}}, 1, 5);
+    EXPECT_EQ(r.stats.non_finite, 0u);
+    for (double v : r.sum.values()) ASSERT_TRUE(std::isfinite(v) && v >= 0);
 }
 
 }  // namespace
