@@ -99,7 +99,7 @@ CHI_SQUARE_TEST(family, MediaEquiAngular, ChiSquare, 8) {
                 double t = delta + distance * std::tan(theta);
                 return pdf(t) * distance / (std::cos(theta) * std::cos(theta));
             },
-            theta0, theta1, {.cells = 64, .seed = ++seed});
+            theta0, theta1, {.cells = 64, .seed = ++seed, .peak = std::nullopt, .h = 0});
         EXPECT_TRUE(ra.passed) << "angle: " << ra.message;
         EXPECT_NEAR(ra.pdf_integral, 1.0, 1e-3) << ra.message;
     }
