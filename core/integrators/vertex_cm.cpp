@@ -1,5 +1,7 @@
 #include "core/integrators/vertex_cm.h"
 
+#include "core/integrators/vpl_distribution.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
@@ -591,16 +593,12 @@ void Iteration::select_vpls(RenderStats& stats) {
         }
     });
     local_stats.combine_each([&](const RenderStats& s) { stats += s; });
-    double total = 0;
-    for (double p : phi) total += p;
     // Keep candidate k with P_k (fixed before any draw, so E[kept / P_k] = 1 for each k).
+    const std::vector<double> keep = vpl_keep_probabilities(phi, config_.vpl_min_probability);
     std::vector<LightVertex> kept;
     kept.reserve(candidates);
     for (size_t k = 0; k < candidates; ++k) {
-        double p = 1.0;
-        if (total > 0 && std::isfinite(total))
-            p = std::max(std::min(double(candidates) * phi[k] / total, 1.0),
-                         config_.vpl_min_probability);
+        const double p = keep[k];
         Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kAcceptStreamBase + k});
         if (p < 1.0 && !(double(rng.next_1d()) < p)) continue;
         LightVertex v = light_vertices_[k];

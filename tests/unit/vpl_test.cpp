@@ -4,15 +4,51 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
+#include "core/integrators/vpl_distribution.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 
 namespace render {
 namespace {
+
+// The acceptance probabilities, exactly: four candidates with contributions 6, 2, 1, 1 (sum 10,
+// M = 4): P = min(4 phi_k / 10, 1) floored at P_min.
+TEST(VplDistribution, KeepProbabilitiesFollowTheFormula) {
+    const std::vector<double> p = vpl_keep_probabilities({6, 2, 1, 1}, 0.05);
+    ASSERT_EQ(p.size(), 4u);
+    EXPECT_DOUBLE_EQ(p[0], 1.0);  // 2.4, above average: always kept
+    EXPECT_DOUBLE_EQ(p[1], 0.8);
+    EXPECT_DOUBLE_EQ(p[2], 0.4);
+    EXPECT_DOUBLE_EQ(p[3], 0.4);
+    // A VPL no record sees is kept with P_min (never 0: that would be biased).
+    EXPECT_EQ(vpl_keep_probabilities({5, 0}, 0.05), (std::vector<double>{1.0, 0.05}));
+    // Nothing seen at all: no basis for a choice, keep everything.
+    EXPECT_EQ(vpl_keep_probabilities({0, 0, 0}, 0.05), (std::vector<double>(3, 1.0)));
+    // Non-finite or negative estimates count as 0.
+    const double nan = std::nan(""), inf = INFINITY;
+    EXPECT_EQ(vpl_keep_probabilities({1, nan, inf, -3}, 0.1),
+              (std::vector<double>{1.0, 0.1, 0.1, 0.1}));
+    // P_min = 1 keeps every candidate.
+    EXPECT_EQ(vpl_keep_probabilities({9, 1, 0}, 1.0), (std::vector<double>(3, 1.0)));
+}
+
+// In expectation the distribution keeps sum P_k VPLs: at least one (the largest phi_k is at
+// least the average), at most M.
+TEST(VplDistribution, TheLargestContributionIsAlwaysKept) {
+    for (const std::vector<double>& phi :
+         {std::vector<double>{1e-30, 1e-29, 3e-30}, std::vector<double>{1, 1, 1, 1},
+          std::vector<double>{1e6, 1, 1e-6}}) {
+        const std::vector<double> p = vpl_keep_probabilities(phi, 1e-9);
+        const size_t largest = size_t(std::max_element(phi.begin(), phi.end()) - phi.begin());
+        EXPECT_EQ(p[largest], 1.0);
+        for (double x : p) EXPECT_TRUE(x > 0 && x <= 1) << x;
+    }
+}
 
 std::unique_ptr<Scene> two_rooms() {
     return load_scene(std::string(RENDER_SOURCE_DIR) + "/scenes/tests/two-rooms.xml",
