@@ -14,8 +14,8 @@ namespace render::server {
 
 namespace {
 
-// Version 2 adds the layer mode and the layers' sums after odd_sum; version 1 files (no
-// layers) are still read.
+// Version 2 adds the VPL counters, the layer mode and the layers' sums after odd_sum; version 1
+// files (no layers) are still read.
 constexpr char kMagic[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '2'};
 constexpr char kMagicVersion1[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '1'};
 
@@ -98,6 +98,8 @@ void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_se
     put(header, uint64_t(result_.stats.rays));
     put(header, uint64_t(result_.stats.non_finite));
     put(header, double(elapsed_seconds));
+    put(header, uint64_t(result_.stats.vpl_candidates));
+    put(header, uint64_t(result_.stats.vpl_accepted));
     put(header, uint32_t(result_.layers.mode()));
     put(header, uint64_t(layer_count()));
     std::vector<Range> ranges = ranges_.ranges();
@@ -156,8 +158,10 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     get(in, non_finite, file);
     get(in, elapsed, file);
     uint32_t mode = 0;
-    uint64_t layers = 0;
+    uint64_t layers = 0, vpl_candidates = 0, vpl_accepted = 0;
     if (!version1) {
+        get(in, vpl_candidates, file);
+        get(in, vpl_accepted, file);
         get(in, mode, file);
         get(in, layers, file);
     }
@@ -198,6 +202,8 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     acc.result_.stats.samples = samples;
     acc.result_.stats.rays = rays;
     acc.result_.stats.non_finite = non_finite;
+    acc.result_.stats.vpl_candidates = vpl_candidates;
+    acc.result_.stats.vpl_accepted = vpl_accepted;
     if (elapsed_seconds) *elapsed_seconds = elapsed;
     return acc;
 }

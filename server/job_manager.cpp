@@ -82,10 +82,13 @@ std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& req
 std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
                                                   const std::string& job_id, uint32_t index,
                                                   const FrameAccumulator& acc, double seconds) {
-    std::map<std::string, std::string> metadata =
-        image_metadata(job_settings(request),
-                       {request.bundle().scene_path(), acc.count(), seconds, acc.relative_error(),
-                        acc.result().stats.non_finite, frame_defines(request, index)});
+    const RenderStats& stats = acc.result().stats;
+    RenderedImageFacts facts{
+        request.bundle().scene_path(), acc.count(),      seconds,
+        acc.relative_error(),          stats.non_finite, frame_defines(request, index)};
+    facts.vpl_candidates = stats.vpl_candidates;
+    facts.vpl_accepted = stats.vpl_accepted;
+    std::map<std::string, std::string> metadata = image_metadata(job_settings(request), facts);
     metadata["render:job"] = job_id;
     metadata["render:frame"] = std::to_string(index);
     return metadata;
@@ -608,6 +611,8 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         stats.samples = header.samples();
         stats.rays = header.rays();
         stats.non_finite = header.non_finite();
+        stats.vpl_candidates = header.vpl_candidates();
+        stats.vpl_accepted = std::min(header.vpl_accepted(), header.vpl_candidates());
         frame.acc->add(grant.range, sum, odd_sum, layer_sums, header.odd_count(), stats);
         frame.relative_error = frame.acc->relative_error();
         frame.non_finite = frame.acc->result().stats.non_finite;

@@ -360,6 +360,8 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
         header->set_non_finite(result.stats.non_finite);
         header->set_render_seconds(result.seconds);
         header->set_layer_count(uint32_t(result.layers.size()));
+        header->set_vpl_candidates(result.stats.vpl_candidates);
+        header->set_vpl_accepted(result.stats.vpl_accepted);
         bool ok = writer->Write(chunk);
         // sum, odd_sum, then the layers, as one little-endian float64 sequence cut into
         // <= 1 MiB chunks.

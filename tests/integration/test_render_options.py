@@ -156,6 +156,9 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
                     if option["type"] != "real":  # reals are recorded in canonical form
                         self.assertEqual(a_header["render:" + name], value)
                 self.assertEqual(a_header["render:algorithm"], b_header["render:algorithm"])
+                # Statistics the algorithm reports (the VPL acceptance) travel with the reports.
+                for key in ("render:vpl_acceptance", "render:vpl_candidates_per_iteration"):
+                    self.assertEqual(a_header.get(key), b_header.get(key), key)
                 print(f"{' '.join(extra)} ({algorithm['name']}): {msg}")
 
 

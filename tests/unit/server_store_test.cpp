@@ -116,7 +116,8 @@ TEST(JobStore, PersistsJobsFramesAndRanges) {
     fs::remove_all(dir);
 }
 
-// A job with technique layers merges, checkpoints and restores them with the sums.
+// A job with technique layers merges, checkpoints and restores them with the sums (and the
+// VPL counters with the other statistics).
 TEST(FrameAccumulator, LayersRoundTripThroughTheCheckpoint) {
     fs::path dir = temp_dir("ckpt-layers");
     FrameAccumulator acc(2, 1, render::LayerMode::Techniques);
@@ -124,11 +125,16 @@ TEST(FrameAccumulator, LayersRoundTripThroughTheCheckpoint) {
     std::vector<double> sum = {1, 2, 3, 4, 5, 6}, odd = {1, 1, 1, 1, 1, 1};
     std::vector<double> layers = {1, 0, 3, 0, 5, 0, 0, 2, 0, 4, 0, 6};
     EXPECT_THROW(acc.add({1, 2}, sum, odd, {}, 1, {}), std::invalid_argument);
-    acc.add({1, 2}, sum, odd, layers, 1, {});
-    acc.add({2, 3}, sum, odd, layers, 0, {});
+    render::RenderStats stats;
+    stats.vpl_candidates = 10;
+    stats.vpl_accepted = 3;
+    acc.add({1, 2}, sum, odd, layers, 1, stats);
+    acc.add({2, 3}, sum, odd, layers, 0, stats);
     acc.save(dir / "f.ckpt", 1.0);
     FrameAccumulator back = FrameAccumulator::load(dir / "f.ckpt", nullptr);
     ASSERT_EQ(back.layer_count(), 2u);
+    EXPECT_EQ(back.result().stats.vpl_candidates, 20u);
+    EXPECT_EQ(back.result().stats.vpl_accepted, 6u);
     EXPECT_EQ(back.result().layers.buffer(1).values()[5], 12.0);
     std::vector<render::NamedLayer> averages = back.layer_averages();
     ASSERT_EQ(averages.size(), 2u);
