@@ -23,7 +23,7 @@
 #include "client/bundle.h"
 #include "client/progress.h"
 #include "core/render/algorithms.h"
-#include "core/render/job_limits.h"
+#include "core/render/job_options.h"
 #include "core/render/render_options.h"
 #include "core/util/arguments.h"
 #include "core/util/sha256.h"
@@ -38,13 +38,11 @@ namespace fs = std::filesystem;
 
 struct SubmitOptions {
     std::string scene;
-    v1::RenderSettings settings;
-    render::OptionMap options;  // the render options table's (core/render/render_options.h)
+    render::JobOptions job;  // what `render` takes too: algorithm, stop, film, defines, options
     int priority = 0;
     std::string name;
     bool wait = false;
     std::string out;
-    bool iterations_given = false;
 };
 
 render::ArgumentParser submit_parser(SubmitOptions& o);
@@ -107,28 +105,7 @@ struct Connection {
 render::ArgumentParser submit_parser(SubmitOptions& o) {
     using render::UsageError;
     render::ArgumentParser p;
-    v1::RenderSettings& s = o.settings;
-    p.value({"--algo"}, "NAME", "light-transport algorithm (default: the scene's integrator)",
-            [&](const std::string& v) { s.set_algorithm(v); });
-    p.value({"--iterations", "--spp"}, "N",
-            "iterations per frame (default: the scene's sample_count)", [&](const std::string& v) {
-                s.set_iterations(render::parse_iterations("--iterations", v));
-                o.iterations_given = true;
-            });
-    p.value({"--time"}, "S", "time budget per frame in seconds", [&](const std::string& v) {
-        s.set_time_budget_seconds(render::parse_time_budget("--time", v));
-    });
-    p.value({"--resolution"}, "WxH", "override the film resolution", [&](const std::string& v) {
-        auto [w, h] = render::parse_resolution("--resolution", v, render::kMaxFilmResolution);
-        s.set_width(uint32_t(w));
-        s.set_height(uint32_t(h));
-    });
-    p.value({"-D"}, "name=value", "override a <default> of the scene (repeatable)",
-            [&](const std::string& v) {
-                auto [name, value] = render::parse_define("-D", v);
-                (*s.mutable_defines())[name] = value;
-            });
-    render::add_render_options(p, o.options);
+    render::add_job_options(p, o.job);
     p.value({"--priority"}, "P", "higher runs first (default 0)",
             [&](const std::string& v) { o.priority = render::parse_number<int>("--priority", v); });
     p.value({"--name"}, "NAME", "job name (default: the scene file's name)",
@@ -147,12 +124,20 @@ SubmitOptions parse_submit(const std::vector<std::string>& args) {
     SubmitOptions o;
     submit_parser(o).parse(args);
     if (o.scene.empty()) usage_error("submit: no scene file given");
-    for (const auto& [name, value] : o.options) (*o.settings.mutable_options())[name] = value;
     return o;
 }
 
-std::map<std::string, std::string> defines_of(const v1::RenderSettings& s) {
-    return {s.defines().begin(), s.defines().end()};
+// The request's settings for the job options (the server checks and completes them).
+v1::RenderSettings request_settings(const render::JobOptions& job) {
+    v1::RenderSettings s;
+    s.set_algorithm(job.algorithm);
+    if (job.iterations) s.set_iterations(*job.iterations);
+    if (job.seconds) s.set_time_budget_seconds(*job.seconds);
+    s.set_width(uint32_t(job.width));
+    s.set_height(uint32_t(job.height));
+    for (const auto& [name, value] : job.defines) (*s.mutable_defines())[name] = value;
+    for (const auto& [name, value] : job.options) (*s.mutable_options())[name] = value;
+    return s;
 }
 
 void upload(const Connection& c, const BundleEntry& entry) {
@@ -190,10 +175,10 @@ int fetch(const Connection& c, const std::string& job_id, uint32_t frame, bool p
 
 int submit(const Connection& c, const std::vector<std::string>& args) {
     SubmitOptions o = parse_submit(args);
-    SceneBundleInfo bundle = collect_bundle(o.scene, defines_of(o.settings));
-    v1::RenderSettings& s = o.settings;
+    SceneBundleInfo bundle = collect_bundle(o.scene, o.job.defines);
+    v1::RenderSettings s = request_settings(o.job);
     // Without --algo the server takes the scene's integrator (Mitsuba's "path" is "pt").
-    if (!o.iterations_given && s.time_budget_seconds() <= 0) {
+    if (!o.job.iterations && !o.job.seconds) {
         if (!bundle.sample_count)
             usage_error("submit: the scene has no sample_count; give --iterations or --time");
         s.set_iterations(*bundle.sample_count);

@@ -49,10 +49,9 @@ FrameAccumulator::FrameAccumulator(int width, int height, LayerMode layers)
     result_.layers = TechniqueLayers(layers, width, height);
 }
 
-void FrameAccumulator::add(Range range, const std::vector<double>& sum,
-                           const std::vector<double>& odd_sum,
-                           const std::vector<double>& layer_sums, uint64_t odd_count,
-                           const RenderStats& stats) {
+void FrameAccumulator::add(Range range, std::span<const double> sum,
+                           std::span<const double> odd_sum, std::span<const double> layer_sums,
+                           uint64_t odd_count, const RenderStats& stats) {
     const size_t n = value_count();
     if (sum.size() != n || odd_sum.size() != n || layer_sums.size() != layer_count() * n)
         throw std::invalid_argument("accumulator: buffer size mismatch");

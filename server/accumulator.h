@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -30,8 +31,8 @@ class FrameAccumulator {
 
     // Adds one range's sums. `sum` and `odd_sum` must have value_count() entries,
     // `layer_sums` layer_count() * value_count() (the layers one after the other).
-    void add(Range range, const std::vector<double>& sum, const std::vector<double>& odd_sum,
-             const std::vector<double>& layer_sums, uint64_t odd_count, const RenderStats& stats);
+    void add(Range range, std::span<const double> sum, std::span<const double> odd_sum,
+             std::span<const double> layer_sums, uint64_t odd_count, const RenderStats& stats);
 
     const IterationResult& result() const { return result_; }
     const IntervalSet& ranges() const { return ranges_; }

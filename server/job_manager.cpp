@@ -80,6 +80,7 @@ std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& req
 // The EXR header of a frame's image, with the keys `render` writes (image_metadata) plus the
 // job and frame.
 std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
+                                                  const RenderSettings& settings,
                                                   const std::string& job_id, uint32_t index,
                                                   const FrameAccumulator& acc, double seconds) {
     const RenderStats& stats = acc.result().stats;
@@ -88,7 +89,7 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
         acc.relative_error(),          stats.non_finite, frame_defines(request, index)};
     facts.vpl_candidates = stats.vpl_candidates;
     facts.vpl_accepted = stats.vpl_accepted;
-    std::map<std::string, std::string> metadata = image_metadata(job_settings(request), facts);
+    std::map<std::string, std::string> metadata = image_metadata(settings, facts);
     metadata["render:job"] = job_id;
     metadata["render:frame"] = std::to_string(index);
     return metadata;
@@ -133,6 +134,7 @@ void JobManager::restore() {
             Log("error", "restore_failed").kv("job", row.id).kv("error", "unreadable request");
             continue;
         }
+        job->settings = job_settings(job->request);
         job->row = std::move(row);
         const std::string& id = job->row.id;
         JobState state = JobState(job->row.state);
@@ -156,8 +158,7 @@ void JobManager::restore() {
                         std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
                     if (acc->width() != job->row.width || acc->height() != job->row.height)
                         throw std::runtime_error("checkpoint size differs from the job's");
-                    if (acc->layer_count() !=
-                        TechniqueLayers::names(job_settings(job->request).layers).size())
+                    if (acc->layer_count() != TechniqueLayers::names(job->settings.layers).size())
                         throw std::runtime_error("checkpoint layers differ from the job's");
                     plan.merged = acc->ranges();
                     plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
@@ -264,6 +265,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
 
     auto job = std::make_shared<JobData>();
     job->request = request;
+    job->settings = job_settings(request);
     job->row.id = id;
     job->row.sequence = sequence;
     job->row.name = request.name();
@@ -428,8 +430,9 @@ Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* 
     }
     *file = assets_.tmp_dir() / ("preview-" + request.job_id() + "-" +
                                  std::to_string(request.frame()) + "-" + random_hex(8) + ".exr");
-    std::map<std::string, std::string> metadata = frame_metadata(
-        job->request, request.job_id(), request.frame(), *frame.acc, progress.elapsed_seconds);
+    std::map<std::string, std::string> metadata =
+        frame_metadata(job->request, job->settings, request.job_id(), request.frame(), *frame.acc,
+                       progress.elapsed_seconds);
     metadata["render:preview"] = "1";
     try {
         write_frame_exr(*file, frame.acc->average(), metadata, frame.acc->layer_averages());
@@ -566,7 +569,7 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     if (!std::isfinite(header.render_seconds()) || header.render_seconds() < 0)
         return invalid("report render_seconds must be finite and >= 0");
     *values = size_t(job->row.width) * size_t(job->row.height) * 3;
-    *layers = TechniqueLayers::names(job_settings(job->request).layers).size();
+    *layers = TechniqueLayers::names(job->settings.layers).size();
     if (header.layer_count() != *layers)
         return invalid("report has " + std::to_string(header.layer_count()) +
                        " technique layers, the job's layers option gives " +
@@ -574,8 +577,8 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     return Status::OK;
 }
 
-Status JobManager::report(const v1::ReportHeader& header, const std::vector<double>& sum,
-                          const std::vector<double>& odd_sum, const std::vector<double>& layer_sums,
+Status JobManager::report(const v1::ReportHeader& header, std::span<const double> sum,
+                          std::span<const double> odd_sum, std::span<const double> layer_sums,
                           bool* merged) {
     *merged = false;
     LeaseGrant grant;
@@ -606,7 +609,7 @@ Status JobManager::report(const v1::ReportHeader& header, const std::vector<doub
         const clock::time_point add_start = clock::now();
         if (!frame.acc)
             frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
-                                                           job_settings(job->request).layers);
+                                                           job->settings.layers);
         RenderStats stats;
         stats.samples = header.samples();
         stats.rays = header.rays();
@@ -672,8 +675,8 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         if (!frame.acc) {
             error = "frame " + std::to_string(index) + " has no merged sums";
         } else {
-            const std::map<std::string, std::string> metadata =
-                frame_metadata(job->request, job_id, index, *frame.acc, progress.elapsed_seconds);
+            const std::map<std::string, std::string> metadata = frame_metadata(
+                job->request, job->settings, job_id, index, *frame.acc, progress.elapsed_seconds);
             try {
                 write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata,
                                 frame.acc->layer_averages());

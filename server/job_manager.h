@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -61,8 +62,8 @@ class JobManager {
                               bool* drop);
     // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
     // layers' sums one after the other (empty for a job without layers).
-    grpc::Status report(const v1::ReportHeader& header, const std::vector<double>& sum,
-                        const std::vector<double>& odd_sum, const std::vector<double>& layer_sums,
+    grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
+                        std::span<const double> odd_sum, std::span<const double> layer_sums,
                         bool* merged);
 
     // Expires leases, closes time budgets and finishes complete frames. Called periodically.
@@ -83,6 +84,7 @@ class JobManager {
     struct JobData {
         JobRow row;
         v1::SubmitJobRequest request;  // settings resolved
+        RenderSettings settings;       // what the request's complete options give (job_settings)
         std::vector<std::unique_ptr<FrameData>> frames;
     };
     struct WorkerInfo {

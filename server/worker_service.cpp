@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <span>
 
 #include "core/util/log.h"
 #include "core/util/sha256.h"
@@ -106,9 +107,9 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         if (!std::isfinite(values[i]))
             return Status(StatusCode::INVALID_ARGUMENT,
                           "report value " + std::to_string(i) + " is not finite");
-    const std::vector<double> sum(values.begin(), values.begin() + n),
-        odd_sum(values.begin() + n, values.begin() + 2 * n),
-        layer_sums(values.begin() + 2 * n, values.end());
+    const std::span<const double> all(values);
+    const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, n),
+                                  layer_sums = all.subspan(2 * n);
     const auto received_at = std::chrono::steady_clock::now();
     bool merged = false;
     if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged); !s.ok()) return s;

@@ -17,7 +17,7 @@
 #include "core/image/metrics.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
-#include "core/render/job_limits.h"
+#include "core/render/job_options.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
@@ -33,13 +33,8 @@ struct Options {
     std::string scene;
     std::string out;
     std::string png;
-    std::string algorithm;
-    std::optional<uint64_t> iterations;
-    std::optional<double> seconds;
+    JobOptions job;  // algorithm, iterations, time, film, defines, render options
     int threads = 0;
-    int width = 0, height = 0;
-    std::map<std::string, std::string> defines;
-    OptionMap render_options;  // the table's options (core/render/render_options.h)
     bool help = false;
     bool describe = false;
 };
@@ -48,28 +43,12 @@ ArgumentParser make_parser(Options& o) {
     ArgumentParser p;
     p.value({"--out", "-o"}, "FILE.exr", "output image (required)",
             [&](const std::string& v) { o.out = v; });
-    p.value({"--algo"}, "NAME", "light-transport algorithm (default: the scene's integrator)",
-            [&](const std::string& v) { o.algorithm = v; });
-    p.value({"--iterations", "--spp"}, "N",
-            "progressive iterations, one sample per pixel each (default: the scene's sampler "
-            "sample_count)",
-            [&](const std::string& v) { o.iterations = parse_iterations("--iterations", v); });
-    p.value({"--time"}, "S", "stop after S seconds (with --iterations: whichever comes first)",
-            [&](const std::string& v) { o.seconds = parse_time_budget("--time", v); });
+    add_job_options(p, o.job);
     p.value({"--threads"}, "T", "worker threads (default: all cores; never changes the image)",
             [&](const std::string& v) {
                 o.threads = parse_number<int>("--threads", v);
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
             });
-    p.value({"--resolution"}, "WxH", "override the film resolution", [&](const std::string& v) {
-        std::tie(o.width, o.height) = parse_resolution("--resolution", v, kMaxFilmResolution);
-    });
-    p.value({"-D"}, "name=value", "override a <default> of the scene file (repeatable)",
-            [&](const std::string& v) {
-                auto [name, value] = parse_define("-D", v);
-                o.defines[name] = value;
-            });
-    add_render_options(p, o.render_options);
     p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
             [&](const std::string& v) { o.png = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
@@ -172,19 +151,20 @@ class Progress {
 
 int render_scene(const Options& o) {
     auto t_load = Clock::now();
-    std::unique_ptr<Scene> scene = load_scene(o.scene, o.defines);
-    if (o.width > 0) scene->set_camera(scene->camera().with_resolution(o.width, o.height));
+    std::unique_ptr<Scene> scene = load_scene(o.scene, o.job.defines);
+    if (o.job.width > 0)
+        scene->set_camera(scene->camera().with_resolution(o.job.width, o.job.height));
     double load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
     // The same resolution as the service's worker: defaults, the scene's values, the options.
-    RenderSettings settings =
-        resolve_render_settings(o.algorithm.empty() ? scene->settings.integrator : o.algorithm,
-                                o.render_options, scene->settings);
+    RenderSettings settings = resolve_render_settings(
+        o.job.algorithm.empty() ? scene->settings.integrator : o.job.algorithm, o.job.options,
+        scene->settings);
     settings.threads = o.threads;
     check_algorithm_supports_scene(settings.algorithm, *scene);
 
-    std::optional<uint64_t> total = o.iterations;
-    if (!total && !o.seconds) total = uint64_t(std::max(1, scene->settings.sample_count));
+    std::optional<uint64_t> total = o.job.iterations;
+    if (!total && !o.job.seconds) total = uint64_t(std::max(1, scene->settings.sample_count));
     const int width = scene->camera().width(), height = scene->camera().height();
     std::fprintf(stderr, "render: %s, %dx%d, %s, max_depth %d, %s (scene loaded in %.2fs)\n",
                  o.scene.c_str(), width, height, settings.algorithm.c_str(), settings.max_depth,
@@ -195,14 +175,14 @@ int render_scene(const Options& o) {
     accumulated.sum = AccumulationBuffer(width, height);
     accumulated.odd_sum = AccumulationBuffer(width, height);
     accumulated.layers = TechniqueLayers(settings.layers, width, height);
-    Progress progress(total, o.seconds);
+    Progress progress(total, o.job.seconds);
     auto t0 = Clock::now();
     double elapsed = 0;
     // One iteration per call: the sum over [1, N+1) equals one big call, and it lets the
     // progress bar and the time budget act between iterations.
     for (uint64_t i = 1;; ++i) {
         if (total && i > *total) break;
-        if (o.seconds && elapsed >= *o.seconds && i > 1) break;
+        if (o.job.seconds && elapsed >= *o.job.seconds && i > 1) break;
         IterationResult r = render_iterations(*scene, settings, 0, IterationRange{i, i + 1});
         accumulated.sum.add(r.sum);
         accumulated.odd_sum.add(r.odd_sum);
@@ -218,7 +198,7 @@ int render_scene(const Options& o) {
     Image image = accumulated.sum.average(double(accumulated.count));
     const double error = estimate_relative_error(accumulated);
     RenderedImageFacts facts{
-        o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.defines};
+        o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.job.defines};
     facts.vpl_candidates = accumulated.stats.vpl_candidates;
     facts.vpl_accepted = accumulated.stats.vpl_accepted;
     const auto metadata = image_metadata(settings, facts);

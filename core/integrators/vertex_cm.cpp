@@ -1,7 +1,5 @@
 #include "core/integrators/vertex_cm.h"
 
-#include "core/integrators/vpl_distribution.h"
-
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
@@ -18,6 +16,7 @@
 #include "core/integrators/merge_radius.h"
 #include "core/integrators/pixel_loop.h"
 #include "core/integrators/vcm_mis.h"
+#include "core/integrators/vpl_distribution.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
@@ -111,6 +110,25 @@ struct Splat {
     int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
+// The squared distance clamp of VPL connections in (1-based, global) iteration i; 0 unclamped.
+double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,
+                         uint64_t iteration) {
+    if (!(config.vpl_clamp > 0)) return 0;
+    double d = config.vpl_clamp * scene.bounding_sphere().radius;
+    if (config.vpl_clamp_schedule == VplClampSchedule::Shrinking)
+        d *= std::pow(double(iteration), -0.25);
+    return d * d;
+}
+
+// The geometry of connecting eye vertex v (reached from wo) to a light vertex: the unit
+// direction toward the light vertex, the squared distance, and both vertices' BSDF (or phase)
+// evaluations along it. Empty when the vertices coincide or either side reflects nothing.
+struct ConnectionGeometry {
+    Vec3 d;
+    float dist2;
+    BsdfEvaluation eye, light;
+};
+
 // Everything one iteration shares between the light pass and the eye pass.
 class Iteration {
   public:
@@ -178,6 +196,8 @@ class Iteration {
     Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
                          const SubpathState& state, Rng& rng, RenderStats& stats) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
+    static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
+                                                                 const Vertex& v, const Vec3& wo);
     // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
     // throughputs): f_v G f_light V / N_L, with G's distance clamped at sqrt(clamp2).
     Rgb vpl_connection(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
@@ -196,16 +216,6 @@ class Iteration {
     const Scene& scene_;
     IterationKey key_;
     const PerspectiveCamera& camera_;
-    // The squared distance clamp of VPL connections in iteration i (0: unclamped).
-    static double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,
-                                    uint64_t iteration) {
-        if (!(config.vpl_clamp > 0)) return 0;
-        double d = config.vpl_clamp * scene.bounding_sphere().radius;
-        if (config.vpl_clamp_schedule == VplClampSchedule::Shrinking)
-            d *= std::pow(double(iteration), -0.25);
-        return d * d;
-    }
-
     bool light_trace_only_, ppm_, vpl_, use_vc_, use_vm_;
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
@@ -489,17 +499,29 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     return contribution * visibility(l, ray, stats);
 }
 
-Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
-                                const SubpathState& state, Rng& rng, RenderStats& stats) const {
+std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVertex& lv,
+                                                                 const Vertex& v, const Vec3& wo) {
     const Vertex& w = lv.vertex;
     Vec3 d = w.p - v.p;
     const float dist2 = length_squared(d);
-    if (!(dist2 > 0)) return Rgb(0.0f);
+    if (!(dist2 > 0)) return std::nullopt;
     d = d / std::sqrt(dist2);
-    const auto [f_eye, eye_pdf_w] = v.evaluate(wo, d);
-    if (f_eye.is_black()) return Rgb(0.0f);
-    const auto [f_light, light_pdf_w] = w.evaluate(lv.wo, -d);
-    if (f_light.is_black()) return Rgb(0.0f);
+    const BsdfEvaluation eye = v.evaluate(wo, d);
+    if (eye.f.is_black()) return std::nullopt;
+    const BsdfEvaluation light = w.evaluate(lv.wo, -d);
+    if (light.f.is_black()) return std::nullopt;
+    return ConnectionGeometry{d, dist2, eye, light};
+}
+
+Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
+                                const SubpathState& state, Rng& rng, RenderStats& stats) const {
+    const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
+    if (!g) return Rgb(0.0f);
+    const Vertex& w = lv.vertex;
+    const Vec3& d = g->d;
+    const float dist2 = g->dist2;
+    const auto& [f_eye, eye_pdf_w] = g->eye;
+    const auto& [f_light, light_pdf_w] = g->light;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
@@ -523,20 +545,15 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
 
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
                               Rng& rng, RenderStats& stats) const {
+    const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
+    if (!g) return Rgb(0.0f);
     const Vertex& w = lv.vertex;
-    Vec3 d = w.p - v.p;
-    const float dist2 = length_squared(d);
-    if (!(dist2 > 0)) return Rgb(0.0f);
-    d = d / std::sqrt(dist2);
-    const Rgb f_eye = v.evaluate(wo, d).f;
-    if (f_eye.is_black()) return Rgb(0.0f);
-    const Rgb f_light = w.evaluate(lv.wo, -d).f;
-    if (f_light.is_black()) return Rgb(0.0f);
+    const Vec3& d = g->d;
     // A VPL connection is the only technique for its paths: weight 1, and the estimator
     // averages over the N_L light paths of the iteration.
     const float geometry =
-        v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, clamp2) * vpl_scale_;
-    const Rgb contribution = f_eye * f_light * geometry;
+        v.shading_cos(d) * w.shading_cos(d) / std::max(g->dist2, clamp2) * vpl_scale_;
+    const Rgb contribution = g->eye.f * g->light.f * geometry;
     if (contribution.is_black()) return Rgb(0.0f);
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);

@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include "core/render/algorithms.h"
@@ -260,38 +261,55 @@ std::string format_real(double value) {
     return ec == std::errc() ? std::string(buffer, end) : std::to_string(value);
 }
 
-std::string canonical_option_value(const RenderOption& o, const std::string& text) {
-    auto fail = [&](const std::string& what) -> std::invalid_argument {
-        return std::invalid_argument("option " + o.name + " (" + o.flag + ") expects " + what +
-                                     ", got \"" + text.substr(0, 64) + "\"");
-    };
+namespace {
+
+// What an option accepts, for error messages: "a number in (0, 1]", "one of on, off", ...
+std::string expectation(const RenderOption& o) {
+    switch (o.type) {
+        case OptionType::Unsigned:
+            return "an unsigned integer";
+        case OptionType::Integer:
+            return "an integer in " + range_text(o);
+        case OptionType::Real:
+            return "a number in " + range_text(o);
+        case OptionType::Choice:
+            return "one of " + join(o.choices, ", ");
+    }
+    return "a valid value";
+}
+
+// The canonical text of a valid value; nullopt for anything else (a parse error included).
+std::optional<std::string> canonical_or_nothing(const RenderOption& o, const std::string& text) {
     try {
         switch (o.type) {
             case OptionType::Unsigned:
                 return std::to_string(parse_number<uint64_t>("", text));
             case OptionType::Integer: {
                 const int64_t v = parse_number<int64_t>("", text);
-                if (double(v) < o.min || double(v) > o.max)
-                    throw fail("an integer in " + range_text(o));
+                if (double(v) < o.min || double(v) > o.max) return std::nullopt;
                 return std::to_string(v);
             }
             case OptionType::Real: {
                 const double v = parse_number<double>("", text);
-                if (v < o.min || (o.min_exclusive && v == o.min) || v > o.max)
-                    throw fail("a number in " + range_text(o));
+                if (v < o.min || (o.min_exclusive && v == o.min) || v > o.max) return std::nullopt;
                 return format_real(v);
             }
             case OptionType::Choice:
                 for (const std::string& c : o.choices)
                     if (c == text) return c;
-                throw fail("one of " + join(o.choices, ", "));
+                return std::nullopt;
         }
     } catch (const UsageError&) {
-        if (o.type == OptionType::Real) throw fail("a number in " + range_text(o));
-        if (o.type == OptionType::Integer) throw fail("an integer in " + range_text(o));
-        throw fail("an unsigned integer");
     }
-    throw fail("a valid value");
+    return std::nullopt;
+}
+
+}  // namespace
+
+std::string canonical_option_value(const RenderOption& o, const std::string& text) {
+    if (std::optional<std::string> value = canonical_or_nothing(o, text)) return *value;
+    throw std::invalid_argument("option " + o.name + " (" + o.flag + ") expects " + expectation(o) +
+                                ", got \"" + text.substr(0, 64) + "\"");
 }
 
 RenderSettings resolve_render_settings(const std::string& algorithm, const OptionMap& options,
