@@ -164,8 +164,16 @@ class Iteration {
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
     // probability P_k (dividing its throughput by P_k) and drops the others.
-    void select_vpls(RenderStats& stats);
+    void select_vpls(RenderStats& stats, VplSelection* inspection = nullptr);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
+
+    uint64_t light_path_count() const { return light_path_count_; }
+    // The records' connections are clamped at 1 % of the scene radius at least, so that a VPL
+    // lying on a record cannot take all the importance: this shapes P_k only, never the bias.
+    float record_clamp2() const {
+        const double radius = scene_.bounding_sphere().radius;
+        return std::max(vpl_clamp2_, float(1e-4 * radius * radius));
+    }
 
   private:
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
@@ -211,6 +219,9 @@ class Iteration {
         int path_length;
     };
     std::optional<Record> trace_record(uint64_t index, RenderStats& stats) const;
+    // phi_k of every light vertex: the luminance of its contribution averaged over the
+    // iteration's importance records (escaped records count as zero).
+    std::vector<double> estimate_vpl_importance(RenderStats& stats) const;
 
     const BidirectionalConfig& config_;
     const Scene& scene_;
@@ -578,22 +589,17 @@ std::optional<Iteration::Record> Iteration::trace_record(uint64_t index, RenderS
     }
 }
 
-void Iteration::select_vpls(RenderStats& stats) {
-    const size_t candidates = light_vertices_.size();
-    stats.vpl_candidates += candidates;
-    if (candidates == 0) return;
+std::vector<double> Iteration::estimate_vpl_importance(RenderStats& stats) const {
     std::vector<Record> records;
     for (int j = 0; j < config_.importance_records; ++j)
         if (std::optional<Record> r = trace_record(uint64_t(j), stats)) records.push_back(*r);
-    // phi_k: the VPL's mean luminance over the records (escaped records count as zero). The
-    // records' own connections are clamped at 1 % of the scene radius at least, so that a VPL
-    // lying on a record cannot take all the importance: this shapes P_k only, never the bias.
-    const double radius = scene_.bounding_sphere().radius;
-    const float record_clamp2 = std::max(vpl_clamp2_, float(1e-4 * radius * radius));
-    std::vector<double> phi(candidates, 0.0);
+    const float clamp2 = record_clamp2();
+    std::vector<double> phi(light_vertices_.size(), 0.0);
     tbb::combinable<RenderStats> local_stats;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates), [&](const tbb::blocked_range<
-                                                                     size_t>& range) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, light_vertices_.size()), [&](const tbb::
+                                                                                     blocked_range<
+                                                                                         size_t>&
+                                                                                         range) {
         RenderStats& local = local_stats.local();
         for (size_t k = range.begin(); k < range.end(); ++k) {
             const LightVertex& lv = light_vertices_[k];
@@ -602,7 +608,7 @@ void Iteration::select_vpls(RenderStats& stats) {
             for (const Record& r : records) {
                 if (lv.path_length + 1 + r.path_length > max_length_) continue;
                 const Rgb c = r.throughput * lv.throughput *
-                              vpl_connection(lv, r.vertex, r.wo, record_clamp2, rng, local);
+                              vpl_connection(lv, r.vertex, r.wo, clamp2, rng, local);
                 const double y = c.luminance();
                 if (std::isfinite(y) && y > 0) sum += y;
             }
@@ -610,6 +616,14 @@ void Iteration::select_vpls(RenderStats& stats) {
         }
     });
     local_stats.combine_each([&](const RenderStats& s) { stats += s; });
+    return phi;
+}
+
+void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
+    const size_t candidates = light_vertices_.size();
+    stats.vpl_candidates += candidates;
+    if (candidates == 0) return;
+    const std::vector<double> phi = estimate_vpl_importance(stats);
     // Keep candidate k with P_k (fixed before any draw, so E[kept / P_k] = 1 for each k).
     const std::vector<double> keep = vpl_keep_probabilities(phi, config_.vpl_min_probability);
     std::vector<LightVertex> kept;
@@ -617,7 +631,14 @@ void Iteration::select_vpls(RenderStats& stats) {
     for (size_t k = 0; k < candidates; ++k) {
         const double p = keep[k];
         Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kAcceptStreamBase + k});
-        if (p < 1.0 && !(double(rng.next_1d()) < p)) continue;
+        const bool accepted = p >= 1.0 || double(rng.next_1d()) < p;
+        if (inspection) {
+            const LightVertex& lv = light_vertices_[k];
+            inspection->candidates.push_back(VplCandidate{lv.vertex.p, lv.vertex.n, lv.wo,
+                                                          lv.vertex.bsdf, lv.throughput,
+                                                          lv.path_length, phi[k], p, accepted});
+        }
+        if (!accepted) continue;
         LightVertex v = light_vertices_[k];
         v.throughput = v.throughput * float(1.0 / p);
         kept.push_back(std::move(v));
@@ -764,6 +785,22 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
     for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
         return iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
     });
+}
+
+VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
+                                                            const IterationKey& key) const {
+    VplSelection selection;
+    if (config_.mode != BidirectionalMode::Vpl || !config_.vpl_importance || scene.lights().empty())
+        return selection;
+    Iteration iteration(config_, scene, key);
+    RenderStats stats;
+    std::vector<Splat> splats;
+    iteration.trace_light_paths(stats, splats);
+    iteration.select_vpls(stats, &selection);
+    selection.light_paths = iteration.light_path_count();
+    selection.importance_records = config_.importance_records;
+    selection.record_distance_clamp = std::sqrt(double(iteration.record_clamp2()));
+    return selection;
 }
 
 }  // namespace render

@@ -9,8 +9,11 @@
 // techniques they enable, which is what BidirectionalMode selects.
 
 #include <cstdint>
+#include <optional>
+#include <vector>
 
 #include "core/integrators/integrator.h"
+#include "core/materials/surface_bsdf.h"
 
 namespace render {
 
@@ -53,6 +56,27 @@ struct BidirectionalConfig {
     double vpl_min_probability = 0.05;
 };
 
+// One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the
+// distribution saw it: where it is, how it scatters, its power before the 1 / P_k, its
+// estimated contribution phi_k to the image, P_k and whether it was kept.
+struct VplCandidate {
+    Vec3 p, n;
+    Vec3 wo;  // toward the previous vertex of its light path
+    std::optional<SurfaceBsdf> bsdf;
+    Rgb throughput;  // light-path throughput (energy over the sampling densities)
+    int path_length = 0;
+    double phi = 0;  // mean luminance of its contribution over the importance records
+    double keep_probability = 1;
+    bool kept = true;
+};
+
+struct VplSelection {
+    std::vector<VplCandidate> candidates;
+    uint64_t light_paths = 0;          // N_L: each term carries 1 / N_L
+    int importance_records = 0;        // N_R: phi_k averages over this many records
+    double record_distance_clamp = 0;  // the records' connections use max(d, this)
+};
+
 class VertexConnectionMerging final : public Integrator {
   public:
     explicit VertexConnectionMerging(const BidirectionalConfig& config) : config_(config) {}
@@ -61,6 +85,12 @@ class VertexConnectionMerging final : public Integrator {
                           TechniqueLayers* layers, RenderStats& stats) const override;
 
     const BidirectionalConfig& config() const { return config_; }
+
+    // The importance-driven distribution's view of one iteration (mode Vpl with
+    // vpl_importance): every candidate with its estimate and draw. It repeats the iteration's
+    // light and record passes, so its numbers are those render_iteration uses; for tests and
+    // diagnostics.
+    VplSelection inspect_vpl_selection(const Scene& scene, const IterationKey& key) const;
 
   private:
     BidirectionalConfig config_;
