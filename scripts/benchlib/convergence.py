@@ -27,7 +27,23 @@ from . import common
 # --------------------------------------------------------------------------------------------
 # The scene table. Add a row to benchmark another scene (e.g. media scenes later).
 
-ALL_ALGOS = ("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm")
+ALL_ALGOS = ("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm", "vpl", "vpl+div")
+
+# Series that are an algorithm with options: name -> (algorithm, extra render flags). Both vpl
+# series clamp the connection distance at 1 % of the scene radius with the shrinking schedule
+# (the default schedule: consistent, so they converge to the reference; unclamped VPLs have
+# infinite variance in the Cornell box's corners). vpl+div adds the importance-driven VPL
+# distribution (docs/algorithms.md).
+VPL_FLAGS = ("--vpl-clamp", "0.01")
+SERIES_FLAGS = {
+    "vpl": ("vpl", VPL_FLAGS),
+    "vpl+div": ("vpl", VPL_FLAGS + ("--vpl-distribution", "importance")),
+}
+
+
+def series_command(name: str) -> tuple[str, tuple[str, ...]]:
+    """The algorithm and the extra render flags of a series."""
+    return SERIES_FLAGS.get(name, (name, ()))
 
 # Why an algorithm cannot converge on a scene (see docs/algorithms.md). Such combinations are
 # not run; the document lists them with these reasons.
@@ -46,6 +62,14 @@ PT_DELTA_CAUSTICS = ("misses every caustic of a delta light (`E … D S+ L` with
                      "and BSDF sampling cannot hit a delta light")
 BPT_DELTA_SDS = ("misses the glass sphere's caustic seen in the mirror sphere (`E S D S L` "
                  "with a delta light): no connection technique can sample it")
+VPL_CAUSTICS = ("misses caustics on diffuse surfaces (`E S* D S+ … L`): a specular vertex "
+                "cannot be a VPL and next-event estimation cannot pass it")
+VPL_MEDIA = "renders surfaces only (it refuses scenes with participating media)"
+VPL_GLOSSY = ("not benchmarked here: glossy plates lit by small lights are the case VPLs handle "
+              "worst (each VPL a spike in the glossy lobe); the many-light scenes are "
+              "cornell-box and two-rooms")
+NO_VPL = {"vpl": VPL_CAUSTICS, "vpl+div": VPL_CAUSTICS}
+NO_VPL_MEDIA = {"vpl": VPL_MEDIA, "vpl+div": VPL_MEDIA}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,13 +95,14 @@ LT_SPHERES = lt_sees_no_specular("the spheres")
 # benchmarked twice.
 VOLPT_IS_PT = "is the path tracer on a scene without media (same estimator as pt)"
 SURFACE = {"volpt": VOLPT_IS_PT}
-DELTA_LIGHT_SKIPS = {**SURFACE, "pt": PT_DELTA_CAUSTICS, "lt": LT_SPHERES, "bpt": BPT_DELTA_SDS}
+DELTA_LIGHT_SKIPS = {**SURFACE, **NO_VPL, "pt": PT_DELTA_CAUSTICS, "lt": LT_SPHERES,
+                     "bpt": BPT_DELTA_SDS}
 # Media scenes (docs/media.md).
 PT_IGNORES_MEDIA = "ignores participating media (it refuses media scenes; volpt is its media form)"
 HOMOGENEOUS_ONLY = ("handles homogeneous media only (bidirectional MIS needs exact "
                     "distance-sampling densities); the smoke is a heterogeneous grid")
-GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **{a: HOMOGENEOUS_ONLY for a in
-                                         ("lt", "bpt", "ppm", "bpm", "vcm")}}
+GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA,
+              **{a: HOMOGENEOUS_ONLY for a in ("lt", "bpt", "ppm", "bpm", "vcm")}}
 
 # path, short name, reference algorithm, reference iterations, skipped algorithms (the others
 # run), S-D-S scene (claim checked), description. The reference iteration counts take a few
@@ -85,35 +110,39 @@ GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **{a: HOMOGENEOUS_ONLY for a in
 SCENES: tuple[BenchScene, ...] = (
     BenchScene("scenes/bitterli/cornell-box/scene_v3.xml", "cornell-box", "pt", 2048, SURFACE,
                False, "diffuse Cornell box, area light"),
-    BenchScene("scenes/bitterli/veach-mis/scene_v3.xml", "veach-mis", "bpt", 512, SURFACE,
-               False, "glossy plates reflecting four spherical area lights (their glossy "
+    BenchScene("scenes/tests/two-rooms.xml", "two-rooms", "bpt", 512, SURFACE, False,
+               "two rooms joined by a doorway; the light is in the room the camera does not "
+               "see (light around a corner: the many-light scene of ALGORITHMS-NEXT.md 5)"),
+    BenchScene("scenes/bitterli/veach-mis/scene_v3.xml", "veach-mis", "bpt", 512,
+               {**SURFACE, "vpl": VPL_GLOSSY, "vpl+div": VPL_GLOSSY}, False, "glossy plates reflecting four spherical area lights (their glossy "
                "caustics on the wall are fireflies for pt); max_depth 3"),
     BenchScene("scenes/bitterli/veach-bidir/scene_v3.xml", "veach-bidir", "bpt", 128,
-               {**SURFACE, "lt": lt_sees_no_specular("the glass egg")},
+               {**SURFACE, **NO_VPL, "lt": lt_sees_no_specular("the glass egg")},
                False, "room lit indirectly by a lamp inside a shade, glass egg on the table "
                "(its S–D–S paths are a small part of the image)"),
     BenchScene("scenes/smallvcm/0-gbs_s.xml", "gbs_s", "vcm", 1024, DELTA_LIGHT_SKIPS,
                True, "SmallVCM box, mirror + glass sphere, directional (sun) light"),
     BenchScene("scenes/smallvcm/1-glm_c.xml", "glm_c", "vcm", 256,
-               {**SURFACE, "lt": lt_sees_no_specular("the mirror sphere's reflections")}, True,
+               {**SURFACE, **NO_VPL, "lt": lt_sees_no_specular("the mirror sphere's reflections")},
+               True,
                "SmallVCM box, large mirror sphere, small area light (`E S D S L` everywhere "
                "in the sphere)"),
     BenchScene("scenes/smallvcm/2-gbs_p.xml", "gbs_p", "vcm", 512, DELTA_LIGHT_SKIPS,
                True, "SmallVCM box, mirror + glass sphere, point light"),
-    BenchScene("scenes/smallvcm/3-gbs_b.xml", "gbs_b", "vcm", 512, {**SURFACE, "lt": LT_SPHERES},
-               True, "SmallVCM box, mirror + glass sphere, constant background light"),
+    BenchScene("scenes/smallvcm/3-gbs_b.xml", "gbs_b", "vcm", 512,
+               {**SURFACE, **NO_VPL, "lt": LT_SPHERES}, True, "SmallVCM box, mirror + glass sphere, constant background light"),
     # Participating media.
     BenchScene("scenes/smallupbp/isosph.xml", "isosph", "volpt", 1024,
-               {"pt": PT_IGNORES_MEDIA}, False,
+               {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA}, False,
                "SmallUPBP box: index-matched sphere of isotropic albedo-1 medium, small area "
                "light"),
     BenchScene("scenes/smallupbp/glasssph.xml", "glasssph", "bpt", 256,
-               {"pt": PT_IGNORES_MEDIA,
+               {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA,
                 "lt": lt_sees_no_specular("the medium inside the glass sphere")}, False,
                "SmallUPBP box: glass sphere filled with a dense chromatic back-scattering "
                "medium, ceiling light"),
     BenchScene("scenes/bitterli/volumetric-caustic/scene_v3.xml", "volumetric-caustic", "vcm",
-               256, {"pt": PT_IGNORES_MEDIA,
+               256, {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA,
                      "lt": lt_sees_no_specular("the glass sphere")}, True,
                "gas-filled box; a glass sphere focuses a tiny light into a volumetric caustic "
                "(`E M S L` paths; volpt must hit the 2e-5 m^2 light by chance)"),
@@ -288,9 +317,10 @@ def measure_point(binary: Path, scene: BenchScene, algo: str, iterations: int,
                   workdir: Path) -> dict:
     """One fresh `render` run (seed = iteration count) and its errors against the reference."""
     out = workdir / f"{scene.name}-{algo}-{iterations}.exr"
-    cmd = common.render_command(binary, scene.path, out, algo=algo, iterations=iterations,
+    algorithm, flags = series_command(algo)
+    cmd = common.render_command(binary, scene.path, out, algo=algorithm, iterations=iterations,
                                 seed=iterations, resolution=resolution,
-                                threads=settings.threads)
+                                threads=settings.threads, extra=flags)
     run = common.run_render(cmd)
     image, header = common.read_exr(out)
     out.unlink()
@@ -308,7 +338,7 @@ def measure_point(binary: Path, scene: BenchScene, algo: str, iterations: int,
         **errors,
     }
     point["in_fit"] = seconds > 0 and seconds >= 0.5 * settings.min_seconds
-    print(f"  {scene.name:12s} {algo:4s} {run.iterations:6d} it {seconds:8.3f} s  "
+    print(f"  {scene.name:12s} {algo:7s} {run.iterations:6d} it {seconds:8.3f} s  "
           f"rmse {errors['rmse']:.4g}  relMSE {errors['relative_mse']:.4g}", flush=True)
     return point
 
@@ -478,7 +508,7 @@ def check_claim(series: dict, slopes: dict) -> dict:
 
 ALGO_STYLE = {"pt": ("tab:blue", "o"), "volpt": ("tab:cyan", "P"), "lt": ("tab:orange", "v"),
               "bpt": ("tab:green", "s"), "ppm": ("tab:red", "^"), "bpm": ("tab:purple", "D"),
-              "vcm": ("black", "*")}
+              "vcm": ("black", "*"), "vpl": ("tab:brown", "X"), "vpl+div": ("tab:olive", "h")}
 
 
 def plot_scene(path: Path, scene: BenchScene, series: dict, slopes: dict,
@@ -712,10 +742,53 @@ def write_document(path: Path, results: dict) -> None:
                   + "."]
         if "claim" in r:
             lines += ["", *claim_lines(r["claim"])]
+        lines += many_light_lines(r["series"])
+        measured = r.get("measured")
+        if measured and measured.get("source_revision") != results["machine"].get(
+                "source_revision"):
+            lines += ["", f"Measured in an earlier run ({measured.get('date_utc')}, source "
+                      f"revision {measured.get('source_revision')}, `{measured.get('command')}`)"
+                      "; the runs above re-measured the other scenes only."]
         lines += ["", "<details><summary>All measured points</summary>", "",
                   *raw_table(r["series"], algos), "", "</details>"]
     lines.append("")
     path.write_text("\n".join(lines))
+
+
+def many_light_lines(series: dict) -> list[str]:
+    """Equal-time ratios of the importance-driven VPLs against the other series of a scene."""
+    if "vpl+div" not in series:
+        return []
+    parts = []
+    for other in ("vpl", "pt", "bpt"):
+        cmp = compare_at_equal_time(series, "vpl+div", other) if other in series else None
+        if cmp and cmp["ratios"]:
+            parts.append(f"{other} " + ", ".join(f"{r:.2g}" for r in cmp["ratios"]))
+    if not parts:
+        return []
+    return ["", "Many-light rendering: relMSE(vpl+div) / relMSE(X) at the start, middle and end "
+            "of the common time range (below 1: the importance-driven VPLs are ahead): "
+            + "; ".join(parts) + "."]
+
+
+def previous_scene_results(img_dir: Path, measured_now: list[str]) -> dict:
+    """The scene entries of the last full run's results.json that this run does not measure
+    (a run of some scenes keeps the others' results, each with when and how it was measured)."""
+    path = img_dir / "results.json"
+    if not path.exists():
+        return {}
+    previous = json.loads(path.read_text())
+    known = {s.name for s in SCENES}
+    kept = {}
+    for name, entry in previous.get("scenes", {}).items():
+        if name in measured_now or name not in known:
+            continue
+        entry.setdefault("measured", {
+            "date_utc": previous["machine"].get("date_utc"),
+            "source_revision": previous["machine"].get("source_revision"),
+            "command": previous.get("command")})
+        kept[name] = entry
+    return kept
 
 
 def assert_finite(results: dict) -> None:
@@ -778,6 +851,9 @@ def run(*, build_dir: Path, docs_dir: Path, references_dir: Path, scenes: list[B
                 },
                 "reference_noise": noise, "series": series, "slopes": slopes,
                 "skipped": scene.skipped,
+                "measured": {"date_utc": results["machine"].get("date_utc"),
+                             "source_revision": results["machine"].get("source_revision"),
+                             "command": command},
             }
             if scene.sds:
                 entry["claim"] = check_claim(series, slopes)
@@ -785,6 +861,11 @@ def run(*, build_dir: Path, docs_dir: Path, references_dir: Path, scenes: list[B
             plot_scene(img_dir / f"{scene.name}.png", scene, series, slopes, noise)
     results["load_average_after"] = common.load_average()
     results["total_seconds"] = time.monotonic() - started
+    if not quick and len(scenes) < len(SCENES):
+        results["scenes"].update(previous_scene_results(img_dir, [s.name for s in scenes]))
+        order = [s.name for s in SCENES]
+        results["scenes"] = dict(sorted(results["scenes"].items(),
+                                        key=lambda item: order.index(item[0])))
     assert_finite(results)
     (img_dir / "results.json").write_text(json.dumps(results, indent=1))
     write_document(docs_dir / "speed-vs-error.md", results)
