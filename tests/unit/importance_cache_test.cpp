@@ -383,6 +383,16 @@ TEST(importance_cache_expectation, OptimisedTablesStayUnbiased) {
     }
 }
 
+// Without C the optimisation could drop a VPL at every record; it refuses and returns the
+// tables unchanged.
+TEST(importance_cache_expectation, OptimisationWithoutCIsANoOp) {
+    Rng rng(StreamKey{15, 0, 1, 0});
+    const Scenario s = random_scenario(rng, 30, 1, false);
+    const IcRecordTables same = optimise_record_tables(s.tables[0], {{4, 4, 4, 0}}, {{1, 1, 1, 1}});
+    for (IcType t : kIcTypes)
+        for (size_t v = 0; v < s.m(); ++v) EXPECT_EQ(same[t].pmf(v), s.tables[0][t].pmf(v));
+}
+
 // Planted errors: the comparison above must be able to fail. Each plants one mistake an
 // integrator could make and asserts that the exact expectation then differs from sum h.
 TEST(importance_cache_expectation, PlantedErrorsAreDetected) {
@@ -522,6 +532,43 @@ CHI_SQUARE_TEST(family, importance_cache_mixture, SamplesFollowThePmf, 5) {
     const IcMixture fallback({}, s.fallback);
     const ChiSquareResult r = chi_square_mixture(fallback, IcType::C, s.m(), seed);
     EXPECT_TRUE(r.passed) << r.message;
+}
+
+// The estimator as the integrator will run it (IcMixture::sample, then ic_sample_factor),
+// averaged: its mean is sum h within 5 standard errors. Ties the sampler to the factor that the
+// exact expectation checks.
+TEST(importance_cache_estimator, MonteCarloMeanIsTheSum) {
+    Rng scene_rng(StreamKey{51, 0, 1, 0});
+    const Scenario s = random_scenario(scene_rng, 40, 3, false);
+    std::vector<const IcRecordTables*> storage;
+    const IcMixture mixture = mixture_of(s, {0, 1, 2}, storage);
+    const double truth = std::accumulate(s.h.begin(), s.h.end(), 0.0);
+    const IcSampleCounts n = {{2, 1, 1, 1}};
+    for (const auto& [name, weighting] : kHeuristics) {
+        Rng rng(StreamKey{52, 0, 1, 0});
+        constexpr int kEstimates = 100000;
+        double sum = 0, sum_sq = 0;
+        for (int e = 0; e < kEstimates; ++e) {
+            double estimate = 0;
+            for (IcType t : kIcTypes) {
+                if (mixture.empty(t)) continue;
+                for (int k = 0; k < n[t]; ++k) {
+                    const double u_record = rng.next_1d();
+                    const size_t v = mixture.sample(t, u_record, next_double(rng));
+                    estimate += ic_sample_factor(t, mixture.pmfs(v), n, weighting) * s.h[v];
+                }
+            }
+            sum += estimate;
+            sum_sq += estimate * estimate;
+        }
+        const double mean = sum / kEstimates;
+        const double standard_error =
+            std::sqrt(std::max(0.0, sum_sq / kEstimates - mean * mean) / kEstimates);
+        EXPECT_LT(std::abs(mean - truth), 5 * standard_error)
+            << name << ": mean " << mean << ", sum h " << truth << ", standard error "
+            << standard_error;
+        EXPECT_GT(standard_error, 0.0) << name;
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
