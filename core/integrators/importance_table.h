@@ -13,9 +13,9 @@
 // The one invariant the estimator relies on: pmf(v) is the probability that sample() returns v
 // for u uniform on [0, 1), computed from the same stored sums. pmf(v) is the width of v's
 // interval of the cumulative sums divided by their total; that can differ from weight/total
-// by rounding (relative error about M * 2^-53 / (weight/total), i.e. 1e-9 for an entry 1e-2 of
-// the mean at M = 1e5), and an entry that rounds to an empty interval has pmf 0 and is never
-// drawn. Both are harmless: the estimator only needs sampler and pmf to agree, and the
+// by rounding (relative error up to about 2^-53 / pmf: 1e-9 for an entry 1e-2 of the mean at
+// M = 1e5, pmf 1e-7; 1e-5 for pmf 1e-11), and an entry that rounds to an empty interval has pmf 0
+// and is never drawn. Both are harmless: the estimator only needs sampler and pmf to agree, and the
 // conservative table C (integer sums, exact) covers every VPL regardless.
 
 #include <cstddef>
