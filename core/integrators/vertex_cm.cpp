@@ -12,6 +12,9 @@
 
 #include "core/integrators/direct_light.h"
 #include "core/integrators/hash_grid.h"
+#include "core/integrators/importance_lookup.h"
+#include "core/integrators/importance_mixture.h"
+#include "core/integrators/importance_record.h"
 #include "core/integrators/medium_segment.h"
 #include "core/integrators/merge_radius.h"
 #include "core/integrators/pixel_loop.h"
@@ -31,6 +34,12 @@ constexpr uint64_t kLightStreamBase = uint64_t(1) << 62;
 constexpr uint64_t kRecordStreamBase = kLightStreamBase + (uint64_t(1) << 60);
 constexpr uint64_t kAcceptStreamBase = kLightStreamBase + (uint64_t(2) << 60);
 constexpr uint64_t kImportanceStreamBase = kLightStreamBase + (uint64_t(3) << 60);
+// Importance caching: the records of the screen grid, and their tables' shadow rays.
+constexpr uint64_t kIcRecordStreamBase = kLightStreamBase + (uint64_t(4) << 60);
+constexpr uint64_t kIcTableStreamBase = kLightStreamBase + (uint64_t(5) << 60);
+// Importance caching keeps its tables (four doubles per record and VPL) below this size; a
+// denser record grid is thinned to fit (docs/algorithms.md).
+constexpr double kIcTableBytes = 512.0 * 1024 * 1024;
 // Light paths are traced in fixed chunks whose splats are added in chunk order, so the image
 // does not depend on the number of threads.
 constexpr uint64_t kLightPathChunk = 256;
@@ -140,6 +149,8 @@ class Iteration {
           light_trace_only_(config.mode == BidirectionalMode::LightTracing),
           ppm_(config.mode == BidirectionalMode::Ppm),
           vpl_(config.mode == BidirectionalMode::Vpl),
+          ic_(config.mode == BidirectionalMode::Ic),
+          many_lights_(vpl_ || ic_),
           use_vc_(config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm),
           use_vm_(config.mode == BidirectionalMode::Ppm || config.mode == BidirectionalMode::Bpm ||
                   config.mode == BidirectionalMode::Vcm),
@@ -165,6 +176,9 @@ class Iteration {
     // vpl with the importance-driven distribution: keeps each light vertex with its
     // probability P_k (dividing its throughput by P_k) and drops the others.
     void select_vpls(RenderStats& stats, VplSelection* inspection = nullptr);
+    // ic: traces the records of the screen grid and builds their tables over the light
+    // vertices, the lookup tree and the conservative fallback.
+    void build_importance_cache(RenderStats& stats);
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
     uint64_t light_path_count() const { return light_path_count_; }
@@ -217,8 +231,19 @@ class Iteration {
         Vec3 wo;
         Rgb throughput;
         int path_length;
+        float distance;  // along the camera path (for the record's footprint)
+        Vec3 camera_direction;
     };
     std::optional<Record> trace_record(uint64_t index, RenderStats& stats) const;
+    // The record of the camera ray through image position `position` (in pixels).
+    std::optional<Record> trace_record_at(Vec2 position, Rng& rng, RenderStats& stats) const;
+    // The four tables of one importance-caching record over light_vertices_.
+    IcRecordTables record_tables(const Record& r, float radius, std::span<const uint8_t> mask,
+                                 Rng& rng, RenderStats& stats) const;
+    // ic at eye vertex v: VPLs drawn from the mixtures of v's nearest records, each term
+    // h(x, v) weighted by MIS between the techniques (without the eye throughput).
+    Rgb importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
+                               RenderStats& stats) const;
     // phi_k of every light vertex: the luminance of its contribution averaged over the
     // iteration's importance records (escaped records count as zero).
     std::vector<double> estimate_vpl_importance(RenderStats& stats) const;
@@ -227,7 +252,8 @@ class Iteration {
     const Scene& scene_;
     IterationKey key_;
     const PerspectiveCamera& camera_;
-    bool light_trace_only_, ppm_, vpl_, use_vc_, use_vm_;
+    // many_lights_: vpl or ic, the two estimators over the iteration's VPLs (weight 1).
+    bool light_trace_only_, ppm_, vpl_, ic_, many_lights_, use_vc_, use_vm_;
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
     double radius_;
@@ -238,7 +264,14 @@ class Iteration {
     float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
 
     std::vector<LightVertex> light_vertices_;
-    std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
+    std::vector<uint32_t> path_ends_;
+    // Importance caching: one table set per record, the records' lookup tree (same order), the
+    // conservative fallback over every VPL, the sample counts and the weighting.
+    std::vector<IcRecordTables> ic_tables_;
+    IcRecordTree ic_tree_;
+    ImportanceTable ic_fallback_;
+    IcSampleCounts ic_samples_{};
+    IcWeighting ic_weighting_;  // light_vertices_ of path p: [ends[p-1], ends[p])
     // Merging: surface and medium light vertices in separate grids (photons merge only with
     // eye vertices of their own kind); *_index_ maps a grid point to its light vertex.
     std::vector<Vec3> surface_positions_, medium_positions_;
@@ -341,7 +374,7 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
-            if (use_vc_ || use_vm_ || vpl_)
+            if (use_vc_ || use_vm_ || many_lights_)
                 vertices.push_back(
                     LightVertex{*v, wo, state.throughput, state.path_length, state.mis});
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
@@ -493,18 +526,19 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const float weight =
-        vpl_ ? 1.0f
-             : mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
-                                              .bsdf_reverse_w = pdf_w.reverse,
-                                              .light_pdf_w = dl.pdf_w(),
-                                              .emission_pdf_w = ls.pdf_emission_w,
-                                              .direct_pdf_w = ls.pdf_direct_w,
-                                              .cos_here = v.cos(ls.wi),
-                                              .cos_light = ls.cos_at_light,
-                                              .delta_light = dl.light->is_delta(),
-                                              .eye_medium = v.in_medium(),
-                                              .pass_to_light_probability = l.densities.toward_end,
-                                              .distance_from_light = l.densities.toward_start});
+        many_lights_
+            ? 1.0f
+            : mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
+                                             .bsdf_reverse_w = pdf_w.reverse,
+                                             .light_pdf_w = dl.pdf_w(),
+                                             .emission_pdf_w = ls.pdf_emission_w,
+                                             .direct_pdf_w = ls.pdf_direct_w,
+                                             .cos_here = v.cos(ls.wi),
+                                             .cos_light = ls.cos_at_light,
+                                             .delta_light = dl.light->is_delta(),
+                                             .eye_medium = v.in_medium(),
+                                             .pass_to_light_probability = l.densities.toward_end,
+                                             .distance_from_light = l.densities.toward_start});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -574,17 +608,26 @@ Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3
 std::optional<Iteration::Record> Iteration::trace_record(uint64_t index, RenderStats& stats) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kRecordStreamBase + index});
     const Vec2 u = rng.next_2d();
-    Ray ray =
-        camera_.generate_ray(Vec2(u.x * float(camera_.width()), u.y * float(camera_.height())));
+    return trace_record_at(Vec2(u.x * float(camera_.width()), u.y * float(camera_.height())), rng,
+                           stats);
+}
+
+std::optional<Iteration::Record> Iteration::trace_record_at(Vec2 position, Rng& rng,
+                                                            RenderStats& stats) const {
+    Ray ray = camera_.generate_ray(position);
+    const Vec3 camera_direction = ray.direction;
     SubpathState state;
     state.throughput = Rgb(1.0f);
     state.medium = scene_.camera_medium();
+    float distance = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v || state.path_length >= max_length_) return std::nullopt;
+        distance += seg.distance;
         if (v->has_non_delta())
-            return Record{*v, -ray.direction, state.throughput, state.path_length};
+            return Record{*v,       -ray.direction,  state.throughput, state.path_length,
+                          distance, camera_direction};
         if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return std::nullopt;
     }
 }
@@ -646,6 +689,124 @@ void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
     stats.vpl_accepted += kept.size();
     light_vertices_ = std::move(kept);
     path_ends_.clear();  // vpl connects to every vertex; paths are no longer needed
+}
+
+IcRecordTables Iteration::record_tables(const Record& r, float radius,
+                                        std::span<const uint8_t> mask, Rng& rng,
+                                        RenderStats& stats) const {
+    const size_t m = light_vertices_.size();
+    std::vector<double> full(m, 0.0), unoccluded(m, 0.0), bounded(m, 0.0);
+    const float clamp2 = record_clamp2();
+    for (size_t k = 0; k < m; ++k) {
+        const LightVertex& lv = light_vertices_[k];
+        if (lv.path_length + 1 + r.path_length > max_length_) continue;
+        const std::optional<ConnectionGeometry> g = connection_geometry(lv, r.vertex, r.wo);
+        if (!g) continue;
+        const double cos_record = r.vertex.shading_cos(g->d), cos_vpl = lv.vertex.shading_cos(g->d);
+        const double power = (lv.throughput * g->eye.f * g->light.f).luminance();
+        if (!(power > 0) || !std::isfinite(power)) continue;
+        // The records' own clamp (at least 1 % of the scene radius): a VPL lying on the record
+        // must not take the whole table. Tables shape the variance only (C covers every VPL).
+        unoccluded[k] = power * cos_record * cos_vpl / std::max(double(g->dist2), double(clamp2));
+        bounded[k] = power * bounded_geometry_factor(std::sqrt(double(g->dist2)), radius, cos_vpl,
+                                                     cos_record);
+        const Ray ray = scene_.spawn_ray_to(r.vertex.p, r.vertex.n, lv.vertex.p, lv.vertex.n);
+        const Link l = link(ray, r.vertex.medium_toward(r.wo, g->d), false, false, rng, stats);
+        full[k] = unoccluded[k] * double(visibility(l, ray, stats).luminance());
+    }
+    return make_record_tables(full, unoccluded, bounded, mask);
+}
+
+void Iteration::build_importance_cache(RenderStats& stats) {
+    const size_t m = light_vertices_.size();
+    path_ends_.clear();  // ic draws from every vertex; paths are no longer needed
+    // C: every VPL that carries power, the same mask at every record and in the fallback (a
+    // VPL with h(x, v) > 0 anywhere is in it), which keeps the estimator unbiased.
+    std::vector<uint8_t> mask(m);
+    for (size_t k = 0; k < m; ++k) mask[k] = !light_vertices_[k].throughput.is_black();
+    ic_fallback_ = conservative_table(mask);
+    ic_samples_ = IcSampleCounts{
+        {config_.ic_samples, config_.ic_samples, config_.ic_samples, config_.ic_samples}};
+    ic_weighting_.heuristic = config_.ic_heuristic;
+    if (m == 0) return;
+
+    // The jittered screen grid: square cells of 1 / density pixels, thinned (larger cells) if
+    // the tables would exceed kIcTableBytes.
+    const int width = camera_.width(), height = camera_.height();
+    const double table_bytes = 4.0 * double(m + 1) * sizeof(double);
+    double cell = 1.0 / std::sqrt(config_.ic_record_density);
+    cell = std::max(cell, std::sqrt(double(width) * height * table_bytes / kIcTableBytes));
+    const int nx = std::max(1, int(std::ceil(width / cell))),
+              ny = std::max(1, int(std::ceil(height / cell)));
+    const float cell_w = float(width) / float(nx), cell_h = float(height) / float(ny);
+    std::vector<std::optional<Record>> records(size_t(nx) * size_t(ny));
+    std::vector<float> radii(records.size(), 0.0f);
+    tbb::combinable<RenderStats> local_stats;
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, records.size()),
+        [&](const tbb::blocked_range<size_t>& range) {
+            RenderStats& local = local_stats.local();
+            for (size_t j = range.begin(); j < range.end(); ++j) {
+                Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kIcRecordStreamBase + j});
+                const Vec2 u = rng.next_2d();
+                const Vec2 position((float(j % nx) + u.x) * cell_w, (float(j / nx) + u.y) * cell_h);
+                std::optional<Record> r = trace_record_at(position, rng, local);
+                if (!r) continue;
+                records[j].emplace(*r);  // Record holds references: no assignment
+                // The region of influence: the disk of the record's cell seen on
+                // its surface (cell solid angle x distance^2 / cos, as an area).
+                const double solid_angle =
+                    double(cell_w) * cell_h / camera_pixel_pdf_w(r->camera_direction);
+                const double cos_in = std::max(0.1f, r->vertex.cos(r->wo));
+                radii[j] = float(std::sqrt(solid_angle * r->distance * r->distance / cos_in / kPi));
+            }
+        });
+    std::vector<const Record*> usable;
+    std::vector<float> usable_radii;
+    std::vector<IcRecordPoint> points;
+    for (size_t j = 0; j < records.size(); ++j) {
+        if (!records[j]) continue;
+        usable.push_back(&*records[j]);
+        usable_radii.push_back(radii[j]);
+        points.push_back(IcRecordPoint{records[j]->vertex.p, records[j]->vertex.n});
+    }
+    ic_tables_.resize(usable.size());
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, usable.size()), [&](const tbb::blocked_range<size_t>& range) {
+            RenderStats& local = local_stats.local();
+            for (size_t j = range.begin(); j < range.end(); ++j) {
+                Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kIcTableStreamBase + j});
+                ic_tables_[j] = record_tables(*usable[j], usable_radii[j], mask, rng, local);
+            }
+        });
+    local_stats.combine_each([&](const RenderStats& s) { stats += s; });
+    ic_tree_ = IcRecordTree(std::move(points));
+}
+
+Rgb Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
+                                      RenderStats& stats) const {
+    if (light_vertices_.empty() || ic_fallback_.empty()) return Rgb(0.0f);
+    IcLookupSettings lookup;
+    lookup.lambda = ic_default_lambda(2.0 * scene_.bounding_sphere().radius);
+    const IcNeighbours near = ic_tree_.nearest(v.p, v.n, lookup);
+    std::array<const IcRecordTables*, kIcMaxRecords> tables{};
+    for (int i = 0; i < near.count; ++i) tables[size_t(i)] = &ic_tables_[near.index[size_t(i)]];
+    const IcMixture mixture(
+        std::span<const IcRecordTables* const>(tables.data(), size_t(near.count)), ic_fallback_);
+    Rgb sum(0.0f);
+    for (IcType t : kIcTypes) {
+        if (mixture.empty(t)) continue;
+        for (int s = 0; s < ic_samples_[t]; ++s) {
+            const double u_record = double(rng.next_1d());
+            const size_t k = mixture.sample(t, u_record, next_double(rng));
+            const double factor = ic_sample_factor(t, mixture.pmfs(k), ic_samples_, ic_weighting_);
+            const LightVertex& lv = light_vertices_[k];
+            if (!(factor > 0) || lv.path_length + 1 + eye_length > max_length_) continue;
+            sum +=
+                lv.throughput * vpl_connection(lv, v, wo, vpl_clamp2_, rng, stats) * float(factor);
+        }
+    }
+    return sum;
 }
 
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
@@ -720,8 +881,15 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         // Light tracing and PPM leave every non-delta scattering of the eye path to the light
         // paths (camera connections or the one merge); the eye continues only through delta
         // lobes, including the delta lobes of mixed materials such as plastic's coating.
-        const bool eye_ends_at_non_delta = light_trace_only_ || ppm_ || vpl_;
+        const bool eye_ends_at_non_delta = light_trace_only_ || ppm_ || many_lights_;
         if (v->has_non_delta() && !light_trace_only_) {
+            if (ic_) {
+                add(Technique::Connection, 1,
+                    state.throughput * direct_illumination(state, *v, wo, rng, stats));
+                add(Technique::Connection, 2,
+                    state.throughput *
+                        importance_cached_vpls(*v, wo, state.path_length, rng, stats));
+            }
             if (vpl_) {
                 add(Technique::Connection, 1,
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));
@@ -769,6 +937,7 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
         iteration.trace_light_paths(stats, splats);
         if (config_.mode == BidirectionalMode::Vpl && config_.vpl_importance)
             iteration.select_vpls(stats);
+        if (config_.mode == BidirectionalMode::Ic) iteration.build_importance_cache(stats);
     }
     for (const Splat& splat : splats) {
         if (!splat.value.is_finite()) {

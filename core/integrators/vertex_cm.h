@@ -12,6 +12,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/integrators/importance_weights.h"
 #include "core/integrators/integrator.h"
 #include "core/materials/surface_bsdf.h"
 
@@ -27,6 +28,10 @@ enum class BidirectionalMode {
     // paths are virtual point lights; the eye follows delta lobes and, at its first non-delta
     // vertex, adds next-event estimation and a connection to every VPL, all with weight 1.
     Vpl,
+    // Importance caching over the same VPLs: at the first non-delta eye vertex, next-event
+    // estimation and a few VPLs drawn from the four distributions of the nearest importance
+    // records, weighted by MIS between the distributions (importance_weights.h).
+    Ic,
 };
 
 // How the VPL connection's distance clamp changes over iterations (BidirectionalConfig).
@@ -54,6 +59,11 @@ struct BidirectionalConfig {
     bool vpl_importance = false;
     int importance_records = 100;
     double vpl_min_probability = 0.05;
+    // Ic: records per pixel (jittered screen grid), VPLs drawn per technique and shading point,
+    // and the heuristic between the techniques.
+    double ic_record_density = 1.0 / 16.0;
+    int ic_samples = 4;
+    IcHeuristic ic_heuristic = IcHeuristic::AlphaMax;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

@@ -100,6 +100,29 @@ const std::vector<Algorithm>& table() {
              config.vpl_min_probability = s.vpl_min_probability;
              return std::make_unique<VertexConnectionMerging>(config);
          }},
+        {.name = "ic",
+         .aliases = {"importance_caching"},
+         .description = "many-light rendering with importance caching: each shading point draws "
+                        "a few VPLs from the distributions of nearby camera records (surfaces "
+                        "only; no caustics through delta vertices)",
+         .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
+                     "ic_record_density", "ic_samples", "ic_heuristic"},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config;
+             config.mode = BidirectionalMode::Ic;
+             config.max_depth = s.max_depth;
+             config.rr_depth = s.rr_depth;
+             config.light_path_count = s.vpl_paths;
+             config.vpl_clamp = s.vpl_clamp;
+             config.vpl_clamp_schedule =
+                 s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+             config.ic_record_density = s.ic_record_density;
+             config.ic_samples = s.ic_samples;
+             config.ic_heuristic = s.ic_heuristic == "balance" ? IcHeuristic::Balance
+                                   : s.ic_heuristic == "power" ? IcHeuristic::Power
+                                                               : IcHeuristic::AlphaMax;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "eyelight",
          .description = "debug shading: |cos| at the first hit (surfaces only)",
          .create = [](const RenderSettings&) -> std::unique_ptr<Integrator> {

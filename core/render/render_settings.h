@@ -41,6 +41,12 @@ struct RenderSettings {
     bool vpl_importance = false;
     int importance_records = 100;
     double vpl_min_probability = 0.05;
+    // ic: importance caching (Georgiev, Krivanek, Popov, Slusallek 2012) over the VPLs: records
+    // per pixel on a jittered screen grid, VPL samples per technique (F, U, B, C) and shading
+    // point, and the heuristic that weights the techniques.
+    double ic_record_density = 1.0 / 16.0;
+    int ic_samples = 4;
+    std::string ic_heuristic = "alpha-max";
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };
