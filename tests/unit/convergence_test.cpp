@@ -247,5 +247,29 @@ TEST(Convergence, ImportanceDrivenVplsWithoutAMinimumProbabilityAreSeenToBeBiase
     EXPECT_GT(differ, 0) << "P_min = 0 drops unseen VPLs: the block test must see the loss";
 }
 
+// Importance caching draws a few VPLs per shading point from the distributions of its nearest
+// records and weights them by MIS between the four techniques: an unbiased estimate of the sum
+// over all VPLs, so with the same VPLs and clamp it converges to vpl (ALGORITHMS-NEXT.md 2.10
+// a2), with either heuristic, and also when one record serves the whole image (density 1e-6:
+// most shading points are far from it, and where it escapes every point falls back to C).
+TEST(Convergence, ImportanceCachingMatchesAllVpls) {
+    const OptionMap clamp = {{"vpl_clamp", "0.01"}, {"vpl_clamp_schedule", "fixed"}};
+    for (const char* file : {"bitterli/cornell-box/scene_v3.xml", "tests/two-rooms.xml"}) {
+        SCOPED_TRACE(file);
+        auto scene = shipped(file);
+        const BlockEstimate all = render_blocks(*scene, "vpl", 2, clamp);
+        for (const char* heuristic : {"alpha-max", "balance"}) {
+            OptionMap ic = clamp;
+            ic["ic_heuristic"] = heuristic;
+            expect_same_blocks(all, render_blocks(*scene, "ic", 4, ic),
+                               std::string("ic ") + heuristic, "vpl");
+        }
+        OptionMap one_record = clamp;
+        one_record["ic_record_density"] = "1e-6";
+        expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record",
+                           "vpl");
+    }
+}
+
 }  // namespace
 }  // namespace render
