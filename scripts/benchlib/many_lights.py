@@ -1,9 +1,12 @@
-"""Many-light rendering: uniform against importance-driven VPLs at equal time
-(`scripts/bench --only many-lights`, writes docs/many-lights.md and docs/img/many-lights/).
+"""Many-light rendering at equal time: all VPLs (uniform), importance-driven VPLs and importance
+caching (`scripts/bench --only many-lights`, writes docs/many-lights.md and
+docs/img/many-lights/).
 
-Both arms are the same estimator in expectation: `vpl` with the same fixed clamp (d_min = 1 % of
-the scene radius, so the variance is finite), the importance-driven distribution being Russian
-roulette on its VPLs (the block test `Convergence.ImportanceDrivenVplsMatchUniformVpls` checks
+The three arms are the same estimator in expectation: `vpl` with a fixed clamp (d_min = 1 % of
+the scene radius, so the variance is finite) connects every shading point to every VPL;
+`--vpl-distribution importance` is Russian roulette on those VPLs; `ic` draws 16 of them per
+shading point from the importance caches and weights them by MIS (the block tests
+`Convergence.ImportanceDrivenVplsMatchUniformVpls` and `ImportanceCachingMatchesAllVpls` check
 that they agree). Their mean squared error is therefore their variance, and for an unbiased
 estimator whose iterations are independent the error after T seconds is
 
@@ -42,8 +45,9 @@ from . import common
 
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
 ARMS = {
-    "uniform": CLAMP,
-    "importance": CLAMP + ["--vpl-distribution", "importance"],
+    "uniform": ["--algo", "vpl"] + CLAMP,
+    "importance": ["--algo", "vpl"] + CLAMP + ["--vpl-distribution", "importance"],
+    "ic": ["--algo", "ic"] + CLAMP,
 }
 SCENES = {
     "two-rooms": common.REPO_ROOT / "scenes" / "tests" / "two-rooms.xml",
@@ -87,9 +91,10 @@ def realtime_prefix() -> tuple[str, ...]:
 
 def render(binary, scene, out, arm, seed, resolution, threads, *, seconds=None, iterations=None,
            png=None, realtime=False):
-    cmd = common.render_command(binary, scene, out, algo="vpl", seconds=seconds,
+    algo, *flags = ARMS[arm][1:]
+    cmd = common.render_command(binary, scene, out, algo=algo, seconds=seconds,
                                 iterations=iterations, seed=seed, resolution=resolution,
-                                threads=threads, extra=ARMS[arm], png=png)
+                                threads=threads, extra=flags, png=png)
     if realtime:
         cmd = [*realtime_prefix(), *cmd]
     proc = subprocess.run(cmd, cwd=common.REPO_ROOT, capture_output=True, text=True)
@@ -174,11 +179,17 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
             render(binary, scene, workdir / f"{name}-{arm}-picture.exr", arm, 30_000, resolution,
                    threads, seconds=cfg["picture_time"],
                    png=img_dir / f"{name}-{arm}-{cfg['picture_time']:g}s.png")
-        u, i = arms["uniform"], arms["importance"]
-        ratio = (u["v"] * u["t"]) / (i["v"] * i["t"])
-        # First-order propagation of the two variance estimates' standard errors.
-        ratio_se = ratio * math.hypot(u["v_se"] / u["v"], i["v_se"] / i["v"])
-        verdicts[name] = (ratio, ratio_se, i["kept"] / 100)
+        u, i, c = arms["uniform"], arms["importance"], arms["ic"]
+
+        def gain(a, b):
+            """Equal-time relMSE(a) / relMSE(b), with first-order propagation of the two
+            variance estimates' standard errors."""
+            r = (a["v"] * a["t"]) / (b["v"] * b["t"])
+            return r, r * math.hypot(a["v_se"] / a["v"], b["v_se"] / b["v"])
+
+        ratio, ratio_se = gain(u, i)
+        ic_ratio, ic_ratio_se = gain(u, c)
+        verdicts[name] = (ratio, ratio_se, i["kept"] / 100, ic_ratio, ic_ratio_se)
         lines += [f"## {name} ({resolution[0]}x{resolution[1]})", "",
                   f"Scale image r: `{' '.join(ref_cmd)}` — "
                   f"{ref_header.get('render:iterations')} iterations.", "",
@@ -192,19 +203,21 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                          + " | ".join(f"{m['v'] * m['t'] / t:.3g}" for t in TIMES) + " |")
             print(f"  {name:12s} {arm:10s} v {m['v']:.4g} ± {m['v_se']:.2g}  t {m['t']:.3f} s"
                   f"  kept {m['kept']:.1f} %", flush=True)
+        pictures = " ".join(f"![{name} {arm}](img/many-lights/{name}-{arm}-"
+                            f"{cfg['picture_time']:g}s.png)" for arm in ARMS)
         lines += ["", f"Equal-time relMSE(uniform) / relMSE(importance) = (v·t)_uniform / "
-                  f"(v·t)_importance = **{ratio:.2f} ± {ratio_se:.2f}** (at every time: both "
+                  f"(v·t)_importance = **{ratio:.2f} ± {ratio_se:.2f}** (at every time: all "
                   f"errors fall like 1/T). Per iteration the importance arm costs "
                   f"{u['t'] / i['t']:.2f}× less and has {i['v'] / u['v']:.2f}× the variance.", "",
+                  f"Equal-time relMSE(uniform) / relMSE(ic) = **{ic_ratio:.2f} ± "
+                  f"{ic_ratio_se:.2f}**: per iteration ic costs {u['t'] / c['t']:.2f}× less "
+                  f"and has {c['v'] / u['v']:.2f}× the variance.", "",
                   f"Pictures (`--time {cfg['picture_time']:g}`; tone-mapped by `render --png`): "
-                  f"uniform, importance, and the scale image.", "",
-                  f"![{name} uniform](img/many-lights/{name}-uniform-{cfg['picture_time']:g}s.png) "
-                  f"![{name} importance](img/many-lights/{name}-importance-"
-                  f"{cfg['picture_time']:g}s.png) "
-                  f"![{name} reference](img/many-lights/{name}-reference.png)", ""]
+                  f"{', '.join(ARMS)}, and the scale image.", "",
+                  f"{pictures} ![{name} reference](img/many-lights/{name}-reference.png)", ""]
     lines += ["## The claims", ""]
     if OCCLUDED_SCENE in verdicts:
-        ratio, ratio_se, kept = verdicts[OCCLUDED_SCENE]
+        ratio, ratio_se, kept, _, _ = verdicts[OCCLUDED_SCENE]
         held = kept < CLAIM_ACCEPTANCE and ratio >= CLAIM_RATIO
         lines.append(f"- {OCCLUDED_SCENE}: importance keeps {100 * kept:.1f} % of the candidates "
                      f"(claim: well under {100 * CLAIM_ACCEPTANCE:.0f} %) and lowers the "
@@ -214,10 +227,15 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                      "variance of one iteration, so the gain is at most the cost ratio, about "
                      "1 / (share kept) when the VPL connections dominate the cost.")
     if CONTROL_SCENE in verdicts:
-        ratio, ratio_se, kept = verdicts[CONTROL_SCENE]
+        ratio, ratio_se, kept, _, _ = verdicts[CONTROL_SCENE]
         lines.append(f"- {CONTROL_SCENE} (control): importance keeps {100 * kept:.1f} %; "
                      f"relMSE(importance) / relMSE(uniform) = {1 / ratio:.2f} (bar: ≤ "
                      f"{CONTROL_RATIO:g}): **{'held' if 1 / ratio <= CONTROL_RATIO else 'not held'}**.")
+    for name, (_, _, _, ic_ratio, ic_ratio_se) in verdicts.items():
+        lines.append(f"- {name}, importance caching against all VPLs at equal time: "
+                     f"{ic_ratio:.2f} ± {ic_ratio_se:.2f}× lower relative MSE (the paper: more "
+                     "than an order of magnitude in highly occluded scenes, against other "
+                     "VPL sampling schemes at equal sample counts; no bar set here).")
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "many-lights.md"
     out_doc.write_text("\n".join(lines) + "\n")

@@ -41,7 +41,9 @@ def other_value(option):
     if kind == "unsigned":
         return "99"
     if kind == "integer":
-        return str(int(option["min"]) + 3)  # max_depth 2: direct light; light_paths 3
+        # max_depth 2: direct light; light_paths 3; ic_samples (default 4) 3
+        value = int(option["min"]) + 3
+        return str(value if str(value) != default else value - 1)
     # real: three times the default when that is in range, else the middle of the range
     try:
         value = float(default) * 3
