@@ -241,9 +241,11 @@ class Iteration {
     IcRecordTables record_tables(const Record& r, float radius, std::span<const uint8_t> mask,
                                  Rng& rng, RenderStats& stats) const;
     // ic at eye vertex v: VPLs drawn from the mixtures of v's nearest records, each term
-    // h(x, v) weighted by MIS between the techniques (without the eye throughput).
-    Rgb importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
-                               RenderStats& stats) const;
+    // h(x, v) weighted by MIS between the techniques (without the eye throughput), passed to
+    // `add` with the number of light vertices s of its path.
+    template <class Add>
+    void importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
+                                RenderStats& stats, Add&& add) const;
     // phi_k of every light vertex: the luminance of its contribution averaged over the
     // iteration's importance records (escaped records count as zero).
     std::vector<double> estimate_vpl_importance(RenderStats& stats) const;
@@ -783,9 +785,10 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     ic_tree_ = IcRecordTree(std::move(points));
 }
 
-Rgb Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
-                                      RenderStats& stats) const {
-    if (light_vertices_.empty() || ic_fallback_.empty()) return Rgb(0.0f);
+template <class Add>
+void Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
+                                       RenderStats& stats, Add&& add) const {
+    if (light_vertices_.empty() || ic_fallback_.empty()) return;
     IcLookupSettings lookup;
     lookup.lambda = ic_default_lambda(2.0 * scene_.bounding_sphere().radius);
     const IcNeighbours near = ic_tree_.nearest(v.p, v.n, lookup);
@@ -793,7 +796,6 @@ Rgb Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_l
     for (int i = 0; i < near.count; ++i) tables[size_t(i)] = &ic_tables_[near.index[size_t(i)]];
     const IcMixture mixture(
         std::span<const IcRecordTables* const>(tables.data(), size_t(near.count)), ic_fallback_);
-    Rgb sum(0.0f);
     for (IcType t : kIcTypes) {
         if (mixture.empty(t)) continue;
         for (int s = 0; s < ic_samples_[t]; ++s) {
@@ -802,11 +804,10 @@ Rgb Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_l
             const double factor = ic_sample_factor(t, mixture.pmfs(k), ic_samples_, ic_weighting_);
             const LightVertex& lv = light_vertices_[k];
             if (!(factor > 0) || lv.path_length + 1 + eye_length > max_length_) continue;
-            sum +=
-                lv.throughput * vpl_connection(lv, v, wo, vpl_clamp2_, rng, stats) * float(factor);
+            add(lv.path_length + 1,
+                lv.throughput * vpl_connection(lv, v, wo, vpl_clamp2_, rng, stats) * float(factor));
         }
     }
-    return sum;
 }
 
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
@@ -886,9 +887,10 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             if (ic_) {
                 add(Technique::Connection, 1,
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));
-                add(Technique::Connection, 2,
-                    state.throughput *
-                        importance_cached_vpls(*v, wo, state.path_length, rng, stats));
+                importance_cached_vpls(*v, wo, state.path_length, rng, stats,
+                                       [&](int s, const Rgb& c) {
+                                           add(Technique::Connection, s, state.throughput * c);
+                                       });
             }
             if (vpl_) {
                 add(Technique::Connection, 1,
