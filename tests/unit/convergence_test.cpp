@@ -271,5 +271,20 @@ TEST(Convergence, ImportanceCachingMatchesAllVpls) {
     }
 }
 
+// The hard cases of importance caching on plates, where part of the image is background: with
+// one record per iteration that record escapes in about a third of the iterations, and then
+// every shading point has no record and falls back to C (uniform over the VPLs); records on
+// the black light have all-zero F, U and B tables; and with one light path per iteration there
+// are one to three VPLs (a single VPL: every technique draws it with probability 1).
+TEST(Convergence, ImportanceCachingHardCasesOnPlates) {
+    auto scene = shipped("tests/plates.xml");
+    const OptionMap one_path = {{"vpl_paths", "1"}};
+    const BlockEstimate all = render_blocks(*scene, "vpl", 8, one_path);
+    OptionMap one_record = one_path;
+    one_record["ic_record_density"] = "1e-6";
+    expect_same_blocks(all, render_blocks(*scene, "ic", 8, one_record), "ic one record", "vpl");
+    expect_same_blocks(all, render_blocks(*scene, "ic", 8, one_path), "ic", "vpl");
+}
+
 }  // namespace
 }  // namespace render
