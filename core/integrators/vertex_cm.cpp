@@ -730,6 +730,16 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     ic_samples_ = IcSampleCounts{
         {config_.ic_samples, config_.ic_samples, config_.ic_samples, config_.ic_samples}};
     ic_weighting_.heuristic = config_.ic_heuristic;
+    if (config_.ic_power_only) {
+        // The baseline the paper compares with: no records; every shading point draws all
+        // 4 n of its VPLs from one distribution proportional to the VPLs' power (its C slot:
+        // with no record, the mixture is the fallback alone).
+        std::vector<double> power(m);
+        for (size_t k = 0; k < m; ++k) power[k] = light_vertices_[k].throughput.luminance();
+        ic_fallback_ = ImportanceTable(power);
+        ic_samples_ = IcSampleCounts{{0, 0, 0, 4 * config_.ic_samples}};
+        return;
+    }
     if (m == 0) return;
 
     // The jittered screen grid: square cells of 1 / density pixels, thinned (larger cells) if

@@ -64,6 +64,9 @@ struct BidirectionalConfig {
     double ic_record_density = 1.0 / 16.0;
     int ic_samples = 4;
     IcHeuristic ic_heuristic = IcHeuristic::AlphaMax;
+    // Ic: no records; every shading point draws its 4 ic_samples VPLs in proportion to their
+    // power (the baseline importance caching is compared with).
+    bool ic_power_only = false;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

@@ -106,7 +106,7 @@ const std::vector<Algorithm>& table() {
                         "a few VPLs from the distributions of nearby camera records (surfaces "
                         "only; no caustics through delta vertices)",
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
-                     "ic_record_density", "ic_samples", "ic_heuristic"},
+                     "ic_record_density", "ic_samples", "ic_heuristic", "ic_distributions"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config;
              config.mode = BidirectionalMode::Ic;
@@ -121,6 +121,7 @@ const std::vector<Algorithm>& table() {
              config.ic_heuristic = s.ic_heuristic == "balance" ? IcHeuristic::Balance
                                    : s.ic_heuristic == "power" ? IcHeuristic::Power
                                                                : IcHeuristic::AlphaMax;
+             config.ic_power_only = s.ic_distributions == "power";
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "eyelight",

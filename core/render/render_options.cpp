@@ -231,6 +231,17 @@ const std::vector<RenderOption>& table() {
          .default_text = "alpha-max",
          .apply = [](RenderSettings& s, const std::string& v) { s.ic_heuristic = v; },
          .format = [](const RenderSettings& s) { return s.ic_heuristic; }},
+        {.name = "ic_distributions",
+         .flag = "--ic-distributions",
+         .metavar = "records|power",
+         .type = OptionType::Choice,
+         .help = "records: draw VPLs from the importance caches of nearby camera records; "
+                 "power: draw the same number in proportion to the VPLs' power, with no records "
+                 "(the baseline importance caching is measured against)",
+         .choices = {"records", "power"},
+         .default_text = "records",
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_distributions = v; },
+         .format = [](const RenderSettings& s) { return s.ic_distributions; }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

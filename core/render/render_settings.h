@@ -47,6 +47,9 @@ struct RenderSettings {
     double ic_record_density = 1.0 / 16.0;
     int ic_samples = 4;
     std::string ic_heuristic = "alpha-max";
+    // ic: "records" (the importance caches) or "power" (every shading point draws VPLs in
+    // proportion to their power: the baseline of the paper's comparisons).
+    std::string ic_distributions = "records";
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -110,7 +110,7 @@ GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA,
 SCENES: tuple[BenchScene, ...] = (
     BenchScene("scenes/bitterli/cornell-box/scene_v3.xml", "cornell-box", "pt", 2048, SURFACE,
                False, "diffuse Cornell box, area light"),
-    BenchScene("scenes/tests/two-rooms.xml", "two-rooms", "bpt", 512, SURFACE, False,
+    BenchScene("scenes/tests/two-rooms.xml", "two-rooms", "pt", 2048, SURFACE, False,
                "two rooms joined by a doorway; the light is in the room the camera does not "
                "see (light around a corner: the many-light scene of ALGORITHMS-NEXT.md 5)"),
     BenchScene("scenes/bitterli/veach-mis/scene_v3.xml", "veach-mis", "bpt", 512,

@@ -284,6 +284,10 @@ TEST(Convergence, ImportanceCachingHardCasesOnPlates) {
     one_record["ic_record_density"] = "1e-6";
     expect_same_blocks(all, render_blocks(*scene, "ic", 8, one_record), "ic one record", "vpl");
     expect_same_blocks(all, render_blocks(*scene, "ic", 8, one_path), "ic", "vpl");
+    // The baseline importance caching is measured against: VPLs drawn in proportion to power.
+    OptionMap power = one_path;
+    power["ic_distributions"] = "power";
+    expect_same_blocks(all, render_blocks(*scene, "ic", 8, power), "ic power", "vpl");
 }
 
 }  // namespace
