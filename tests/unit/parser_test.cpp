@@ -334,7 +334,7 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
         // unknown plugin types
         {"<shape type=\"teapot\"/>", "<string>:3: unknown shape type \"teapot\""},
         {"<bsdf type=\"velvet\"/>", "<string>:3:|velvet"},
-        {"<emitter type=\"spot\"/>", "<string>:3:|spot"},
+        {"<emitter type=\"projector\"/>", "<string>:3:|projector"},
         {"<integrator type=\"path\"/><integrator type=\"path\"/>", "only one <integrator>"},
         // unused parameter
         {"<shape type=\"sphere\">\n<float name=\"radiuss\" value=\"1\"/></shape>",
@@ -485,6 +485,85 @@ TEST_F(ParserTest, GarbageNeverCrashes) {
         // Any other exception escapes and fails the test.
     }
     EXPECT_GT(errors, 100);
+}
+
+// ---------------------------------------------------------------------------------------
+// Mitsuba 3 compatibility (issue 15): file resolution, <path>, wrapper integrators, the
+// default lens, spot and thindielectric.
+
+TEST_F(ParserTest, IncludesResolveAgainstTheIncludingFileThenTheScene) {
+    fs::create_directories(dir_ / "include");
+    // include/a.xml names "include/b.xml" as Mitsuba users write it (from the scene's folder);
+    // include/c.xml is named "c.xml", beside the including file.
+    write("include/a.xml",
+          "<scene version=\"3.0.0\">\n<include filename=\"include/b.xml\"/>\n"
+          "<include filename=\"c.xml\"/>\n</scene>\n");
+    write("include/b.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"tri.obj\"/></shape></scene>");
+    write("include/c.xml", "<scene version=\"3.0.0\"><shape type=\"sphere\"/></scene>");
+    auto scene = load(with_camera("<include filename=\"include/a.xml\"/>\n"));
+    EXPECT_EQ(scene->shapes().size(), 2u);
+    // A file beside the including file wins over one of the same name in the scene's folder.
+    write("include/tri.obj", "v 0 0 0\nv 2 0 0\nv 0 2 0\nf 1 2 3\n");
+    auto beside = load(with_camera("<include filename=\"include/b.xml\"/>\n"));
+    EXPECT_NEAR(beside->shapes()[0]->surface_area(), 2.0f, 1e-5f);
+    // Not found anywhere: the message names the first place and the others.
+    write("include/d.xml",
+          "<scene version=\"3.0.0\">\n<include filename=\"missing.xml\"/>\n</scene>\n");
+    std::string e = error(with_camera("<include filename=\"include/d.xml\"/>\n"));
+    EXPECT_CONTAINS(
+        e, "d.xml:2: <include>: file not found: " + (dir_ / "include/missing.xml").string());
+    EXPECT_CONTAINS(e, "also looked for " + (dir_ / "missing.xml").string());
+}
+
+TEST_F(ParserTest, RelativeSceneFileResolvesFromTheWorkingDirectory) {
+    // render include/scene.xml: the folders are relative to the working directory, and a mesh
+    // named in an included file but found in the scene's folder must not be joined to the
+    // included file's folder a second time.
+    fs::create_directories(dir_ / "s/sub");
+    write("s/scene.xml", with_camera("<include filename=\"sub/a.xml\"/>\n"));
+    write("s/sub/a.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"m.obj\"/></shape></scene>");
+    write("s/m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const fs::path cwd = fs::current_path();
+    fs::current_path(dir_);
+    std::unique_ptr<Scene> scene;
+    EXPECT_NO_THROW(scene = load_scene("s/scene.xml"));
+    fs::current_path(cwd);
+    ASSERT_TRUE(scene);
+    EXPECT_EQ(scene->shapes().size(), 1u);
+}
+
+TEST_F(ParserTest, SearchPathsAfterTheScenesFolder) {
+    fs::create_directories(dir_ / "assets/more");
+    write("assets/more/only_here.obj", "v 0 0 0\nv 3 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("assets/tri.obj", "v 0 0 0\nv 4 0 0\nv 0 1 0\nf 1 2 3\n");
+    const std::string obj = "<shape type=\"obj\"><string name=\"filename\" value=\"$f\"/></shape>";
+    // Without a <path> the file is not found, at its first candidate.
+    EXPECT_CONTAINS(error(with_camera(obj), {{"f", "only_here.obj"}}),
+                    "mesh file not found: " + (dir_ / "only_here.obj").string());
+    // A relative <path> is relative to the scene's folder; <path>s are searched in order.
+    auto scene = load(with_camera("<path value=\"assets/more\"/>\n<path value=\"" +
+                                  (dir_ / "assets").string() + "\"/>\n" + obj),
+                      {{"f", "only_here.obj"}});
+    EXPECT_NEAR(scene->shapes()[0]->surface_area(), 1.5f, 1e-5f);
+    // The scene's own folder comes before every <path>: tri.obj of the scene's folder.
+    scene = load(with_camera("<path value=\"assets\"/>\n" + obj), {{"f", "tri.obj"}});
+    EXPECT_NEAR(scene->shapes()[0]->surface_area(), 0.5f, 1e-5f);
+    // A <path> applies from its position on.
+    EXPECT_CONTAINS(
+        error(with_camera(obj + "\n<path value=\"assets/more\"/>\n"), {{"f", "only_here.obj"}}),
+        "mesh file not found");
+    // A folder that does not exist is a warning, not an error; a malformed <path> is an error.
+    ::testing::internal::CaptureStderr();
+    load(with_camera("<path value=\"nowhere\"/>\n"));
+    EXPECT_CONTAINS(::testing::internal::GetCapturedStderr(),
+                    "<string>:3: <path>: folder not found: " + (dir_ / "nowhere").string());
+    EXPECT_CONTAINS(error(with_camera("<path value=\"assets\" name=\"x\"/>")),
+                    "<string>:3: unknown attribute \"name\"");
+    EXPECT_CONTAINS(error(with_camera("<path/>")), "<string>:3:");
 }
 
 // Every scene file shipped in scenes/ (files under include/ folders are fragments that the

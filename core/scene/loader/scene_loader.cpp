@@ -5,6 +5,7 @@
 #include "core/scene/loader/scene_loader.h"
 
 #include <cctype>
+#include <cmath>
 #include <iostream>
 #include <optional>
 #include <set>
@@ -13,6 +14,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium_factory.h"
 #include "core/media/volume_factory.h"
+#include "core/scene/loader/file_resolver.h"
 #include "core/scene/loader/property_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/loader/values.h"
@@ -34,7 +36,6 @@ constexpr Unsupported kUnsupportedTags[] = {
     {"srgb", "<srgb> colours are"},
     {"blackbody", "<blackbody> spectra are"},
     {"animation", "animated transforms (<animation>) are"},
-    {"path", "search paths (<path>) are"},
     {"alias", "<alias> is"},
 };
 
@@ -51,9 +52,10 @@ constexpr const char* kSamplerTypes[] = {"independent", "stratified", "multijitt
 class Loader {
   public:
     Loader(Scene& scene, const std::map<std::string, std::string>& defines)
-        : scene_(scene), params_(defines.begin(), defines.end()) {}
+        : scene_(scene), params_(defines.begin(), defines.end()), resolver_(".") {}
 
     void load_root(const XmlFile& file) {
+        resolver_ = FileResolver(file.dir());
         include_stack_.push_back(canonical_name(file));
         read_scene_element(file);
         include_stack_.pop_back();
@@ -69,6 +71,31 @@ class Loader {
         std::error_code ec;
         std::filesystem::path p = std::filesystem::weakly_canonical(file.name(), ec);
         return ec ? file.name() : p.string();
+    }
+
+    static void warn(const SourceLocation& where, const std::string& message) {
+        std::cerr << "warning: " << where.to_string() << ": " << message << "\n";
+    }
+
+    // The file a relative name in a file of folder `naming_dir` stands for (FileResolver's
+    // order: that folder, the main scene's folder, the <path> folders). When no candidate
+    // exists, the first one, so that the "not found" message names where it was expected.
+    std::filesystem::path resolve_file(const std::filesystem::path& name,
+                                       const std::filesystem::path& naming_dir) const {
+        if (std::optional<std::filesystem::path> found = resolver_.resolve(name, naming_dir))
+            return *found;
+        return resolver_.candidates(name, naming_dir).front();
+    }
+
+    // " (also looked for ...)" for a name that was not found, when there was more than one
+    // place to look.
+    std::string searched(const std::filesystem::path& name,
+                         const std::filesystem::path& naming_dir) const {
+        std::vector<std::filesystem::path> all = resolver_.candidates(name, naming_dir);
+        if (all.size() < 2) return "";
+        std::string out = " (also looked for ";
+        for (size_t i = 1; i < all.size(); ++i) out += (i > 1 ? ", " : "") + all[i].string();
+        return out + ")";
     }
 
     [[noreturn]] static void unknown_tag(const XmlElement& e, const std::string& context) {
@@ -113,6 +140,13 @@ class Loader {
                 unknown_tag(child, e.describe());
             }
         }
+        // Every plugin's file (meshes, environment maps, volume grids) resolves like an
+        // <include>; the plugin then reads the resolved path, made absolute because plugins
+        // join relative names to their own folder.
+        if (const std::string* name = props.peek_string("filename"); name && !name->empty())
+            props.replace_string(
+                "filename",
+                std::filesystem::absolute(resolve_file(*name, e.file().dir())).string());
         return props;
     }
 
@@ -152,6 +186,8 @@ class Loader {
                 read_default(e);
             else if (tag == "include")
                 read_include(e);
+            else if (tag == "path")
+                read_path(e);
             else if (tag == "integrator")
                 read_integrator(e);
             else if (tag == "sensor")
@@ -193,10 +229,12 @@ class Loader {
         if (!e.children().empty())
             throw SceneError(e.where(), "<include> cannot have child elements");
         std::filesystem::path file = e.required("filename");
-        std::filesystem::path path = file.is_absolute() ? file : e.file().dir() / file;
+        if (file.empty()) throw SceneError(e.where(), "<include>: empty filename");
+        std::filesystem::path path = resolve_file(file, e.file().dir());
         std::error_code ec;
         if (!std::filesystem::is_regular_file(path, ec))
-            throw SceneError(e.where(), "<include>: file not found: " + path.string());
+            throw SceneError(e.where(), "<include>: file not found: " + path.string() +
+                                            searched(file, e.file().dir()));
         if (include_stack_.size() >= size_t(kMaxIncludeDepth))
             throw SceneError(e.where(), "<include>: includes are nested too deeply");
         std::unique_ptr<XmlFile> included;
@@ -214,6 +252,22 @@ class Loader {
         include_stack_.push_back(name);
         read_scene_element(*included);
         include_stack_.pop_back();
+    }
+
+    // <path value="folder"/>: one more folder for file names to be looked up in (after the
+    // naming file's folder and the main scene's folder), from here on. A relative folder is
+    // relative to the main scene's folder. A folder that does not exist is ignored with a
+    // warning: a job's folder holds only the files its scene uses.
+    void read_path(const XmlElement& e) {
+        e.check_attributes({"value"});
+        if (!e.children().empty()) throw SceneError(e.where(), "<path> cannot have child elements");
+        const std::string value = e.required("value");
+        if (value.empty()) throw SceneError(e.where(), "<path> has an empty value");
+        std::filesystem::path folder = resolver_.search_folder(value);
+        std::error_code ec;
+        if (!std::filesystem::is_directory(folder, ec))
+            warn(e.where(), "<path>: folder not found: " + folder.string());
+        resolver_.add_search_path(folder);
     }
 
     void read_integrator(const XmlElement& e) {
@@ -563,6 +617,7 @@ class Loader {
 
     Scene& scene_;
     ParameterTable params_;
+    FileResolver resolver_;
     std::vector<std::string> include_stack_;
     std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
     std::map<std::string, SourceLocation> ids_;
