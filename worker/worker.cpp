@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
@@ -237,9 +238,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         scene = &scene_for(lease, scene_file);
         // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
-        settings = resolve_render_settings(
-            s.algorithm().empty() ? scene->settings.integrator : s.algorithm(), request_options(s),
-            scene->settings);
+        settings = resolve_render_settings(job_algorithm(s.algorithm(), scene->settings.integrator),
+                                           request_options(s), scene->settings);
         settings.threads = options_.threads;
     } catch (const std::exception& e) {
         return fail(e.what());

@@ -339,8 +339,8 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
         // unused parameter
         {"<shape type=\"sphere\">\n<float name=\"radiuss\" value=\"1\"/></shape>",
          "<string>:4: unused parameter \"radiuss\" in shape \"sphere\""},
-        {"<integrator type=\"path\"><integer name=\"maxdepth\" value=\"3\"/></integrator>",
-         "<string>:3: unused parameter \"maxdepth\""},
+        {"<integrator type=\"path\"><integer name=\"max_depth\" value=\"-2\"/></integrator>",
+         "<string>:3: integrator \"path\", parameter \"max_depth\""},
         {"<bsdf type=\"diffuse\">\n<rgb name=\"reflectence\" value=\"1\"/></bsdf>",
          "<string>:4: unused parameter \"reflectence\""},
         // missing mesh
@@ -564,6 +564,47 @@ TEST_F(ParserTest, SearchPathsAfterTheScenesFolder) {
     EXPECT_CONTAINS(error(with_camera("<path value=\"assets\" name=\"x\"/>")),
                     "<string>:3: unknown attribute \"name\"");
     EXPECT_CONTAINS(error(with_camera("<path/>")), "<string>:3:");
+}
+
+TEST_F(ParserTest, WrapperAndUnknownIntegratorsWarnInsteadOfFailing) {
+    ::testing::internal::CaptureStderr();
+    auto scene = load(with_camera(R"(<integrator type="moment">
+    <integrator type="volpath">
+        <integer name="max_depth" value="7"/>
+        <integer name="rr_depth" value="3"/>
+        <boolean name="hide_emitters" value="true"/>
+    </integrator>
+    <integrator type="path"/>
+</integrator>
+)"));
+    std::string warnings = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "volpath");
+    EXPECT_EQ(scene->settings.max_depth, 7);
+    EXPECT_EQ(scene->settings.rr_depth, 3);
+    EXPECT_CONTAINS(warnings, "<string>:3: integrator \"moment\" wraps another");
+    EXPECT_CONTAINS(warnings,
+                    "<string>:7: integrator \"volpath\": parameter \"hide_emitters\" is "
+                    "ignored");
+    EXPECT_CONTAINS(warnings, "<string>:9: only the first integrator nested");
+
+    // An integrator this renderer does not implement loads too (render --algo chooses).
+    ::testing::internal::CaptureStderr();
+    scene =
+        load(with_camera("<integrator type=\"direct\">\n<integer name=\"emitter_samples\" "
+                         "value=\"4\"/>\n<integer name=\"max_depth\" value=\"2\"/>\n"
+                         "</integrator>\n"));
+    warnings = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "direct");
+    EXPECT_EQ(scene->settings.max_depth, 2);
+    EXPECT_CONTAINS(warnings, "<string>:4: integrator \"direct\": parameter \"emitter_samples\"");
+    // What is read is still checked.
+    EXPECT_CONTAINS(error(with_camera("<integrator type=\"aov\"><integrator type=\"path\">"
+                                      "<integer name=\"rr_depth\" value=\"0\"/></integrator>"
+                                      "</integrator>")),
+                    "<string>:3: integrator \"path\", parameter \"rr_depth\": must be positive");
+    EXPECT_CONTAINS(error(with_camera("<integrator type=\"moment\"><bsdf type=\"diffuse\"/>"
+                                      "</integrator>")),
+                    "unknown tag <bsdf>");
 }
 
 // Every scene file shipped in scenes/ (files under include/ folders are fragments that the

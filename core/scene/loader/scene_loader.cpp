@@ -274,11 +274,46 @@ class Loader {
         if (have_integrator_)
             throw SceneError(e.where(), "only one <integrator> is allowed (first at " +
                                             integrator_where_.to_string() + ")");
-        Properties props = read_plain_object(e, "integrator");
+        read_integrator_object(e);
+        have_integrator_ = true;
+        integrator_where_ = e.where();
+    }
+
+    // An <integrator> only chooses the default algorithm (render --algo overrides it) and the
+    // path depths. Integrators that wrap others (Mitsuba's moment, aov, stokes, ...) are looked
+    // through: the innermost one (the first nested at each level) names the algorithm and
+    // gives max_depth and rr_depth. Every other parameter, and every further nested integrator,
+    // is ignored with a warning; which type names an algorithm is for the renderer to decide.
+    void read_integrator_object(const XmlElement& e) {
+        std::optional<XmlElement> inner;
+        Properties props = read_object(e, "integrator", [&](const XmlElement& c, Properties&) {
+            if (c.tag() != "integrator") return false;
+            if (inner)
+                warn(c.where(), "only the first integrator nested in integrator \"" +
+                                    e.required("type") + "\" is used; this one is ignored");
+            else
+                inner = c;
+            return true;
+        });
+        if (props.type().empty()) throw SceneError(e.where(), "empty integrator type");
+        auto warn_unused = [&] {
+            for (const auto& [name, where] : props.unused())
+                warn(where, "integrator \"" + props.type() + "\": parameter \"" + name +
+                                "\" is ignored (the algorithm and its options come from "
+                                "the renderer)");
+            props.mark_all_used();
+        };
+        if (inner) {
+            warn(e.where(), "integrator \"" + props.type() +
+                                "\" wraps another; its own effect is ignored and the nested "
+                                "integrator is used");
+            warn_unused();
+            read_integrator_object(*inner);
+            return;
+        }
         build(props, [&] {
             SceneSettings& s = scene_.settings;
             s.integrator = props.type();
-            if (s.integrator.empty()) throw SceneError(e.where(), "empty integrator type");
             int64_t max_depth = props.get_int("max_depth", s.max_depth);
             if (max_depth < -1 || max_depth > 1000000)
                 throw props.error("max_depth", "must be -1 (unbounded) or a non-negative depth");
@@ -287,10 +322,9 @@ class Loader {
                 throw props.error("rr_depth", "must be positive");
             s.max_depth = int(max_depth);
             s.rr_depth = int(rr_depth);
+            warn_unused();
             return 0;
         });
-        have_integrator_ = true;
-        integrator_where_ = e.where();
     }
 
     // ----- sensor, film, sampler -----
