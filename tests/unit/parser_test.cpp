@@ -434,11 +434,13 @@ TEST_F(ParserTest, SensorAndRootErrors) {
     EXPECT_CONTAINS(error(""), "<string>:1: malformed XML: No document element found");
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"thinlens\"/></scene>"),
                     "unknown sensor type \"thinlens\"");
-    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"/></scene>"),
-                    "needs parameter \"fov\"");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\">"
+                          "<float name=\"fov\" value=\"40\"/>"
+                          "<string name=\"focal_length\" value=\"35mm\"/></sensor></scene>"),
+                    "give either \"fov\" or \"focal_length\"");
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\">\n<sensor type=\"perspective\">"
                           "<float name=\"fov\" value=\"40\"/>"
-                          "<string name=\"fov_axis\" value=\"diagonal\"/></sensor></scene>"),
+                          "<string name=\"fov_axis\" value=\"diagonally\"/></sensor></scene>"),
                     "<string>:2: sensor \"perspective\", parameter \"fov_axis\"");
     EXPECT_CONTAINS(error(with_camera("<sensor type=\"perspective\"><float name=\"fov\" "
                                       "value=\"40\"/></sensor>")),
@@ -490,6 +492,13 @@ TEST_F(ParserTest, GarbageNeverCrashes) {
 // ---------------------------------------------------------------------------------------
 // Mitsuba 3 compatibility (issue 15): file resolution, <path>, wrapper integrators, the
 // default lens, spot and thindielectric.
+
+// The horizontal field of view (degrees) of a camera from its image-plane area and aspect.
+float fov_x_of(const Scene& scene) {
+    const float w = float(scene.camera().width()), h = float(scene.camera().height());
+    const float tan_x = std::sqrt(scene.camera().image_plane_area() / 4.0f * w / h);
+    return 2.0f * std::atan(tan_x) / kDeg;
+}
 
 TEST_F(ParserTest, IncludesResolveAgainstTheIncludingFileThenTheScene) {
     fs::create_directories(dir_ / "include");
@@ -605,6 +614,63 @@ TEST_F(ParserTest, WrapperAndUnknownIntegratorsWarnInsteadOfFailing) {
     EXPECT_CONTAINS(error(with_camera("<integrator type=\"moment\"><bsdf type=\"diffuse\"/>"
                                       "</integrator>")),
                     "unknown tag <bsdf>");
+}
+
+TEST_F(ParserTest, PerspectiveFocalLengthAndDiagonalFov) {
+    auto camera = [&](const std::string& params, int w, int h) {
+        return load("<scene version=\"3.0.0\"><sensor type=\"perspective\">" + params +
+                    "<film type=\"hdrfilm\"><integer name=\"width\" value=\"" + std::to_string(w) +
+                    "\"/><integer name=\"height\" value=\"" + std::to_string(h) +
+                    "\"/></film></sensor></scene>");
+    };
+    // Mitsuba's default: a 50 mm lens on 36 x 24 mm film. On a 3:2 image the diagonal field
+    // of view is the film's, so the horizontal one is that of 36 mm at 50 mm: 39.598 degrees.
+    const float fov_50mm_x = 2.0f * std::atan(18.0f / 50.0f) / kDeg;
+    EXPECT_NEAR(fov_x_of(*camera("", 360, 240)), fov_50mm_x, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<string name=\"focal_length\" value=\"50mm\"/>", 360, 240)),
+                fov_50mm_x, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<string name=\"focal_length\" value=\"24\"/>", 36, 24)),
+                2.0f * std::atan(18.0f / 24.0f) / kDeg, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<float name=\"focal_length\" value=\"100\"/>", 36, 24)),
+                2.0f * std::atan(18.0f / 100.0f) / kDeg, 1e-3f);
+    // A square image keeps the diagonal: tan(x/2) = tan(diag/2) / sqrt(2).
+    const float tan_diag = std::sqrt(36.0f * 36.0f + 24.0f * 24.0f) / 100.0f;
+    EXPECT_NEAR(fov_x_of(*camera("", 100, 100)),
+                2.0f * std::atan(tan_diag / std::sqrt(2.0f)) / kDeg, 1e-3f);
+    // fov_axis="diagonal" with an explicit fov.
+    EXPECT_NEAR(fov_x_of(*camera("<float name=\"fov\" value=\"60\"/><string name=\"fov_axis\" "
+                                 "value=\"diagonal\"/>",
+                                 400, 300)),
+                2.0f * std::atan(std::tan(30 * kDeg) * 0.8f) / kDeg, 1e-3f);
+    // Errors name the field.
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><string "
+                          "name=\"focal_length\" value=\"wide\"/></sensor></scene>"),
+                    "<string>:2: sensor \"perspective\", parameter \"focal_length\"");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><float "
+                          "name=\"focal_length\" value=\"-5\"/></sensor></scene>"),
+                    "parameter \"focal_length\"");
+    // As in Mitsuba, fov_axis only goes with fov.
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><string "
+                          "name=\"fov_axis\" value=\"y\"/></sensor></scene>"),
+                    "unused parameter \"fov_axis\"");
+}
+
+TEST(MitsubaCompatibility, TestSceneLoads) {
+    // tests/data/mitsuba/README.md lists what each file exercises.
+    const fs::path root = fs::path(RENDER_SOURCE_DIR) / "tests/data/mitsuba";
+    ::testing::internal::CaptureStderr();
+    std::unique_ptr<Scene> scene = load_scene(root / "scene.xml");
+    ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "volpath");
+    EXPECT_EQ(scene->settings.max_depth, 6);
+    EXPECT_EQ(scene->shapes().size(), 3u);
+    ASSERT_EQ(scene->lights().size(), 1u);
+    EXPECT_NE(scene->lights()[0]->to_string().find("SpotLight"), std::string::npos);
+    EXPECT_NEAR(fov_x_of(*scene), 2.0f * std::atan(18.0f / 50.0f) / kDeg, 1e-3f);
+    // include/b.xml's pane comes first (its include precedes the other shapes).
+    ASSERT_NE(scene->shapes()[0]->bsdf, nullptr);
+    EXPECT_EQ(scene->shapes()[0]->bsdf->to_string().rfind("thindielectric(eta 1.49", 0), 0u)
+        << scene->shapes()[0]->bsdf->to_string();
 }
 
 // Every scene file shipped in scenes/ (files under include/ folders are fragments that the

@@ -362,21 +362,35 @@ class Loader {
             throw SceneError(
                 e.where(), "unknown sensor type \"" + props.type() + "\" (supported: perspective)");
         PerspectiveCamera camera = build(props, [&] {
-            float fov = props.get_float("fov");
-            if (!(fov > 0 && fov < 180)) throw props.error("fov", "must be in (0, 180) degrees");
-            std::string axis = props.get_string("fov_axis", "x");
-            char fov_axis;
-            if (axis == "x")
-                fov_axis = 'x';
-            else if (axis == "y")
-                fov_axis = 'y';
-            else if (axis == "smaller")
-                fov_axis = width <= height ? 'x' : 'y';
-            else if (axis == "larger")
-                fov_axis = width >= height ? 'x' : 'y';
-            else
-                throw props.error("fov_axis",
-                                  "\"" + axis + "\" is not supported (x, y, smaller or larger)");
+            float fov = 0;
+            char fov_axis = 'x';
+            if (props.has("fov") && props.has("focal_length"))
+                throw props.error("focal_length", "give either \"fov\" or \"focal_length\"");
+            if (props.has("fov")) {
+                fov = props.get_float("fov");
+                if (!(fov > 0 && fov < 180))
+                    throw props.error("fov", "must be in (0, 180) degrees");
+                std::string axis = props.get_string("fov_axis", "x");
+                if (axis == "x")
+                    fov_axis = 'x';
+                else if (axis == "y")
+                    fov_axis = 'y';
+                else if (axis == "diagonal")
+                    fov_axis = 'd';
+                else if (axis == "smaller")
+                    fov_axis = width <= height ? 'x' : 'y';
+                else if (axis == "larger")
+                    fov_axis = width >= height ? 'x' : 'y';
+                else
+                    throw props.error("fov_axis", "\"" + axis +
+                                                      "\" is not supported (x, y, diagonal, "
+                                                      "smaller or larger)");
+            } else {
+                // Mitsuba: a lens of this focal length on a 36 x 24 mm film; its diagonal
+                // field of view becomes the image's diagonal (fov_axis does not apply).
+                fov = fov_from_focal_length(props);
+                fov_axis = 'd';
+            }
             float near_clip = props.get_float("near_clip", 0.01f);
             float far_clip = props.get_float("far_clip", 10000.0f);
             if (!(near_clip > 0)) throw props.error("near_clip", "must be positive");
@@ -390,6 +404,34 @@ class Loader {
         scene_.set_camera_medium(camera_medium);
         have_sensor_ = true;
         sensor_where_ = e.where();
+    }
+
+    // `focal_length` ("50mm" as Mitsuba writes it, or a number of millimetres; default 50 mm)
+    // as the diagonal field of view of a 36 x 24 mm film, in degrees.
+    static float fov_from_focal_length(const Properties& props) {
+        float mm = 50.0f;
+        if (const std::string* text = props.peek_string("focal_length")) {
+            std::string number = props.get_string("focal_length");
+            if (number.size() > 2 && number.compare(number.size() - 2, 2, "mm") == 0)
+                number.resize(number.size() - 2);
+            try {
+                size_t used = 0;
+                mm = std::stof(number, &used);
+                if (used != number.size()) mm = -1;
+            } catch (const std::exception&) {
+                mm = -1;
+            }
+            if (!(mm > 0) || !std::isfinite(mm))
+                throw props.error("focal_length", "\"" + *text +
+                                                      "\" is not a positive length such as "
+                                                      "\"50mm\"");
+        } else if (props.has("focal_length")) {
+            mm = props.get_float("focal_length");
+            if (!(mm > 0) || !std::isfinite(mm))
+                throw props.error("focal_length", "must be a positive length in millimetres");
+        }
+        const double diagonal_mm = std::sqrt(36.0 * 36.0 + 24.0 * 24.0);
+        return float(2.0 * std::atan(diagonal_mm / (2.0 * double(mm))) * 180.0 / 3.14159265358979);
     }
 
     void read_film(const XmlElement& e, int& width, int& height) {
