@@ -179,7 +179,13 @@ const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::pa
     scene_.reset();
     scene_key_.clear();
     auto t0 = Clock::now();
-    std::unique_ptr<Scene> scene = load_scene(scene_file, defines);
+    // The job's folder: the scene file's path without the bundle's scene_path.
+    std::filesystem::path job_dir = scene_file;
+    for (const auto& part : std::filesystem::path(lease.bundle().scene_path())) {
+        (void)part;
+        job_dir = job_dir.parent_path();
+    }
+    std::unique_ptr<Scene> scene = load_scene(scene_file, defines, job_dir);
     if (s.width() > 0 && s.height() > 0)
         scene->set_camera(scene->camera().with_resolution(int(s.width()), int(s.height())));
     log_info("scene_loaded")

@@ -545,6 +545,55 @@ TEST_F(ParserTest, RelativeSceneFileResolvesFromTheWorkingDirectory) {
     EXPECT_EQ(scene->shapes().size(), 1u);
 }
 
+TEST_F(ParserTest, ConfinedLoadRefusesFilesOutsideTheFolder) {
+    // The server and the workers load a job's scene confined to the job's folder: nothing
+    // outside it may be read.
+    fs::create_directories(dir_ / "job/sub");
+    write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("outside.xml", "<scene version=\"3.0.0\"/>");
+    write("job/inside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("job/sub/inner.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"../inside.obj\"/></shape></scene>");
+    auto scene_with = [&](const std::string& body) {
+        return write("job/scene.xml", with_camera(body + "\n"));
+    };
+    auto confined_error = [&](const std::string& body) -> std::string {
+        try {
+            load_scene(scene_with(body), {}, dir_ / "job");
+        } catch (const SceneError& e) {
+            return e.what();
+        }
+        return "(no error)";
+    };
+    const std::string obj = "<shape type=\"obj\"><string name=\"filename\" value=\"$f\"/></shape>";
+    // Inside: fine, also through "..", <path> and an include in a subfolder.
+    EXPECT_NO_THROW(
+        load_scene(scene_with("<include filename=\"sub/inner.xml\"/>"), {}, dir_ / "job"));
+    EXPECT_NO_THROW(load_scene(scene_with("<path value=\"sub\"/>" + obj),
+                               {{"f", "sub/../inside.obj"}}, dir_ / "job"));
+    // Outside: refused, naming the line and the file; the same scenes load without the rule.
+    EXPECT_CONTAINS(confined_error("<include filename=\"../outside.xml\"/>"),
+                    "scene.xml:3: <include>: " + (dir_ / "outside.xml").string() + " is outside " +
+                        (dir_ / "job").string());
+    EXPECT_CONTAINS(confined_error("<shape type=\"obj\"><string name=\"filename\" value=\"" +
+                                   (dir_ / "outside.obj").string() + "\"/></shape>"),
+                    "parameter \"filename\": " + (dir_ / "outside.obj").string() + " is outside " +
+                        (dir_ / "job").string());
+    EXPECT_CONTAINS(confined_error("<path value=\"..\"/>"), "scene.xml:3: <path>: ");
+    EXPECT_CONTAINS(confined_error("<path value=\"/\"/>"),
+                    "is outside " + fs::weakly_canonical(dir_ / "job").string());
+    EXPECT_NO_THROW(load_scene(scene_with("<include filename=\"../outside.xml\"/>")));
+    // A symbolic link inside the folder that points outside is outside.
+    std::error_code ec;
+    fs::create_symlink(dir_ / "outside.obj", dir_ / "job/link.obj", ec);
+    if (!ec) {
+        EXPECT_CONTAINS(confined_error("<shape type=\"obj\"><string name=\"filename\" "
+                                       "value=\"link.obj\"/></shape>"),
+                        "is outside " + fs::weakly_canonical(dir_ / "job").string());
+    }
+}
+
 TEST_F(ParserTest, SearchPathsAfterTheScenesFolder) {
     fs::create_directories(dir_ / "assets/more");
     write("assets/more/only_here.obj", "v 0 0 0\nv 3 0 0\nv 0 1 0\nf 1 2 3\n");

@@ -51,8 +51,13 @@ constexpr const char* kSamplerTypes[] = {"independent", "stratified", "multijitt
 
 class Loader {
   public:
-    Loader(Scene& scene, const std::map<std::string, std::string>& defines)
-        : scene_(scene), params_(defines.begin(), defines.end()), resolver_(".") {}
+    Loader(Scene& scene, const std::map<std::string, std::string>& defines,
+           const std::filesystem::path& confine_to)
+        : scene_(scene),
+          params_(defines.begin(), defines.end()),
+          resolver_("."),
+          confined_(!confine_to.empty()),
+          confine_root_(confined_ ? canonical_path(confine_to) : std::filesystem::path()) {}
 
     void load_root(const XmlFile& file) {
         resolver_ = FileResolver(file.dir());
@@ -71,6 +76,24 @@ class Loader {
         std::error_code ec;
         std::filesystem::path p = std::filesystem::weakly_canonical(file.name(), ec);
         return ec ? file.name() : p.string();
+    }
+
+    static std::filesystem::path canonical_path(const std::filesystem::path& p) {
+        std::error_code ec;
+        std::filesystem::path c = std::filesystem::weakly_canonical(p, ec);
+        return ec ? std::filesystem::absolute(p).lexically_normal() : c;
+    }
+
+    // With a `confine_to` folder, `path` (a file or a <path> folder) must lie inside it.
+    bool outside_scene_folder(const std::filesystem::path& path) const {
+        if (!confined_) return false;
+        const std::string rel =
+            canonical_path(path).lexically_relative(confine_root_).generic_string();
+        return rel.empty() || rel == ".." || rel.rfind("../", 0) == 0;
+    }
+    std::string outside_message(const std::filesystem::path& path) const {
+        return path.string() + " is outside " + confine_root_.string() +
+               " (a job reads only the files of its bundle)";
     }
 
     static void warn(const SourceLocation& where, const std::string& message) {
@@ -143,10 +166,11 @@ class Loader {
         // Every plugin's file (meshes, environment maps, volume grids) resolves like an
         // <include>; the plugin then reads the resolved path, made absolute because plugins
         // join relative names to their own folder.
-        if (const std::string* name = props.peek_string("filename"); name && !name->empty())
-            props.replace_string(
-                "filename",
-                std::filesystem::absolute(resolve_file(*name, e.file().dir())).string());
+        if (const std::string* name = props.peek_string("filename"); name && !name->empty()) {
+            std::filesystem::path path = resolve_file(*name, e.file().dir());
+            if (outside_scene_folder(path)) throw props.error("filename", outside_message(path));
+            props.replace_string("filename", std::filesystem::absolute(path).string());
+        }
         return props;
     }
 
@@ -231,6 +255,8 @@ class Loader {
         std::filesystem::path file = e.required("filename");
         if (file.empty()) throw SceneError(e.where(), "<include>: empty filename");
         std::filesystem::path path = resolve_file(file, e.file().dir());
+        if (outside_scene_folder(path))
+            throw SceneError(e.where(), "<include>: " + outside_message(path));
         std::error_code ec;
         if (!std::filesystem::is_regular_file(path, ec))
             throw SceneError(e.where(), "<include>: file not found: " + path.string() +
@@ -264,6 +290,8 @@ class Loader {
         const std::string value = e.required("value");
         if (value.empty()) throw SceneError(e.where(), "<path> has an empty value");
         std::filesystem::path folder = resolver_.search_folder(value);
+        if (outside_scene_folder(folder))
+            throw SceneError(e.where(), "<path>: " + outside_message(folder));
         std::error_code ec;
         if (!std::filesystem::is_directory(folder, ec))
             warn(e.where(), "<path>: folder not found: " + folder.string());
@@ -694,6 +722,8 @@ class Loader {
     Scene& scene_;
     ParameterTable params_;
     FileResolver resolver_;
+    bool confined_ = false;
+    std::filesystem::path confine_root_;
     std::vector<std::string> include_stack_;
     std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
     std::map<std::string, SourceLocation> ids_;
@@ -706,11 +736,12 @@ class Loader {
 };
 
 std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std::string>& defines,
-                            const std::string& source_file) {
+                            const std::string& source_file,
+                            const std::filesystem::path& confine_to) {
     auto scene = std::make_unique<Scene>();
     scene->source_file = source_file;
     try {
-        Loader(*scene, defines).load_root(file);
+        Loader(*scene, defines, confine_to).load_root(file);
         scene->commit();
     } catch (const SceneError&) {
         throw;
@@ -723,16 +754,17 @@ std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std
 }  // namespace
 
 std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
-                                  const std::map<std::string, std::string>& defines) {
+                                  const std::map<std::string, std::string>& defines,
+                                  const std::filesystem::path& confine_to) {
     std::unique_ptr<XmlFile> xml = XmlFile::load(file);
-    return load(*xml, defines, file.string());
+    return load(*xml, defines, file.string(), confine_to);
 }
 
 std::unique_ptr<Scene> load_scene_from_string(const std::string& xml,
                                               const std::filesystem::path& base_dir,
                                               const std::map<std::string, std::string>& defines) {
     XmlFile file(xml, "<string>", base_dir.empty() ? std::filesystem::path(".") : base_dir);
-    return load(file, defines, "<string>");
+    return load(file, defines, "<string>", {});
 }
 
 }  // namespace render
