@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/scene/loader/file_resolver.h"
 #include "core/util/sha256.h"
 
 namespace render::service {
@@ -17,7 +18,7 @@ namespace {
 class Collector {
   public:
     Collector(fs::path root, std::map<std::string, std::string> params)
-        : root_(std::move(root)), params_(std::move(params)) {}
+        : root_(root), params_(std::move(params)), resolver_(std::move(root)) {}
 
     void visit_scene_file(const fs::path& file, int depth) {
         if (depth > 32) throw std::runtime_error(file.string() + ": includes nested too deeply");
@@ -97,17 +98,23 @@ class Collector {
                         substitute(node.attribute("value").value(), nullptr);
                     if (v) params_[name] = *v;
                 }
+            } else if (tag == "path") {
+                add_search_path(need(node.attribute("value").value(), file, node), file);
             } else if (tag == "include") {
                 std::string name = need(node.attribute("filename").value(), file, node);
-                fs::path included = (file.parent_path() / name).lexically_normal();
+                fs::path included = resolve(name, file);
                 add_file(included, file);
                 visit_scene_file(included, depth + 1);
             } else if (std::string(node.attribute("name").value()) == "filename" &&
                        node.attribute("value")) {
                 std::string name = need(node.attribute("value").value(), file, node);
-                add_file(file.parent_path() / name, file);
+                add_file(resolve(name, file), file);
             } else if (tag == "integrator" && integrator.empty()) {
-                if (auto v = substitute(node.attribute("type").value(), nullptr)) integrator = *v;
+                // As the loader: wrappers (moment, aov, ...) are looked through to the first
+                // nested integrator.
+                pugi::xml_node inner = node;
+                while (pugi::xml_node nested = inner.child("integrator")) inner = nested;
+                if (auto v = substitute(inner.attribute("type").value(), nullptr)) integrator = *v;
             } else if (tag == "integer" &&
                        std::string(node.attribute("name").value()) == "sample_count" &&
                        std::string(parent.name()) == "sampler" && !sample_count) {
@@ -123,8 +130,35 @@ class Collector {
         }
     }
 
+    // The loader's resolution (FileResolver): the naming file's folder, the scene's folder,
+    // the <path> folders. A name found nowhere is reported at its first candidate.
+    fs::path resolve(const std::string& name, const fs::path& naming_file) const {
+        if (std::optional<fs::path> found = resolver_.resolve(name, naming_file.parent_path()))
+            return *found;
+        return resolver_.candidates(name, naming_file.parent_path()).front();
+    }
+
+    // A <path> folder must lie in the scene's folder and be relative: the job's folder on the
+    // server and the workers is a copy of the scene's folder, nothing outside it.
+    void add_search_path(const std::string& value, const fs::path& file) {
+        if (value.empty()) throw std::runtime_error(file.string() + ": <path> has an empty value");
+        if (fs::path(value).is_absolute())
+            throw std::runtime_error(file.string() + ": <path value=\"" + value +
+                                     "\"> is absolute; a job carries only the scene's folder: "
+                                     "give the folder relative to the scene's folder");
+        fs::path folder = resolver_.search_folder(value);
+        std::string rel = folder.lexically_relative(root_).generic_string();
+        if (rel.empty() || rel.rfind("..", 0) == 0)
+            throw std::runtime_error(file.string() + ": <path value=\"" + value + "\"> (" +
+                                     folder.string() + ") is outside the scene's folder " +
+                                     root_.string() +
+                                     "; a job can only carry files under the scene's folder");
+        resolver_.add_search_path(folder);
+    }
+
     fs::path root_;
     std::map<std::string, std::string> params_;
+    FileResolver resolver_;
     std::set<std::string> active_, seen_;
 };
 

@@ -227,15 +227,15 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
             files.emplace_back(f.path(), f.sha256());
         assets_.materialize(files, scene_dir);
         // Frame 0 validates the scene and gives the film size of every frame.
-        std::unique_ptr<Scene> scene =
-            load_scene(scene_dir / request.bundle().scene_path(), frame_defines(request, 0));
+        std::unique_ptr<Scene> scene = load_scene(scene_dir / request.bundle().scene_path(),
+                                                  frame_defines(request, 0), scene_dir);
         v1::RenderSettings* s = request.mutable_settings();
         // The job stores the complete options its algorithm reads, resolved as `render` and
         // the worker resolve them (defaults, the scene's values, the request's options), so
         // every worker renders the same settings and the EXR header can record them.
-        const RenderSettings settings = resolve_render_settings(
-            s->algorithm().empty() ? scene->settings.integrator : s->algorithm(),
-            service::request_options(*s), scene->settings);
+        const RenderSettings settings =
+            resolve_render_settings(job_algorithm(s->algorithm(), scene->settings.integrator),
+                                    service::request_options(*s), scene->settings);
         check_algorithm_supports_scene(settings.algorithm, *scene);
         s->set_algorithm(settings.algorithm);
         service::set_request_options(*s, render_settings_options(settings));

@@ -158,8 +158,7 @@ int render_scene(const Options& o) {
 
     // The same resolution as the service's worker: defaults, the scene's values, the options.
     RenderSettings settings = resolve_render_settings(
-        o.job.algorithm.empty() ? scene->settings.integrator : o.job.algorithm, o.job.options,
-        scene->settings);
+        job_algorithm(o.job.algorithm, scene->settings.integrator), o.job.options, scene->settings);
     settings.threads = o.threads;
     check_algorithm_supports_scene(settings.algorithm, *scene);
 

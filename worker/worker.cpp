@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
@@ -178,7 +179,13 @@ const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::pa
     scene_.reset();
     scene_key_.clear();
     auto t0 = Clock::now();
-    std::unique_ptr<Scene> scene = load_scene(scene_file, defines);
+    // The job's folder: the scene file's path without the bundle's scene_path.
+    std::filesystem::path job_dir = scene_file;
+    for (const auto& part : std::filesystem::path(lease.bundle().scene_path())) {
+        (void)part;
+        job_dir = job_dir.parent_path();
+    }
+    std::unique_ptr<Scene> scene = load_scene(scene_file, defines, job_dir);
     if (s.width() > 0 && s.height() > 0)
         scene->set_camera(scene->camera().with_resolution(int(s.width()), int(s.height())));
     log_info("scene_loaded")
@@ -237,9 +244,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         scene = &scene_for(lease, scene_file);
         // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
-        settings = resolve_render_settings(
-            s.algorithm().empty() ? scene->settings.integrator : s.algorithm(), request_options(s),
-            scene->settings);
+        settings = resolve_render_settings(job_algorithm(s.algorithm(), scene->settings.integrator),
+                                           request_options(s), scene->settings);
         settings.threads = options_.threads;
     } catch (const std::exception& e) {
         return fail(e.what());

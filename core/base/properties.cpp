@@ -101,4 +101,28 @@ void Properties::check_all_used() const {
                                               "\" (misspelt, or not supported by this plugin)");
 }
 
+std::vector<std::pair<std::string, SourceLocation>> Properties::unused() const {
+    std::vector<std::pair<std::string, SourceLocation>> out;
+    for (const auto& [name, entry] : values_)
+        if (!entry.used) out.emplace_back(name, entry.where);
+    return out;
+}
+
+void Properties::mark_all_used() const {
+    for (const auto& [name, entry] : values_) entry.used = true;
+}
+
+const std::string* Properties::peek_string(const std::string& name) const {
+    auto it = values_.find(name);
+    return it == values_.end() ? nullptr : std::get_if<std::string>(&it->second.value);
+}
+
+void Properties::replace_string(const std::string& name, std::string value) {
+    auto it = values_.find(name);
+    if (it == values_.end() || !std::holds_alternative<std::string>(it->second.value))
+        throw SceneError(
+            where_, class_ + " \"" + type_ + "\": no string parameter \"" + name + "\" to replace");
+    it->second.value = std::move(value);
+}
+
 }  // namespace render

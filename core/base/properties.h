@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -66,6 +67,17 @@ class Properties {
     SceneError error(const std::string& name, const std::string& message) const;
     // Throws a SceneError naming the first value nobody read.
     void check_all_used() const;
+    // The names of the values nobody read yet, with where they were written (for plugins that
+    // ignore some parameters with a warning instead of refusing them).
+    std::vector<std::pair<std::string, SourceLocation>> unused() const;
+    // Marks every value as read.
+    void mark_all_used() const;
+
+    // The string value of `name` without marking it read; null when absent or not a string.
+    const std::string* peek_string(const std::string& name) const;
+    // Replaces the value of an existing string parameter, keeping its location and whether it
+    // was read (the loader rewrites `filename` to the file it resolved).
+    void replace_string(const std::string& name, std::string value);
 
   private:
     struct Entry {

@@ -19,6 +19,10 @@ PerspectiveCamera::PerspectiveCamera(const Transform& to_world, float fov_degree
     if (fov_axis == 'y') {
         tan_half_y_ = tan_half;
         tan_half_x_ = tan_half * aspect;
+    } else if (fov_axis == 'd') {
+        // The diagonal: tan_half_x^2 + tan_half_y^2 = tan_half^2 with tan_half_y = x / aspect.
+        tan_half_x_ = tan_half / std::sqrt(1.0f + 1.0f / (aspect * aspect));
+        tan_half_y_ = tan_half_x_ / aspect;
     } else {
         tan_half_x_ = tan_half;
         tan_half_y_ = tan_half / aspect;

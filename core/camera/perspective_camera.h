@@ -18,7 +18,7 @@ namespace render {
 class PerspectiveCamera {
   public:
     PerspectiveCamera() = default;
-    // fov in degrees along fov_axis ('x' or 'y'); width, height in pixels.
+    // fov in degrees along fov_axis ('x', 'y' or 'd', the diagonal); width, height in pixels.
     PerspectiveCamera(const Transform& to_world, float fov_degrees, char fov_axis, int width,
                       int height);
 

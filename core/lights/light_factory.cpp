@@ -10,6 +10,8 @@
 #include "core/lights/directional_light.h"
 #include "core/lights/envmap_light.h"
 #include "core/lights/point_light.h"
+#include "core/lights/spot_light.h"
+#include "core/math/constants.h"
 
 namespace render {
 namespace {
@@ -35,6 +37,27 @@ std::unique_ptr<Light> make_point(const Properties& props) {
                         : props.get_transform("to_world", Transform()).apply_point(Vec3(0.0f));
     if (!is_finite(position)) throw props.error("position", "must be finite");
     return std::make_unique<PointLight>(position, get_emission(props, "intensity", Rgb(1.0f)));
+}
+
+// Mitsuba's `spot`: at the origin of to_world, shining along its +z.
+std::unique_ptr<Light> make_spot(const Properties& props) {
+    const Transform to_world = props.get_transform("to_world", Transform());
+    std::optional<Frame> frame = EnvmapLight::rotation_frame(to_world);
+    if (!frame)
+        throw props.error("to_world",
+                          "a spot light's to_world must be a rotation and translation (e.g. "
+                          "<lookat>), optionally uniformly scaled");
+    const Vec3 position = to_world.apply_point(Vec3(0.0f));
+    if (!is_finite(position)) throw props.error("to_world", "the position must be finite");
+    const float cutoff = props.get_float("cutoff_angle", 20.0f);
+    if (!(cutoff > 0 && cutoff <= 180))
+        throw props.error("cutoff_angle", "must be in (0, 180] degrees");
+    const float beam = props.get_float("beam_width", cutoff * 0.75f);
+    if (!(beam >= 0 && beam <= cutoff))
+        throw props.error("beam_width", "must be in [0, cutoff_angle] degrees");
+    return std::make_unique<SpotLight>(position, *frame,
+                                       get_emission(props, "intensity", Rgb(1.0f)),
+                                       cutoff * kPi / 180.0f, beam * kPi / 180.0f);
 }
 
 std::unique_ptr<Light> make_directional(const Properties& props) {
@@ -86,6 +109,8 @@ const Plugin<LightFactory> kPlugins[] = {
     {"area", make_area},
     {"point",
      [](const Properties& p, const Shape*, const std::filesystem::path&) { return make_point(p); }},
+    {"spot",
+     [](const Properties& p, const Shape*, const std::filesystem::path&) { return make_spot(p); }},
     {"directional", [](const Properties& p, const Shape*,
                        const std::filesystem::path&) { return make_directional(p); }},
     {"constant", make_constant},

@@ -10,6 +10,7 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 
 namespace render {
@@ -22,6 +23,7 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"roughconductor", &RoughConductorBsdf::create},
     {"dielectric", &DielectricBsdf::create},
     {"roughdielectric", &RoughDielectricBsdf::create},
+    {"thindielectric", &ThinDielectricBsdf::create},
     {"plastic", &PlasticBsdf::create},
     {"phong", &PhongBsdf::create},
     {"null", &NullBsdf::create},

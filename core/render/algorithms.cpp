@@ -156,6 +156,15 @@ const Algorithm& find_algorithm_or_throw(std::string_view name) {
                                 "\" (supported: " + algorithm_names() + ")");
 }
 
+std::string job_algorithm(const std::string& requested, const std::string& scene_integrator) {
+    if (!requested.empty() || find_algorithm(scene_integrator))
+        return requested.empty() ? scene_integrator : requested;
+    throw std::invalid_argument(
+        "the scene's integrator \"" + scene_integrator.substr(0, 64) +
+        "\" is not an algorithm of this renderer: choose one with --algo (" + algorithm_names() +
+        ")");
+}
+
 std::string algorithm_names() {
     std::string out;
     for (const Algorithm& a : table()) out += (out.empty() ? "" : ", ") + a.name;

@@ -46,6 +46,12 @@ const Algorithm* find_algorithm(std::string_view name_or_alias);
 // The same; throws std::invalid_argument "unknown algorithm "x" (supported: ...)".
 const Algorithm& find_algorithm_or_throw(std::string_view name_or_alias);
 
+// The algorithm a job renders with: `requested` (--algo, the API's settings.algorithm) when
+// given, else the scene file's integrator type (Mitsuba's `path` is `pt`). A scene integrator
+// that names no algorithm (Mitsuba's `direct`, `ptracer`, ...) throws std::invalid_argument
+// asking for --algo; an unknown `requested` is left to find_algorithm_or_throw's message.
+std::string job_algorithm(const std::string& requested, const std::string& scene_integrator);
+
 // "pt, volpt, lt, ...": the names, for messages.
 std::string algorithm_names();
 // "  pt      path tracing\n ...": name, aliases and description per line, for --help.

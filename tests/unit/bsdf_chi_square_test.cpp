@@ -17,12 +17,14 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 #include "tests/support/chi_square.h"
 
 namespace render {
 namespace {
 
+using testing::chi_square_test_discrete;
 using testing::chi_square_test_sphere;
 using testing::ChiSquareDeclaration;
 using testing::ChiSquareFamily;
@@ -225,6 +227,49 @@ TEST_P(MicrofacetChiSquare, NormalsFollowPdf) {
 INSTANTIATE_TEST_SUITE_P(Distributions, MicrofacetChiSquare,
                          ::testing::ValuesIn(microfacet_cases()),
                          [](const auto& info) { return info.param.name; });
+
+// thindielectric has two delta lobes and no density to histogram: its sampler is tested on
+// which lobe it picks and where the lobe points. Cells are (incident direction, lobe), four
+// directions from both sides with equal shares of the samples; the expected fractions are the
+// slab reflectance R' = R + T^2 R / (1 - R^2) computed here from the Fresnel formula, not from
+// the BSDF's own helper.
+CHI_SQUARE_TEST(family, ThinDielectricChiSquare, LobesFollowSlabFresnel, 1) {
+    const float eta = 1.5f;
+    const ThinDielectricBsdf pane(eta, Rgb(1.0f), Rgb(1.0f));
+    const float cosines[] = {0.9f, 0.3f, 0.08f, -0.2f};
+    constexpr int per_direction = 50000;
+    std::vector<double> observed, probability;
+    Rng rng(StreamKey{21, 0, 1, 0});
+    for (float c : cosines) {
+        const Vec3 wo = incident(c);
+        // Unpolarised single-interface Fresnel reflectance from outside at |cos| = ci.
+        const double ci = std::abs(c), sin_t = std::sqrt(1 - ci * ci) / eta;
+        const double ct = std::sqrt(1 - sin_t * sin_t);
+        const double rs = (ci - eta * ct) / (ci + eta * ct), rp = (eta * ci - ct) / (eta * ci + ct);
+        const double r = 0.5 * (rs * rs + rp * rp), t = 1 - r;
+        const double slab = r + t * t * r / (1 - r * r);
+        double reflected = 0, transmitted = 0;
+        for (int i = 0; i < per_direction; ++i) {
+            const float u_lobe = rng.next_1d();
+            std::optional<BsdfSample> s =
+                pane.sample(wo, u_lobe, rng.next_2d(), TransportMode::Radiance);
+            ASSERT_TRUE(s && s->delta);
+            if (s->lobe == kLobeDeltaReflection) {
+                ASSERT_EQ(s->wi, Vec3(-wo.x, -wo.y, wo.z));  // the mirror direction
+                reflected += 1;
+            } else {
+                ASSERT_EQ(s->wi, -wo);
+                transmitted += 1;
+            }
+        }
+        observed.insert(observed.end(), {reflected, transmitted});
+        const double share = 1.0 / std::size(cosines);
+        probability.insert(probability.end(), {share * slab, share * (1 - slab)});
+    }
+    const ChiSquareResult result = chi_square_test_discrete(
+        family, observed, probability, per_direction * int(std::size(cosines)));
+    EXPECT_TRUE(result.passed) << result.message;
+}
 
 }  // namespace
 }  // namespace render

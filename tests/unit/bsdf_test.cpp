@@ -22,6 +22,7 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
@@ -83,6 +84,10 @@ std::vector<NamedBsdf> all_bsdfs() {
         {"roughconductor_ggx_all_normals", rough_conductor(MicrofacetType::GGX, 0.4f, 0.2f, false)},
         {"roughconductor_tiny_alpha", rough_conductor(MicrofacetType::GGX, 0.0f, 0.0f, true)},
         {"dielectric", std::make_shared<DielectricBsdf>(1.5f, Rgb(1.0f), Rgb(1.0f)), true},
+        {"thindielectric", std::make_shared<ThinDielectricBsdf>(1.5f, Rgb(1.0f), Rgb(1.0f)), true},
+        {"thindielectric_tinted",
+         std::make_shared<ThinDielectricBsdf>(1.33f, Rgb(0.9f, 0.8f, 0.7f), Rgb(0.5f, 0.6f, 0.7f)),
+         true},
         {"roughdielectric_ggx", rough_dielectric(MicrofacetType::GGX, 0.3f, true), true},
         {"roughdielectric_beckmann", rough_dielectric(MicrofacetType::Beckmann, 0.5f, true), true},
         {"roughdielectric_ggx_all_normals", rough_dielectric(MicrofacetType::GGX, 0.2f, false),
@@ -289,6 +294,48 @@ TEST(Bsdf, SmoothDielectricWhiteFurnace) {
         const float expected = R + (1 - R) * eta_ti * eta_ti;
         EXPECT_NEAR(radiance.mean.r, expected, 4.0f * radiance.standard_error.r + 1e-5f);
     }
+}
+
+TEST(Bsdf, ThinDielectricSlabFresnelAndStraightTransmission) {
+    // Lossless slab: weight 1 in both modes (no refraction, so no radiance scaling); the
+    // reflected fraction is R' = R + T^2 R / (1 - R^2) of the single interface's R, which for
+    // a lossless slab is 2R / (1 + R).
+    const ThinDielectricBsdf pane(1.5f, Rgb(1.0f), Rgb(1.0f));
+    for (float c : {0.95f, 0.6f, 0.2f, 0.02f, -0.95f, -0.5f, -0.1f}) {
+        SCOPED_TRACE(c);
+        const Vec3 wo = direction(c, 0.4f);
+        const float R = fresnel_dielectric(std::abs(c), 1.5f).reflectance;
+        const float slab = R + (1 - R) * (1 - R) * R / (1 - R * R);
+        EXPECT_NEAR(pane.slab_reflectance(c), slab, 1e-6f);
+        EXPECT_NEAR(pane.slab_reflectance(c), 2 * R / (1 + R), 1e-6f);
+        EXPECT_EQ(pane.slab_reflectance(c), pane.slab_reflectance(-c));  // both sides alike
+        for (TransportMode mode : {kRadiance, kImportance})
+            EXPECT_TRUE(close(estimate_albedo(pane, wo, mode, 20000, 3).mean, Rgb(1.0f), 1e-6));
+        // Deterministic lobe choice: u_lobe below R' reflects, above transmits straight on.
+        std::optional<BsdfSample> r = pane.sample(wo, 0.5f * slab, Vec2(0.3f, 0.3f), kRadiance);
+        ASSERT_TRUE(r);
+        EXPECT_EQ(r->lobe, kLobeDeltaReflection);
+        EXPECT_EQ(r->wi, reflect_z(wo));
+        EXPECT_NEAR(r->pdf_w.forward, slab, 1e-6f);
+        std::optional<BsdfSample> t =
+            pane.sample(wo, 0.5f * (1 + slab), Vec2(0.3f, 0.3f), kImportance);
+        ASSERT_TRUE(t);
+        EXPECT_EQ(t->lobe, kLobeDeltaTransmission);
+        EXPECT_EQ(t->wi, -wo);
+        EXPECT_EQ(t->eta, 1.0f);
+        EXPECT_NEAR(t->pdf_w.forward, 1 - slab, 1e-6f);
+        // Reciprocity: the reverse density is the forward density of the reverse sample.
+        EXPECT_EQ(t->pdf_w.reverse, 1.0f - pane.slab_reflectance(t->wi.z));
+        EXPECT_EQ(r->pdf_w.reverse, pane.slab_reflectance(r->wi.z));
+    }
+    // Tints scale the two lobes; a slab of index 1 transmits everything.
+    const ThinDielectricBsdf tinted(1.5f, Rgb(0.5f), Rgb(0.25f));
+    const float R = tinted.slab_reflectance(0.8f);
+    const Albedo albedo = estimate_albedo(tinted, direction(0.8f), kRadiance, 200000, 9);
+    EXPECT_NEAR(albedo.mean.r, 0.5f * R + 0.25f * (1 - R), 4 * albedo.standard_error.r + 1e-6f);
+    EXPECT_EQ(ThinDielectricBsdf(1.0f, Rgb(1.0f), Rgb(1.0f)).slab_reflectance(0.3f), 0.0f);
+    // From the denser side (eta < 1) beyond the critical angle, nothing enters the slab.
+    EXPECT_EQ(ThinDielectricBsdf(1.0f / 1.5f, Rgb(1.0f), Rgb(1.0f)).slab_reflectance(0.2f), 1.0f);
 }
 
 TEST(Bsdf, DiffuseAlbedoIsReflectance) {
@@ -516,14 +563,16 @@ std::string error_of(const Properties& props) {
 }
 
 TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
-    EXPECT_EQ(error_of(bsdf_props("velvet")),
-              "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
-              "conductor, roughconductor, dielectric, roughdielectric, plastic, phong, null)");
+    EXPECT_EQ(
+        error_of(bsdf_props("velvet")),
+        "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
+        "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, phong, "
+        "null)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {
     for (const char* type : {"diffuse", "conductor", "roughconductor", "dielectric",
-                             "roughdielectric", "plastic", "phong"}) {
+                             "roughdielectric", "thindielectric", "plastic", "phong"}) {
         Properties props = bsdf_props(type);
         std::shared_ptr<const Bsdf> bsdf = make_bsdf(props);
         ASSERT_TRUE(bsdf) << type;

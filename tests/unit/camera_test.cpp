@@ -52,6 +52,22 @@ TEST(PerspectiveCamera, FovAxisY) {
     EXPECT_NEAR(left.direction.x / left.direction.z, 2.0f, 1e-5);
 }
 
+TEST(PerspectiveCamera, FovAxisDiagonalKeepsTheDiagonal) {
+    // fov 90 along the diagonal: the corner ray is at 45 degrees, whatever the image's shape
+    // (a focal length maps to such a diagonal fov, as in Mitsuba).
+    for (auto [w, h] : {std::pair{300, 200}, std::pair{100, 100}, std::pair{50, 400}}) {
+        PerspectiveCamera camera =
+            PerspectiveCamera(Transform(), 90.0f, 'd', 64, 64).with_resolution(w, h);
+        Ray corner = camera.generate_ray(Vec2(0, 0));
+        EXPECT_NEAR(corner.direction.z, std::sqrt(0.5f), 1e-5) << w << "x" << h;
+        // Pixels stay square: the horizontal and vertical extents keep the aspect ratio.
+        Ray left = camera.generate_ray(Vec2(0, h / 2.0f));
+        Ray top = camera.generate_ray(Vec2(w / 2.0f, 0));
+        EXPECT_NEAR((left.direction.x / left.direction.z) / (top.direction.y / top.direction.z),
+                    float(w) / float(h), 1e-4);
+    }
+}
+
 TEST(PerspectiveCamera, DirectionPdfIntegratesToOne) {
     // Monte Carlo over the sphere of directions: E[pdf / uniform_pdf] = 1. With 2e6 samples the
     // standard error is below 3e-3 for this camera; the tolerance is 5 standard errors.

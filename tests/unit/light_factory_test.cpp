@@ -141,9 +141,9 @@ TEST(LightFactory, LoadsAnSrgbPngAsLinear) {
 }
 
 TEST(LightFactory, ErrorMessages) {
-    Properties unknown("emitter", "spot", at(12));
+    Properties unknown("emitter", "projector", at(12));
     EXPECT_EQ(factory_error(unknown),
-              "scene.xml:12: unknown emitter type \"spot\" (supported: area, point, "
+              "scene.xml:12: unknown emitter type \"projector\" (supported: area, point, spot, "
               "directional, constant, envmap)");
 
     Properties area("emitter", "area", at(13));

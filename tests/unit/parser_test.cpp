@@ -334,13 +334,13 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
         // unknown plugin types
         {"<shape type=\"teapot\"/>", "<string>:3: unknown shape type \"teapot\""},
         {"<bsdf type=\"velvet\"/>", "<string>:3:|velvet"},
-        {"<emitter type=\"spot\"/>", "<string>:3:|spot"},
+        {"<emitter type=\"projector\"/>", "<string>:3:|projector"},
         {"<integrator type=\"path\"/><integrator type=\"path\"/>", "only one <integrator>"},
         // unused parameter
         {"<shape type=\"sphere\">\n<float name=\"radiuss\" value=\"1\"/></shape>",
          "<string>:4: unused parameter \"radiuss\" in shape \"sphere\""},
-        {"<integrator type=\"path\"><integer name=\"maxdepth\" value=\"3\"/></integrator>",
-         "<string>:3: unused parameter \"maxdepth\""},
+        {"<integrator type=\"path\"><integer name=\"max_depth\" value=\"-2\"/></integrator>",
+         "<string>:3: integrator \"path\", parameter \"max_depth\""},
         {"<bsdf type=\"diffuse\">\n<rgb name=\"reflectence\" value=\"1\"/></bsdf>",
          "<string>:4: unused parameter \"reflectence\""},
         // missing mesh
@@ -434,11 +434,13 @@ TEST_F(ParserTest, SensorAndRootErrors) {
     EXPECT_CONTAINS(error(""), "<string>:1: malformed XML: No document element found");
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"thinlens\"/></scene>"),
                     "unknown sensor type \"thinlens\"");
-    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"/></scene>"),
-                    "needs parameter \"fov\"");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\">"
+                          "<float name=\"fov\" value=\"40\"/>"
+                          "<string name=\"focal_length\" value=\"35mm\"/></sensor></scene>"),
+                    "give either \"fov\" or \"focal_length\"");
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\">\n<sensor type=\"perspective\">"
                           "<float name=\"fov\" value=\"40\"/>"
-                          "<string name=\"fov_axis\" value=\"diagonal\"/></sensor></scene>"),
+                          "<string name=\"fov_axis\" value=\"diagonally\"/></sensor></scene>"),
                     "<string>:2: sensor \"perspective\", parameter \"fov_axis\"");
     EXPECT_CONTAINS(error(with_camera("<sensor type=\"perspective\"><float name=\"fov\" "
                                       "value=\"40\"/></sensor>")),
@@ -485,6 +487,239 @@ TEST_F(ParserTest, GarbageNeverCrashes) {
         // Any other exception escapes and fails the test.
     }
     EXPECT_GT(errors, 100);
+}
+
+// ---------------------------------------------------------------------------------------
+// Mitsuba 3 compatibility (issue 15): file resolution, <path>, wrapper integrators, the
+// default lens, spot and thindielectric.
+
+// The horizontal field of view (degrees) of a camera from its image-plane area and aspect.
+float fov_x_of(const Scene& scene) {
+    const float w = float(scene.camera().width()), h = float(scene.camera().height());
+    const float tan_x = std::sqrt(scene.camera().image_plane_area() / 4.0f * w / h);
+    return 2.0f * std::atan(tan_x) / kDeg;
+}
+
+TEST_F(ParserTest, IncludesResolveAgainstTheIncludingFileThenTheScene) {
+    fs::create_directories(dir_ / "include");
+    // include/a.xml names "include/b.xml" as Mitsuba users write it (from the scene's folder);
+    // include/c.xml is named "c.xml", beside the including file.
+    write("include/a.xml",
+          "<scene version=\"3.0.0\">\n<include filename=\"include/b.xml\"/>\n"
+          "<include filename=\"c.xml\"/>\n</scene>\n");
+    write("include/b.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"tri.obj\"/></shape></scene>");
+    write("include/c.xml", "<scene version=\"3.0.0\"><shape type=\"sphere\"/></scene>");
+    auto scene = load(with_camera("<include filename=\"include/a.xml\"/>\n"));
+    EXPECT_EQ(scene->shapes().size(), 2u);
+    // A file beside the including file wins over one of the same name in the scene's folder.
+    write("include/tri.obj", "v 0 0 0\nv 2 0 0\nv 0 2 0\nf 1 2 3\n");
+    auto beside = load(with_camera("<include filename=\"include/b.xml\"/>\n"));
+    EXPECT_NEAR(beside->shapes()[0]->surface_area(), 2.0f, 1e-5f);
+    // Not found anywhere: the message names the first place and the others.
+    write("include/d.xml",
+          "<scene version=\"3.0.0\">\n<include filename=\"missing.xml\"/>\n</scene>\n");
+    std::string e = error(with_camera("<include filename=\"include/d.xml\"/>\n"));
+    EXPECT_CONTAINS(
+        e, "d.xml:2: <include>: file not found: " + (dir_ / "include/missing.xml").string());
+    EXPECT_CONTAINS(e, "also looked for " + (dir_ / "missing.xml").string());
+}
+
+TEST_F(ParserTest, RelativeSceneFileResolvesFromTheWorkingDirectory) {
+    // render include/scene.xml: the folders are relative to the working directory, and a mesh
+    // named in an included file but found in the scene's folder must not be joined to the
+    // included file's folder a second time.
+    fs::create_directories(dir_ / "s/sub");
+    write("s/scene.xml", with_camera("<include filename=\"sub/a.xml\"/>\n"));
+    write("s/sub/a.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"m.obj\"/></shape></scene>");
+    write("s/m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const fs::path cwd = fs::current_path();
+    fs::current_path(dir_);
+    std::unique_ptr<Scene> scene;
+    EXPECT_NO_THROW(scene = load_scene("s/scene.xml"));
+    fs::current_path(cwd);
+    ASSERT_TRUE(scene);
+    EXPECT_EQ(scene->shapes().size(), 1u);
+}
+
+TEST_F(ParserTest, ConfinedLoadRefusesFilesOutsideTheFolder) {
+    // The server and the workers load a job's scene confined to the job's folder: nothing
+    // outside it may be read.
+    fs::create_directories(dir_ / "job/sub");
+    write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("outside.xml", "<scene version=\"3.0.0\"/>");
+    write("job/inside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("job/sub/inner.xml",
+          "<scene version=\"3.0.0\"><shape type=\"obj\"><string name=\"filename\" "
+          "value=\"../inside.obj\"/></shape></scene>");
+    auto scene_with = [&](const std::string& body) {
+        return write("job/scene.xml", with_camera(body + "\n"));
+    };
+    auto confined_error = [&](const std::string& body) -> std::string {
+        try {
+            load_scene(scene_with(body), {}, dir_ / "job");
+        } catch (const SceneError& e) {
+            return e.what();
+        }
+        return "(no error)";
+    };
+    const std::string obj = "<shape type=\"obj\"><string name=\"filename\" value=\"$f\"/></shape>";
+    // Inside: fine, also through "..", <path> and an include in a subfolder.
+    EXPECT_NO_THROW(
+        load_scene(scene_with("<include filename=\"sub/inner.xml\"/>"), {}, dir_ / "job"));
+    EXPECT_NO_THROW(load_scene(scene_with("<path value=\"sub\"/>" + obj),
+                               {{"f", "sub/../inside.obj"}}, dir_ / "job"));
+    // Outside: refused, naming the line and the file; the same scenes load without the rule.
+    EXPECT_CONTAINS(confined_error("<include filename=\"../outside.xml\"/>"),
+                    "scene.xml:3: <include>: " + (dir_ / "outside.xml").string() + " is outside " +
+                        (dir_ / "job").string());
+    EXPECT_CONTAINS(confined_error("<shape type=\"obj\"><string name=\"filename\" value=\"" +
+                                   (dir_ / "outside.obj").string() + "\"/></shape>"),
+                    "parameter \"filename\": " + (dir_ / "outside.obj").string() + " is outside " +
+                        (dir_ / "job").string());
+    EXPECT_CONTAINS(confined_error("<path value=\"..\"/>"), "scene.xml:3: <path>: ");
+    EXPECT_CONTAINS(confined_error("<path value=\"/\"/>"),
+                    "is outside " + fs::weakly_canonical(dir_ / "job").string());
+    EXPECT_NO_THROW(load_scene(scene_with("<include filename=\"../outside.xml\"/>")));
+    // A symbolic link inside the folder that points outside is outside.
+    std::error_code ec;
+    fs::create_symlink(dir_ / "outside.obj", dir_ / "job/link.obj", ec);
+    if (!ec) {
+        EXPECT_CONTAINS(confined_error("<shape type=\"obj\"><string name=\"filename\" "
+                                       "value=\"link.obj\"/></shape>"),
+                        "is outside " + fs::weakly_canonical(dir_ / "job").string());
+    }
+}
+
+TEST_F(ParserTest, SearchPathsAfterTheScenesFolder) {
+    fs::create_directories(dir_ / "assets/more");
+    write("assets/more/only_here.obj", "v 0 0 0\nv 3 0 0\nv 0 1 0\nf 1 2 3\n");
+    write("assets/tri.obj", "v 0 0 0\nv 4 0 0\nv 0 1 0\nf 1 2 3\n");
+    const std::string obj = "<shape type=\"obj\"><string name=\"filename\" value=\"$f\"/></shape>";
+    // Without a <path> the file is not found, at its first candidate.
+    EXPECT_CONTAINS(error(with_camera(obj), {{"f", "only_here.obj"}}),
+                    "mesh file not found: " + (dir_ / "only_here.obj").string());
+    // A relative <path> is relative to the scene's folder; <path>s are searched in order.
+    auto scene = load(with_camera("<path value=\"assets/more\"/>\n<path value=\"" +
+                                  (dir_ / "assets").string() + "\"/>\n" + obj),
+                      {{"f", "only_here.obj"}});
+    EXPECT_NEAR(scene->shapes()[0]->surface_area(), 1.5f, 1e-5f);
+    // The scene's own folder comes before every <path>: tri.obj of the scene's folder.
+    scene = load(with_camera("<path value=\"assets\"/>\n" + obj), {{"f", "tri.obj"}});
+    EXPECT_NEAR(scene->shapes()[0]->surface_area(), 0.5f, 1e-5f);
+    // A <path> applies from its position on.
+    EXPECT_CONTAINS(
+        error(with_camera(obj + "\n<path value=\"assets/more\"/>\n"), {{"f", "only_here.obj"}}),
+        "mesh file not found");
+    // A folder that does not exist is a warning, not an error; a malformed <path> is an error.
+    ::testing::internal::CaptureStderr();
+    load(with_camera("<path value=\"nowhere\"/>\n"));
+    EXPECT_CONTAINS(::testing::internal::GetCapturedStderr(),
+                    "<string>:3: <path>: folder not found: " + (dir_ / "nowhere").string());
+    EXPECT_CONTAINS(error(with_camera("<path value=\"assets\" name=\"x\"/>")),
+                    "<string>:3: unknown attribute \"name\"");
+    EXPECT_CONTAINS(error(with_camera("<path/>")), "<string>:3:");
+}
+
+TEST_F(ParserTest, WrapperAndUnknownIntegratorsWarnInsteadOfFailing) {
+    ::testing::internal::CaptureStderr();
+    auto scene = load(with_camera(R"(<integrator type="moment">
+    <integrator type="volpath">
+        <integer name="max_depth" value="7"/>
+        <integer name="rr_depth" value="3"/>
+        <boolean name="hide_emitters" value="true"/>
+    </integrator>
+    <integrator type="path"/>
+</integrator>
+)"));
+    std::string warnings = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "volpath");
+    EXPECT_EQ(scene->settings.max_depth, 7);
+    EXPECT_EQ(scene->settings.rr_depth, 3);
+    EXPECT_CONTAINS(warnings, "<string>:3: integrator \"moment\" wraps another");
+    EXPECT_CONTAINS(warnings,
+                    "<string>:7: integrator \"volpath\": parameter \"hide_emitters\" is "
+                    "ignored");
+    EXPECT_CONTAINS(warnings, "<string>:9: only the first integrator nested");
+
+    // An integrator this renderer does not implement loads too (render --algo chooses).
+    ::testing::internal::CaptureStderr();
+    scene =
+        load(with_camera("<integrator type=\"direct\">\n<integer name=\"emitter_samples\" "
+                         "value=\"4\"/>\n<integer name=\"max_depth\" value=\"2\"/>\n"
+                         "</integrator>\n"));
+    warnings = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "direct");
+    EXPECT_EQ(scene->settings.max_depth, 2);
+    EXPECT_CONTAINS(warnings, "<string>:4: integrator \"direct\": parameter \"emitter_samples\"");
+    // What is read is still checked.
+    EXPECT_CONTAINS(error(with_camera("<integrator type=\"aov\"><integrator type=\"path\">"
+                                      "<integer name=\"rr_depth\" value=\"0\"/></integrator>"
+                                      "</integrator>")),
+                    "<string>:3: integrator \"path\", parameter \"rr_depth\": must be positive");
+    EXPECT_CONTAINS(error(with_camera("<integrator type=\"moment\"><bsdf type=\"diffuse\"/>"
+                                      "</integrator>")),
+                    "unknown tag <bsdf>");
+}
+
+TEST_F(ParserTest, PerspectiveFocalLengthAndDiagonalFov) {
+    auto camera = [&](const std::string& params, int w, int h) {
+        return load("<scene version=\"3.0.0\"><sensor type=\"perspective\">" + params +
+                    "<film type=\"hdrfilm\"><integer name=\"width\" value=\"" + std::to_string(w) +
+                    "\"/><integer name=\"height\" value=\"" + std::to_string(h) +
+                    "\"/></film></sensor></scene>");
+    };
+    // Mitsuba's default: a 50 mm lens on 36 x 24 mm film. On a 3:2 image the diagonal field
+    // of view is the film's, so the horizontal one is that of 36 mm at 50 mm: 39.598 degrees.
+    const float fov_50mm_x = 2.0f * std::atan(18.0f / 50.0f) / kDeg;
+    EXPECT_NEAR(fov_x_of(*camera("", 360, 240)), fov_50mm_x, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<string name=\"focal_length\" value=\"50mm\"/>", 360, 240)),
+                fov_50mm_x, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<string name=\"focal_length\" value=\"24\"/>", 36, 24)),
+                2.0f * std::atan(18.0f / 24.0f) / kDeg, 1e-3f);
+    EXPECT_NEAR(fov_x_of(*camera("<float name=\"focal_length\" value=\"100\"/>", 36, 24)),
+                2.0f * std::atan(18.0f / 100.0f) / kDeg, 1e-3f);
+    // A square image keeps the diagonal: tan(x/2) = tan(diag/2) / sqrt(2).
+    const float tan_diag = std::sqrt(36.0f * 36.0f + 24.0f * 24.0f) / 100.0f;
+    EXPECT_NEAR(fov_x_of(*camera("", 100, 100)),
+                2.0f * std::atan(tan_diag / std::sqrt(2.0f)) / kDeg, 1e-3f);
+    // fov_axis="diagonal" with an explicit fov.
+    EXPECT_NEAR(fov_x_of(*camera("<float name=\"fov\" value=\"60\"/><string name=\"fov_axis\" "
+                                 "value=\"diagonal\"/>",
+                                 400, 300)),
+                2.0f * std::atan(std::tan(30 * kDeg) * 0.8f) / kDeg, 1e-3f);
+    // Errors name the field.
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><string "
+                          "name=\"focal_length\" value=\"wide\"/></sensor></scene>"),
+                    "<string>:2: sensor \"perspective\", parameter \"focal_length\"");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><float "
+                          "name=\"focal_length\" value=\"-5\"/></sensor></scene>"),
+                    "parameter \"focal_length\"");
+    // As in Mitsuba, fov_axis only goes with fov.
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><string "
+                          "name=\"fov_axis\" value=\"y\"/></sensor></scene>"),
+                    "unused parameter \"fov_axis\"");
+}
+
+TEST(MitsubaCompatibility, TestSceneLoads) {
+    // tests/data/mitsuba/README.md lists what each file exercises.
+    const fs::path root = fs::path(RENDER_SOURCE_DIR) / "tests/data/mitsuba";
+    ::testing::internal::CaptureStderr();
+    std::unique_ptr<Scene> scene = load_scene(root / "scene.xml");
+    ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(scene->settings.integrator, "volpath");
+    EXPECT_EQ(scene->settings.max_depth, 6);
+    EXPECT_EQ(scene->shapes().size(), 3u);
+    ASSERT_EQ(scene->lights().size(), 1u);
+    EXPECT_NE(scene->lights()[0]->to_string().find("SpotLight"), std::string::npos);
+    EXPECT_NEAR(fov_x_of(*scene), 2.0f * std::atan(18.0f / 50.0f) / kDeg, 1e-3f);
+    // include/b.xml's pane comes first (its include precedes the other shapes).
+    ASSERT_NE(scene->shapes()[0]->bsdf, nullptr);
+    EXPECT_EQ(scene->shapes()[0]->bsdf->to_string().rfind("thindielectric(eta 1.49", 0), 0u)
+        << scene->shapes()[0]->bsdf->to_string();
 }
 
 // Every scene file shipped in scenes/ (files under include/ folders are fragments that the

@@ -106,6 +106,21 @@ TEST(AlgorithmTable, MessagesAndHelpListEveryAlgorithm) {
     EXPECT_NE(message.find("\"mlt\""), std::string::npos) << message;
 }
 
+TEST(AlgorithmTable, JobAlgorithmComesFromAlgoOrTheScenesIntegrator) {
+    EXPECT_EQ(job_algorithm("", "path"), "path");  // an alias; resolve_render_settings maps it
+    EXPECT_EQ(job_algorithm("vcm", "path"), "vcm");
+    EXPECT_EQ(job_algorithm("bpt", "direct"), "bpt");  // --algo wins over any integrator
+    try {
+        job_algorithm("", "direct");
+        ADD_FAILURE() << "no error for a scene integrator that names no algorithm";
+    } catch (const std::invalid_argument& e) {
+        const std::string message = e.what();
+        EXPECT_NE(message.find("the scene's integrator \"direct\""), std::string::npos) << message;
+        EXPECT_NE(message.find("--algo"), std::string::npos) << message;
+        EXPECT_NE(message.find(algorithm_names()), std::string::npos) << message;
+    }
+}
+
 TEST(AlgorithmTable, EveryAlgorithmRendersAnIteration) {
     auto scene = load_scene_from_string(testing::scaled_box_scene(), ".");
     for (const Algorithm& a : algorithms()) {

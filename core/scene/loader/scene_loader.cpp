@@ -5,6 +5,7 @@
 #include "core/scene/loader/scene_loader.h"
 
 #include <cctype>
+#include <cmath>
 #include <iostream>
 #include <optional>
 #include <set>
@@ -13,6 +14,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium_factory.h"
 #include "core/media/volume_factory.h"
+#include "core/scene/loader/file_resolver.h"
 #include "core/scene/loader/property_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/loader/values.h"
@@ -34,7 +36,6 @@ constexpr Unsupported kUnsupportedTags[] = {
     {"srgb", "<srgb> colours are"},
     {"blackbody", "<blackbody> spectra are"},
     {"animation", "animated transforms (<animation>) are"},
-    {"path", "search paths (<path>) are"},
     {"alias", "<alias> is"},
 };
 
@@ -50,10 +51,16 @@ constexpr const char* kSamplerTypes[] = {"independent", "stratified", "multijitt
 
 class Loader {
   public:
-    Loader(Scene& scene, const std::map<std::string, std::string>& defines)
-        : scene_(scene), params_(defines.begin(), defines.end()) {}
+    Loader(Scene& scene, const std::map<std::string, std::string>& defines,
+           const std::filesystem::path& confine_to)
+        : scene_(scene),
+          params_(defines.begin(), defines.end()),
+          resolver_("."),
+          confined_(!confine_to.empty()),
+          confine_root_(confined_ ? canonical_path(confine_to) : std::filesystem::path()) {}
 
     void load_root(const XmlFile& file) {
+        resolver_ = FileResolver(file.dir());
         include_stack_.push_back(canonical_name(file));
         read_scene_element(file);
         include_stack_.pop_back();
@@ -69,6 +76,49 @@ class Loader {
         std::error_code ec;
         std::filesystem::path p = std::filesystem::weakly_canonical(file.name(), ec);
         return ec ? file.name() : p.string();
+    }
+
+    static std::filesystem::path canonical_path(const std::filesystem::path& p) {
+        std::error_code ec;
+        std::filesystem::path c = std::filesystem::weakly_canonical(p, ec);
+        return ec ? std::filesystem::absolute(p).lexically_normal() : c;
+    }
+
+    // With a `confine_to` folder, `path` (a file or a <path> folder) must lie inside it.
+    bool outside_scene_folder(const std::filesystem::path& path) const {
+        if (!confined_) return false;
+        const std::string rel =
+            canonical_path(path).lexically_relative(confine_root_).generic_string();
+        return rel.empty() || rel == ".." || rel.rfind("../", 0) == 0;
+    }
+    std::string outside_message(const std::filesystem::path& path) const {
+        return path.string() + " is outside " + confine_root_.string() +
+               " (a job reads only the files of its bundle)";
+    }
+
+    static void warn(const SourceLocation& where, const std::string& message) {
+        std::cerr << "warning: " << where.to_string() << ": " << message << "\n";
+    }
+
+    // The file a relative name in a file of folder `naming_dir` stands for (FileResolver's
+    // order: that folder, the main scene's folder, the <path> folders). When no candidate
+    // exists, the first one, so that the "not found" message names where it was expected.
+    std::filesystem::path resolve_file(const std::filesystem::path& name,
+                                       const std::filesystem::path& naming_dir) const {
+        if (std::optional<std::filesystem::path> found = resolver_.resolve(name, naming_dir))
+            return *found;
+        return resolver_.candidates(name, naming_dir).front();
+    }
+
+    // " (also looked for ...)" for a name that was not found, when there was more than one
+    // place to look.
+    std::string searched(const std::filesystem::path& name,
+                         const std::filesystem::path& naming_dir) const {
+        std::vector<std::filesystem::path> all = resolver_.candidates(name, naming_dir);
+        if (all.size() < 2) return "";
+        std::string out = " (also looked for ";
+        for (size_t i = 1; i < all.size(); ++i) out += (i > 1 ? ", " : "") + all[i].string();
+        return out + ")";
     }
 
     [[noreturn]] static void unknown_tag(const XmlElement& e, const std::string& context) {
@@ -113,6 +163,14 @@ class Loader {
                 unknown_tag(child, e.describe());
             }
         }
+        // Every plugin's file (meshes, environment maps, volume grids) resolves like an
+        // <include>; the plugin then reads the resolved path, made absolute because plugins
+        // join relative names to their own folder.
+        if (const std::string* name = props.peek_string("filename"); name && !name->empty()) {
+            std::filesystem::path path = resolve_file(*name, e.file().dir());
+            if (outside_scene_folder(path)) throw props.error("filename", outside_message(path));
+            props.replace_string("filename", std::filesystem::absolute(path).string());
+        }
         return props;
     }
 
@@ -152,6 +210,8 @@ class Loader {
                 read_default(e);
             else if (tag == "include")
                 read_include(e);
+            else if (tag == "path")
+                read_path(e);
             else if (tag == "integrator")
                 read_integrator(e);
             else if (tag == "sensor")
@@ -193,10 +253,14 @@ class Loader {
         if (!e.children().empty())
             throw SceneError(e.where(), "<include> cannot have child elements");
         std::filesystem::path file = e.required("filename");
-        std::filesystem::path path = file.is_absolute() ? file : e.file().dir() / file;
+        if (file.empty()) throw SceneError(e.where(), "<include>: empty filename");
+        std::filesystem::path path = resolve_file(file, e.file().dir());
+        if (outside_scene_folder(path))
+            throw SceneError(e.where(), "<include>: " + outside_message(path));
         std::error_code ec;
         if (!std::filesystem::is_regular_file(path, ec))
-            throw SceneError(e.where(), "<include>: file not found: " + path.string());
+            throw SceneError(e.where(), "<include>: file not found: " + path.string() +
+                                            searched(file, e.file().dir()));
         if (include_stack_.size() >= size_t(kMaxIncludeDepth))
             throw SceneError(e.where(), "<include>: includes are nested too deeply");
         std::unique_ptr<XmlFile> included;
@@ -216,15 +280,68 @@ class Loader {
         include_stack_.pop_back();
     }
 
+    // <path value="folder"/>: one more folder for file names to be looked up in (after the
+    // naming file's folder and the main scene's folder), from here on. A relative folder is
+    // relative to the main scene's folder. A folder that does not exist is ignored with a
+    // warning: a job's folder holds only the files its scene uses.
+    void read_path(const XmlElement& e) {
+        e.check_attributes({"value"});
+        if (!e.children().empty()) throw SceneError(e.where(), "<path> cannot have child elements");
+        const std::string value = e.required("value");
+        if (value.empty()) throw SceneError(e.where(), "<path> has an empty value");
+        std::filesystem::path folder = resolver_.search_folder(value);
+        if (outside_scene_folder(folder))
+            throw SceneError(e.where(), "<path>: " + outside_message(folder));
+        std::error_code ec;
+        if (!std::filesystem::is_directory(folder, ec))
+            warn(e.where(), "<path>: folder not found: " + folder.string());
+        resolver_.add_search_path(folder);
+    }
+
     void read_integrator(const XmlElement& e) {
         if (have_integrator_)
             throw SceneError(e.where(), "only one <integrator> is allowed (first at " +
                                             integrator_where_.to_string() + ")");
-        Properties props = read_plain_object(e, "integrator");
+        read_integrator_object(e);
+        have_integrator_ = true;
+        integrator_where_ = e.where();
+    }
+
+    // An <integrator> only chooses the default algorithm (render --algo overrides it) and the
+    // path depths. Integrators that wrap others (Mitsuba's moment, aov, stokes, ...) are looked
+    // through: the innermost one (the first nested at each level) names the algorithm and
+    // gives max_depth and rr_depth. Every other parameter, and every further nested integrator,
+    // is ignored with a warning; which type names an algorithm is for the renderer to decide.
+    void read_integrator_object(const XmlElement& e) {
+        std::optional<XmlElement> inner;
+        Properties props = read_object(e, "integrator", [&](const XmlElement& c, Properties&) {
+            if (c.tag() != "integrator") return false;
+            if (inner)
+                warn(c.where(), "only the first integrator nested in integrator \"" +
+                                    e.required("type") + "\" is used; this one is ignored");
+            else
+                inner = c;
+            return true;
+        });
+        if (props.type().empty()) throw SceneError(e.where(), "empty integrator type");
+        auto warn_unused = [&] {
+            for (const auto& [name, where] : props.unused())
+                warn(where, "integrator \"" + props.type() + "\": parameter \"" + name +
+                                "\" is ignored (the algorithm and its options come from "
+                                "the renderer)");
+            props.mark_all_used();
+        };
+        if (inner) {
+            warn(e.where(), "integrator \"" + props.type() +
+                                "\" wraps another; its own effect is ignored and the nested "
+                                "integrator is used");
+            warn_unused();
+            read_integrator_object(*inner);
+            return;
+        }
         build(props, [&] {
             SceneSettings& s = scene_.settings;
             s.integrator = props.type();
-            if (s.integrator.empty()) throw SceneError(e.where(), "empty integrator type");
             int64_t max_depth = props.get_int("max_depth", s.max_depth);
             if (max_depth < -1 || max_depth > 1000000)
                 throw props.error("max_depth", "must be -1 (unbounded) or a non-negative depth");
@@ -233,10 +350,9 @@ class Loader {
                 throw props.error("rr_depth", "must be positive");
             s.max_depth = int(max_depth);
             s.rr_depth = int(rr_depth);
+            warn_unused();
             return 0;
         });
-        have_integrator_ = true;
-        integrator_where_ = e.where();
     }
 
     // ----- sensor, film, sampler -----
@@ -274,21 +390,35 @@ class Loader {
             throw SceneError(
                 e.where(), "unknown sensor type \"" + props.type() + "\" (supported: perspective)");
         PerspectiveCamera camera = build(props, [&] {
-            float fov = props.get_float("fov");
-            if (!(fov > 0 && fov < 180)) throw props.error("fov", "must be in (0, 180) degrees");
-            std::string axis = props.get_string("fov_axis", "x");
-            char fov_axis;
-            if (axis == "x")
-                fov_axis = 'x';
-            else if (axis == "y")
-                fov_axis = 'y';
-            else if (axis == "smaller")
-                fov_axis = width <= height ? 'x' : 'y';
-            else if (axis == "larger")
-                fov_axis = width >= height ? 'x' : 'y';
-            else
-                throw props.error("fov_axis",
-                                  "\"" + axis + "\" is not supported (x, y, smaller or larger)");
+            float fov = 0;
+            char fov_axis = 'x';
+            if (props.has("fov") && props.has("focal_length"))
+                throw props.error("focal_length", "give either \"fov\" or \"focal_length\"");
+            if (props.has("fov")) {
+                fov = props.get_float("fov");
+                if (!(fov > 0 && fov < 180))
+                    throw props.error("fov", "must be in (0, 180) degrees");
+                std::string axis = props.get_string("fov_axis", "x");
+                if (axis == "x")
+                    fov_axis = 'x';
+                else if (axis == "y")
+                    fov_axis = 'y';
+                else if (axis == "diagonal")
+                    fov_axis = 'd';
+                else if (axis == "smaller")
+                    fov_axis = width <= height ? 'x' : 'y';
+                else if (axis == "larger")
+                    fov_axis = width >= height ? 'x' : 'y';
+                else
+                    throw props.error("fov_axis", "\"" + axis +
+                                                      "\" is not supported (x, y, diagonal, "
+                                                      "smaller or larger)");
+            } else {
+                // Mitsuba: a lens of this focal length on a 36 x 24 mm film; its diagonal
+                // field of view becomes the image's diagonal (fov_axis does not apply).
+                fov = fov_from_focal_length(props);
+                fov_axis = 'd';
+            }
             float near_clip = props.get_float("near_clip", 0.01f);
             float far_clip = props.get_float("far_clip", 10000.0f);
             if (!(near_clip > 0)) throw props.error("near_clip", "must be positive");
@@ -302,6 +432,34 @@ class Loader {
         scene_.set_camera_medium(camera_medium);
         have_sensor_ = true;
         sensor_where_ = e.where();
+    }
+
+    // `focal_length` ("50mm" as Mitsuba writes it, or a number of millimetres; default 50 mm)
+    // as the diagonal field of view of a 36 x 24 mm film, in degrees.
+    static float fov_from_focal_length(const Properties& props) {
+        float mm = 50.0f;
+        if (const std::string* text = props.peek_string("focal_length")) {
+            std::string number = props.get_string("focal_length");
+            if (number.size() > 2 && number.compare(number.size() - 2, 2, "mm") == 0)
+                number.resize(number.size() - 2);
+            try {
+                size_t used = 0;
+                mm = std::stof(number, &used);
+                if (used != number.size()) mm = -1;
+            } catch (const std::exception&) {
+                mm = -1;
+            }
+            if (!(mm > 0) || !std::isfinite(mm))
+                throw props.error("focal_length", "\"" + *text +
+                                                      "\" is not a positive length such as "
+                                                      "\"50mm\"");
+        } else if (props.has("focal_length")) {
+            mm = props.get_float("focal_length");
+            if (!(mm > 0) || !std::isfinite(mm))
+                throw props.error("focal_length", "must be a positive length in millimetres");
+        }
+        const double diagonal_mm = std::sqrt(36.0 * 36.0 + 24.0 * 24.0);
+        return float(2.0 * std::atan(diagonal_mm / (2.0 * double(mm))) * 180.0 / 3.14159265358979);
     }
 
     void read_film(const XmlElement& e, int& width, int& height) {
@@ -563,6 +721,9 @@ class Loader {
 
     Scene& scene_;
     ParameterTable params_;
+    FileResolver resolver_;
+    bool confined_ = false;
+    std::filesystem::path confine_root_;
     std::vector<std::string> include_stack_;
     std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
     std::map<std::string, SourceLocation> ids_;
@@ -575,11 +736,12 @@ class Loader {
 };
 
 std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std::string>& defines,
-                            const std::string& source_file) {
+                            const std::string& source_file,
+                            const std::filesystem::path& confine_to) {
     auto scene = std::make_unique<Scene>();
     scene->source_file = source_file;
     try {
-        Loader(*scene, defines).load_root(file);
+        Loader(*scene, defines, confine_to).load_root(file);
         scene->commit();
     } catch (const SceneError&) {
         throw;
@@ -592,16 +754,17 @@ std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std
 }  // namespace
 
 std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
-                                  const std::map<std::string, std::string>& defines) {
+                                  const std::map<std::string, std::string>& defines,
+                                  const std::filesystem::path& confine_to) {
     std::unique_ptr<XmlFile> xml = XmlFile::load(file);
-    return load(*xml, defines, file.string());
+    return load(*xml, defines, file.string(), confine_to);
 }
 
 std::unique_ptr<Scene> load_scene_from_string(const std::string& xml,
                                               const std::filesystem::path& base_dir,
                                               const std::map<std::string, std::string>& defines) {
     XmlFile file(xml, "<string>", base_dir.empty() ? std::filesystem::path(".") : base_dir);
-    return load(file, defines, "<string>");
+    return load(file, defines, "<string>", {});
 }
 
 }  // namespace render

@@ -1,0 +1,44 @@
+#pragma once
+
+// Mitsuba's file resolution for `<include filename>` and every `filename` parameter: a relative
+// name is looked up, in this order, in the folder of the file that names it, in the main
+// scene's folder, and in every `<path value="..."/>` folder in the order they were declared
+// (a relative `<path>` is relative to the main scene's folder). The first candidate that is an
+// existing regular file wins; an absolute name is used as it is.
+//
+// The scene loader and the client's bundle collector (client/bundle.cpp) both resolve through
+// this class, so a job carries exactly the files its scene resolves to.
+
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+namespace render {
+
+class FileResolver {
+  public:
+    explicit FileResolver(std::filesystem::path scene_dir);
+
+    const std::filesystem::path& scene_dir() const { return scene_dir_; }
+
+    // The folder a `<path value>` names: `value` itself when absolute, else relative to the
+    // main scene's folder (lexically normalised).
+    std::filesystem::path search_folder(const std::filesystem::path& value) const;
+    // Appends a search folder (as returned by search_folder()).
+    void add_search_path(const std::filesystem::path& folder);
+    const std::vector<std::filesystem::path>& search_paths() const { return search_paths_; }
+
+    // Every place `name` is looked for, in order (just `name` when it is absolute), each
+    // lexically normalised.
+    std::vector<std::filesystem::path> candidates(const std::filesystem::path& name,
+                                                  const std::filesystem::path& naming_dir) const;
+    // The first candidate that is a regular file; nothing when there is none.
+    std::optional<std::filesystem::path> resolve(const std::filesystem::path& name,
+                                                 const std::filesystem::path& naming_dir) const;
+
+  private:
+    std::filesystem::path scene_dir_;
+    std::vector<std::filesystem::path> search_paths_;
+};
+
+}  // namespace render

@@ -1,0 +1,102 @@
+// The client's scene bundle (client/bundle.cpp) resolves files exactly as the loader does
+// (core/scene/loader/file_resolver.h): the test scene of tests/data/mitsuba bundles to the files
+// its README lists, a bundle copied to a fresh folder (as the server and the workers
+// materialise a job) loads to the same scene, and <path> folders a job cannot carry are
+// refused.
+
+#include "client/bundle.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+
+#include "core/scene/loader/scene_loader.h"
+
+namespace render::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::set<std::string> paths_of(const SceneBundleInfo& info) {
+    std::set<std::string> out;
+    for (const BundleEntry& e : info.files) out.insert(e.path);
+    return out;
+}
+
+struct TempDir {
+    fs::path path;
+    explicit TempDir(const std::string& name) {
+        path = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+        fs::remove_all(path);
+        fs::create_directories(path);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+    void write(const std::string& name, const std::string& text) const {
+        fs::create_directories((path / name).parent_path());
+        std::ofstream(path / name, std::ios::binary) << text;
+    }
+};
+
+TEST(ClientBundle, FollowsTheLoadersFileResolution) {
+    const fs::path root = fs::path(RENDER_SOURCE_DIR) / "tests/data/mitsuba";
+    const SceneBundleInfo info = collect_bundle(root / "scene.xml", {});
+    EXPECT_EQ(info.scene_path, "scene.xml");
+    EXPECT_EQ(paths_of(info),
+              (std::set<std::string>{"scene.xml", "include/a.xml", "include/b.xml",
+                                     "include/beside.obj", "assets/tri.obj", "meshes/quad.ply"}));
+    // As the loader: the wrapped integrator names the algorithm.
+    EXPECT_EQ(info.integrator, "volpath");
+
+    // The job's folder holds only the bundled files; the scene loads there to the same shapes.
+    TempDir job("client_bundle_test_job");
+    for (const BundleEntry& e : info.files) {
+        fs::create_directories((job.path / e.path).parent_path());
+        fs::copy_file(e.absolute, job.path / e.path);
+    }
+    ::testing::internal::CaptureStderr();
+    auto original = load_scene(root / "scene.xml");
+    auto copy = load_scene(job.path / "scene.xml");
+    ::testing::internal::GetCapturedStderr();
+    ASSERT_EQ(copy->shapes().size(), original->shapes().size());
+    for (size_t i = 0; i < copy->shapes().size(); ++i)
+        EXPECT_EQ(copy->shapes()[i]->surface_area(), original->shapes()[i]->surface_area()) << i;
+}
+
+TEST(ClientBundle, SearchPathsMustStayInTheScenesFolder) {
+    TempDir dir("client_bundle_test_paths");
+    dir.write("scene/scene.xml",
+              "<scene version=\"3.0.0\"><path value=\"$p\"/><shape type=\"obj\"><string "
+              "name=\"filename\" value=\"m.obj\"/></shape></scene>");
+    dir.write("scene/assets/m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    dir.write("outside/m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const fs::path scene = dir.path / "scene/scene.xml";
+    EXPECT_EQ(paths_of(collect_bundle(scene, {{"p", "assets"}})),
+              (std::set<std::string>{"scene.xml", "assets/m.obj"}));
+    auto message = [&](const std::string& p) {
+        try {
+            collect_bundle(scene, {{"p", p}});
+        } catch (const std::exception& e) {
+            return std::string(e.what());
+        }
+        return std::string("(no error)");
+    };
+    EXPECT_NE(message("../outside").find("outside the scene's folder"), std::string::npos)
+        << message("../outside");
+    EXPECT_NE(message((dir.path / "scene/assets").string()).find("is absolute"), std::string::npos)
+        << message((dir.path / "scene/assets").string());
+    // Found nowhere: named at its first candidate, beside the scene.
+    EXPECT_NE(message("nowhere").find((dir.path / "scene/m.obj").string() + " (referenced from"),
+              std::string::npos)
+        << message("nowhere");
+}
+
+}  // namespace
+}  // namespace render::service
