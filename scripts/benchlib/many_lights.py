@@ -59,15 +59,15 @@ SCENES = {
 }
 OCCLUDED_SCENE = "two-rooms"  # where the paper's claim is checked
 CONTROL_SCENE = "cornell-box"
-WIDTH = 256
+WIDTH = 128  # 256 (ALGORITHMS-NEXT.md 1.7 b) takes about four times as long
 RUNS = 24  # independent runs per arm for the variance
 ITERATIONS = 8  # iterations per variance run
 GROUPS = 4  # disjoint groups of runs: the spread of their estimates gives the uncertainty
 TIMING_REPEATS = 3
-TIMING_SECONDS = 8.0  # each timing run renders about this long
+TIMING_SECONDS = 4.0  # each timing run renders about this long
 TIMES = (4.0, 8.0, 16.0)  # equal-time errors are shown at these times
-REFERENCE_SECONDS = 120.0
-PICTURE_TIME = 8.0  # the pictures in docs/img/many-lights/ are `--time 8` runs
+REFERENCE_SECONDS = 60.0
+PICTURE_TIME = 4.0  # the pictures in docs/img/many-lights/ are `--time 4` runs
 QUICK = {"width": 64, "runs": 4, "iterations": 2, "groups": 2, "timing_repeats": 1,
          "timing_seconds": 0.3, "reference_seconds": 1.0, "picture_time": 0.3}
 CLAIM_ACCEPTANCE = 1 / 3  # the "well under a third of the candidates"
