@@ -1,66 +1,192 @@
 #include "core/image/exr_io.h"
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imageio.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <optional>
+
+#include "core/image/image_plugin.h"
 
 namespace render {
+namespace {
 
-namespace OIIO = OIIO_NAMESPACE;
+// "YYYY:MM:DD HH:MM:SS" local time: the capDate OpenImageIO puts in every EXR it writes.
+std::string capture_date() {
+    std::time_t now = std::time(nullptr);
+    std::tm local{};
+    localtime_r(&now, &local);
+    char text[32];
+    std::strftime(text, sizeof text, "%Y:%m:%d %H:%M:%S", &local);
+    return text;
+}
+
+bool has_exr_magic(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    unsigned char magic[4] = {0, 0, 0, 0};
+    in.read(reinterpret_cast<char*>(magic), 4);
+    return in && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
+}
+
+// The EXR through OpenEXR, or nullopt when it has channels this does not cover (the plugin
+// reads those as OpenImageIO always did).
+std::optional<ImageFileData> read_exr_file(const std::filesystem::path& file) {
+    Imf::InputFile in(file.c_str());
+    const Imf::Header& header = in.header();
+    const Imf::ChannelList& list = header.channels();
+    size_t channel_count = 0;
+    for (auto it = list.begin(); it != list.end(); ++it) ++channel_count;
+    std::vector<std::string> names;
+    if (list.findChannel("R") && list.findChannel("G") && list.findChannel("B"))
+        names = {"R", "G", "B"};
+    else if (list.findChannel("Y") && !list.findChannel("RY") && !list.findChannel("BY"))
+        names = {"Y"};
+    else if (channel_count == 1)
+        names = {list.begin().name()};
+    else
+        return std::nullopt;
+    for (const std::string& name : names) {
+        const Imf::Channel& channel = *list.findChannel(name);
+        if (channel.type == Imf::UINT || channel.xSampling != 1 || channel.ySampling != 1)
+            return std::nullopt;
+    }
+    const Imath::Box2i window = header.dataWindow();
+    ImageFileData data;
+    data.width = window.max.x - window.min.x + 1;
+    data.height = window.max.y - window.min.y + 1;
+    data.channels = int(names.size());
+    if (data.width <= 0 || data.height <= 0) throw ImageFileError(file, "the image has no pixels");
+    data.pixels.assign(size_t(data.width) * size_t(data.height) * names.size(), 0.0f);
+    Imf::FrameBuffer frame;
+    const size_t x_stride = sizeof(float) * names.size();
+    for (size_t c = 0; c < names.size(); ++c)
+        frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, data.pixels.data() + c, window,
+                                                x_stride, x_stride * size_t(data.width)));
+    in.setFrameBuffer(frame);
+    in.readPixels(window.min.y, window.max.y);
+    for (auto it = header.begin(); it != header.end(); ++it)
+        if (auto text = dynamic_cast<const Imf::StringAttribute*>(&it.attribute()))
+            data.metadata[it.name()] = text->value();
+    return data;
+}
+
+ImageFileData read_with_plugin(const std::filesystem::path& file) {
+    const RenderImagePlugin* plugin;
+    try {
+        plugin = &image_plugin("to read " + file.string());
+    } catch (const std::exception& e) {
+        throw ImageFileError(file, e.what());
+    }
+    ImageFileData data;
+    RenderImageReadSink sink;
+    sink.context = &data;
+    sink.begin = [](void* context, int width, int height, int channels, int integer_format,
+                    const char* color_space) -> float* {
+        try {
+            auto& d = *static_cast<ImageFileData*>(context);
+            d.width = width;
+            d.height = height;
+            d.channels = channels;
+            d.integer_format = integer_format != 0;
+            d.color_space = color_space ? color_space : "";
+            d.pixels.assign(size_t(width) * size_t(height) * size_t(channels), 0.0f);
+            return d.pixels.data();
+        } catch (...) {
+            return nullptr;
+        }
+    };
+    sink.attribute = [](void* context, const char* name, const char* value) {
+        try {
+            static_cast<ImageFileData*>(context)->metadata[name] = value;
+        } catch (...) {
+        }
+    };
+    char error[2048] = "";
+    if (plugin->read(file.c_str(), &sink, error, sizeof error) != 0)
+        throw ImageFileError(file, error);
+    if (data.width <= 0 || data.height <= 0 || data.channels <= 0)
+        throw ImageFileError(file, "the image has no pixels");
+    return data;
+}
+
+}  // namespace
 
 void write_exr(const std::filesystem::path& file, const Image& image,
                const std::map<std::string, std::string>& metadata,
                const std::vector<NamedLayer>& layers) {
-    auto out = OIIO::ImageOutput::create(file.string());
-    if (!out) throw std::runtime_error("cannot write " + file.string() + ": " + OIIO::geterror());
-    const int channels = 3 * int(1 + layers.size());
-    OIIO::ImageSpec spec(image.width(), image.height(), channels, OIIO::TypeDesc::FLOAT);
-    spec.channelnames = {"R", "G", "B"};
-    for (const NamedLayer& layer : layers) {
+    for (const NamedLayer& layer : layers)
         if (layer.image.width() != image.width() || layer.image.height() != image.height())
             throw std::invalid_argument("layer " + layer.name + " differs in size from the image");
-        for (const char* c : {".R", ".G", ".B"}) spec.channelnames.push_back(layer.name + c);
+    try {
+        Imf::Header header(image.width(), image.height());
+        header.compression() = Imf::ZIP_COMPRESSION;
+        Imf::FrameBuffer frame;
+        const size_t x_stride = 3 * sizeof(float), y_stride = x_stride * size_t(image.width());
+        auto add = [&](const std::string& prefix, const Image& source) {
+            const char* components[3] = {"R", "G", "B"};
+            for (int c = 0; c < 3; ++c) {
+                const std::string name = prefix + components[c];
+                header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+                // OpenEXR only reads through the slices of an output file.
+                char* base = reinterpret_cast<char*>(const_cast<float*>(source.data() + c));
+                frame.insert(name, Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
+            }
+        };
+        add("", image);
+        for (const NamedLayer& layer : layers) add(layer.name + ".", layer.image);
+        Imf::addCapDate(header, capture_date());
+        for (const auto& [key, value] : metadata) header.insert(key, Imf::StringAttribute(value));
+        Imf::OutputFile out(file.c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(image.height());
+    } catch (const std::exception& e) {
+        throw std::runtime_error("cannot write " + file.string() + ": " + e.what());
     }
-    spec.attribute("compression", "zip");
-    for (const auto& [key, value] : metadata) spec.attribute(key, value);
-    // Interleave the main image and the layers pixel by pixel, as OIIO expects.
-    std::vector<float> pixels(image.pixel_count() * size_t(channels));
-    for (size_t i = 0; i < image.pixel_count(); ++i) {
-        float* dst = &pixels[i * size_t(channels)];
-        for (int c = 0; c < 3; ++c) dst[c] = image.data()[3 * i + c];
-        for (size_t l = 0; l < layers.size(); ++l)
-            for (int c = 0; c < 3; ++c) dst[3 * (l + 1) + c] = layers[l].image.data()[3 * i + c];
+}
+
+ImageFileData read_image_file(const std::filesystem::path& file) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(file, ec)) throw ImageFileError(file, "no such file");
+    if (has_exr_magic(file)) {
+        std::optional<ImageFileData> data;
+        try {
+            data = read_exr_file(file);
+        } catch (const ImageFileError&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw ImageFileError(file, e.what());
+        }
+        if (data) return std::move(*data);
+    } else {
+        std::string extension = file.extension().string();
+        std::transform(extension.begin(), extension.end(), extension.begin(),
+                       [](unsigned char c) { return char(std::tolower(c)); });
+        if (extension == ".exr") throw ImageFileError(file, "not an OpenEXR file");
     }
-    if (!out->open(file.string(), spec) ||
-        !out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) || !out->close())
-        throw std::runtime_error("cannot write " + file.string() + ": " + out->geterror());
+    return read_with_plugin(file);
 }
 
 Image read_image(const std::filesystem::path& file, std::map<std::string, std::string>* metadata) {
-    if (!std::filesystem::exists(file))
+    std::error_code ec;
+    if (!std::filesystem::exists(file, ec))
         throw std::runtime_error("image file not found: " + file.string());
-    auto in = OIIO::ImageInput::open(file.string());
-    if (!in) throw std::runtime_error("cannot read " + file.string() + ": " + OIIO::geterror());
-    const OIIO::ImageSpec& spec = in->spec();
-    int channels = spec.nchannels;
-    if (spec.width <= 0 || spec.height <= 0 || channels <= 0)
-        throw std::runtime_error("empty image: " + file.string());
-    std::vector<float> pixels(size_t(spec.width) * spec.height * channels);
-    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data()))
-        throw std::runtime_error("cannot read " + file.string() + ": " + in->geterror());
+    ImageFileData data = read_image_file(file);
     if (metadata)
-        for (const auto& attr : spec.extra_attribs)
-            if (attr.type() == OIIO::TypeDesc::STRING)
-                (*metadata)[attr.name().string()] = attr.get_string();
-    in->close();
-    Image image(spec.width, spec.height);
+        for (auto& [key, value] : data.metadata) (*metadata)[key] = std::move(value);
+    Image image(data.width, data.height);
+    const size_t channels = size_t(data.channels);
     for (size_t i = 0; i < image.pixel_count(); ++i) {
-        const float* p = &pixels[i * channels];
-        Rgb c = channels >= 3 ? Rgb(p[0], p[1], p[2]) : Rgb(p[0]);
-        image.set(i, c);
+        const float* p = &data.pixels[i * channels];
+        image.set(i, channels >= 3 ? Rgb(p[0], p[1], p[2]) : Rgb(p[0]));
     }
     return image;
 }
@@ -75,12 +201,16 @@ void write_png_preview(const std::filesystem::path& file, const Image& image,
         v = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
         bytes[i] = (unsigned char)std::lround(v * 255.0f);
     }
-    auto out = OIIO::ImageOutput::create(file.string());
-    if (!out) throw std::runtime_error("cannot write " + file.string() + ": " + OIIO::geterror());
-    OIIO::ImageSpec spec(image.width(), image.height(), 3, OIIO::TypeDesc::UINT8);
-    if (!out->open(file.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) ||
-        !out->close())
-        throw std::runtime_error("cannot write " + file.string() + ": " + out->geterror());
+    const RenderImagePlugin* plugin;
+    try {
+        plugin = &image_plugin("to write " + file.string());
+    } catch (const std::exception& e) {
+        throw std::runtime_error("cannot write " + file.string() + ": " + e.what());
+    }
+    char error[2048] = "";
+    if (plugin->write_rgb8(file.c_str(), image.width(), image.height(), bytes.data(), error,
+                           sizeof error) != 0)
+        throw std::runtime_error("cannot write " + file.string() + ": " + error);
 }
 
 }  // namespace render

@@ -1,14 +1,13 @@
 #include "core/lights/envmap_light.h"
 
-#include <OpenImageIO/imageio.h>
-#include <OpenImageIO/strutil.h>
-
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <sstream>
 
 #include "core/base/error.h"
+#include "core/image/exr_io.h"
 #include "core/lights/scene_disk.h"
 #include "core/math/constants.h"
 
@@ -17,6 +16,12 @@ namespace {
 
 float srgb_to_linear(float x) {
     return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f);
+}
+
+bool iequals(const std::string& a, const std::string& b) {
+    return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](unsigned char x, unsigned char y) {
+        return std::tolower(x) == std::tolower(y);
+    });
 }
 
 float sanitize(float x) {
@@ -73,26 +78,18 @@ std::unique_ptr<EnvmapLight> EnvmapLight::load(const std::filesystem::path& file
     std::error_code ec;
     if (!std::filesystem::is_regular_file(filename, ec))
         throw SceneError("environment map file \"" + path + "\" not found");
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) throw SceneError("cannot read environment map \"" + path + "\": " + OIIO::geterror());
-    const OIIO::ImageSpec spec = in->spec();
-    const int width = spec.width, height = spec.height, channels = spec.nchannels;
-    if (width <= 0 || height <= 0 || channels <= 0)
-        throw SceneError("environment map \"" + path + "\" has no pixels");
-    std::vector<float> pixels(size_t(width) * size_t(height) * size_t(channels));
-    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data())) {
-        std::string message = in->geterror();
-        throw SceneError("cannot read environment map \"" + path + "\": " + message);
+    ImageFileData file;
+    try {
+        file = read_image_file(filename);
+    } catch (const ImageFileError& e) {
+        throw SceneError("cannot read environment map \"" + path + "\": " + e.reason());
     }
-    in->close();
+    const int width = file.width, height = file.height, channels = file.channels;
+    const std::vector<float>& pixels = file.pixels;
 
     // Integer formats (PNG, JPEG) store display-encoded values; light needs linear ones.
-    const std::string color_space = spec.get_string_attribute("oiio:ColorSpace");
-    const bool is_integer = spec.format.basetype != OIIO::TypeDesc::FLOAT &&
-                            spec.format.basetype != OIIO::TypeDesc::HALF &&
-                            spec.format.basetype != OIIO::TypeDesc::DOUBLE;
     const bool decode_srgb =
-        is_integer && (color_space.empty() || OIIO::Strutil::iequals(color_space, "sRGB"));
+        file.integer_format && (file.color_space.empty() || iequals(file.color_space, "sRGB"));
 
     std::vector<Rgb> texels(size_t(width) * size_t(height));
     for (size_t i = 0; i < texels.size(); ++i) {

@@ -51,9 +51,10 @@ class EnvmapLight final : public Light {
     EnvmapLight(std::vector<Rgb> texels, int width, int height, const Frame& to_world,
                 std::string name = "");
 
-    // Reads a lat-long image (EXR, HDR, PNG, ... through OpenImageIO; 8/16-bit sRGB files are
-    // linearised) and multiplies it by `scale`. Throws SceneError naming the path when the
-    // file is missing or unreadable (with OpenImageIO's message).
+    // Reads a lat-long image (read_image_file: EXR through OpenEXR; HDR, PNG, ... through
+    // OpenImageIO in the image plugin, loaded then; 8/16-bit sRGB files are linearised) and
+    // multiplies it by `scale`. Throws SceneError naming the path when the file is missing or
+    // unreadable (with the reader's message, or the plugin's when it cannot be loaded).
     static std::unique_ptr<EnvmapLight> load(const std::filesystem::path& filename, float scale,
                                              const Frame& to_world);
 

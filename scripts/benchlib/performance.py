@@ -657,7 +657,26 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     else:
         add("Not measured in this run.")
     add("")
+    # The "Start-up" section is measured by hand (its commands are in it); carry it over.
+    L.extend(hand_written_sections(path))
     path.write_text("\n".join(L) + "\n")
+
+
+def hand_written_sections(path, titles=("## Start-up",)):
+    """The lines of the named sections of the existing document (up to the next `## `)."""
+    try:
+        old = Path(path).read_text().split("\n")
+    except OSError:
+        return []
+    kept, keep = [], False
+    for line in old:
+        if line.startswith("## "):
+            keep = line.strip() in titles
+        if keep:
+            kept.append(line)
+    while kept and not kept[-1].strip():
+        kept.pop()
+    return kept + [""] if kept else []
 
 
 # ---------------------------------------------------------------------------------------------
