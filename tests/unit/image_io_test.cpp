@@ -178,10 +178,12 @@ TEST(ImageIo, OpenImageIoReadsTheExrAsItReadTheOneItWroteItself) {
     };
     EXPECT_EQ(without_date(now.attributes), without_date(before.attributes));
     // OpenImageIO does not report empty string attributes (in either file); the others are there.
-    for (const auto& [key, value] : metadata)
-        if (!value.empty())
+    for (const auto& [key, value] : metadata) {
+        if (!value.empty()) {
             EXPECT_EQ(now.attributes.count(key) ? now.attributes.at(key) : "(missing)", value)
                 << key;
+        }
+    }
 }
 
 TEST(ImageIo, ReadsHalfRgbaAndGreyExr) {
