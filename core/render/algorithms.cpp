@@ -27,6 +27,19 @@ std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
     return std::make_unique<VertexConnectionMerging>(config);
 }
 
+// vpl and ic: the VPLs (light paths per iteration) and their clamp; each adds its own options.
+BidirectionalConfig many_light_config(BidirectionalMode mode, const RenderSettings& s) {
+    BidirectionalConfig config;
+    config.mode = mode;
+    config.max_depth = s.max_depth;
+    config.rr_depth = s.rr_depth;
+    config.light_path_count = s.vpl_paths;
+    config.vpl_clamp = s.vpl_clamp;
+    config.vpl_clamp_schedule =
+        s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+    return config;
+}
+
 // The options of the bidirectional family; merging ones only where merging happens.
 const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "light_paths", "mis"};
 const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "light_paths",
@@ -87,14 +100,7 @@ const std::vector<Algorithm>& table() {
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
                      "vpl_distribution", "importance_records", "vpl_min_probability"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config;
-             config.mode = BidirectionalMode::Vpl;
-             config.max_depth = s.max_depth;
-             config.rr_depth = s.rr_depth;
-             config.light_path_count = s.vpl_paths;
-             config.vpl_clamp = s.vpl_clamp;
-             config.vpl_clamp_schedule =
-                 s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+             BidirectionalConfig config = many_light_config(BidirectionalMode::Vpl, s);
              config.vpl_importance = s.vpl_importance;
              config.importance_records = s.importance_records;
              config.vpl_min_probability = s.vpl_min_probability;
@@ -108,14 +114,7 @@ const std::vector<Algorithm>& table() {
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
                      "ic_record_density", "ic_samples", "ic_heuristic", "ic_distributions"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config;
-             config.mode = BidirectionalMode::Ic;
-             config.max_depth = s.max_depth;
-             config.rr_depth = s.rr_depth;
-             config.light_path_count = s.vpl_paths;
-             config.vpl_clamp = s.vpl_clamp;
-             config.vpl_clamp_schedule =
-                 s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+             BidirectionalConfig config = many_light_config(BidirectionalMode::Ic, s);
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.ic_samples;
              config.ic_heuristic = s.ic_heuristic == "balance" ? IcHeuristic::Balance
