@@ -224,8 +224,9 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"and has {c['v'] / u['v']:.2f}× the variance.", "",
                   f"Importance caching against power-proportional VPL sampling (both 16 VPLs "
                   f"per shading point): **{m_ratio:.2f} ± {m_ratio_se:.2f}×** lower variance "
-                  f"per iteration; at equal time {t_ratio:.2f} ± {t_ratio_se:.2f}× (the "
-                  f"records and tables cost {c['t'] / pw['t']:.2f}× the iteration time).", "",
+                  f"per iteration; at equal time {t_ratio:.2f} ± {t_ratio_se:.2f}× (an ic "
+                  f"iteration, with its records and tables, costs {c['t'] / pw['t']:.2f}× a "
+                  f"power-sampling one).", "",
                   f"Pictures (`--time {cfg['picture_time']:g}`; tone-mapped by `render --png`): "
                   f"{', '.join(ARMS)}, and the scale image.", "",
                   f"{pictures} ![{name} reference](img/many-lights/{name}-reference.png)", ""]
