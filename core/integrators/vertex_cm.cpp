@@ -266,14 +266,15 @@ class Iteration {
     float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
 
     std::vector<LightVertex> light_vertices_;
-    std::vector<uint32_t> path_ends_;
+    std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
     // Importance caching: one table set per record, the records' lookup tree (same order), the
-    // conservative fallback over every VPL, the sample counts and the weighting.
+    // conservative fallback over every VPL, the sample counts, the weighting and the lookup.
     std::vector<IcRecordTables> ic_tables_;
     IcRecordTree ic_tree_;
     ImportanceTable ic_fallback_;
     IcSampleCounts ic_samples_{};
-    IcWeighting ic_weighting_;  // light_vertices_ of path p: [ends[p-1], ends[p])
+    IcWeighting ic_weighting_;
+    IcLookupSettings ic_lookup_;
     // Merging: surface and medium light vertices in separate grids (photons merge only with
     // eye vertices of their own kind); *_index_ maps a grid point to its light vertex.
     std::vector<Vec3> surface_positions_, medium_positions_;
@@ -641,10 +642,8 @@ std::vector<double> Iteration::estimate_vpl_importance(RenderStats& stats) const
     const float clamp2 = record_clamp2();
     std::vector<double> phi(light_vertices_.size(), 0.0);
     tbb::combinable<RenderStats> local_stats;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, light_vertices_.size()), [&](const tbb::
-                                                                                     blocked_range<
-                                                                                         size_t>&
-                                                                                         range) {
+    using Range = tbb::blocked_range<size_t>;
+    tbb::parallel_for(Range(0, light_vertices_.size()), [&](const Range& range) {
         RenderStats& local = local_stats.local();
         for (size_t k = range.begin(); k < range.end(); ++k) {
             const LightVertex& lv = light_vertices_[k];
@@ -722,13 +721,6 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
 void Iteration::build_importance_cache(RenderStats& stats) {
     const size_t m = light_vertices_.size();
     path_ends_.clear();  // ic draws from every vertex; paths are no longer needed
-    // C: every VPL that carries power, the same mask at every record and in the fallback (a
-    // VPL with h(x, v) > 0 anywhere is in it), which keeps the estimator unbiased.
-    std::vector<uint8_t> mask(m);
-    for (size_t k = 0; k < m; ++k) mask[k] = !light_vertices_[k].throughput.is_black();
-    ic_fallback_ = conservative_table(mask);
-    ic_samples_ = IcSampleCounts{
-        {config_.ic_samples, config_.ic_samples, config_.ic_samples, config_.ic_samples}};
     ic_weighting_.heuristic = config_.ic_heuristic;
     if (config_.ic_power_only) {
         // The baseline the paper compares with: no records; every shading point draws all
@@ -740,6 +732,14 @@ void Iteration::build_importance_cache(RenderStats& stats) {
         ic_samples_ = IcSampleCounts{{0, 0, 0, 4 * config_.ic_samples}};
         return;
     }
+    // C: every VPL that carries power, the same mask at every record and in the fallback (a
+    // VPL with h(x, v) > 0 anywhere is in it), which keeps the estimator unbiased.
+    std::vector<uint8_t> mask(m);
+    for (size_t k = 0; k < m; ++k) mask[k] = !light_vertices_[k].throughput.is_black();
+    ic_fallback_ = conservative_table(mask);
+    ic_samples_ = IcSampleCounts{
+        {config_.ic_samples, config_.ic_samples, config_.ic_samples, config_.ic_samples}};
+    ic_lookup_.lambda = ic_default_lambda(2.0 * scene_.bounding_sphere().radius);
     if (m == 0) return;
 
     // The jittered screen grid: square cells of 1 / density pixels, thinned (larger cells) if
@@ -799,9 +799,7 @@ template <class Add>
 void Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
                                        RenderStats& stats, Add&& add) const {
     if (light_vertices_.empty() || ic_fallback_.empty()) return;
-    IcLookupSettings lookup;
-    lookup.lambda = ic_default_lambda(2.0 * scene_.bounding_sphere().radius);
-    const IcNeighbours near = ic_tree_.nearest(v.p, v.n, lookup);
+    const IcNeighbours near = ic_tree_.nearest(v.p, v.n, ic_lookup_);
     std::array<const IcRecordTables*, kIcMaxRecords> tables{};
     for (int i = 0; i < near.count; ++i) tables[size_t(i)] = &ic_tables_[near.index[size_t(i)]];
     const IcMixture mixture(
@@ -894,17 +892,17 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         // lobes, including the delta lobes of mixed materials such as plastic's coating.
         const bool eye_ends_at_non_delta = light_trace_only_ || ppm_ || many_lights_;
         if (v->has_non_delta() && !light_trace_only_) {
-            if (ic_) {
+            if (many_lights_) {
                 add(Technique::Connection, 1,
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));
+            }
+            if (ic_) {
                 importance_cached_vpls(*v, wo, state.path_length, rng, stats,
                                        [&](int s, const Rgb& c) {
                                            add(Technique::Connection, s, state.throughput * c);
                                        });
             }
             if (vpl_) {
-                add(Technique::Connection, 1,
-                    state.throughput * direct_illumination(state, *v, wo, rng, stats));
                 for (const LightVertex& lv : light_vertices_) {
                     if (lv.path_length + 1 + state.path_length > max_length_) continue;
                     add(Technique::Connection, lv.path_length + 1,

@@ -117,10 +117,8 @@ const std::vector<Algorithm>& table() {
              BidirectionalConfig config = many_light_config(BidirectionalMode::Ic, s);
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.ic_samples;
-             config.ic_heuristic = s.ic_heuristic == "balance" ? IcHeuristic::Balance
-                                   : s.ic_heuristic == "power" ? IcHeuristic::Power
-                                                               : IcHeuristic::AlphaMax;
-             config.ic_power_only = s.ic_distributions == "power";
+             config.ic_heuristic = s.ic_heuristic;
+             config.ic_power_only = s.ic_power_only;
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "eyelight",

@@ -229,8 +229,17 @@ const std::vector<RenderOption>& table() {
                  "heuristic, or the balance or power heuristic",
          .choices = {"alpha-max", "balance", "power"},
          .default_text = "alpha-max",
-         .apply = [](RenderSettings& s, const std::string& v) { s.ic_heuristic = v; },
-         .format = [](const RenderSettings& s) { return s.ic_heuristic; }},
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.ic_heuristic = v == "balance" ? IcHeuristic::Balance
+                                  : v == "power" ? IcHeuristic::Power
+                                                 : IcHeuristic::AlphaMax;
+             },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_heuristic == IcHeuristic::Balance ? "balance"
+                    : s.ic_heuristic == IcHeuristic::Power ? "power"
+                                                           : "alpha-max";
+         }},
         {.name = "ic_distributions",
          .flag = "--ic-distributions",
          .metavar = "records|power",
@@ -240,8 +249,10 @@ const std::vector<RenderOption>& table() {
                  "(the baseline importance caching is measured against)",
          .choices = {"records", "power"},
          .default_text = "records",
-         .apply = [](RenderSettings& s, const std::string& v) { s.ic_distributions = v; },
-         .format = [](const RenderSettings& s) { return s.ic_distributions; }},
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_power_only = v == "power"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_power_only ? "power" : "records";
+         }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

@@ -5,6 +5,7 @@
 
 #include "core/base/render_stats.h"
 #include "core/image/technique_layers.h"
+#include "core/integrators/importance_weights.h"
 
 namespace render {
 
@@ -46,10 +47,10 @@ struct RenderSettings {
     // point, and the heuristic that weights the techniques.
     double ic_record_density = 1.0 / 16.0;
     int ic_samples = 4;
-    std::string ic_heuristic = "alpha-max";
-    // ic: "records" (the importance caches) or "power" (every shading point draws VPLs in
-    // proportion to their power: the baseline of the paper's comparisons).
-    std::string ic_distributions = "records";
+    IcHeuristic ic_heuristic = IcHeuristic::AlphaMax;
+    // ic: false, the importance caches; true, every shading point draws its VPLs in proportion
+    // to their power (the baseline of the paper's comparisons).
+    bool ic_power_only = false;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,18 +20,33 @@ void set_error(char* error, size_t error_size, const std::string& message) {
     std::snprintf(error, error_size, "%s", message.empty() ? "unknown error" : message.c_str());
 }
 
-int read(const char* path, const RenderImageReadSink* sink, char* error, size_t error_size) {
+// The C interface's convention around a body that returns an error message (nullopt: success):
+// 0 on success, else 1 with `error` filled; exceptions become messages.
+template <class Body>
+int guarded(char* error, size_t error_size, Body&& body) {
+    std::optional<std::string> message;
     try {
+        message = body();
+    } catch (const std::exception& e) {
+        message = e.what();
+    } catch (...) {
+        message = "unknown exception in OpenImageIO";
+    }
+    if (!message) return 0;
+    set_error(error, error_size, *message);
+    return 1;
+}
+
+int read(const char* path, const RenderImageReadSink* sink, char* error, size_t error_size) {
+    return guarded(error, error_size, [&]() -> std::optional<std::string> {
         auto in = OIIO::ImageInput::open(path);
         if (!in) {
-            set_error(error, error_size, OIIO::geterror());
-            return 1;
+            return std::string(OIIO::geterror());
         }
         const OIIO::ImageSpec& spec = in->spec();
         const int channels = spec.nchannels;
         if (spec.width <= 0 || spec.height <= 0 || channels <= 0) {
-            set_error(error, error_size, "the image has no pixels");
-            return 1;
+            return std::string("the image has no pixels");
         }
         const bool is_integer = spec.format.basetype != OIIO::TypeDesc::FLOAT &&
                                 spec.format.basetype != OIIO::TypeDesc::HALF &&
@@ -39,49 +55,33 @@ int read(const char* path, const RenderImageReadSink* sink, char* error, size_t 
         float* pixels = sink->begin(sink->context, spec.width, spec.height, channels,
                                     is_integer ? 1 : 0, color_space.c_str());
         if (!pixels) {
-            set_error(error, error_size, "out of memory");
-            return 1;
+            return std::string("out of memory");
         }
         if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels)) {
-            set_error(error, error_size, in->geterror());
-            return 1;
+            return std::string(in->geterror());
         }
         for (const auto& attr : spec.extra_attribs)
             if (attr.type() == OIIO::TypeDesc::STRING)
                 sink->attribute(sink->context, attr.name().c_str(), attr.get_string().c_str());
         in->close();
-        return 0;
-    } catch (const std::exception& e) {
-        set_error(error, error_size, e.what());
-        return 1;
-    } catch (...) {
-        set_error(error, error_size, "unknown exception in OpenImageIO");
-        return 1;
-    }
+        return std::nullopt;
+    });
 }
 
 int write_rgb8(const char* path, int width, int height, const unsigned char* rgb, char* error,
                size_t error_size) {
-    try {
+    return guarded(error, error_size, [&]() -> std::optional<std::string> {
         auto out = OIIO::ImageOutput::create(path);
         if (!out) {
-            set_error(error, error_size, OIIO::geterror());
-            return 1;
+            return std::string(OIIO::geterror());
         }
         OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
         if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, rgb) ||
             !out->close()) {
-            set_error(error, error_size, out->geterror());
-            return 1;
+            return std::string(out->geterror());
         }
-        return 0;
-    } catch (const std::exception& e) {
-        set_error(error, error_size, e.what());
-        return 1;
-    } catch (...) {
-        set_error(error, error_size, "unknown exception in OpenImageIO");
-        return 1;
-    }
+        return std::nullopt;
+    });
 }
 
 const RenderImagePlugin kPlugin = {RENDER_IMAGE_PLUGIN_VERSION, &read, &write_rgb8};
