@@ -27,18 +27,20 @@ from . import common
 # --------------------------------------------------------------------------------------------
 # The scene table. Add a row to benchmark another scene (e.g. media scenes later).
 
-ALL_ALGOS = ("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm", "vpl", "vpl+div")
+ALL_ALGOS = ("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm", "vpl", "vpl+div", "ic")
 
 # Series that are an algorithm with options: name -> (algorithm, extra render flags). Both vpl
 # series clamp the connection distance at 1 % of the scene radius with the shrinking schedule
 # (the default schedule: consistent, so they converge to the reference; unclamped VPLs have
 # infinite variance in the Cornell box's corners). vpl+div adds the importance-driven VPL
-# distribution (docs/algorithms.md).
+# distribution, ic importance caching over the same VPLs (docs/algorithms.md).
 VPL_FLAGS = ("--vpl-clamp", "0.01")
 SERIES_FLAGS = {
     "vpl": ("vpl", VPL_FLAGS),
     "vpl+div": ("vpl", VPL_FLAGS + ("--vpl-distribution", "importance")),
+    "ic": ("ic", VPL_FLAGS),
 }
+MANY_LIGHT_SERIES = ("vpl", "vpl+div", "ic")
 
 
 def series_command(name: str) -> tuple[str, tuple[str, ...]]:
@@ -68,8 +70,8 @@ VPL_MEDIA = "renders surfaces only (it refuses scenes with participating media)"
 VPL_GLOSSY = ("not benchmarked here: glossy plates lit by small lights are the case VPLs handle "
               "worst (each VPL a spike in the glossy lobe); the many-light scenes are "
               "cornell-box and two-rooms")
-NO_VPL = {"vpl": VPL_CAUSTICS, "vpl+div": VPL_CAUSTICS}
-NO_VPL_MEDIA = {"vpl": VPL_MEDIA, "vpl+div": VPL_MEDIA}
+NO_VPL = {name: VPL_CAUSTICS for name in MANY_LIGHT_SERIES}
+NO_VPL_MEDIA = {name: VPL_MEDIA for name in MANY_LIGHT_SERIES}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,7 +116,8 @@ SCENES: tuple[BenchScene, ...] = (
                "two rooms joined by a doorway; the light is in the room the camera does not "
                "see (light around a corner: the many-light scene of ALGORITHMS-NEXT.md 5)"),
     BenchScene("scenes/bitterli/veach-mis/scene_v3.xml", "veach-mis", "bpt", 512,
-               {**SURFACE, "vpl": VPL_GLOSSY, "vpl+div": VPL_GLOSSY}, False, "glossy plates reflecting four spherical area lights (their glossy "
+               {**SURFACE, **{name: VPL_GLOSSY for name in MANY_LIGHT_SERIES}}, False,
+               "glossy plates reflecting four spherical area lights (their glossy "
                "caustics on the wall are fireflies for pt); max_depth 3"),
     BenchScene("scenes/bitterli/veach-bidir/scene_v3.xml", "veach-bidir", "bpt", 128,
                {**SURFACE, **NO_VPL, "lt": lt_sees_no_specular("the glass egg")},
@@ -508,7 +511,8 @@ def check_claim(series: dict, slopes: dict) -> dict:
 
 ALGO_STYLE = {"pt": ("tab:blue", "o"), "volpt": ("tab:cyan", "P"), "lt": ("tab:orange", "v"),
               "bpt": ("tab:green", "s"), "ppm": ("tab:red", "^"), "bpm": ("tab:purple", "D"),
-              "vcm": ("black", "*"), "vpl": ("tab:brown", "X"), "vpl+div": ("tab:olive", "h")}
+              "vcm": ("black", "*"), "vpl": ("tab:brown", "X"), "vpl+div": ("tab:olive", "h"),
+              "ic": ("tab:pink", "p")}
 
 
 def plot_scene(path: Path, scene: BenchScene, series: dict, slopes: dict,
@@ -748,7 +752,7 @@ def write_document(path: Path, results: dict) -> None:
                 "source_revision"):
             lines += ["", f"Measured in an earlier run ({measured.get('date_utc')}, source "
                       f"revision {measured.get('source_revision')}, `{measured.get('command')}`)"
-                      "; the runs above re-measured the other scenes only."]
+                      "; the run named at the top did not re-measure this scene."]
         lines += ["", "<details><summary>All measured points</summary>", "",
                   *raw_table(r["series"], algos), "", "</details>"]
     lines.append("")
@@ -756,19 +760,21 @@ def write_document(path: Path, results: dict) -> None:
 
 
 def many_light_lines(series: dict) -> list[str]:
-    """Equal-time ratios of the importance-driven VPLs against the other series of a scene."""
-    if "vpl+div" not in series:
-        return []
-    parts = []
-    for other in ("vpl", "pt", "bpt"):
-        cmp = compare_at_equal_time(series, "vpl+div", other) if other in series else None
-        if cmp and cmp["ratios"]:
-            parts.append(f"{other} " + ", ".join(f"{r:.2g}" for r in cmp["ratios"]))
-    if not parts:
-        return []
-    return ["", "Many-light rendering: relMSE(vpl+div) / relMSE(X) at the start, middle and end "
-            "of the common time range (below 1: the importance-driven VPLs are ahead): "
-            + "; ".join(parts) + "."]
+    """Equal-time ratios of the importance-driven VPLs and of importance caching against the
+    other series of a scene."""
+    lines = []
+    for name in ("vpl+div", "ic"):
+        parts = []
+        for other in ("vpl", "pt", "bpt"):
+            cmp = (compare_at_equal_time(series, name, other)
+                   if name in series and other in series else None)
+            if cmp and cmp["ratios"]:
+                parts.append(f"{other} " + ", ".join(f"{r:.2g}" for r in cmp["ratios"]))
+        if parts:
+            lines += ["", f"Many-light rendering: relMSE({name}) / relMSE(X) at the start, "
+                      f"middle and end of the common time range (below 1: {name} is ahead): "
+                      + "; ".join(parts) + "."]
+    return lines
 
 
 def previous_scene_results(img_dir: Path, measured_now: list[str]) -> dict:
