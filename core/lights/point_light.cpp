@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/lights/point_illumination.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 
@@ -12,17 +13,9 @@ PointLight::PointLight(const Vec3& position, const Rgb& intensity)
     : position_(position), intensity_(intensity) {}
 
 bool PointLight::illuminate(const Vec3& ref, Vec2 /*u*/, LightIlluminateSample& out) const {
-    Vec3 to_light = position_ - ref;
-    float d2 = length_squared(to_light);
-    // A receiver on the light itself has no direction to it.
-    if (!(d2 > 0) || !std::isfinite(d2) || intensity_.is_black()) return false;
-    float d = std::sqrt(d2);
-    out.wi = to_light / d;
-    out.distance = d;
+    if (intensity_.is_black() || !illuminate_from_point(position_, ref, out)) return false;
     out.radiance = intensity_;
-    out.pdf_direct_w = d2;
     out.pdf_emission_w = warp::square_to_uniform_sphere_pdf();
-    out.cos_at_light = 1.0f;
     return true;
 }
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/lights/point_illumination.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 
@@ -40,18 +41,11 @@ float SpotLight::emission_pdf_w(const Vec3& world_direction) const {
 }
 
 bool SpotLight::illuminate(const Vec3& ref, Vec2 /*u*/, LightIlluminateSample& out) const {
-    Vec3 to_light = position_ - ref;
-    float d2 = length_squared(to_light);
-    if (!(d2 > 0) || !std::isfinite(d2) || intensity_.is_black()) return false;
-    float d = std::sqrt(d2);
-    out.wi = to_light / d;
+    if (intensity_.is_black() || !illuminate_from_point(position_, ref, out)) return false;
     const float f = falloff(-out.wi);
     if (!(f > 0)) return false;  // outside the cone: no light reaches ref
-    out.distance = d;
     out.radiance = intensity_ * f;
-    out.pdf_direct_w = d2;
     out.pdf_emission_w = emission_pdf_w(-out.wi);
-    out.cos_at_light = 1.0f;
     return true;
 }
 
