@@ -14,8 +14,7 @@ namespace render {
 
 namespace {
 
-template <BidirectionalMode mode>
-std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
+BidirectionalConfig bidirectional_config(BidirectionalMode mode, const RenderSettings& s) {
     BidirectionalConfig config;
     config.mode = mode;
     config.max_depth = s.max_depth;
@@ -24,7 +23,12 @@ std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
     config.alpha = s.alpha;
     config.light_path_count = s.light_path_count;
     config.mis_power = s.mis_power;
-    return std::make_unique<VertexConnectionMerging>(config);
+    return config;
+}
+
+template <BidirectionalMode mode>
+std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
+    return std::make_unique<VertexConnectionMerging>(bidirectional_config(mode, s));
 }
 
 // vpl and ic: the VPLs (light paths per iteration) and their clamp; each adds its own options.
@@ -74,10 +78,21 @@ const std::vector<Algorithm>& table() {
          .options = kConnecting,
          .create = make_bidirectional<BidirectionalMode::LightTracing>},
         {.name = "bpt",
-         .description = "bidirectional path tracing (homogeneous media)",
+         .description = "bidirectional path tracing (homogeneous media); --connections ic: "
+                        "importance-cached connections",
          .support = {.homogeneous_media = true},
-         .options = kConnecting,
-         .create = make_bidirectional<BidirectionalMode::Bpt>},
+         .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections", "ic_light_paths",
+                     "ic_record_density", "ic_samples", "ic_heuristic"},
+         .variants = {{{"connections", "ic"}}},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
+             config.ic_connections = s.ic_connections;
+             config.ic_light_paths = s.ic_light_paths;
+             config.ic_record_density = s.ic_record_density;
+             config.ic_samples = s.ic_samples;
+             config.ic_heuristic = s.ic_heuristic;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "ppm",
          .description = "progressive photon mapping (homogeneous media: photon points)",
          .support = {.homogeneous_media = true},

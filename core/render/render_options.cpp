@@ -253,6 +253,31 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.ic_power_only ? "power" : "records";
          }},
+        {.name = "connections",
+         .flag = "--connections",
+         .metavar = "path|ic",
+         .type = OptionType::Choice,
+         .help = "path: each eye vertex connects to every vertex of one light path; ic: to "
+                 "light vertices drawn from importance caches (--ic-samples per technique) over "
+                 "the vertices of the first --ic-light-paths light paths, MIS weights unchanged",
+         .choices = {"path", "ic"},
+         .default_text = "path",
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_connections = v == "ic"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_connections ? "ic" : "path";
+         }},
+        {.name = "ic_light_paths",
+         .flag = "--ic-light-paths",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light paths per iteration whose vertices the importance caches of ic "
+                 "connections cover (one shadow ray per record and vertex)",
+         .min = 1,
+         .max = 1000000,
+         .default_text = "1024",
+         .effective_with = {{"connections", "ic"}},
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_light_paths = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.ic_light_paths); }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

@@ -51,6 +51,10 @@ struct RenderSettings {
     // ic: false, the importance caches; true, every shading point draws its VPLs in proportion
     // to their power (the baseline of the paper's comparisons).
     bool ic_power_only = false;
+    // bpt: connections to the vertices of the pixel's own light path (false), or to light
+    // vertices drawn from importance caches over the first ic_light_paths light paths (true).
+    bool ic_connections = false;
+    uint64_t ic_light_paths = 1024;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -279,8 +279,7 @@ TEST(Convergence, ImportanceCachingMatchesAllVpls) {
         }
         OptionMap one_record = clamp;
         one_record["ic_record_density"] = "1e-6";
-        expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record",
-                           "vpl");
+        expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record", "vpl");
     }
 }
 
@@ -301,6 +300,47 @@ TEST(Convergence, ImportanceCachingHardCasesOnPlates) {
     OptionMap power = one_path;
     power["ic_distributions"] = "power";
     expect_same_blocks(all, render_blocks(*scene, "ic", 8, power), "ic power", "vpl");
+}
+
+// bpt with importance-cached connections converges to plain bpt: each eye vertex connects to
+// light vertices drawn from the caches over the first N light paths and divides by N, whose
+// expectation is the one-path connection's, so the MIS weights are unchanged
+// (docs/algorithms.md). Both heuristics, a subset of the light paths and all of them.
+TEST(Convergence, ImportanceCachedConnectionsMatchBpt) {
+    for (const char* file : {"bitterli/cornell-box/scene_v3.xml", "tests/two-rooms.xml"}) {
+        SCOPED_TRACE(file);
+        auto scene = shipped(file);
+        const BlockEstimate bpt = render_blocks(*scene, "bpt", 2);
+        expect_same_blocks(
+            bpt,
+            render_blocks(*scene, "bpt", 2, {{"connections", "ic"}, {"ic_light_paths", "128"}}),
+            "bpt ic connections (128 light paths)", "bpt");
+        expect_same_blocks(bpt,
+                           render_blocks(*scene, "bpt", 2,
+                                         {{"connections", "ic"},
+                                          {"ic_light_paths", "16"},
+                                          {"ic_heuristic", "balance"},
+                                          {"ic_samples", "1"}}),
+                           "bpt ic connections (16 light paths, balance)", "bpt");
+    }
+}
+
+// Hard cases of ic connections on plates (part of the image is background): one cached light
+// path (one to three vertices: a single vertex is drawn with probability 1 by every technique),
+// and one record per iteration (it escapes in about a third of the iterations; then every eye
+// vertex falls back to C).
+TEST(Convergence, ImportanceCachedConnectionsHardCasesOnPlates) {
+    auto scene = shipped("tests/plates.xml");
+    const BlockEstimate bpt = render_blocks(*scene, "bpt", 8);
+    expect_same_blocks(
+        bpt, render_blocks(*scene, "bpt", 8, {{"connections", "ic"}, {"ic_light_paths", "1"}}),
+        "bpt ic connections (one light path)", "bpt");
+    expect_same_blocks(
+        bpt,
+        render_blocks(
+            *scene, "bpt", 2,
+            {{"connections", "ic"}, {"ic_light_paths", "64"}, {"ic_record_density", "1e-6"}}),
+        "bpt ic connections (one record)", "bpt");
 }
 
 }  // namespace
