@@ -827,7 +827,8 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     const int per_path = ic_connections_ ? kIcConnectionRecordsPerPath : 1;
     const int width = camera_.width(), height = camera_.height();
     const double table_bytes = 4.0 * double(m + 1) * sizeof(double) * per_path;
-    double cell = 1.0 / std::sqrt(config_.ic_record_density);
+    // The density counts records: bpt's record paths are per_path times sparser.
+    double cell = 1.0 / std::sqrt(config_.ic_record_density / per_path);
     cell = std::max(cell, std::sqrt(double(width) * height * table_bytes / kIcTableBytes));
     const int nx = std::max(1, int(std::ceil(width / cell))),
               ny = std::max(1, int(std::ceil(height / cell)));

@@ -70,9 +70,9 @@ struct BidirectionalConfig {
     // Bpt: importance-cached connections. Each eye vertex connects to light vertices drawn
     // from the importance caches (the four distributions of Ic, over the vertices of the
     // iteration's first ic_light_paths light paths) instead of to the vertices of one light
-    // path; the records, samples and heuristic are Ic's.
+    // path; ic_samples per technique, the records and the heuristic as Ic's.
     bool ic_connections = false;
-    uint64_t ic_light_paths = 1024;
+    uint64_t ic_light_paths = 64;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

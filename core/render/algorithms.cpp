@@ -82,14 +82,14 @@ const std::vector<Algorithm>& table() {
                         "importance-cached connections",
          .support = {.homogeneous_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections", "ic_light_paths",
-                     "ic_record_density", "ic_samples", "ic_heuristic"},
+                     "connection_samples", "ic_record_density", "ic_heuristic"},
          .variants = {{{"connections", "ic"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
              config.ic_connections = s.ic_connections;
              config.ic_light_paths = s.ic_light_paths;
              config.ic_record_density = s.ic_record_density;
-             config.ic_samples = s.ic_samples;
+             config.ic_samples = s.connection_samples;
              config.ic_heuristic = s.ic_heuristic;
              return std::make_unique<VertexConnectionMerging>(config);
          }},

@@ -258,8 +258,9 @@ const std::vector<RenderOption>& table() {
          .metavar = "path|ic",
          .type = OptionType::Choice,
          .help = "path: each eye vertex connects to every vertex of one light path; ic: to "
-                 "light vertices drawn from importance caches (--ic-samples per technique) over "
-                 "the vertices of the first --ic-light-paths light paths, MIS weights unchanged",
+                 "light vertices drawn from importance caches (--connection-samples per "
+                 "technique) over the vertices of the first --ic-light-paths light paths, MIS "
+                 "weights unchanged",
          .choices = {"path", "ic"},
          .default_text = "path",
          .apply = [](RenderSettings& s, const std::string& v) { s.ic_connections = v == "ic"; },
@@ -274,10 +275,22 @@ const std::vector<RenderOption>& table() {
                  "connections cover (one shadow ray per record and vertex)",
          .min = 1,
          .max = 1000000,
-         .default_text = "1024",
+         .default_text = "64",
          .effective_with = {{"connections", "ic"}},
          .apply = [](RenderSettings& s, const std::string& v) { s.ic_light_paths = to_int(v); },
          .format = [](const RenderSettings& s) { return std::to_string(s.ic_light_paths); }},
+        {.name = "connection_samples",
+         .flag = "--connection-samples",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light vertices drawn per technique (full, unoccluded, bounded, conservative) "
+                 "at each eye vertex by ic connections: 4 N connections",
+         .min = 1,
+         .max = 4096,
+         .default_text = "1",
+         .effective_with = {{"connections", "ic"}},
+         .apply = [](RenderSettings& s, const std::string& v) { s.connection_samples = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.connection_samples); }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

@@ -52,9 +52,11 @@ struct RenderSettings {
     // to their power (the baseline of the paper's comparisons).
     bool ic_power_only = false;
     // bpt: connections to the vertices of the pixel's own light path (false), or to light
-    // vertices drawn from importance caches over the first ic_light_paths light paths (true).
+    // vertices drawn from importance caches over the first ic_light_paths light paths (true),
+    // connection_samples per technique and eye vertex.
     bool ic_connections = false;
-    uint64_t ic_light_paths = 1024;
+    uint64_t ic_light_paths = 64;
+    int connection_samples = 1;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -311,17 +311,15 @@ TEST(Convergence, ImportanceCachedConnectionsMatchBpt) {
         SCOPED_TRACE(file);
         auto scene = shipped(file);
         const BlockEstimate bpt = render_blocks(*scene, "bpt", 2);
-        expect_same_blocks(
-            bpt,
-            render_blocks(*scene, "bpt", 2, {{"connections", "ic"}, {"ic_light_paths", "128"}}),
-            "bpt ic connections (128 light paths)", "bpt");
+        expect_same_blocks(bpt, render_blocks(*scene, "bpt", 2, {{"connections", "ic"}}),
+                           "bpt ic connections (64 light paths, the default)", "bpt");
         expect_same_blocks(bpt,
                            render_blocks(*scene, "bpt", 2,
                                          {{"connections", "ic"},
                                           {"ic_light_paths", "16"},
                                           {"ic_heuristic", "balance"},
-                                          {"ic_samples", "1"}}),
-                           "bpt ic connections (16 light paths, balance)", "bpt");
+                                          {"connection_samples", "2"}}),
+                           "bpt ic connections (16 light paths, balance, 2 samples)", "bpt");
     }
 }
 
