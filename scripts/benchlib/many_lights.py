@@ -33,8 +33,8 @@ measured apart, each where it can be measured well:
 (An earlier version compared single `--time T` runs with a reference image directly: with three
 runs per point its ratios moved by a factor of two from point to point, and the reference's
 own noise set a floor.) Scenes: two-rooms (the light in the next room, the case the
-importance-driven distribution was made for) and the Cornell box (every VPL matters: the
-control). `render` runs with all cores.
+importance-driven distribution was made for), the Cornell box (every VPL matters: the
+control) and many-emitters (36 small lights in four bays joined by gaps). `render` runs with all cores.
 """
 
 import functools
@@ -61,6 +61,8 @@ ARMS = {
 SCENES = {
     "two-rooms": common.REPO_ROOT / "scenes" / "tests" / "two-rooms.xml",
     "cornell-box": common.REPO_ROOT / "scenes" / "bitterli" / "cornell-box" / "scene_v3.xml",
+    # 36 small lights in four bays: many emitters, each seen from part of the room.
+    "many-emitters": common.REPO_ROOT / "scenes" / "tests" / "many-emitters.xml",
 }
 OCCLUDED_SCENE = "two-rooms"  # where the paper's claim is checked
 CONTROL_SCENE = "cornell-box"
