@@ -14,6 +14,7 @@
 #include "core/integrators/hash_grid.h"
 #include "core/integrators/importance_lookup.h"
 #include "core/integrators/importance_mixture.h"
+#include "core/integrators/importance_optimise.h"
 #include "core/integrators/importance_record.h"
 #include "core/integrators/medium_segment.h"
 #include "core/integrators/merge_radius.h"
@@ -868,12 +869,16 @@ void Iteration::build_importance_cache(RenderStats& stats) {
         }
     }
     ic_tables_.resize(usable.size());
+    const bool optimise = config_.ic_optimise && config_.ic_heuristic == IcHeuristic::AlphaMax;
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, usable.size()), [&](const tbb::blocked_range<size_t>& range) {
             RenderStats& local = local_stats.local();
             for (size_t j = range.begin(); j < range.end(); ++j) {
                 Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kIcTableStreamBase + j});
                 ic_tables_[j] = record_tables(*usable[j], usable_radii[j], mask, rng, local);
+                if (optimise)
+                    ic_tables_[j] =
+                        optimise_record_tables(ic_tables_[j], ic_samples_, ic_weighting_.alpha);
             }
         });
     local_stats.combine_each([&](const RenderStats& s) { stats += s; });

@@ -127,13 +127,15 @@ const std::vector<Algorithm>& table() {
                         "a few VPLs from the distributions of nearby camera records (surfaces "
                         "only; no caustics through delta vertices)",
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
-                     "ic_record_density", "ic_samples", "ic_heuristic", "ic_distributions"},
+                     "ic_record_density", "ic_samples", "ic_heuristic", "ic_optimise",
+                     "ic_distributions"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = many_light_config(BidirectionalMode::Ic, s);
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.ic_samples;
              config.ic_heuristic = s.ic_heuristic;
              config.ic_power_only = s.ic_power_only;
+             config.ic_optimise = s.ic_optimise;
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "eyelight",

@@ -240,6 +240,19 @@ const std::vector<RenderOption>& table() {
                     : s.ic_heuristic == IcHeuristic::Power ? "power"
                                                            : "alpha-max";
          }},
+        {.name = "ic_optimise",
+         .flag = "--ic-optimise",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "with alpha-max: at each record keep every VPL only in the table of the "
+                 "technique alpha-max credits it to there, and renormalise (the thesis's "
+                 "distribution optimisation)",
+         .choices = {"off", "on"},
+         .default_text = "off",
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_optimise = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_optimise ? "on" : "off";
+         }},
         {.name = "ic_distributions",
          .flag = "--ic-distributions",
          .metavar = "records|power",

@@ -51,6 +51,8 @@ struct RenderSettings {
     // ic: false, the importance caches; true, every shading point draws its VPLs in proportion
     // to their power (the baseline of the paper's comparisons).
     bool ic_power_only = false;
+    // ic: the distribution optimisation of alpha-max (importance_optimise.h).
+    bool ic_optimise = false;
     // bpt: connections to the vertices of the pixel's own light path (false), or to light
     // vertices drawn from importance caches over the first ic_light_paths light paths (true),
     // connection_samples per technique and eye vertex.

@@ -280,6 +280,10 @@ TEST(Convergence, ImportanceCachingMatchesAllVpls) {
         OptionMap one_record = clamp;
         one_record["ic_record_density"] = "1e-6";
         expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record", "vpl");
+        // The distribution optimisation: the weights come from the optimised mixtures.
+        OptionMap optimised = clamp;
+        optimised["ic_optimise"] = "on";
+        expect_same_blocks(all, render_blocks(*scene, "ic", 4, optimised), "ic optimised", "vpl");
     }
 }
 
