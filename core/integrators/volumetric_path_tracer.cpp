@@ -200,7 +200,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
             if (equiangular_ && has_lights && can_extend && std::isfinite(t_end)) {
                 const Rgb c = beta * tracer.equiangular_inscattering(segment);
                 L += c;
-                sink.add(Technique::Connection, 1, depth + 2, c);
+                sink.add(Technique::Connection, 1, depth + 1, c);
             }
             const MediumSample ms = medium->sample(ray, t_end, rng);
             beta *= ms.weight;
@@ -218,7 +218,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                 if (has_lights) {
                     const Rgb c = beta * tracer.direct_light_in_medium(v, wo);
                     L += c;
-                    sink.add(Technique::Connection, 1, depth + 2, c);
+                    sink.add(Technique::Connection, 1, depth + 1, c);
                 }
                 const PhaseSample ps = medium->phase().sample(wo, rng.next_2d());
                 if (!(ps.pdf_w > 0)) break;
