@@ -66,11 +66,13 @@ const std::vector<Algorithm>& table() {
         {.name = "volpt",
          .aliases = {"volpath"},
          .description =
-             "volumetric path tracing: delta/ratio tracking, equi-angular sampling (any media)",
+             "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
+             "media)",
          .support = {.homogeneous_media = true, .grid_media = true},
-         .options = {"max_depth", "rr_depth", "equiangular"},
+         .options = {"max_depth", "rr_depth", "equiangular", "jis"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular);
+             return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
+                                                           s.jis);
          }},
         {.name = "lt",
          .description = "light tracing (homogeneous media)",

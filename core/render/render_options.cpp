@@ -120,6 +120,16 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.equiangular ? "on" : "off";
          }},
+        {.name = "jis",
+         .flag = "--jis",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "joint path sampling of double scattering on the camera ray in homogeneous "
+                 "media, combined by MIS with the other techniques (volpt)",
+         .choices = {"on", "off"},
+         .default_text = "on",
+         .apply = [](RenderSettings& s, const std::string& v) { s.jis = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string { return s.jis ? "on" : "off"; }},
         {.name = "vpl_paths",
          .flag = "--vpl-paths",
          .metavar = "N",

@@ -205,6 +205,10 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
             }
             SCOPED_TRACE(algorithm);
             settings.max_depth = scene->settings.max_depth;
+            // The fog box is lit only through its medium (black walls): with the default
+            // radius (0.3 % of the scene radius) a photon lands in a query ball with
+            // probability ~1e-4, so ppm and bpm would show nothing in two iterations.
+            if (entry.path().filename() == "fog-box.xml") settings.radius_factor = 0.05;
             IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 3});
             EXPECT_EQ(r.stats.non_finite, 0u);
             double total = 0;
@@ -215,9 +219,8 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
             EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         }
     }
-    EXPECT_EQ(surface_scenes,
-              10);               // 3 Bitterli, 4 SmallVCM boxes, plates, two-rooms, many-emitters
-    EXPECT_EQ(media_scenes, 4);  // volumetric-caustic, 2 SmallUPBP boxes, smoke
+    EXPECT_EQ(surface_scenes, 10);  // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters
+    EXPECT_EQ(media_scenes, 5);     // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box
 }
 
 }  // namespace
