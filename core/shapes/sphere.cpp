@@ -31,8 +31,13 @@ bool intersect_sphere(const Vec3& center, double radius, const float org[3], con
 
 }  // namespace
 
-Sphere::Sphere(const Vec3& center, float radius, bool flip_normals, std::string name)
-    : center_(center), radius_(radius), flip_normals_(flip_normals), name_(std::move(name)) {}
+Sphere::Sphere(const Vec3& center, float radius, bool flip_normals, std::string name,
+               const Frame& axes)
+    : center_(center),
+      radius_(radius),
+      flip_normals_(flip_normals),
+      name_(std::move(name)),
+      axes_(axes) {}
 
 std::optional<double> Sphere::nearest_hit(const float org[3], const float dir[3], float t_min,
                                           float t_max) const {
@@ -52,12 +57,14 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     // Re-project onto the surface: removes the error of origin + t * direction.
     si.p = center_ + n * radius_;
     si.t = t;
+    // uv from the outward direction in object space, whichever way the normal faces.
+    const Vec3 local = axes_.to_local(n);
+    const float theta = std::acos(std::clamp(local.z, -1.0f, 1.0f));
+    const float phi = std::atan2(local.y, local.x);
+    si.uv = Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);
-    float theta = std::acos(std::clamp(n.z, -1.0f, 1.0f));
-    float phi = std::atan2(n.y, n.x);
-    si.uv = Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;

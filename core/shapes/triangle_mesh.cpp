@@ -154,16 +154,22 @@ MeshData make_cube_mesh() {
     // Six faces with their own vertices so that normals stay flat.
     MeshData m;
     const Vec3 normals[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-    for (const Vec3& n : normals) {
+    // Mitsuba's uv layout: on each face u = (a . p + 1) / 2 and v = (b . p + 1) / 2.
+    const Vec3 u_axes[6] = {{0, 1, 0}, {0, 1, 0}, {-1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {0, -1, 0}};
+    const Vec3 v_axes[6] = {{0, 0, -1}, {0, 0, 1}, {0, 0, -1}, {1, 0, 0}, {1, 0, 0}, {1, 0, 0}};
+    for (int face = 0; face < 6; ++face) {
+        const Vec3& n = normals[face];
         // Two tangents with cross(s, t) = n so the winding faces outward.
         Vec3 s = std::abs(n.x) > 0 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
         Vec3 t = cross(n, s);
         uint32_t base = uint32_t(m.positions.size());
         const float corners[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
         for (const auto& c : corners) {
-            m.positions.push_back(n + s * c[0] + t * c[1]);
+            const Vec3 p = n + s * c[0] + t * c[1];
+            m.positions.push_back(p);
             m.normals.push_back(n);
-            m.uvs.push_back(Vec2(0.5f * (c[0] + 1), 0.5f * (c[1] + 1)));
+            m.uvs.push_back(
+                Vec2(0.5f * (dot(u_axes[face], p) + 1), 0.5f * (dot(v_axes[face], p) + 1)));
         }
         m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
     }

@@ -51,7 +51,7 @@ class TriangleMesh final : public Shape {
 };
 
 // Procedural meshes with Mitsuba's object-space conventions.
-MeshData make_rectangle_mesh();  // [-1,1]^2 at z = 0, normal +z
-MeshData make_cube_mesh();       // [-1,1]^3, outward normals, flat faces
+MeshData make_rectangle_mesh();  // [-1,1]^2 at z = 0, normal +z, uv = ((x + 1) / 2, (y + 1) / 2)
+MeshData make_cube_mesh();       // [-1,1]^3, outward normals, flat faces, each face's uv [0,1]^2
 
 }  // namespace render
