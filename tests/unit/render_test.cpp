@@ -219,8 +219,9 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
             EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         }
     }
-    EXPECT_EQ(surface_scenes, 9);  // 3 Bitterli scenes, 4 SmallVCM boxes, plates, two-rooms
-    EXPECT_EQ(media_scenes, 4);    // volumetric-caustic, 2 SmallUPBP boxes, smoke
+    // 3 Bitterli scenes, 4 SmallVCM boxes, plates, two-rooms, textures
+    EXPECT_EQ(surface_scenes, 10);
+    EXPECT_EQ(media_scenes, 4);  // volumetric-caustic, 2 SmallUPBP boxes, smoke
 }
 
 }  // namespace
