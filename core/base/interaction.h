@@ -31,6 +31,7 @@ struct ShapeSample {
     Vec3 p;
     Vec3 n;              // unit geometric normal at p (facing the shape's outside)
     float pdf_area = 0;  // density with respect to surface area
+    Vec2 uv;             // the shape's uv at p, as a hit there would report it
 };
 
 }  // namespace render

@@ -57,17 +57,27 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     // Re-project onto the surface: removes the error of origin + t * direction.
     si.p = center_ + n * radius_;
     si.t = t;
-    // uv from the outward direction in object space, whichever way the normal faces.
-    const Vec3 local = axes_.to_local(n);
-    const float theta = std::acos(std::clamp(local.z, -1.0f, 1.0f));
-    const float phi = std::atan2(local.y, local.x);
-    si.uv = Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
+    si.uv = uv_of_direction(n);
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;
+}
+
+Vec2 Sphere::uv_of_direction(const Vec3& d) const {
+    // From the outward direction in object space, whichever way the normal faces.
+    const Vec3 local = axes_.to_local(d);
+    const float theta = std::acos(std::clamp(local.z, -1.0f, 1.0f));
+    const float phi = std::atan2(local.y, local.x);
+    return Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
+}
+
+Vec2 Sphere::uv_at(const Vec3& p) const {
+    const Vec3 d = p - center_;
+    const float len = length(d);
+    return uv_of_direction(len > 0 ? d / len : Vec3(0, 0, 1));
 }
 
 Aabb Sphere::bounds() const {
@@ -86,6 +96,7 @@ ShapeSample Sphere::sample_area(Vec2 u) const {
     ShapeSample s;
     s.p = center_ + d * radius_;
     s.n = flip_normals_ ? -d : d;
+    s.uv = uv_of_direction(d);
     s.pdf_area = 1.0f / surface_area();
     return s;
 }

@@ -23,11 +23,16 @@ class Sphere final : public AnalyticShape {
     float surface_area() const override;
     ShapeSample sample_area(Vec2 u) const override;
     std::string to_string() const override;
+    bool has_uv_lookup() const override { return true; }
+    Vec2 uv_at(const Vec3& p) const override;
 
     Vec3 center() const { return center_; }
     float radius() const { return radius_; }
 
   private:
+    // uv of the unit direction d from the centre.
+    Vec2 uv_of_direction(const Vec3& d) const;
+
     Vec3 center_;
     float radius_;
     bool flip_normals_;

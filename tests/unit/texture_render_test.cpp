@@ -95,8 +95,8 @@ TEST(TextureRender, CheckerboardPlaneShowsBothColours) {
     }
 }
 
-// Two planes and a spherical light; each material once with plain values and once with a
-// checkerboard whose two colours are those values (so textured, and constant).
+// Two planes and a spherical light; each material and the light once with plain values and
+// once with a checkerboard whose two colours are those values (so textured, and constant).
 std::string mixed_scene(bool textured) {
     auto value = [&](const std::string& name, const std::string& v, bool rgb) {
         const std::string tag = rgb ? "rgb" : "float";
@@ -113,7 +113,8 @@ std::string mixed_scene(bool textured) {
   </sensor>
   <shape type="sphere">
     <point name="center" value="0.6, 0.3, 1.2"/><float name="radius" value="0.2"/>
-    <emitter type="area"><rgb name="radiance" value="12, 10, 8"/></emitter>
+    <emitter type="area">)" +
+           value("radiance", "12, 10, 8", true) + R"(</emitter>
   </shape>
   <shape type="rectangle">
     <transform name="to_world"><scale value="2"/></transform>
@@ -140,6 +141,7 @@ TEST_P(ConstantTextureRender, RendersBitIdenticallyToThePlainValue) {
     auto textured = load_scene_from_string(mixed_scene(true), ".");
     ASSERT_FALSE(plain->shapes()[1]->bsdf->varies());
     ASSERT_TRUE(textured->shapes()[1]->bsdf->varies());
+    ASSERT_NE(textured->lights()[0]->to_string().find("mean of checkerboard"), std::string::npos);
     RenderSettings settings;
     settings.algorithm = GetParam();
     settings.seed = 5;

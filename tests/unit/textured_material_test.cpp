@@ -225,11 +225,10 @@ TEST(TexturedMaterial, BadTextureInputIsALocatedError) {
                                "name=\"exponent\"/></bsdf>"),
                     "<string>:4: bsdf \"phong\", parameter \"exponent\": a texture is not "
                     "accepted here");
-    // Emitters take no textures yet: a textured area light is refused by name, not ignored.
-    EXPECT_CONTAINS(load_error("<shape type=\"sphere\"><emitter type=\"area\">\n<texture "
-                               "type=\"checkerboard\" name=\"radiance\"/></emitter></shape>"),
-                    "<string>:4: emitter \"area\", parameter \"radiance\": a texture is not "
-                    "accepted here");
+    // A plugin that has no use for a texture: an unused parameter at its own line.
+    EXPECT_CONTAINS(load_error("<emitter type=\"spot\">\n<texture type=\"checkerboard\" "
+                               "name=\"texture\"/></emitter>"),
+                    "<string>:4: unused parameter \"texture\" in emitter \"spot\"");
 }
 
 }  // namespace
