@@ -17,9 +17,10 @@ class Texture {
 
     // The linear RGB value at surface coordinates uv (before the texture's own to_uv).
     virtual Rgb eval(Vec2 uv) const = 0;
-    // A single value (roughness): the mean of the three channels, so that a grey texture gives
-    // its grey value back.
-    float eval_1(Vec2 uv) const { return eval(uv).average(); }
+    // A single value (roughness), as Mitsuba's eval_1: the luminance of a colour, the value
+    // itself (exactly) of a grey one.
+    float eval_1(Vec2 uv) const { return to_scalar(eval(uv)); }
+    static float to_scalar(const Rgb& c) { return c.r == c.g && c.g == c.b ? c.r : c.luminance(); }
 
     // Average over the texture's unit square of uv: stands for the texture where one value is
     // needed for the whole surface (descriptions, the BSDF an unresolved material falls back to).

@@ -22,11 +22,11 @@ struct RgbParam {
 
 struct FloatParam {
     float value = 0;
-    std::shared_ptr<const Texture> texture;  // its channel mean (Texture::eval_1)
+    std::shared_ptr<const Texture> texture;  // as a single value (Texture::eval_1)
 
     bool varies() const { return texture != nullptr; }
     float at(Vec2 uv) const { return texture ? texture->eval_1(uv) : value; }
-    float mean() const { return texture ? texture->mean().average() : value; }
+    float mean() const { return texture ? Texture::to_scalar(texture->mean()) : value; }
     float at(const Vec2* uv) const { return uv ? at(*uv) : mean(); }
 };
 

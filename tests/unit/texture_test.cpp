@@ -127,6 +127,14 @@ TEST(BitmapTexture, ToUvScalesTranslatesAndRotates) {
     EXPECT_NEAR(at(r, 0.9f, -0.1f), 10.0f, 0.0f);  // looks up (0.1, 0.9)
 }
 
+TEST(Texture, SingleValueIsTheLuminanceOrTheGreyValue) {
+    // Roughness from a texture, as Mitsuba's eval_1: a grey value exactly (so a constant
+    // texture gives the same BSDF as the plain number), a colour's Rec. 709 luminance.
+    EXPECT_EQ(ConstantTexture(Rgb(0.3f)).eval_1(Vec2()), 0.3f);
+    EXPECT_NEAR(ConstantTexture(Rgb(0.2f, 0.5f, 0.9f)).eval_1(Vec2()),
+                0.212671f * 0.2f + 0.715160f * 0.5f + 0.072169f * 0.9f, 1e-6f);
+}
+
 class TextureFiles : public ::testing::Test {
   protected:
     void SetUp() override {

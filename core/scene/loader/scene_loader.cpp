@@ -738,7 +738,7 @@ class Loader {
             }
             if (c.tag() == "emitter") {
                 if (emitter) throw SceneError(c.where(), "a shape has at most one emitter");
-                // Textures are read so that a plugin that takes none says so by name.
+                // The area light's radiance may be a texture.
                 emitter = read_object(c, "emitter", [&](const XmlElement& t, Properties& p) {
                     return read_texture_child(t, p);
                 });
