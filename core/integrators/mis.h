@@ -18,4 +18,11 @@ inline float power_heuristic3(float self, float other1, float other2) {
     return 1.0f / (1.0f + a * a + b * b);
 }
 
+// Power heuristic weight of the first of four techniques' densities (same measure).
+inline float power_heuristic4(double self, double other1, double other2, double other3) {
+    if (!(self > 0)) return 0.0f;
+    const double a = other1 / self, b = other2 / self, c = other3 / self;
+    return float(1.0 / (1.0 + a * a + b * b + c * c));
+}
+
 }  // namespace render

@@ -14,6 +14,7 @@
 #include "core/integrators/hash_grid.h"
 #include "core/integrators/importance_lookup.h"
 #include "core/integrators/importance_mixture.h"
+#include "core/integrators/importance_optimise.h"
 #include "core/integrators/importance_record.h"
 #include "core/integrators/medium_segment.h"
 #include "core/integrators/merge_radius.h"
@@ -37,6 +38,9 @@ constexpr uint64_t kImportanceStreamBase = kLightStreamBase + (uint64_t(3) << 60
 // Importance caching: the records of the screen grid, and their tables' shadow rays.
 constexpr uint64_t kIcRecordStreamBase = kLightStreamBase + (uint64_t(4) << 60);
 constexpr uint64_t kIcTableStreamBase = kLightStreamBase + (uint64_t(5) << 60);
+// bpt with ic connections: records at the first non-delta vertices of each record path (eye
+// vertices t = 2, 3, 4), so that eye vertices past the first find records that saw what they see.
+constexpr int kIcConnectionRecordsPerPath = 3;
 // Importance caching keeps its tables (four doubles per record and VPL) below this size; a
 // denser record grid is thinned to fit (docs/algorithms.md).
 constexpr double kIcTableBytes = 512.0 * 1024 * 1024;
@@ -150,6 +154,7 @@ class Iteration {
           ppm_(config.mode == BidirectionalMode::Ppm),
           vpl_(config.mode == BidirectionalMode::Vpl),
           ic_(config.mode == BidirectionalMode::Ic),
+          ic_connections_(config.mode == BidirectionalMode::Bpt && config.ic_connections),
           many_lights_(vpl_ || ic_),
           use_vc_(config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm),
           use_vm_(config.mode == BidirectionalMode::Ppm || config.mode == BidirectionalMode::Bpm ||
@@ -170,15 +175,20 @@ class Iteration {
           mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_),
                eta_vcm_volume_),
           vpl_clamp2_(vpl_clamp_squared(config, scene, key.iteration)),
-          vpl_scale_(float(1.0 / double(light_path_count_))) {}
+          vpl_scale_(float(1.0 / double(light_path_count_))),
+          ic_light_path_count_(ic_connections_
+                                   ? std::min<uint64_t>(config.ic_light_paths, light_path_count_)
+                                   : light_path_count_) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
     // probability P_k (dividing its throughput by P_k) and drops the others.
     void select_vpls(RenderStats& stats, VplSelection* inspection = nullptr);
-    // ic: traces the records of the screen grid and builds their tables over the light
-    // vertices, the lookup tree and the conservative fallback.
+    // ic, and bpt with ic connections: traces the records of the screen grid and builds their
+    // tables over the light vertices (bpt: those of the first ic_light_path_count_ paths), the
+    // lookup tree and the conservative fallback.
     void build_importance_cache(RenderStats& stats);
+    bool uses_importance_caches() const { return ic_ || ic_connections_; }
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
     uint64_t light_path_count() const { return light_path_count_; }
@@ -216,7 +226,20 @@ class Iteration {
     Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
                             RenderStats& stats) const;
     Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
-                         const SubpathState& state, Rng& rng, RenderStats& stats) const;
+                         const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const;
+    // A connection's MIS-weighted contribution before visibility (f_eye G f_light w, without
+    // the subpaths' throughputs) and the segment that decides its visibility; empty when it is
+    // zero whatever the visibility.
+    struct ConnectionTerms {
+        ConnectionGeometry geometry;
+        Rgb unoccluded;
+        Ray ray;
+        Link link;
+    };
+    std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
+                                                    const Vertex& v, const Vec3& wo,
+                                                    const MisQuantities& eye_mis, Rng& rng,
+                                                    RenderStats& stats) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
@@ -233,19 +256,26 @@ class Iteration {
         int path_length;
         float distance;  // along the camera path (for the record's footprint)
         Vec3 camera_direction;
+        MisQuantities mis;  // of the eye subpath ending at the record (ic connections' weights)
     };
     std::optional<Record> trace_record(uint64_t index, RenderStats& stats) const;
     // The record of the camera ray through image position `position` (in pixels).
     std::optional<Record> trace_record_at(Vec2 position, Rng& rng, RenderStats& stats) const;
-    // The four tables of one importance-caching record over light_vertices_.
+    // The records at the first `count` non-delta vertices of the camera path through
+    // `position`, appended to `out`.
+    void trace_records_at(Vec2 position, int count, Rng& rng, RenderStats& stats,
+                          std::vector<Record>& out) const;
+    // The four tables of one importance-caching record over the first ic_vertex_count_
+    // light vertices.
     IcRecordTables record_tables(const Record& r, float radius, std::span<const uint8_t> mask,
                                  Rng& rng, RenderStats& stats) const;
-    // ic at eye vertex v: VPLs drawn from the mixtures of v's nearest records, each term
-    // h(x, v) weighted by MIS between the techniques (without the eye throughput), passed to
-    // `add` with the number of light vertices s of its path.
-    template <class Add>
-    void importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
-                                RenderStats& stats, Add&& add) const;
+    // Importance caching at eye vertex v: light vertices drawn from the mixtures of v's
+    // nearest records; each drawn vertex's `term` (its contribution without the eye
+    // throughput), weighted by MIS between the four techniques and divided by its probability,
+    // is passed to `add` with the number of light vertices s of its path.
+    template <class Term, class Add>
+    void draw_from_importance_caches(const Vertex& v, int eye_length, Rng& rng, Term&& term,
+                                     Add&& add) const;
     // phi_k of every light vertex: the luminance of its contribution averaged over the
     // iteration's importance records (escaped records count as zero).
     std::vector<double> estimate_vpl_importance(RenderStats& stats) const;
@@ -255,7 +285,8 @@ class Iteration {
     IterationKey key_;
     const PerspectiveCamera& camera_;
     // many_lights_: vpl or ic, the two estimators over the iteration's VPLs (weight 1).
-    bool light_trace_only_, ppm_, vpl_, ic_, many_lights_, use_vc_, use_vm_;
+    // ic_connections_: bpt whose connections draw light vertices from importance caches.
+    bool light_trace_only_, ppm_, vpl_, ic_, ic_connections_, many_lights_, use_vc_, use_vm_;
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
     double radius_;
@@ -264,11 +295,16 @@ class Iteration {
     VcmMis mis_;
     float vpl_clamp2_;  // squared distance clamp of VPL connections (0: none)
     float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
+    // The light paths whose vertices the importance caches cover (ic: all; bpt: a prefix) and
+    // those vertices (a prefix of light_vertices_, set by build_importance_cache).
+    uint64_t ic_light_path_count_;
+    size_t ic_vertex_count_ = 0;
 
     std::vector<LightVertex> light_vertices_;
     std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
     // Importance caching: one table set per record, the records' lookup tree (same order), the
-    // conservative fallback over every VPL, the sample counts, the weighting and the lookup.
+    // conservative fallback over every cached vertex, the sample counts, the weighting and the
+    // lookup.
     std::vector<IcRecordTables> ic_tables_;
     IcRecordTree ic_tree_;
     ImportanceTable ic_fallback_;
@@ -561,10 +597,11 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
     return ConnectionGeometry{d, dist2, eye, light};
 }
 
-Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
-                                const SubpathState& state, Rng& rng, RenderStats& stats) const {
+std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
+    const LightVertex& lv, const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
+    RenderStats& stats) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
-    if (!g) return Rgb(0.0f);
+    if (!g) return std::nullopt;
     const Vertex& w = lv.vertex;
     const Vec3& d = g->d;
     const float dist2 = g->dist2;
@@ -572,13 +609,13 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     const auto& [f_light, light_pdf_w] = g->light;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
-    if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
+    if (l.traced && l.transmittance.is_black()) return std::nullopt;
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).
     const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
     const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
     // Eqs. (40) and (41).
-    const float weight = mis_.weight_connection(lv.mis, state.mis,
+    const float weight = mis_.weight_connection(lv.mis, eye_mis,
                                                 {.eye_pdf_a = eye_pdf_a,
                                                  .light_pdf_a = light_pdf_a,
                                                  .light_reverse_w = light_pdf_w.reverse,
@@ -587,8 +624,15 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
                                                  .eye_medium = v.in_medium()});
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
-    if (contribution.is_black()) return Rgb(0.0f);
-    return contribution * visibility(l, ray, stats);
+    if (contribution.is_black()) return std::nullopt;
+    return ConnectionTerms{*g, contribution, ray, l};
+}
+
+Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
+                                const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const {
+    const std::optional<ConnectionTerms> t = connection_terms(lv, v, wo, eye_mis, rng, stats);
+    if (!t) return Rgb(0.0f);
+    return t->unoccluded * visibility(t->link, t->ray, stats);
 }
 
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
@@ -617,21 +661,33 @@ std::optional<Iteration::Record> Iteration::trace_record(uint64_t index, RenderS
 
 std::optional<Iteration::Record> Iteration::trace_record_at(Vec2 position, Rng& rng,
                                                             RenderStats& stats) const {
+    std::vector<Record> records;
+    trace_records_at(position, 1, rng, stats, records);
+    if (records.empty()) return std::nullopt;
+    return std::move(records.front());
+}
+
+void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats& stats,
+                                 std::vector<Record>& out) const {
+    const size_t wanted = out.size() + size_t(count);
     Ray ray = camera_.generate_ray(position);
     const Vec3 camera_direction = ray.direction;
     SubpathState state;
     state.throughput = Rgb(1.0f);
+    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
     state.medium = scene_.camera_medium();
     float distance = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
-        if (!v || state.path_length >= max_length_) return std::nullopt;
+        if (!v || state.path_length >= max_length_) return;
         distance += seg.distance;
-        if (v->has_non_delta())
-            return Record{*v,       -ray.direction,  state.throughput, state.path_length,
-                          distance, camera_direction};
-        if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return std::nullopt;
+        if (v->has_non_delta()) {
+            out.push_back(Record{*v, -ray.direction, state.throughput, state.path_length, distance,
+                                 camera_direction, state.mis});
+            if (out.size() == wanted) return;
+        }
+        if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return;
     }
 }
 
@@ -695,12 +751,30 @@ void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
 IcRecordTables Iteration::record_tables(const Record& r, float radius,
                                         std::span<const uint8_t> mask, Rng& rng,
                                         RenderStats& stats) const {
-    const size_t m = light_vertices_.size();
+    const size_t m = ic_vertex_count_;
     std::vector<double> full(m, 0.0), unoccluded(m, 0.0), bounded(m, 0.0);
     const float clamp2 = record_clamp2();
     for (size_t k = 0; k < m; ++k) {
         const LightVertex& lv = light_vertices_[k];
         if (lv.path_length + 1 + r.path_length > max_length_) continue;
+        if (ic_connections_) {
+            // bpt: the table entries are the connection's own MIS-weighted contribution at the
+            // record (the weight tames the 1 / d^2 of nearby vertices, so no clamp).
+            const std::optional<ConnectionTerms> t =
+                connection_terms(lv, r.vertex, r.wo, r.mis, rng, stats);
+            if (!t) continue;
+            const double y = (lv.throughput * t->unoccluded).luminance();
+            if (!(y > 0) || !std::isfinite(y)) continue;
+            const Vec3& d = t->geometry.d;
+            const double power =
+                (lv.throughput * t->geometry.eye.f * t->geometry.light.f).luminance();
+            unoccluded[k] = y;
+            bounded[k] =
+                power * bounded_geometry_factor(std::sqrt(double(t->geometry.dist2)), radius,
+                                                lv.vertex.shading_cos(d), r.vertex.shading_cos(d));
+            full[k] = y * double(visibility(t->link, t->ray, stats).luminance());
+            continue;
+        }
         const std::optional<ConnectionGeometry> g = connection_geometry(lv, r.vertex, r.wo);
         if (!g) continue;
         const double cos_record = r.vertex.shading_cos(g->d), cos_vpl = lv.vertex.shading_cos(g->d);
@@ -719,8 +793,13 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
 }
 
 void Iteration::build_importance_cache(RenderStats& stats) {
-    const size_t m = light_vertices_.size();
-    path_ends_.clear();  // ic draws from every vertex; paths are no longer needed
+    // Paths are concatenated in order, so the first ic_light_path_count_ paths' vertices are a
+    // prefix of light_vertices_.
+    ic_vertex_count_ = ic_light_path_count_ == 0 || path_ends_.empty()
+                           ? light_vertices_.size()
+                           : path_ends_[ic_light_path_count_ - 1];
+    const size_t m = ic_vertex_count_;
+    path_ends_.clear();  // importance caching draws from the cached vertices; no paths needed
     ic_weighting_.heuristic = config_.ic_heuristic;
     if (config_.ic_power_only) {
         // The baseline the paper compares with: no records; every shading point draws all
@@ -744,15 +823,19 @@ void Iteration::build_importance_cache(RenderStats& stats) {
 
     // The jittered screen grid: square cells of 1 / density pixels, thinned (larger cells) if
     // the tables would exceed kIcTableBytes.
+    // ic shades only the first non-delta eye vertex; bpt connects at every eye vertex, so its
+    // record paths go on and hold records at their first few non-delta vertices.
+    const int per_path = ic_connections_ ? kIcConnectionRecordsPerPath : 1;
     const int width = camera_.width(), height = camera_.height();
-    const double table_bytes = 4.0 * double(m + 1) * sizeof(double);
-    double cell = 1.0 / std::sqrt(config_.ic_record_density);
+    const double table_bytes = 4.0 * double(m + 1) * sizeof(double) * per_path;
+    // The density counts records: bpt's record paths are per_path times sparser.
+    double cell = 1.0 / std::sqrt(config_.ic_record_density / per_path);
     cell = std::max(cell, std::sqrt(double(width) * height * table_bytes / kIcTableBytes));
     const int nx = std::max(1, int(std::ceil(width / cell))),
               ny = std::max(1, int(std::ceil(height / cell)));
     const float cell_w = float(width) / float(nx), cell_h = float(height) / float(ny);
-    std::vector<std::optional<Record>> records(size_t(nx) * size_t(ny));
-    std::vector<float> radii(records.size(), 0.0f);
+    std::vector<std::vector<Record>> records(size_t(nx) * size_t(ny));
+    std::vector<std::vector<float>> radii(records.size());
     tbb::combinable<RenderStats> local_stats;
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, records.size()),
@@ -762,43 +845,50 @@ void Iteration::build_importance_cache(RenderStats& stats) {
                 Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kIcRecordStreamBase + j});
                 const Vec2 u = rng.next_2d();
                 const Vec2 position((float(j % nx) + u.x) * cell_w, (float(j / nx) + u.y) * cell_h);
-                std::optional<Record> r = trace_record_at(position, rng, local);
-                if (!r) continue;
-                records[j].emplace(*r);  // Record holds references: no assignment
-                // The region of influence: the disk of the record's cell seen on
-                // its surface (cell solid angle x distance^2 / cos, as an area).
-                const double solid_angle =
-                    double(cell_w) * cell_h / camera_pixel_pdf_w(r->camera_direction);
-                const double cos_in = std::max(0.1f, r->vertex.cos(r->wo));
-                radii[j] = float(std::sqrt(solid_angle * r->distance * r->distance / cos_in / kPi));
+                trace_records_at(position, per_path, rng, local, records[j]);
+                for (const Record& r : records[j]) {
+                    // The region of influence: the disk of the record's cell seen on its
+                    // surface (cell solid angle x distance^2 / cos, as an area; along the
+                    // path for deeper records, which ignores the spread of the scattering).
+                    const double solid_angle =
+                        double(cell_w) * cell_h / camera_pixel_pdf_w(r.camera_direction);
+                    const double cos_in = std::max(0.1f, r.vertex.cos(r.wo));
+                    radii[j].push_back(
+                        float(std::sqrt(solid_angle * r.distance * r.distance / cos_in / kPi)));
+                }
             }
         });
     std::vector<const Record*> usable;
     std::vector<float> usable_radii;
     std::vector<IcRecordPoint> points;
     for (size_t j = 0; j < records.size(); ++j) {
-        if (!records[j]) continue;
-        usable.push_back(&*records[j]);
-        usable_radii.push_back(radii[j]);
-        points.push_back(IcRecordPoint{records[j]->vertex.p, records[j]->vertex.n});
+        for (size_t i = 0; i < records[j].size(); ++i) {
+            usable.push_back(&records[j][i]);
+            usable_radii.push_back(radii[j][i]);
+            points.push_back(IcRecordPoint{records[j][i].vertex.p, records[j][i].vertex.n});
+        }
     }
     ic_tables_.resize(usable.size());
+    const bool optimise = config_.ic_optimise && config_.ic_heuristic == IcHeuristic::AlphaMax;
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, usable.size()), [&](const tbb::blocked_range<size_t>& range) {
             RenderStats& local = local_stats.local();
             for (size_t j = range.begin(); j < range.end(); ++j) {
                 Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kIcTableStreamBase + j});
                 ic_tables_[j] = record_tables(*usable[j], usable_radii[j], mask, rng, local);
+                if (optimise)
+                    ic_tables_[j] =
+                        optimise_record_tables(ic_tables_[j], ic_samples_, ic_weighting_.alpha);
             }
         });
     local_stats.combine_each([&](const RenderStats& s) { stats += s; });
     ic_tree_ = IcRecordTree(std::move(points));
 }
 
-template <class Add>
-void Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_length, Rng& rng,
-                                       RenderStats& stats, Add&& add) const {
-    if (light_vertices_.empty() || ic_fallback_.empty()) return;
+template <class Term, class Add>
+void Iteration::draw_from_importance_caches(const Vertex& v, int eye_length, Rng& rng, Term&& term,
+                                            Add&& add) const {
+    if (ic_vertex_count_ == 0 || ic_fallback_.empty()) return;
     const IcNeighbours near = ic_tree_.nearest(v.p, v.n, ic_lookup_);
     std::array<const IcRecordTables*, kIcMaxRecords> tables{};
     for (int i = 0; i < near.count; ++i) tables[size_t(i)] = &ic_tables_[near.index[size_t(i)]];
@@ -812,8 +902,7 @@ void Iteration::importance_cached_vpls(const Vertex& v, const Vec3& wo, int eye_
             const double factor = ic_sample_factor(t, mixture.pmfs(k), ic_samples_, ic_weighting_);
             const LightVertex& lv = light_vertices_[k];
             if (!(factor > 0) || lv.path_length + 1 + eye_length > max_length_) continue;
-            add(lv.path_length + 1,
-                lv.throughput * vpl_connection(lv, v, wo, vpl_clamp2_, rng, stats) * float(factor));
+            add(lv.path_length + 1, term(lv) * float(factor));
         }
     }
 }
@@ -897,10 +986,14 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));
             }
             if (ic_) {
-                importance_cached_vpls(*v, wo, state.path_length, rng, stats,
-                                       [&](int s, const Rgb& c) {
-                                           add(Technique::Connection, s, state.throughput * c);
-                                       });
+                draw_from_importance_caches(
+                    *v, state.path_length, rng,
+                    [&](const LightVertex& lv) {
+                        return lv.throughput * vpl_connection(lv, *v, wo, vpl_clamp2_, rng, stats);
+                    },
+                    [&](int s, const Rgb& c) {
+                        add(Technique::Connection, s, state.throughput * c);
+                    });
             }
             if (vpl_) {
                 for (const LightVertex& lv : light_vertices_) {
@@ -914,7 +1007,20 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                 add(Technique::Connection, 1,
                     state.throughput * direct_illumination(state, *v, wo, rng, stats));
             }
-            if (use_vc_ && !path_ends_.empty()) {
+            if (ic_connections_) {
+                // (1 / N) sum over the N cached light paths of their connections to v: its
+                // expectation is one light path's, so every MIS weight stays as it is.
+                const float scale = float(1.0 / double(ic_light_path_count_));
+                draw_from_importance_caches(
+                    *v, state.path_length, rng,
+                    [&](const LightVertex& lv) {
+                        return lv.throughput * connect_vertices(lv, *v, wo, state.mis, rng, stats) *
+                               scale;
+                    },
+                    [&](int s, const Rgb& c) {
+                        add(Technique::Connection, s, state.throughput * c);
+                    });
+            } else if (use_vc_ && !path_ends_.empty()) {
                 const uint64_t path = pixel % light_path_count_;
                 const uint32_t first = path == 0 ? 0 : path_ends_[path - 1];
                 for (uint32_t i = first; i < path_ends_[path]; ++i) {
@@ -922,7 +1028,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, *v, wo, state, rng, stats));
+                            connect_vertices(lv, *v, wo, state.mis, rng, stats));
                 }
             }
             if (use_vm_) {
@@ -947,7 +1053,7 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
         iteration.trace_light_paths(stats, splats);
         if (config_.mode == BidirectionalMode::Vpl && config_.vpl_importance)
             iteration.select_vpls(stats);
-        if (config_.mode == BidirectionalMode::Ic) iteration.build_importance_cache(stats);
+        if (iteration.uses_importance_caches()) iteration.build_importance_cache(stats);
     }
     for (const Splat& splat : splats) {
         if (!splat.value.is_finite()) {

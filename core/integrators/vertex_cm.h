@@ -67,6 +67,14 @@ struct BidirectionalConfig {
     // Ic: no records; every shading point draws its 4 ic_samples VPLs in proportion to their
     // power (the baseline importance caching is compared with).
     bool ic_power_only = false;
+    // Ic with alpha-max: each record's tables optimised for its own alpha-max winners.
+    bool ic_optimise = false;
+    // Bpt: importance-cached connections. Each eye vertex connects to light vertices drawn
+    // from the importance caches (the four distributions of Ic, over the vertices of the
+    // iteration's first ic_light_paths light paths) instead of to the vertices of one light
+    // path; ic_samples per technique, the records and the heuristic as Ic's.
+    bool ic_connections = false;
+    uint64_t ic_light_paths = 64;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

@@ -10,6 +10,8 @@
 #include "core/media/medium.h"
 #include "core/media/medium_interface.h"
 #include "core/sampling/equiangular.h"
+#include "core/sampling/joint_direction.h"
+#include "core/sampling/joint_eye_distance.h"
 
 namespace render {
 namespace {
@@ -22,6 +24,18 @@ struct MediumSegment {
     const Medium* medium = nullptr;
 };
 
+// The first medium vertex c of a pair (c, b) that joint sampling could have produced: its
+// segment, distance on it and the densities with which distance and phase sampling produced c
+// and the direction c -> b.
+struct JointOrigin {
+    bool valid = false;
+    Vec3 p;
+    MediumSegment segment;
+    float t = 0;
+    float distance_pdf_l = 0;
+    float direction_pdf_w = 0;
+};
+
 // The last real scattering vertex of the path, for weighting emission that the next segment
 // finds by chance.
 struct ScatteringVertex {
@@ -32,6 +46,8 @@ struct ScatteringVertex {
     MediumSegment segment;  // the segment the medium vertex lies on
     float t = 0;            // its distance along that segment
     float distance_pdf_l = 0;
+    bool joint_segment = false;  // a medium vertex on a segment where joint sampling runs
+    JointOrigin joint;           // its predecessor, when joint sampling reaches this vertex too
 };
 
 class Tracer {
@@ -39,14 +55,38 @@ class Tracer {
     Tracer(const Scene& scene, bool equiangular, Rng& rng, RenderStats& stats)
         : scene_(scene), equiangular_(equiangular), rng_(rng), stats_(stats) {}
 
-    // Density (per unit length) of equi-angular sampling producing distance t on `segment` toward
-    // light point `light_point` (zero when the technique is not used for this light or segment).
-    float equiangular_pdf_l(const MediumSegment& segment, const Light* light,
-                            const Vec3& light_point, float t) const {
-        if (!equiangular_ || !light->is_finite() || !std::isfinite(segment.t_end)) return 0.0f;
+    // Density (per unit length) of equi-angular sampling of distance t on `segment` toward
+    // `light_point` (zero on an unbounded segment or for an infinite light).
+    static float segment_equiangular_pdf_l(const MediumSegment& segment, const Light* light,
+                                           const Vec3& light_point, float t) {
+        if (!light->is_finite() || !std::isfinite(segment.t_end)) return 0.0f;
         return EquiAngularSampler(segment.ray.origin, segment.ray.direction, light_point, 0.0f,
                                   segment.t_end)
             .pdf_l(t);
+    }
+
+    // The same for the EL technique (zero when it is switched off).
+    float equiangular_pdf_l(const MediumSegment& segment, const Light* light,
+                            const Vec3& light_point, float t) const {
+        return equiangular_ ? segment_equiangular_pdf_l(segment, light, light_point, t) : 0.0f;
+    }
+
+    // Density of joint sampling (J3) producing the path ... c -> b -> light point, b at
+    // distance t_cb on `segment_cb`, divided by the densities p_d(t_dc) p_phase(w_cb) that DL,
+    // DP and EL share for c and w_cb, so that it compares with their remaining factors (per unit
+    // length x solid angle at b). `light_pdf_w` is light sampling's density at b. Zero when b
+    // has no joint origin c or for infinite lights.
+    static double joint_pdf_ratio(const JointOrigin& c, const MediumSegment& segment_cb, float t_cb,
+                                  const Light* light, const Vec3& light_point, float light_pdf_w) {
+        if (!c.valid || !light->is_finite()) return 0.0;
+        const double shared = double(c.distance_pdf_l) * c.direction_pdf_w;
+        if (!(shared > 0)) return 0.0;
+        const double u3 = JointEyeDistanceSampler(c.segment.ray.origin, c.segment.ray.direction,
+                                                  light_point, 0.0f, c.segment.t_end)
+                              .pdf_l(c.t);
+        const double u2 = JointDirectionSampler(c.p, light_point).pdf_w(segment_cb.ray.direction);
+        const double u1 = segment_equiangular_pdf_l(segment_cb, light, light_point, t_cb);
+        return u3 * u2 / shared * u1 * light_pdf_w;
     }
 
     // Transmittance from `p` along the light sample's direction to the light.
@@ -68,19 +108,22 @@ class Tracer {
         const float phase = v.segment.medium->phase().p(wo, ls.wi);
         if (!(phase > 0)) return Rgb(0.0f);
         const float light_pdf_w = dl.pdf_w();
-        const float equiangular =
-            equiangular_pdf_l(v.segment, dl.light, v.p + ls.wi * ls.distance, v.t);
-        const float w = power_heuristic3(v.distance_pdf_l * light_pdf_w,
-                                         dl.light->is_delta() ? 0.0f : v.distance_pdf_l * phase,
-                                         equiangular * light_pdf_w);
+        const Vec3 light_point = v.p + ls.wi * ls.distance;
+        const float equiangular = equiangular_pdf_l(v.segment, dl.light, light_point, v.t);
+        const float w = power_heuristic4(
+            double(v.distance_pdf_l) * light_pdf_w,
+            dl.light->is_delta() ? 0.0 : double(v.distance_pdf_l) * phase,
+            double(equiangular) * light_pdf_w,
+            joint_pdf_ratio(v.joint, v.segment, v.t, dl.light, light_point, light_pdf_w));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr = light_visibility(v.p, Vec3(0.0f), dl, v.segment.medium);
         return ls.radiance * tr * (phase * w / light_pdf_w);
     }
 
     // Equi-angular sampling of single scattering on a segment (technique "EL"): the light
-    // point first, then the distance, then the connection.
-    Rgb equiangular_inscattering(const MediumSegment& segment) {
+    // point first, then the distance, then the connection. `joint` is the segment's origin
+    // when joint sampling also produces these paths (its weight then includes J3).
+    Rgb equiangular_inscattering(const MediumSegment& segment, const JointOrigin& joint) {
         float pick_probability = 0;
         const Light* light = scene_.sample_light(rng_.next_1d(), &pick_probability);
         const Vec2 u = rng_.next_2d();
@@ -102,8 +145,10 @@ class Tracer {
         if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
         const float light_pdf_w = pick_probability * ls.pdf_direct_w;
         const float distance = medium.pdf_scatter_l(segment.ray, t);
-        const float w = power_heuristic3(equiangular * light_pdf_w, distance * light_pdf_w,
-                                         light->is_delta() ? 0.0f : distance * phase);
+        const float w =
+            power_heuristic4(double(equiangular) * light_pdf_w, double(distance) * light_pdf_w,
+                             light->is_delta() ? 0.0 : double(distance) * phase,
+                             joint_pdf_ratio(joint, segment, t, light, light_point, light_pdf_w));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
@@ -114,6 +159,76 @@ class Tracer {
         const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), dl, segment.medium);
         return tr_to_q * sigma_s * ls.radiance * tr_to_light *
                (phase * w / (equiangular * light_pdf_w));
+    }
+
+    // Joint sampling of double scattering on a segment (technique "J3", Georgiev et al. 2013):
+    // a light point a first, then the distance of c on the segment (U3), the direction from c
+    // (U2), the distance of b on the ray from c to its first surface (U1, equi-angular toward
+    // a), and the connection b -> a. The product of the densities cancels the geometry terms
+    // G(c, b) G(b, a) (up to the truncation of U1 and the log-growing constant of U3), which
+    // distance sampling leaves in the estimate near small lights. The segment must be in a
+    // homogeneous medium with a finite end.
+    Rgb joint_double_scattering(const MediumSegment& segment) {
+        float pick_probability = 0;
+        const Light* light = scene_.sample_light(rng_.next_1d(), &pick_probability);
+        const Vec2 u_light = rng_.next_2d();
+        const float u_dc = rng_.next_1d();
+        const Vec2 u_direction = rng_.next_2d();
+        const float u_cb = rng_.next_1d();
+        Vec3 a;
+        if (!light || !(pick_probability > 0) || !light->is_finite() ||
+            !light->sample_position(u_light, a))
+            return Rgb(0.0f);
+        const Medium& medium = *segment.medium;
+
+        const JointEyeDistanceSampler eye(segment.ray.origin, segment.ray.direction, a, 0.0f,
+                                          segment.t_end);
+        const float t_dc = eye.sample(u_dc);
+        const double pdf_dc = eye.pdf_l(t_dc);
+        const Vec3 c = segment.ray.at(t_dc);
+        const JointDirectionSampler direction(c, a);
+        const Vec3 w_cb = direction.sample(u_direction);
+        const double pdf_w_cb = direction.pdf_w(w_cb);
+        const float phase_c = medium.phase().p(-segment.ray.direction, w_cb);
+        if (!(pdf_dc > 0) || !(pdf_w_cb > 0) || !(phase_c > 0)) return Rgb(0.0f);
+
+        // The ray from c ends at its first surface (null boundaries included), as the segment
+        // that distance sampling from c would cover.
+        const Ray ray_cb(c, w_cb);
+        SurfaceInteraction si;
+        ++stats_.rays;
+        if (!scene_.intersect(ray_cb, si)) return Rgb(0.0f);
+        const EquiAngularSampler toward_light(c, w_cb, a, 0.0f, si.t);
+        const float t_cb = toward_light.sample(u_cb);
+        const double pdf_cb = toward_light.pdf_l(t_cb);
+        const Vec3 b = ray_cb.at(t_cb);
+        LightIlluminateSample ls;  // the same u picks the same light point (light.h)
+        if (!(pdf_cb > 0) || !light->illuminate(b, u_light, ls) || !(ls.pdf_direct_w > 0))
+            return Rgb(0.0f);
+        const float phase_b = medium.phase().p(-w_cb, ls.wi);
+        const Rgb sigma_s = medium.sigma_s(c) * medium.sigma_s(b);
+        if (!(phase_b > 0) || sigma_s.is_black()) return Rgb(0.0f);
+
+        // MIS against DL, DP and EL at b, all in the measure dt_dc dw_cb dt_cb dw_ba.
+        const double light_pdf_w = double(pick_probability) * ls.pdf_direct_w;
+        const double joint = pdf_dc * pdf_w_cb * pdf_cb * light_pdf_w;
+        const double shared = double(medium.pdf_scatter_l(segment.ray, t_dc)) * phase_c;
+        const double distance_cb = shared * medium.pdf_scatter_l(ray_cb, t_cb);
+        const float w = power_heuristic4(joint, distance_cb * light_pdf_w,
+                                         light->is_delta() ? 0.0 : distance_cb * phase_b,
+                                         equiangular_ ? shared * pdf_cb * light_pdf_w : 0.0);
+        if (!(w > 0) || !(joint > 0) || !std::isfinite(joint)) return Rgb(0.0f);
+
+        const Rgb tr = medium.transmittance(segment.ray, t_dc, rng_) *
+                       medium.transmittance(ray_cb, t_cb, rng_);
+        if (tr.is_black()) return Rgb(0.0f);
+        DirectLightSample dl;
+        dl.light = light;
+        dl.pick_probability = pick_probability;
+        dl.ls = ls;
+        const Rgb tr_to_light = light_visibility(b, Vec3(0.0f), dl, segment.medium);
+        return tr * sigma_s * ls.radiance * tr_to_light *
+               float(double(phase_c) * phase_b * w / joint);
     }
 
     // Light sampling at a surface vertex.
@@ -147,8 +262,12 @@ class Tracer {
         if (!v.in_medium) return power_heuristic(v.direction_pdf_w, light_pdf_w);
         const float equiangular =
             solid_angle ? 0.0f : equiangular_pdf_l(v.segment, light, light_point, v.t);
-        return power_heuristic3(v.distance_pdf_l * v.direction_pdf_w,
-                                v.distance_pdf_l * light_pdf_w, equiangular * light_pdf_w);
+        const double joint =
+            solid_angle ? 0.0
+                        : joint_pdf_ratio(v.joint, v.segment, v.t, light, light_point, light_pdf_w);
+        return power_heuristic4(double(v.distance_pdf_l) * v.direction_pdf_w,
+                                double(v.distance_pdf_l) * light_pdf_w,
+                                double(equiangular) * light_pdf_w, joint);
     }
 
   private:
@@ -197,8 +316,24 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
 
         if (medium) {
             const MediumSegment segment{ray, t_end, medium};
+            // Joint sampling also produces medium vertices on this segment when it left a
+            // medium vertex c on a joint segment without crossing a boundary.
+            JointOrigin joint_origin;
+            if (prev.in_medium && prev.joint_segment && null_crossings == 0)
+                joint_origin = JointOrigin{
+                    true, prev.p, prev.segment, prev.t, prev.distance_pdf_l, prev.direction_pdf_w};
             if (equiangular_ && has_lights && can_extend && std::isfinite(t_end)) {
-                const Rgb c = beta * tracer.equiangular_inscattering(segment);
+                const Rgb c = beta * tracer.equiangular_inscattering(segment, joint_origin);
+                L += c;
+                sink.add(Technique::Connection, 1, depth + 1, c);
+            }
+            // Joint sampling of double scattering on the camera ray's medium pieces (the
+            // segment before the first scattering vertex), when two more segments are allowed.
+            const bool joint_segment = jis_ && depth == 1 && has_lights &&
+                                       medium->is_homogeneous() && std::isfinite(t_end) &&
+                                       (can_extend_any || depth + 1 < max_depth_);
+            if (joint_segment) {
+                const Rgb c = beta * tracer.joint_double_scattering(segment);
                 L += c;
                 sink.add(Technique::Connection, 1, depth + 2, c);
             }
@@ -214,11 +349,13 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                 v.segment = segment;
                 v.t = ms.t;
                 v.distance_pdf_l = medium->pdf_scatter_l(ray, ms.t);
+                v.joint_segment = joint_segment;
+                v.joint = joint_origin;
                 const Vec3 wo = -ray.direction;
                 if (has_lights) {
                     const Rgb c = beta * tracer.direct_light_in_medium(v, wo);
                     L += c;
-                    sink.add(Technique::Connection, 1, depth + 2, c);
+                    sink.add(Technique::Connection, 1, depth + 1, c);
                 }
                 const PhaseSample ps = medium->phase().sample(wo, rng.next_2d());
                 if (!(ps.pdf_w > 0)) break;

@@ -14,12 +14,17 @@ namespace render {
 //   (light sampling and phase sampling at a distance-sampled vertex) by the power heuristic
 //   over all three. All three densities are expressed per unit length times solid angle at
 //   the medium vertex, so one path's three densities are directly comparable.
+// - Joint path sampling (Georgiev et al. 2013, technique J3) of double scattering on the
+//   camera ray's medium pieces in homogeneous media: c on the camera ray, b on a ray from c and
+//   the light point are sampled together so that the geometry terms cancel; combined with the
+//   three techniques above by the power heuristic over four (the weights of every path
+//   camera -> c -> b -> light include J3's density). docs/media.md, "Joint path sampling".
 // max_depth counts segments as Mitsuba does (medium vertices count, null crossings do not).
 // Russian roulette acts on throughput below 1 only (see survives_roulette).
 class VolumetricPathTracer final : public PixelIntegrator {
   public:
-    VolumetricPathTracer(int max_depth, int rr_depth, bool equiangular)
-        : max_depth_(max_depth), rr_depth_(rr_depth), equiangular_(equiangular) {}
+    VolumetricPathTracer(int max_depth, int rr_depth, bool equiangular, bool jis)
+        : max_depth_(max_depth), rr_depth_(rr_depth), equiangular_(equiangular), jis_(jis) {}
 
   protected:
     Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
@@ -33,6 +38,7 @@ class VolumetricPathTracer final : public PixelIntegrator {
     int max_depth_;
     int rr_depth_;
     bool equiangular_;
+    bool jis_;
 };
 
 }  // namespace render

@@ -14,8 +14,7 @@ namespace render {
 
 namespace {
 
-template <BidirectionalMode mode>
-std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
+BidirectionalConfig bidirectional_config(BidirectionalMode mode, const RenderSettings& s) {
     BidirectionalConfig config;
     config.mode = mode;
     config.max_depth = s.max_depth;
@@ -24,7 +23,12 @@ std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
     config.alpha = s.alpha;
     config.light_path_count = s.light_path_count;
     config.mis_power = s.mis_power;
-    return std::make_unique<VertexConnectionMerging>(config);
+    return config;
+}
+
+template <BidirectionalMode mode>
+std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
+    return std::make_unique<VertexConnectionMerging>(bidirectional_config(mode, s));
 }
 
 // vpl and ic: the VPLs (light paths per iteration) and their clamp; each adds its own options.
@@ -62,11 +66,13 @@ const std::vector<Algorithm>& table() {
         {.name = "volpt",
          .aliases = {"volpath"},
          .description =
-             "volumetric path tracing: delta/ratio tracking, equi-angular sampling (any media)",
+             "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
+             "media)",
          .support = {.homogeneous_media = true, .grid_media = true},
-         .options = {"max_depth", "rr_depth", "equiangular"},
+         .options = {"max_depth", "rr_depth", "equiangular", "jis"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular);
+             return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
+                                                           s.jis);
          }},
         {.name = "lt",
          .description = "light tracing (homogeneous media)",
@@ -74,10 +80,21 @@ const std::vector<Algorithm>& table() {
          .options = kConnecting,
          .create = make_bidirectional<BidirectionalMode::LightTracing>},
         {.name = "bpt",
-         .description = "bidirectional path tracing (homogeneous media)",
+         .description = "bidirectional path tracing (homogeneous media); --connections ic: "
+                        "importance-cached connections",
          .support = {.homogeneous_media = true},
-         .options = kConnecting,
-         .create = make_bidirectional<BidirectionalMode::Bpt>},
+         .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections", "ic_light_paths",
+                     "connection_samples", "ic_record_density", "ic_heuristic"},
+         .variants = {{{"connections", "ic"}}},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
+             config.ic_connections = s.ic_connections;
+             config.ic_light_paths = s.ic_light_paths;
+             config.ic_record_density = s.ic_record_density;
+             config.ic_samples = s.connection_samples;
+             config.ic_heuristic = s.ic_heuristic;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "ppm",
          .description = "progressive photon mapping (homogeneous media: photon points)",
          .support = {.homogeneous_media = true},
@@ -112,13 +129,15 @@ const std::vector<Algorithm>& table() {
                         "a few VPLs from the distributions of nearby camera records (surfaces "
                         "only; no caustics through delta vertices)",
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
-                     "ic_record_density", "ic_samples", "ic_heuristic", "ic_distributions"},
+                     "ic_record_density", "ic_samples", "ic_heuristic", "ic_optimise",
+                     "ic_distributions"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = many_light_config(BidirectionalMode::Ic, s);
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.ic_samples;
              config.ic_heuristic = s.ic_heuristic;
              config.ic_power_only = s.ic_power_only;
+             config.ic_optimise = s.ic_optimise;
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "eyelight",

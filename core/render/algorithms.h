@@ -5,6 +5,7 @@
 // Every list of algorithms, every "supported: ..." message and the --help text are derived from
 // it (docs/architecture.md, "adding an integrator").
 
+#include <map>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -32,6 +33,10 @@ struct Algorithm {
     SceneSupport support;
     // Options it reads besides those every algorithm reads (RenderOption::every_algorithm).
     std::vector<std::string> options;
+    // Other estimators of the same algorithm, selected by options (render option name to
+    // value, e.g. bpt's importance-cached connections): each joins the furnace,
+    // iteration-contract and shipped-scene tests as a case of its own.
+    std::vector<std::map<std::string, std::string>> variants;
     std::unique_ptr<Integrator> (*create)(const RenderSettings&) = nullptr;
     // Converges to the image the scene describes (false for debug shading): such algorithms
     // take part in the furnace, iteration-contract and convergence tests automatically.

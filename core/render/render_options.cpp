@@ -120,6 +120,16 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.equiangular ? "on" : "off";
          }},
+        {.name = "jis",
+         .flag = "--jis",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "joint path sampling of double scattering on the camera ray in homogeneous "
+                 "media, combined by MIS with the other techniques (volpt)",
+         .choices = {"on", "off"},
+         .default_text = "on",
+         .apply = [](RenderSettings& s, const std::string& v) { s.jis = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string { return s.jis ? "on" : "off"; }},
         {.name = "vpl_paths",
          .flag = "--vpl-paths",
          .metavar = "N",
@@ -240,6 +250,19 @@ const std::vector<RenderOption>& table() {
                     : s.ic_heuristic == IcHeuristic::Power ? "power"
                                                            : "alpha-max";
          }},
+        {.name = "ic_optimise",
+         .flag = "--ic-optimise",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "with alpha-max: at each record keep every VPL only in the table of the "
+                 "technique alpha-max credits it to there, and renormalise (the thesis's "
+                 "distribution optimisation)",
+         .choices = {"off", "on"},
+         .default_text = "off",
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_optimise = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_optimise ? "on" : "off";
+         }},
         {.name = "ic_distributions",
          .flag = "--ic-distributions",
          .metavar = "records|power",
@@ -253,6 +276,44 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.ic_power_only ? "power" : "records";
          }},
+        {.name = "connections",
+         .flag = "--connections",
+         .metavar = "path|ic",
+         .type = OptionType::Choice,
+         .help = "path: each eye vertex connects to every vertex of one light path; ic: to "
+                 "light vertices drawn from importance caches (--connection-samples per "
+                 "technique) over the vertices of the first --ic-light-paths light paths, MIS "
+                 "weights unchanged",
+         .choices = {"path", "ic"},
+         .default_text = "path",
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_connections = v == "ic"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.ic_connections ? "ic" : "path";
+         }},
+        {.name = "ic_light_paths",
+         .flag = "--ic-light-paths",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light paths per iteration whose vertices the importance caches of ic "
+                 "connections cover (one shadow ray per record and vertex)",
+         .min = 1,
+         .max = 1000000,
+         .default_text = "64",
+         .effective_with = {{"connections", "ic"}},
+         .apply = [](RenderSettings& s, const std::string& v) { s.ic_light_paths = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.ic_light_paths); }},
+        {.name = "connection_samples",
+         .flag = "--connection-samples",
+         .metavar = "N",
+         .type = OptionType::Integer,
+         .help = "light vertices drawn per technique (full, unoccluded, bounded, conservative) "
+                 "at each eye vertex by ic connections: 4 N connections",
+         .min = 1,
+         .max = 4096,
+         .default_text = "1",
+         .effective_with = {{"connections", "ic"}},
+         .apply = [](RenderSettings& s, const std::string& v) { s.connection_samples = to_int(v); },
+         .format = [](const RenderSettings& s) { return std::to_string(s.connection_samples); }},
         {.name = "layers",
          .flag = "--layers",
          .metavar = "none|techniques|st",

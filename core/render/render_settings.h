@@ -31,6 +31,9 @@ struct RenderSettings {
     // volpt: equi-angular sampling of single scattering toward finite lights, combined by MIS
     // with distance sampling (off: distance sampling only, for comparisons).
     bool equiangular = true;
+    // volpt: joint path sampling (Georgiev et al. 2013) of double scattering on the camera ray in
+    // homogeneous media, combined by MIS with the other techniques (docs/media.md).
+    bool jis = true;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).
@@ -51,6 +54,14 @@ struct RenderSettings {
     // ic: false, the importance caches; true, every shading point draws its VPLs in proportion
     // to their power (the baseline of the paper's comparisons).
     bool ic_power_only = false;
+    // ic: the distribution optimisation of alpha-max (importance_optimise.h).
+    bool ic_optimise = false;
+    // bpt: connections to the vertices of the pixel's own light path (false), or to light
+    // vertices drawn from importance caches over the first ic_light_paths light paths (true),
+    // connection_samples per technique and eye vertex.
+    bool ic_connections = false;
+    uint64_t ic_light_paths = 64;
+    int connection_samples = 1;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
 };

@@ -2,15 +2,17 @@
 caching (`scripts/bench --only many-lights`, writes docs/many-lights.md and
 docs/img/many-lights/).
 
-The three arms are the same estimator in expectation: `vpl` with a fixed clamp (d_min = 1 % of
+The four many-light arms are the same estimator in expectation: `vpl` with a fixed clamp (d_min = 1 % of
 the scene radius, so the variance is finite) connects every shading point to every VPL;
 `--vpl-distribution importance` is Russian roulette on those VPLs; `ic` draws 16 of them per
 shading point from the importance caches and weights them by MIS; `power` (`ic
 --ic-distributions power`) draws 16 in proportion to their power, the baseline of the
-importance-caching paper, so ic against power is the comparison at equal sample count (the
-block tests
-`Convergence.ImportanceDrivenVplsMatchUniformVpls` and `ImportanceCachingMatchesAllVpls` check
-that they agree). Their mean squared error is therefore their variance, and for an unbiased
+importance-caching paper, so ic against power is the comparison at equal sample count. `bpt`
+and `bpt-ic` (`bpt --connections ic`: each eye vertex connects to light vertices drawn from the
+importance caches over the first 64 light paths instead of to its own light path) are a second
+pair, unclamped, with the same expectation as each other (the block tests
+`Convergence.ImportanceDrivenVplsMatchUniformVpls`, `ImportanceCachingMatchesAllVpls` and
+`ImportanceCachedConnectionsMatchBpt` check that each pair agrees). Their mean squared error is therefore their variance, and for an unbiased
 estimator whose iterations are independent the error after T seconds is
 
     relMSE(T) = v * t / T,   v = relative variance of one iteration, t = seconds per iteration,
@@ -31,8 +33,8 @@ measured apart, each where it can be measured well:
 (An earlier version compared single `--time T` runs with a reference image directly: with three
 runs per point its ratios moved by a factor of two from point to point, and the reference's
 own noise set a floor.) Scenes: two-rooms (the light in the next room, the case the
-importance-driven distribution was made for) and the Cornell box (every VPL matters: the
-control). `render` runs with all cores.
+importance-driven distribution was made for), the Cornell box (every VPL matters: the
+control) and many-emitters (36 small lights in four bays joined by gaps). `render` runs with all cores.
 """
 
 import functools
@@ -52,10 +54,15 @@ ARMS = {
     "importance": ["--algo", "vpl"] + CLAMP + ["--vpl-distribution", "importance"],
     "ic": ["--algo", "ic"] + CLAMP,
     "power": ["--algo", "ic", "--ic-distributions", "power"] + CLAMP,
+    # Importance-cached connections in bpt against plain bpt (no clamp: their own pair).
+    "bpt": ["--algo", "bpt"],
+    "bpt-ic": ["--algo", "bpt", "--connections", "ic"],
 }
 SCENES = {
     "two-rooms": common.REPO_ROOT / "scenes" / "tests" / "two-rooms.xml",
     "cornell-box": common.REPO_ROOT / "scenes" / "bitterli" / "cornell-box" / "scene_v3.xml",
+    # 36 small lights in four bays: many emitters, each seen from part of the room.
+    "many-emitters": common.REPO_ROOT / "scenes" / "tests" / "many-emitters.xml",
 }
 OCCLUDED_SCENE = "two-rooms"  # where the paper's claim is checked
 CONTROL_SCENE = "cornell-box"
@@ -198,8 +205,11 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
         m_ratio = pw["v"] / c["v"]
         m_ratio_se = m_ratio * math.hypot(pw["v_se"] / pw["v"], c["v_se"] / c["v"])
         t_ratio, t_ratio_se = gain(pw, c)
+        b, bi = arms["bpt"], arms["bpt-ic"]
+        bpt_ratio, bpt_ratio_se = gain(b, bi)
         verdicts[name] = (ratio, ratio_se, i["kept"] / 100, ic_ratio, ic_ratio_se, m_ratio,
-                          m_ratio_se, t_ratio, t_ratio_se)
+                          m_ratio_se, t_ratio, t_ratio_se, bpt_ratio, bpt_ratio_se,
+                          b["v"] / bi["v"], bi["t"] / b["t"])
         lines += [f"## {name} ({resolution[0]}x{resolution[1]})", "",
                   f"Scale image r: `{' '.join(ref_cmd)}` — "
                   f"{ref_header.get('render:iterations')} iterations.", "",
@@ -227,6 +237,10 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"per iteration; at equal time {t_ratio:.2f} ± {t_ratio_se:.2f}× (an ic "
                   f"iteration, with its records and tables, costs {c['t'] / pw['t']:.2f}× a "
                   f"power-sampling one).", "",
+                  f"Importance-cached connections in bpt: **{bpt_ratio:.2f} ± "
+                  f"{bpt_ratio_se:.2f}×** lower relative MSE than plain bpt at equal time; "
+                  f"{b['v'] / bi['v']:.2f}× lower variance per iteration, at "
+                  f"{bi['t'] / b['t']:.2f}× the cost.", "",
                   f"Pictures (`--time {cfg['picture_time']:g}`; tone-mapped by `render --png`): "
                   f"{', '.join(ARMS)}, and the scale image.", "",
                   f"{pictures} ![{name} reference](img/many-lights/{name}-reference.png)", ""]
@@ -247,7 +261,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                      f"relMSE(importance) / relMSE(uniform) = {1 / ratio:.2f} (bar: ≤ "
                      f"{CONTROL_RATIO:g}): **{'held' if 1 / ratio <= CONTROL_RATIO else 'not held'}**.")
     for name, v in verdicts.items():
-        ic_ratio, ic_ratio_se, m_ratio, m_ratio_se, t_ratio, t_ratio_se = v[3:]
+        ic_ratio, ic_ratio_se, m_ratio, m_ratio_se, t_ratio, t_ratio_se = v[3:9]
         claim = ""
         if name == OCCLUDED_SCENE:
             claim = (f" Claim (ALGORITHMS-NEXT.md 2.10 b): ≥ {IC_CLAIM_RATIO:g}× lower variance "
@@ -261,6 +275,11 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                      f"{t_ratio:.2f} ± {t_ratio_se:.2f}× lower relative MSE at equal time; "
                      f"{ic_ratio:.2f} ± {ic_ratio_se:.2f}× lower relative MSE than all VPLs at "
                      f"equal time.{claim}")
+    for name, v in verdicts.items():
+        bpt_ratio, bpt_ratio_se, v_ratio, t_ratio = v[9:]
+        lines.append(f"- {name}, importance-cached connections: {bpt_ratio:.2f} ± "
+                     f"{bpt_ratio_se:.2f}× lower relative MSE than bpt at equal time "
+                     f"({v_ratio:.2f}× lower variance per iteration, {t_ratio:.2f}× the cost).")
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "many-lights.md"
     out_doc.write_text("\n".join(lines) + "\n")

@@ -203,6 +203,42 @@ TEST(Convergence, GlassSphereWithDenseChromaticMedium) {
     expect_same_image(*scene, "volpt", {"bpt", "ppm", "bpm", "vcm"}, 8);
 }
 
+// Joint path sampling (docs/media.md, "Joint path sampling") is one more technique for the
+// double-scattering paths camera -> c -> b -> light, combined by MIS with volpt's other three:
+// with it on, volpt must converge to volpt without it. The fog box (camera inside the medium,
+// rays passing near the point light) is rendered with max_depth 3 (single and double
+// scattering only), so the blocks are made of exactly the paths whose weights joint sampling
+// changes. isosph (area light, null boundary, all orders) covers the other light type and the
+// camera ray entering the medium through a boundary. Tolerance: the file's k = 5 combined
+// standard errors; planted errors in J3's densities or weights fail it (docs/media.md).
+// Anisotropic phase functions are checked by the furnace (volpt_test, g = 0.7, -0.5, +-0.99):
+// the fog box with g = 0.9 is heavy-tailed with or without joint sampling (a point light seen
+// through the forward peak of the phase function at b, which no technique samples), so its
+// block standard errors are not reliable at any affordable sample count.
+std::unique_ptr<Scene> fog_box(const std::string& g) {
+    return load_scene(
+        std::string(RENDER_SOURCE_DIR) + "/scenes/tests/fog-box.xml",
+        {{"resx", std::to_string(kResolution)}, {"resy", std::to_string(kResolution)}, {"g", g}});
+}
+
+TEST(Convergence, JointSamplingMatchesVolptWithoutItOnTheFogBox) {
+    auto scene = fog_box("0");
+    const BlockEstimate without = render_blocks(*scene, "volpt", 4, {{"jis", "off"}});
+    expect_same_blocks(without, render_blocks(*scene, "volpt", 4, {{"jis", "on"}}), "volpt jis on",
+                       "volpt jis off");
+    // Without equi-angular sampling the weights have one technique fewer on both sides.
+    expect_same_blocks(without,
+                       render_blocks(*scene, "volpt", 4, {{"jis", "on"}, {"equiangular", "off"}}),
+                       "volpt jis on, no equi-angular", "volpt jis off");
+}
+
+TEST(Convergence, JointSamplingMatchesVolptWithoutItOnIsosph) {
+    auto scene = shipped("smallupbp/isosph.xml");
+    expect_same_blocks(render_blocks(*scene, "volpt", 8, {{"jis", "off"}}),
+                       render_blocks(*scene, "volpt", 8, {{"jis", "on"}}), "volpt jis on",
+                       "volpt jis off");
+}
+
 // Many-light rendering (vpl) without clamping is unbiased, but its connection term G = cos cos /
 // d^2 has infinite variance where surfaces touch (Cornell-box corners), so block standard
 // errors would mean nothing there. The plates scene has no touching surfaces (G <= 1 between
@@ -279,8 +315,11 @@ TEST(Convergence, ImportanceCachingMatchesAllVpls) {
         }
         OptionMap one_record = clamp;
         one_record["ic_record_density"] = "1e-6";
-        expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record",
-                           "vpl");
+        expect_same_blocks(all, render_blocks(*scene, "ic", 4, one_record), "ic one record", "vpl");
+        // The distribution optimisation: the weights come from the optimised mixtures.
+        OptionMap optimised = clamp;
+        optimised["ic_optimise"] = "on";
+        expect_same_blocks(all, render_blocks(*scene, "ic", 4, optimised), "ic optimised", "vpl");
     }
 }
 
@@ -301,6 +340,45 @@ TEST(Convergence, ImportanceCachingHardCasesOnPlates) {
     OptionMap power = one_path;
     power["ic_distributions"] = "power";
     expect_same_blocks(all, render_blocks(*scene, "ic", 8, power), "ic power", "vpl");
+}
+
+// bpt with importance-cached connections converges to plain bpt: each eye vertex connects to
+// light vertices drawn from the caches over the first N light paths and divides by N, whose
+// expectation is the one-path connection's, so the MIS weights are unchanged
+// (docs/algorithms.md). Both heuristics, a subset of the light paths and all of them.
+TEST(Convergence, ImportanceCachedConnectionsMatchBpt) {
+    for (const char* file : {"bitterli/cornell-box/scene_v3.xml", "tests/two-rooms.xml"}) {
+        SCOPED_TRACE(file);
+        auto scene = shipped(file);
+        const BlockEstimate bpt = render_blocks(*scene, "bpt", 2);
+        expect_same_blocks(bpt, render_blocks(*scene, "bpt", 2, {{"connections", "ic"}}),
+                           "bpt ic connections (64 light paths, the default)", "bpt");
+        expect_same_blocks(bpt,
+                           render_blocks(*scene, "bpt", 2,
+                                         {{"connections", "ic"},
+                                          {"ic_light_paths", "16"},
+                                          {"ic_heuristic", "balance"},
+                                          {"connection_samples", "2"}}),
+                           "bpt ic connections (16 light paths, balance, 2 samples)", "bpt");
+    }
+}
+
+// Hard cases of ic connections on plates (part of the image is background): one cached light
+// path (one to three vertices: a single vertex is drawn with probability 1 by every technique),
+// and one record per iteration (it escapes in about a third of the iterations; then every eye
+// vertex falls back to C).
+TEST(Convergence, ImportanceCachedConnectionsHardCasesOnPlates) {
+    auto scene = shipped("tests/plates.xml");
+    const BlockEstimate bpt = render_blocks(*scene, "bpt", 8);
+    expect_same_blocks(
+        bpt, render_blocks(*scene, "bpt", 8, {{"connections", "ic"}, {"ic_light_paths", "1"}}),
+        "bpt ic connections (one light path)", "bpt");
+    expect_same_blocks(
+        bpt,
+        render_blocks(
+            *scene, "bpt", 2,
+            {{"connections", "ic"}, {"ic_light_paths", "64"}, {"ic_record_density", "1e-6"}}),
+        "bpt ic connections (one record)", "bpt");
 }
 
 }  // namespace

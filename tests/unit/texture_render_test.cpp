@@ -142,8 +142,7 @@ TEST_P(ConstantTextureRender, RendersBitIdenticallyToThePlainValue) {
     ASSERT_FALSE(plain->shapes()[1]->bsdf->varies());
     ASSERT_TRUE(textured->shapes()[1]->bsdf->varies());
     ASSERT_NE(textured->lights()[0]->to_string().find("mean of checkerboard"), std::string::npos);
-    RenderSettings settings;
-    settings.algorithm = GetParam();
+    RenderSettings settings = testing::algorithm_settings(GetParam());
     settings.seed = 5;
     const IterationResult a = render_iterations(*plain, settings, 0, IterationRange{1, 4});
     const IterationResult b = render_iterations(*textured, settings, 0, IterationRange{1, 4});

@@ -185,8 +185,7 @@ class TexturedEmitterSeen : public ::testing::TestWithParam<std::string> {};
 // see it through radiance(), light paths (lt, ppm, bpm) through emit().
 TEST_P(TexturedEmitterSeen, ShowsBothColours) {
     auto scene = load_scene_from_string(checker_emitter_scene(), ".");
-    RenderSettings settings;
-    settings.algorithm = GetParam();
+    RenderSettings settings = testing::algorithm_settings(GetParam());
     settings.seed = 17;
     struct Quadrant {
         const char* name;
