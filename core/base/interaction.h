@@ -1,5 +1,7 @@
 #pragma once
 
+#include <memory>
+
 #include "core/math/frame.h"
 #include "core/math/vec.h"
 
@@ -19,6 +21,9 @@ struct SurfaceInteraction {
     const Shape* shape = nullptr;
     const Bsdf* bsdf = nullptr;      // never null for a hit (absorbing black if the file had none)
     const Light* emitter = nullptr;  // area light attached to the shape, if any
+    // Owns `bsdf` when it was built for this hit: a textured material resolved at uv
+    // (Scene::intersect). Null for plain materials, which the scene owns.
+    std::shared_ptr<const Bsdf> hit_bsdf;
 };
 
 // A point sampled on a shape's surface by area.
@@ -26,6 +31,7 @@ struct ShapeSample {
     Vec3 p;
     Vec3 n;              // unit geometric normal at p (facing the shape's outside)
     float pdf_area = 0;  // density with respect to surface area
+    Vec2 uv;             // the shape's uv at p, as a hit there would report it
 };
 
 }  // namespace render

@@ -33,6 +33,9 @@ T Properties::get_as(const std::string& name, const char* type_name) const {
     if (!e)
         throw SceneError(where_, class_ + " \"" + type_ + "\" needs parameter \"" + name + "\"");
     if (const T* v = std::get_if<T>(&e->value)) return *v;
+    if (std::holds_alternative<std::shared_ptr<const Texture>>(e->value))
+        throw error(name, std::string("a texture is not accepted here (expected a value of type ") +
+                              type_name + ")");
     throw error(name, std::string("expected a value of type ") + type_name);
 }
 
@@ -91,6 +94,15 @@ Transform Properties::get_transform(const std::string& name) const {
 }
 Transform Properties::get_transform(const std::string& name, const Transform& def) const {
     return has(name) ? get_transform(name) : def;
+}
+
+std::shared_ptr<const Texture> Properties::get_texture(const std::string& name) const {
+    auto it = values_.find(name);
+    if (it == values_.end()) return nullptr;
+    const auto* texture = std::get_if<std::shared_ptr<const Texture>>(&it->second.value);
+    if (!texture) return nullptr;
+    it->second.used = true;
+    return *texture;
 }
 
 void Properties::check_all_used() const {

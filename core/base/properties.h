@@ -19,10 +19,12 @@
 namespace render {
 
 class Bsdf;
+class Texture;
 
 class Properties {
   public:
-    using Value = std::variant<bool, int64_t, float, std::string, Rgb, Vec3, Transform>;
+    using Value = std::variant<bool, int64_t, float, std::string, Rgb, Vec3, Transform,
+                               std::shared_ptr<const Texture>>;
 
     Properties(std::string plugin_class, std::string plugin_type, SourceLocation where)
         : class_(std::move(plugin_class)),
@@ -56,6 +58,9 @@ class Properties {
     Vec3 get_vec3(const std::string& name, const Vec3& def) const;
     Transform get_transform(const std::string& name) const;
     Transform get_transform(const std::string& name, const Transform& def) const;
+    // A nested or referenced <texture> given for `name` (never null), or null when the value
+    // is absent or a plain value (which the typed getters then read; nothing is marked read).
+    std::shared_ptr<const Texture> get_texture(const std::string& name) const;
 
     // Where a named value was written (the plugin's own location if absent).
     SourceLocation where(const std::string& name) const;

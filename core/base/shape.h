@@ -37,6 +37,11 @@ class Shape {
 
     virtual std::string to_string() const = 0;
 
+    // The uv a hit at surface point p reports, for lights that only get the point (a textured
+    // area light's radiance toward a ray that hit it). Only where has_uv_lookup().
+    virtual bool has_uv_lookup() const { return false; }
+    virtual Vec2 uv_at(const Vec3& /*p*/) const { return Vec2(); }
+
     const Bsdf* bsdf = nullptr;
     const Light* emitter = nullptr;
     // Media on either side (Mitsuba's medium interface): `interior` lies behind the geometric

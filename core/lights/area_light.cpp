@@ -2,12 +2,26 @@
 
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/math/constants.h"
 #include "core/math/frame.h"
 #include "core/sampling/warp.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
+
+AreaLight::AreaLight(const Shape* shape, const RgbParam& radiance)
+    : AreaLight(shape, radiance.mean()) {
+    if (!radiance.varies()) return;
+    if (!shape || !shape->has_uv_lookup())
+        throw std::invalid_argument(
+            "a textured radiance needs a shape whose uv can be found from a point (sphere, "
+            "disk, rectangle, cube, or a mesh of at most " +
+            std::to_string(TriangleMesh::kMaxUvLookupTriangles) + " triangles)");
+    radiance_param_ = radiance;
+    textured_ = true;
+}
 
 AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
     : shape_(shape), radiance_(radiance), area_(shape ? shape->surface_area() : 0.0f) {
@@ -32,7 +46,8 @@ bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) 
     if (!std::isfinite(pdf_w)) return false;  // grazing to within float precision
     out.wi = wi;
     out.distance = d;
-    out.radiance = radiance_;
+    out.radiance = radiance_at(s.uv);
+    if (textured_ && out.radiance.is_black()) return false;
     out.pdf_direct_w = pdf_w;
     out.pdf_emission_w = s.pdf_area * cos_light * kInvPi;
     out.cos_at_light = cos_light;
@@ -55,19 +70,20 @@ bool AreaLight::emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) co
     if (!(local.z > 0)) return false;
     out.origin = s.p;
     out.direction = normalize(Frame::from_normal(s.n).to_world(local));
-    out.energy = radiance_ * local.z;
+    out.energy = radiance_at(s.uv) * local.z;
+    if (textured_ && out.energy.is_black()) return false;
     out.pdf_emission_w = s.pdf_area * local.z * kInvPi;
     out.pdf_direct_a = s.pdf_area;
     out.cos_at_light = local.z;
     return true;
 }
 
-LightRadiance AreaLight::radiance(const Vec3& /*hit_point*/, const Vec3& hit_normal,
+LightRadiance AreaLight::radiance(const Vec3& hit_point, const Vec3& hit_normal,
                                   const Vec3& ray_direction) const {
     float cos_light = dot(hit_normal, -ray_direction);
     if (!(cos_light > 0) || inv_area_ == 0) return {};
     LightRadiance r;
-    r.radiance = radiance_;
+    r.radiance = textured_ ? radiance_param_.texture->eval(shape_->uv_at(hit_point)) : radiance_;
     r.pdf_direct_a = inv_area_;
     r.pdf_emission_w = inv_area_ * cos_light * kInvPi;
     return r;
@@ -79,7 +95,9 @@ Rgb AreaLight::power() const {
 
 std::string AreaLight::to_string() const {
     std::ostringstream os;
-    os << "AreaLight[radiance = " << radiance_ << ", area = " << area_
+    os << "AreaLight[radiance = " << radiance_;
+    if (textured_) os << " (mean of " << radiance_param_.texture->to_string() << ")";
+    os << ", area = " << area_
        << ", shape = " << (shape_ ? shape_->to_string() : std::string("none")) << "]";
     return os.str();
 }

@@ -14,9 +14,15 @@
 //                 pdf_direct_a = pdf_area and pdf_emission_w = pdf_area * cos / pi.
 //   power():      pi * area * Le.
 // A zero-area shape emits nothing (every sampling routine fails, pdfs are 0).
+//
+// A textured radiance (Mitsuba's `radiance` texture) is looked up at the uv of the emitting
+// point: the sampled one (illuminate, emit) or the hit one (radiance(), through the shape's
+// uv lookup, so the shape must have one). Points are still sampled uniformly by area; power()
+// uses the texture's mean.
 
 #include "core/base/shape.h"
 #include "core/lights/light.h"
+#include "core/textures/texture_param.h"
 
 namespace render {
 
@@ -24,6 +30,8 @@ class AreaLight final : public Light {
   public:
     // `shape` must outlive the light (the scene owns both).
     AreaLight(const Shape* shape, const Rgb& radiance);
+    // A textured radiance needs shape->has_uv_lookup() (throws std::invalid_argument).
+    AreaLight(const Shape* shape, const RgbParam& radiance);
 
     bool illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const override;
     bool sample_position(Vec2 u, Vec3& position) const override;
@@ -39,8 +47,15 @@ class AreaLight final : public Light {
     const Shape* shape() const { return shape_; }
 
   private:
+    // Le at a sampled or hit point.
+    Rgb radiance_at(Vec2 uv) const {
+        return textured_ ? radiance_param_.texture->eval(uv) : radiance_;
+    }
+
     const Shape* shape_;
-    Rgb radiance_;
+    Rgb radiance_;  // the constant, or the texture's mean
+    RgbParam radiance_param_;
+    bool textured_ = false;
     float area_;
     float inv_area_;  // 0 for a zero-area shape
 };

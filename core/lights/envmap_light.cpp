@@ -8,21 +8,12 @@
 
 #include "core/base/error.h"
 #include "core/image/exr_io.h"
+#include "core/image/srgb.h"
 #include "core/lights/scene_disk.h"
 #include "core/math/constants.h"
 
 namespace render {
 namespace {
-
-float srgb_to_linear(float x) {
-    return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f);
-}
-
-bool iequals(const std::string& a, const std::string& b) {
-    return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](unsigned char x, unsigned char y) {
-        return std::tolower(x) == std::tolower(y);
-    });
-}
 
 float sanitize(float x) {
     return (std::isfinite(x) && x > 0) ? x : 0.0f;
@@ -88,8 +79,7 @@ std::unique_ptr<EnvmapLight> EnvmapLight::load(const std::filesystem::path& file
     const std::vector<float>& pixels = file.pixels;
 
     // Integer formats (PNG, JPEG) store display-encoded values; light needs linear ones.
-    const bool decode_srgb =
-        file.integer_format && (file.color_space.empty() || iequals(file.color_space, "sRGB"));
+    const bool decode_srgb = is_srgb_encoded(file.integer_format, file.color_space);
 
     std::vector<Rgb> texels(size_t(width) * size_t(height));
     for (size_t i = 0; i < texels.size(); ++i) {

@@ -12,6 +12,7 @@
 #include "core/lights/point_light.h"
 #include "core/lights/spot_light.h"
 #include "core/math/constants.h"
+#include "core/textures/texture.h"
 
 namespace render {
 namespace {
@@ -93,6 +94,18 @@ std::unique_ptr<Light> make_envmap(const Properties& props,
 
 std::unique_ptr<Light> make_area(const Properties& props, const Shape* shape,
                                  const std::filesystem::path&) {
+    if (std::shared_ptr<const Texture> texture = props.get_texture("radiance")) {
+        const float lo = texture->min_value(), hi = texture->max_value();
+        if (!std::isfinite(lo) || !std::isfinite(hi) || lo < 0)
+            throw props.error("radiance", "a radiance texture must be finite and non-negative (" +
+                                              texture->to_string() + ")");
+        try {
+            return std::make_unique<AreaLight>(shape, RgbParam{Rgb(), texture});
+        } catch (const std::invalid_argument& e) {
+            throw props.error("radiance", e.what() + std::string(", not ") +
+                                              (shape ? shape->to_string() : "no shape"));
+        }
+    }
     return std::make_unique<AreaLight>(shape, get_emission(props, "radiance", Rgb(1.0f)));
 }
 

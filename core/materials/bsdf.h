@@ -63,9 +63,18 @@ struct BsdfSample {
     float eta = 1.0f;
 };
 
-class Bsdf {
+class Bsdf : public std::enable_shared_from_this<Bsdf> {
   public:
     virtual ~Bsdf() = default;
+
+    // A material with textured parameters varies over the surface: the scene resolves it at
+    // every hit into the plain BSDF of that point (textured_bsdf.h), which is what
+    // SurfaceInteraction::bsdf then points to. Plain BSDFs return null.
+    bool varies() const { return varies_; }
+    virtual std::shared_ptr<const Bsdf> at(Vec2 /*uv*/) const { return nullptr; }
+    // Built by at() for one hit and owned by shared pointers only: whoever keeps it beyond the
+    // interaction (SurfaceBsdf) shares its ownership.
+    bool built_for_hit() const { return built_for_hit_; }
 
     // f(wo, wi) without the cosine factor. Zero for delta lobes.
     virtual Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const = 0;
@@ -89,6 +98,13 @@ class Bsdf {
 
     // A short description for logs and error messages.
     virtual std::string to_string() const = 0;
+
+  protected:
+    bool varies_ = false;
+
+  private:
+    friend class TexturedBsdf;
+    bool built_for_hit_ = false;
 };
 
 }  // namespace render

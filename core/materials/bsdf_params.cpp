@@ -65,34 +65,64 @@ float read_relative_ior(const Properties& props, float int_default) {
     return int_ior / ext_ior;
 }
 
-MicrofacetDistribution read_microfacet(const Properties& props) {
+MicrofacetParams read_microfacet_params(const Properties& props) {
     const std::string name = props.get_string("distribution", "beckmann");
-    MicrofacetType type;
-    if (!parse_microfacet_type(name, type))
+    MicrofacetParams params;
+    if (!parse_microfacet_type(name, params.type))
         throw props.error("distribution",
                           "unknown distribution \"" + name + "\" (supported: beckmann, ggx)");
 
     auto read_alpha = [&](const std::string& param, float def) {
+        if (std::shared_ptr<const Texture> texture = props.get_texture(param)) {
+            const float lo = texture->min_value(), hi = texture->max_value();
+            if (!std::isfinite(lo) || !std::isfinite(hi) || lo < 0)
+                throw props.error(param,
+                                  "a roughness texture must be finite and non-negative "
+                                  "(" +
+                                      texture->to_string() + " reaches " + format(lo) + ")");
+            return FloatParam{0.0f, texture};
+        }
         const float alpha = props.get_float(param, def);
         if (!std::isfinite(alpha) || alpha < 0)
             throw props.error(
                 param, "roughness must be finite and non-negative (got " + format(alpha) + ")");
-        return alpha;
+        return FloatParam{alpha, nullptr};
     };
-    float alpha_u, alpha_v;
     if (props.has("alpha_u") || props.has("alpha_v")) {
         if (props.has("alpha"))
             throw props.error("alpha", "give either alpha or alpha_u/alpha_v, not both");
         if (!props.has("alpha_u") || !props.has("alpha_v"))
             throw props.error(props.has("alpha_u") ? "alpha_u" : "alpha_v",
                               "alpha_u and alpha_v must be given together");
-        alpha_u = read_alpha("alpha_u", 0.1f);
-        alpha_v = read_alpha("alpha_v", 0.1f);
+        params.alpha_u = read_alpha("alpha_u", 0.1f);
+        params.alpha_v = read_alpha("alpha_v", 0.1f);
     } else {
-        alpha_u = alpha_v = read_alpha("alpha", 0.1f);
+        params.alpha_u = read_alpha("alpha", 0.1f);
+        params.isotropic = true;
     }
-    const bool sample_visible = props.get_bool("sample_visible", true);
-    return MicrofacetDistribution(type, alpha_u, alpha_v, sample_visible);
+    params.sample_visible = props.get_bool("sample_visible", true);
+    return params;
+}
+
+MicrofacetDistribution MicrofacetParams::at(Vec2 uv) const {
+    const float au = alpha_u.at(uv);
+    return MicrofacetDistribution(type, au, isotropic ? au : alpha_v.at(uv), sample_visible);
+}
+
+MicrofacetDistribution MicrofacetParams::mean() const {
+    const float au = alpha_u.mean();
+    return MicrofacetDistribution(type, au, isotropic ? au : alpha_v.mean(), sample_visible);
+}
+
+RgbParam read_reflectance_param(const Properties& props, const std::string& name, const Rgb& def) {
+    if (std::shared_ptr<const Texture> texture = props.get_texture(name)) {
+        const float lo = texture->min_value(), hi = texture->max_value();
+        if (!std::isfinite(lo) || !std::isfinite(hi) || lo < 0)
+            throw props.error(name, "a reflectance texture must be finite and non-negative (" +
+                                        texture->to_string() + " reaches " + format(lo) + ")");
+        return RgbParam{Rgb(), texture};
+    }
+    return RgbParam{read_reflectance(props, name, def), nullptr};
 }
 
 std::optional<ConductorIor> read_conductor_ior(const Properties& props) {

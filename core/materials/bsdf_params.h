@@ -8,6 +8,7 @@
 #include "core/base/properties.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
+#include "core/textures/texture_param.h"
 
 namespace render {
 
@@ -24,8 +25,24 @@ float read_ior(const Properties& props, const std::string& name, float def);
 // plastic) and air outside.
 float read_relative_ior(const Properties& props, float int_default);
 
-// `distribution`, `alpha` or `alpha_u`/`alpha_v`, `sample_visible`.
-MicrofacetDistribution read_microfacet(const Properties& props);
+// A finite, non-negative RGB or float reflectance, or a texture whose values all are.
+RgbParam read_reflectance_param(const Properties& props, const std::string& name, const Rgb& def);
+
+// The microfacet parameters of rough BSDFs, each roughness a constant or a texture.
+struct MicrofacetParams {
+    MicrofacetType type = MicrofacetType::Beckmann;
+    FloatParam alpha_u, alpha_v;  // alpha_v unused when isotropic (one `alpha`)
+    bool isotropic = false;
+    bool sample_visible = true;
+
+    bool varies() const { return alpha_u.varies() || (!isotropic && alpha_v.varies()); }
+    MicrofacetDistribution at(Vec2 uv) const;
+    MicrofacetDistribution mean() const;  // from the textures' mean roughness
+    MicrofacetDistribution at(const Vec2* uv) const { return uv ? at(*uv) : mean(); }
+};
+
+// `distribution`, `alpha` or `alpha_u`/`alpha_v` (each a float or a texture), `sample_visible`.
+MicrofacetParams read_microfacet_params(const Properties& props);
 
 // `eta` and `k`, or `material` (default "none": a perfect mirror, returned as nothing).
 std::optional<ConductorIor> read_conductor_ior(const Properties& props);

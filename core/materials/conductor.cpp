@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 
 namespace render {
 
@@ -11,9 +12,11 @@ ConductorBsdf::ConductorBsdf(std::optional<ConductorIor> ior, const Rgb& specula
     : ior_(std::move(ior)), specular_reflectance_(specular_reflectance) {}
 
 std::shared_ptr<const Bsdf> ConductorBsdf::create(const Properties& props) {
-    std::optional<ConductorIor> ior = read_conductor_ior(props);
-    return std::make_shared<ConductorBsdf>(
-        ior, read_reflectance(props, "specular_reflectance", Rgb(1.0f)));
+    const std::optional<ConductorIor> ior = read_conductor_ior(props);
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
+    return plain_or_textured(ks.varies(), [ior, ks](const Vec2* uv) {
+        return std::make_shared<ConductorBsdf>(ior, ks.at(uv));
+    });
 }
 
 Rgb ConductorBsdf::reflectance(float cos_theta) const {

@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 
 namespace render {
 
@@ -15,9 +16,11 @@ DielectricBsdf::DielectricBsdf(float eta, const Rgb& specular_reflectance,
 
 std::shared_ptr<const Bsdf> DielectricBsdf::create(const Properties& props) {
     const float eta = read_relative_ior(props, *lookup_dielectric_ior("bk7"));
-    return std::make_shared<DielectricBsdf>(
-        eta, read_reflectance(props, "specular_reflectance", Rgb(1.0f)),
-        read_reflectance(props, "specular_transmission", Rgb(1.0f)));
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
+    const RgbParam kt = read_reflectance_param(props, "specular_transmission", Rgb(1.0f));
+    return plain_or_textured(ks.varies() || kt.varies(), [eta, ks, kt](const Vec2* uv) {
+        return std::make_shared<DielectricBsdf>(eta, ks.at(uv), kt.at(uv));
+    });
 }
 
 std::optional<BsdfSample> DielectricBsdf::sample(const Vec3& wo, float u_lobe, Vec2,

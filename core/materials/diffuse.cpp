@@ -3,13 +3,17 @@
 #include <sstream>
 
 #include "core/materials/bsdf_params.h"
+#include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 
 namespace render {
 
 std::shared_ptr<const Bsdf> DiffuseBsdf::create(const Properties& props) {
-    return std::make_shared<DiffuseBsdf>(read_reflectance(props, "reflectance", Rgb(0.5f)));
+    const RgbParam reflectance = read_reflectance_param(props, "reflectance", Rgb(0.5f));
+    return plain_or_textured(reflectance.varies(), [reflectance](const Vec2* uv) {
+        return std::make_shared<DiffuseBsdf>(reflectance.at(uv));
+    });
 }
 
 Rgb DiffuseBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode) const {

@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/math/frame.h"
 #include "core/sampling/warp.h"
@@ -21,10 +22,12 @@ PhongBsdf::PhongBsdf(const Rgb& diffuse_reflectance, const Rgb& specular_reflect
 }
 
 std::shared_ptr<const Bsdf> PhongBsdf::create(const Properties& props) {
-    const Rgb kd = read_reflectance(props, "diffuse_reflectance", Rgb(0.5f));
-    const Rgb ks = read_reflectance(props, "specular_reflectance", Rgb(0.2f));
+    const RgbParam kd = read_reflectance_param(props, "diffuse_reflectance", Rgb(0.5f));
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(0.2f));
     const float exponent = read_non_negative(props, "exponent", 30.0f);
-    return std::make_shared<PhongBsdf>(kd, ks, exponent);
+    return plain_or_textured(kd.varies() || ks.varies(), [kd, ks, exponent](const Vec2* uv) {
+        return std::make_shared<PhongBsdf>(kd.at(uv), ks.at(uv), exponent);
+    });
 }
 
 Rgb PhongBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode) const {

@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 
@@ -27,11 +28,13 @@ PlasticBsdf::PlasticBsdf(const Rgb& diffuse_reflectance, const Rgb& specular_ref
 }
 
 std::shared_ptr<const Bsdf> PlasticBsdf::create(const Properties& props) {
-    const Rgb kd = read_reflectance(props, "diffuse_reflectance", Rgb(0.5f));
-    const Rgb ks = read_reflectance(props, "specular_reflectance", Rgb(1.0f));
+    const RgbParam kd = read_reflectance_param(props, "diffuse_reflectance", Rgb(0.5f));
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
     const float eta = read_relative_ior(props, *lookup_dielectric_ior("polypropylene"));
     const bool nonlinear = props.get_bool("nonlinear", false);
-    return std::make_shared<PlasticBsdf>(kd, ks, eta, nonlinear);
+    return plain_or_textured(kd.varies() || ks.varies(), [kd, ks, eta, nonlinear](const Vec2* uv) {
+        return std::make_shared<PlasticBsdf>(kd.at(uv), ks.at(uv), eta, nonlinear);
+    });
 }
 
 float PlasticBsdf::specular_probability(float cos_theta) const {

@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 
 namespace render {
 
@@ -15,10 +16,13 @@ RoughConductorBsdf::RoughConductorBsdf(const MicrofacetDistribution& distributio
       specular_reflectance_(specular_reflectance) {}
 
 std::shared_ptr<const Bsdf> RoughConductorBsdf::create(const Properties& props) {
-    const MicrofacetDistribution distribution = read_microfacet(props);
-    std::optional<ConductorIor> ior = read_conductor_ior(props);
-    return std::make_shared<RoughConductorBsdf>(
-        distribution, ior, read_reflectance(props, "specular_reflectance", Rgb(1.0f)));
+    const MicrofacetParams distribution = read_microfacet_params(props);
+    const std::optional<ConductorIor> ior = read_conductor_ior(props);
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
+    return plain_or_textured(
+        distribution.varies() || ks.varies(), [distribution, ior, ks](const Vec2* uv) {
+            return std::make_shared<RoughConductorBsdf>(distribution.at(uv), ior, ks.at(uv));
+        });
 }
 
 Rgb RoughConductorBsdf::fresnel(float cos_theta) const {

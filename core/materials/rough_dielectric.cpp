@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 
 namespace render {
 
@@ -17,14 +18,18 @@ RoughDielectricBsdf::RoughDielectricBsdf(const MicrofacetDistribution& distribut
       specular_transmission_(specular_transmission) {}
 
 std::shared_ptr<const Bsdf> RoughDielectricBsdf::create(const Properties& props) {
-    const MicrofacetDistribution distribution = read_microfacet(props);
+    const MicrofacetParams distribution = read_microfacet_params(props);
     const float eta = read_relative_ior(props, *lookup_dielectric_ior("bk7"));
     if (eta == 1.0f)
         throw props.error("int_ior",
                           "equals ext_ior: a rough index-matched interface has no half vector");
-    return std::make_shared<RoughDielectricBsdf>(
-        distribution, eta, read_reflectance(props, "specular_reflectance", Rgb(1.0f)),
-        read_reflectance(props, "specular_transmission", Rgb(1.0f)));
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
+    const RgbParam kt = read_reflectance_param(props, "specular_transmission", Rgb(1.0f));
+    return plain_or_textured(distribution.varies() || ks.varies() || kt.varies(),
+                             [distribution, eta, ks, kt](const Vec2* uv) {
+                                 return std::make_shared<RoughDielectricBsdf>(
+                                     distribution.at(uv), eta, ks.at(uv), kt.at(uv));
+                             });
 }
 
 std::optional<RoughDielectricBsdf::HalfVector> RoughDielectricBsdf::half_vector(

@@ -23,7 +23,11 @@ class SurfaceBsdf {
   public:
     SurfaceBsdf(const Bsdf& bsdf, const Frame& shading, const Vec3& geometric_normal,
                 TransportMode mode)
-        : bsdf_(bsdf), shading_(shading), ng_(geometric_normal), mode_(mode) {}
+        : bsdf_(bsdf),
+          owner_(bsdf.built_for_hit() ? bsdf.shared_from_this() : nullptr),
+          shading_(shading),
+          ng_(geometric_normal),
+          mode_(mode) {}
 
     // f(wo, wi) for world directions, corrected for shading normals (Importance mode).
     Rgb f(const Vec3& wo, const Vec3& wi) const;
@@ -47,6 +51,9 @@ class SurfaceBsdf {
     float shading_correction(const Vec3& wo, const Vec3& wi) const;
 
     const Bsdf& bsdf_;
+    // Keeps a BSDF built for one hit (a textured material's) alive after the interaction that
+    // owned it is gone, as stored light vertices need; null for the scene's own BSDFs.
+    std::shared_ptr<const Bsdf> owner_;
     Frame shading_;
     Vec3 ng_;
     TransportMode mode_;

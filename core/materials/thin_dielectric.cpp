@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/textured_bsdf.h"
 
 namespace render {
 
@@ -16,9 +17,11 @@ ThinDielectricBsdf::ThinDielectricBsdf(float eta, const Rgb& specular_reflectanc
 
 std::shared_ptr<const Bsdf> ThinDielectricBsdf::create(const Properties& props) {
     const float eta = read_relative_ior(props, *lookup_dielectric_ior("bk7"));
-    return std::make_shared<ThinDielectricBsdf>(
-        eta, read_reflectance(props, "specular_reflectance", Rgb(1.0f)),
-        read_reflectance(props, "specular_transmission", Rgb(1.0f)));
+    const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
+    const RgbParam kt = read_reflectance_param(props, "specular_transmission", Rgb(1.0f));
+    return plain_or_textured(ks.varies() || kt.varies(), [eta, ks, kt](const Vec2* uv) {
+        return std::make_shared<ThinDielectricBsdf>(eta, ks.at(uv), kt.at(uv));
+    });
 }
 
 float ThinDielectricBsdf::slab_reflectance(float cos_theta) const {

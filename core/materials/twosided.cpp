@@ -1,5 +1,7 @@
 #include "core/materials/twosided.h"
 
+#include "core/materials/textured_bsdf.h"
+
 namespace render {
 namespace {
 
@@ -23,8 +25,17 @@ std::shared_ptr<const Bsdf> TwoSidedBsdf::create(const Properties& props) {
         if (child->lobes() & kLobeTransmission)
             throw SceneError(props.where(), "bsdf \"twosided\" cannot wrap the transmissive " +
                                                 child->to_string());
-    return std::make_shared<TwoSidedBsdf>(props.nested_bsdfs[0],
-                                          n == 2 ? props.nested_bsdfs[1] : nullptr);
+    std::shared_ptr<const Bsdf> front = props.nested_bsdfs[0];
+    std::shared_ptr<const Bsdf> back = n == 2 ? props.nested_bsdfs[1] : nullptr;
+    const bool varies = front->varies() || (back && back->varies());
+    // A textured side is resolved at the hit like any textured material; the mean side of a
+    // textured child is its typical BSDF (the child itself answers as that).
+    return plain_or_textured(varies, [front, back](const Vec2* uv) {
+        auto side = [uv](const std::shared_ptr<const Bsdf>& b) {
+            return b && uv && b->varies() ? b->at(*uv) : b;
+        };
+        return std::make_shared<TwoSidedBsdf>(side(front), side(back));
+    });
 }
 
 Rgb TwoSidedBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode mode) const {

@@ -105,6 +105,12 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     const Shape* shape = geometry_to_shape_[rh.hit.geomID];
     shape->fill_interaction(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+    if (si.bsdf->varies()) {
+        si.hit_bsdf = si.bsdf->at(si.uv);
+        si.bsdf = si.hit_bsdf.get();
+    } else if (si.hit_bsdf) {
+        si.hit_bsdf.reset();  // an interaction reused from a textured hit
+    }
     return true;
 }
 

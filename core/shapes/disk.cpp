@@ -57,12 +57,21 @@ void Disk::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     si.t = t;
     si.geometric_normal = normal_;
     si.shading = Frame::from_normal(normal_);
-    float r = std::sqrt(local.x * local.x + local.y * local.y);
-    float phi = std::atan2(local.y, local.x);
-    si.uv = Vec2(r, (phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi);
+    si.uv = uv_of_local(local.x, local.y);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;
+}
+
+Vec2 Disk::uv_of_local(float x, float y) {
+    const float r = std::sqrt(x * x + y * y);
+    const float phi = std::atan2(y, x);
+    return Vec2(r, (phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi);
+}
+
+Vec2 Disk::uv_at(const Vec3& p) const {
+    const Vec3 local = to_object_.apply_point(p);
+    return uv_of_local(local.x, local.y);
 }
 
 Aabb Disk::bounds() const {
@@ -78,6 +87,7 @@ ShapeSample Disk::sample_area(Vec2 u) const {
     ShapeSample s;
     s.p = to_world_.apply_point(Vec3(d.x, d.y, 0));
     s.n = normal_;
+    s.uv = uv_of_local(d.x, d.y);
     s.pdf_area = area_ > 0 ? 1.0f / area_ : 0.0f;
     return s;
 }

@@ -23,7 +23,13 @@ class Disk final : public AnalyticShape {
     ShapeSample sample_area(Vec2 u) const override;
     std::string to_string() const override;
 
+    bool has_uv_lookup() const override { return true; }
+    Vec2 uv_at(const Vec3& p) const override;
+
   private:
+    // uv of object-space point (x, y) of the unit disk.
+    static Vec2 uv_of_local(float x, float y);
+
     Transform to_world_;
     Transform to_object_;
     Vec3 center_, normal_;

@@ -31,8 +31,13 @@ bool intersect_sphere(const Vec3& center, double radius, const float org[3], con
 
 }  // namespace
 
-Sphere::Sphere(const Vec3& center, float radius, bool flip_normals, std::string name)
-    : center_(center), radius_(radius), flip_normals_(flip_normals), name_(std::move(name)) {}
+Sphere::Sphere(const Vec3& center, float radius, bool flip_normals, std::string name,
+               const Frame& axes)
+    : center_(center),
+      radius_(radius),
+      flip_normals_(flip_normals),
+      name_(std::move(name)),
+      axes_(axes) {}
 
 std::optional<double> Sphere::nearest_hit(const float org[3], const float dir[3], float t_min,
                                           float t_max) const {
@@ -52,15 +57,27 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     // Re-project onto the surface: removes the error of origin + t * direction.
     si.p = center_ + n * radius_;
     si.t = t;
+    si.uv = uv_of_direction(n);
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);
-    float theta = std::acos(std::clamp(n.z, -1.0f, 1.0f));
-    float phi = std::atan2(n.y, n.x);
-    si.uv = Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;
+}
+
+Vec2 Sphere::uv_of_direction(const Vec3& d) const {
+    // From the outward direction in object space, whichever way the normal faces.
+    const Vec3 local = axes_.to_local(d);
+    const float theta = std::acos(std::clamp(local.z, -1.0f, 1.0f));
+    const float phi = std::atan2(local.y, local.x);
+    return Vec2((phi < 0 ? phi + 2 * kPi : phi) * kInv2Pi, theta * kInvPi);
+}
+
+Vec2 Sphere::uv_at(const Vec3& p) const {
+    const Vec3 d = p - center_;
+    const float len = length(d);
+    return uv_of_direction(len > 0 ? d / len : Vec3(0, 0, 1));
 }
 
 Aabb Sphere::bounds() const {
@@ -79,6 +96,7 @@ ShapeSample Sphere::sample_area(Vec2 u) const {
     ShapeSample s;
     s.p = center_ + d * radius_;
     s.n = flip_normals_ ? -d : d;
+    s.uv = uv_of_direction(d);
     s.pdf_area = 1.0f / surface_area();
     return s;
 }

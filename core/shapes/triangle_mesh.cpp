@@ -106,10 +106,39 @@ void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, f
         }
     }
     si.shading = Frame::from_normal(ns);
-    si.uv = uvs_.empty() ? Vec2(u, v) : uvs_[i0] * b0 + uvs_[i1] * u + uvs_[i2] * v;
+    si.uv = uv_of(prim_id, u, v);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;
+}
+
+Vec2 TriangleMesh::uv_of(size_t tri, float b1, float b2) const {
+    if (uvs_.empty()) return Vec2(b1, b2);
+    const uint32_t* i = &indices_[3 * tri];
+    return uvs_[i[0]] * (1.0f - b1 - b2) + uvs_[i[1]] * b1 + uvs_[i[2]] * b2;
+}
+
+Vec2 TriangleMesh::uv_at(const Vec3& p) const {
+    // The triangle whose plane passes nearest to p among those whose barycentrics of p's
+    // projection are inside (with a margin for rounding).
+    float best = kInfinity;
+    Vec2 uv;
+    for (size_t tri = 0; tri < triangle_count(); ++tri) {
+        const Vec3& p0 = positions_[indices_[3 * tri]];
+        const Vec3 e1 = positions_[indices_[3 * tri + 1]] - p0;
+        const Vec3 e2 = positions_[indices_[3 * tri + 2]] - p0;
+        const Vec3 n = cross(e1, e2);
+        const float n2 = length_squared(n);
+        if (!(n2 > 0)) continue;
+        const Vec3 d = p - p0;
+        const float b1 = dot(cross(d, e2), n) / n2;
+        const float b2 = dot(cross(e1, d), n) / n2;
+        const float margin = 1e-4f;
+        if (b1 < -margin || b2 < -margin || b1 + b2 > 1 + margin) continue;
+        const float distance = std::abs(dot(d, n)) / std::sqrt(n2);
+        if (distance < best) best = distance, uv = uv_of(tri, b1, b2);
+    }
+    return uv;
 }
 
 Aabb TriangleMesh::bounds() const {
@@ -130,6 +159,7 @@ ShapeSample TriangleMesh::sample_area(Vec2 u) const {
     s.p = p0 * (1.0f - b.x - b.y) + p1 * b.x + p2 * b.y;
     Vec3 n = normalize(cross(p1 - p0, p2 - p0));
     s.n = flip_normals_ ? -n : n;
+    s.uv = uv_of(tri, b.x, b.y);
     s.pdf_area = 1.0f / area_;
     return s;
 }
@@ -154,16 +184,22 @@ MeshData make_cube_mesh() {
     // Six faces with their own vertices so that normals stay flat.
     MeshData m;
     const Vec3 normals[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-    for (const Vec3& n : normals) {
+    // Mitsuba's uv layout: on each face u = (a . p + 1) / 2 and v = (b . p + 1) / 2.
+    const Vec3 u_axes[6] = {{0, 1, 0}, {0, 1, 0}, {-1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {0, -1, 0}};
+    const Vec3 v_axes[6] = {{0, 0, -1}, {0, 0, 1}, {0, 0, -1}, {1, 0, 0}, {1, 0, 0}, {1, 0, 0}};
+    for (int face = 0; face < 6; ++face) {
+        const Vec3& n = normals[face];
         // Two tangents with cross(s, t) = n so the winding faces outward.
         Vec3 s = std::abs(n.x) > 0 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
         Vec3 t = cross(n, s);
         uint32_t base = uint32_t(m.positions.size());
         const float corners[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
         for (const auto& c : corners) {
-            m.positions.push_back(n + s * c[0] + t * c[1]);
+            const Vec3 p = n + s * c[0] + t * c[1];
+            m.positions.push_back(p);
             m.normals.push_back(n);
-            m.uvs.push_back(Vec2(0.5f * (c[0] + 1), 0.5f * (c[1] + 1)));
+            m.uvs.push_back(
+                Vec2(0.5f * (dot(u_axes[face], p) + 1), 0.5f * (dot(v_axes[face], p) + 1)));
         }
         m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
     }

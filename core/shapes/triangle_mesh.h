@@ -35,11 +35,18 @@ class TriangleMesh final : public Shape {
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;
     std::string to_string() const override;
+    // By a search over the triangles: only for small meshes (rectangle, cube).
+    bool has_uv_lookup() const override { return triangle_count() <= kMaxUvLookupTriangles; }
+    Vec2 uv_at(const Vec3& p) const override;
+    static constexpr size_t kMaxUvLookupTriangles = 64;
 
     size_t triangle_count() const { return indices_.size() / 3; }
     const std::vector<Vec3>& positions() const { return positions_; }
 
   private:
+    // uv at barycentrics (b1, b2) of triangle `tri`, as a hit reports it.
+    Vec2 uv_of(size_t tri, float b1, float b2) const;
+
     std::vector<Vec3> positions_;
     std::vector<Vec3> normals_;
     std::vector<Vec2> uvs_;
@@ -51,7 +58,7 @@ class TriangleMesh final : public Shape {
 };
 
 // Procedural meshes with Mitsuba's object-space conventions.
-MeshData make_rectangle_mesh();  // [-1,1]^2 at z = 0, normal +z
-MeshData make_cube_mesh();       // [-1,1]^3, outward normals, flat faces
+MeshData make_rectangle_mesh();  // [-1,1]^2 at z = 0, normal +z, uv = ((x + 1) / 2, (y + 1) / 2)
+MeshData make_cube_mesh();       // [-1,1]^3, outward normals, flat faces, each face's uv [0,1]^2
 
 }  // namespace render

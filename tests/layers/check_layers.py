@@ -26,6 +26,7 @@ LAYERS = [
     ("core/media/", 3, "plugins"),
     ("core/shapes/", 3, "plugins"),
     ("core/mesh_io/", 3, "plugins"),
+    ("core/textures/", 3, "plugins"),
     ("core/scene/", 4, "scene"),
     ("core/integrators/", 5, "integrators"),
     ("core/render/", 6, "render"),

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/materials/bsdf_factory.h"
 #include "core/materials/diffuse.h"
 #include "core/materials/microfacet.h"
 #include "core/materials/phong.h"
@@ -19,6 +20,7 @@
 #include "core/materials/rough_dielectric.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
+#include "core/textures/texture_factory.h"
 #include "tests/support/chi_square.h"
 
 namespace render {
@@ -63,6 +65,24 @@ std::shared_ptr<const Bsdf> rough_conductor(MicrofacetType type, float alpha_u, 
 std::shared_ptr<const Bsdf> rough_dielectric(MicrofacetType type, float alpha) {
     return std::make_shared<RoughDielectricBsdf>(MicrofacetDistribution(type, alpha, alpha), 1.5f,
                                                  Rgb(1.0f), Rgb(1.0f));
+}
+
+// A material of `type` whose parameter `param` is a checkerboard of c0 and c1 (plus `extra`
+// string parameters), resolved at uv (0.75, 0.25), in a color1 square, as the scene resolves a
+// textured material at a hit.
+std::shared_ptr<const Bsdf> textured(
+    const std::string& type, const std::string& param, float c0, float c1,
+    const std::vector<std::pair<std::string, std::string>>& extra = {}) {
+    const SourceLocation at{"chi_square", 1};
+    Properties checker("texture", "checkerboard", at);
+    checker.set("color0", c0, at);
+    checker.set("color1", c1, at);
+    Properties props("bsdf", type, at);
+    props.set(param, make_texture(checker), at);
+    for (const auto& [name, value] : extra) props.set(name, value, at);
+    const std::shared_ptr<const Bsdf> material = make_bsdf(props);
+    props.check_all_used();
+    return material->at(Vec2(0.75f, 0.25f));
 }
 
 std::string cos_name(float c) {
@@ -135,6 +155,20 @@ std::vector<ChiSquareCase> all_cases() {
     cases.push_back({"phong_specular_only_n10_grazing",
                      [] { return std::make_shared<PhongBsdf>(Rgb(0.0f), Rgb(0.7f), 10.0f); },
                      0.1f});
+    // Textured materials: the plain BSDF a hit resolves them into samples as it evaluates.
+    cases.push_back(
+        {"textured_diffuse", [] { return textured("diffuse", "reflectance", 0.2f, 0.9f); }, 0.6f});
+    cases.push_back(
+        {"textured_roughconductor_ggx_alpha",
+         [] {
+             return textured("roughconductor", "alpha", 0.05f, 0.5f, {{"distribution", "ggx"}});
+         },
+         0.4f});
+    cases.push_back({"textured_plastic_diffuse_reflectance",
+                     [] { return textured("plastic", "diffuse_reflectance", 0.1f, 0.8f); }, 0.5f});
+    cases.push_back({"textured_roughdielectric_alpha_inside",
+                     [] { return textured("roughdielectric", "alpha", 0.05f, 0.4f); }, -0.5f,
+                     TransportMode::Importance});
     cases.push_back(
         {"phong_diffuse_heavy_n30",
          [] { return std::make_shared<PhongBsdf>(Rgb(0.8f, 0.5f, 0.2f), Rgb(0.05f), 30.0f); },

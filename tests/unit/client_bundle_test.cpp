@@ -70,6 +70,21 @@ TEST(ClientBundle, FollowsTheLoadersFileResolution) {
         EXPECT_EQ(copy->shapes()[i]->surface_area(), original->shapes()[i]->surface_area()) << i;
 }
 
+// A bitmap texture's file travels with the scene, and the job's copy loads with it.
+TEST(ClientBundle, TakesTextureFiles) {
+    const fs::path scene = fs::path(RENDER_SOURCE_DIR) / "scenes/tests/textures.xml";
+    const SceneBundleInfo info = collect_bundle(scene, {});
+    EXPECT_EQ(paths_of(info), (std::set<std::string>{"textures.xml", "textures/tiles.png"}));
+    TempDir job("client_bundle_test_textures");
+    for (const BundleEntry& e : info.files) {
+        fs::create_directories((job.path / e.path).parent_path());
+        fs::copy_file(e.absolute, job.path / e.path);
+    }
+    auto copy = load_scene(job.path / "textures.xml", {}, job.path);  // confined, as a worker
+    ASSERT_EQ(copy->shapes().size(), 5u);
+    EXPECT_TRUE(copy->shapes()[0]->bsdf->varies());  // the bitmap floor
+}
+
 TEST(ClientBundle, SearchPathsMustStayInTheScenesFolder) {
     TempDir dir("client_bundle_test_paths");
     dir.write("scene/scene.xml",

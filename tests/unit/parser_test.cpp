@@ -399,9 +399,9 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
         {"<medium type=\"homogeneous\" id=\"m\"/><shape type=\"sphere\"><ref "
          "name=\"interior\" id=\"m\"/><ref name=\"interior\" id=\"m\"/></shape>",
          "interior medium is given twice"},
-        // not supported yet
+        // textures
         {"<bsdf type=\"diffuse\"><texture type=\"bitmap\" name=\"reflectance\"/></bsdf>",
-         "textures (<texture>) are not supported yet"},
+         "<string>:3: texture \"bitmap\" needs parameter \"filename\""},
         // structure
         {"<shape type=\"sphere\"><bsdf type=\"diffuse\"/><bsdf type=\"diffuse\"/></shape>",
          "at most one bsdf"},

@@ -219,8 +219,9 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
             EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         }
     }
-    EXPECT_EQ(surface_scenes, 10);  // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters
-    EXPECT_EQ(media_scenes, 5);     // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box
+    // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures
+    EXPECT_EQ(surface_scenes, 11);
+    EXPECT_EQ(media_scenes, 5);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box
 }
 
 }  // namespace

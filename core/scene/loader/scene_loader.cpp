@@ -20,6 +20,7 @@
 #include "core/scene/loader/values.h"
 #include "core/scene/loader/xml_element.h"
 #include "core/scene/loader/xml_file.h"
+#include "core/textures/texture_factory.h"
 
 namespace render {
 namespace {
@@ -32,7 +33,6 @@ struct Unsupported {
     const char* what;
 };
 constexpr Unsupported kUnsupportedTags[] = {
-    {"texture", "textures (<texture>) are"},
     {"srgb", "<srgb> colours are"},
     {"blackbody", "<blackbody> spectra are"},
     {"animation", "animated transforms (<animation>) are"},
@@ -218,6 +218,8 @@ class Loader {
                 read_sensor(e);
             else if (tag == "bsdf")
                 read_bsdf(e);
+            else if (tag == "texture")
+                read_texture_object(e);
             else if (tag == "shape")
                 read_shape(e);
             else if (tag == "emitter")
@@ -521,6 +523,7 @@ class Loader {
                 p.nested_bsdfs.push_back(read_bsdf_object(c));
                 return true;
             }
+            if (read_texture_child(c, p)) return true;
             if (c.tag() == "ref") {
                 if (!c.children().empty())
                     throw SceneError(c.where(), "<ref> cannot have child elements");
@@ -539,6 +542,52 @@ class Loader {
     }
 
     void read_bsdf(const XmlElement& e) { keep(read_bsdf_object(e)); }
+
+    // ----- textures -----
+
+    // <texture type="..."> at the top level (with an id, for <ref>) or nested in a plugin
+    // (with the name of the parameter it gives). Textures nest: checkerboard's colours.
+    std::shared_ptr<const Texture> read_texture_object(const XmlElement& e) {
+        Properties props = read_object(e, "texture", [&](const XmlElement& c, Properties& p) {
+            return read_texture_child(c, p);
+        });
+        std::shared_ptr<const Texture> texture = build(props, [&] { return make_texture(props); });
+        if (!props.id.empty()) {
+            register_id(props.id, e.where());
+            textures_[props.id] = texture;
+        }
+        return texture;
+    }
+
+    // A plugin's child that gives a texture parameter: a nested <texture name="..."> or a
+    // <ref name="..." id="..."/> to a texture. False for any other child (a <ref> to something
+    // else included), which the plugin's reader then handles.
+    bool read_texture_child(const XmlElement& c, Properties& p) {
+        if (c.tag() == "texture") {
+            const std::optional<std::string> name = c.optional("name");
+            if (!name || name->empty())
+                throw SceneError(c.where(), "a <texture> inside " + p.plugin_class() + " \"" +
+                                                p.type() +
+                                                "\" needs name=\"parameter\" (e.g. "
+                                                "name=\"reflectance\")");
+            p.set(*name, read_texture_object(c), c.where());
+            return true;
+        }
+        if (c.tag() != "ref") return false;
+        const std::optional<std::string> id = c.optional("id");
+        if (!id) return false;
+        auto it = textures_.find(*id);
+        if (it == textures_.end()) return false;
+        c.check_attributes({"id", "name"});
+        if (!c.children().empty()) throw SceneError(c.where(), "<ref> cannot have child elements");
+        const std::optional<std::string> name = c.optional("name");
+        if (!name || name->empty())
+            throw SceneError(c.where(), "<ref id=\"" + *id +
+                                            "\">: a texture reference needs name=\"parameter\" "
+                                            "(e.g. name=\"reflectance\")");
+        p.set(*name, it->second, c.where());
+        return true;
+    }
 
     // Hands a BSDF to the scene once, however many shapes use it.
     const Bsdf* keep(std::shared_ptr<const Bsdf> bsdf) {
@@ -623,7 +672,8 @@ class Loader {
     void read_top_level_emitter(const XmlElement& e) {
         // A nested medium (or a reference to one) is the medium the light sits in.
         const Medium* medium = nullptr;
-        Properties props = read_object(e, "emitter", [&](const XmlElement& c, Properties&) {
+        Properties props = read_object(e, "emitter", [&](const XmlElement& c, Properties& p) {
+            if (read_texture_child(c, p)) return true;
             if (c.tag() != "medium" && c.tag() != "ref") return false;
             if (medium) throw SceneError(c.where(), "an emitter sits in one medium only");
             if (c.tag() == "ref") c.check_attributes({"id", "name"});
@@ -688,7 +738,10 @@ class Loader {
             }
             if (c.tag() == "emitter") {
                 if (emitter) throw SceneError(c.where(), "a shape has at most one emitter");
-                emitter = read_plain_object(c, "emitter");
+                // The area light's radiance may be a texture.
+                emitter = read_object(c, "emitter", [&](const XmlElement& t, Properties& p) {
+                    return read_texture_child(t, p);
+                });
                 if (emitter->type() != "area")
                     throw SceneError(c.where(),
                                      "an emitter inside a <shape> must be of type "
@@ -726,6 +779,7 @@ class Loader {
     std::filesystem::path confine_root_;
     std::vector<std::string> include_stack_;
     std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
+    std::map<std::string, std::shared_ptr<const Texture>> textures_;
     std::map<std::string, SourceLocation> ids_;
     std::set<const Bsdf*> kept_;
     const Bsdf* default_bsdf_ = nullptr;

@@ -44,6 +44,9 @@ std::unique_ptr<Shape> make_file_mesh(const Properties& props,
     } catch (const SceneError& e) {
         throw props.error("filename", e.what());
     }
+    // Mitsuba's default: files store v upwards, textures are looked up with v = 0 at the top.
+    if (props.get_bool("flip_tex_coords", true))
+        for (Vec2& uv : data.uvs) uv.y = 1.0f - uv.y;
     return make_mesh_shape(props, std::move(data), true);
 }
 
@@ -79,7 +82,11 @@ std::unique_ptr<Shape> make_sphere(const Properties& props) {
     float world_radius = float(radius * std::sqrt(s2));
     if (!is_finite(world_center) || !std::isfinite(world_radius))
         throw props.error("to_world", "the sphere's centre or radius is not finite");
-    return std::make_unique<Sphere>(world_center, world_radius, flip, shape_name(props));
+    // The object's axes in world space, for the uv parametrisation (a reflection stays one).
+    const Frame axes(normalize(to_world.apply_vector(Vec3(1, 0, 0))),
+                     normalize(to_world.apply_vector(Vec3(0, 1, 0))),
+                     normalize(to_world.apply_vector(Vec3(0, 0, 1))));
+    return std::make_unique<Sphere>(world_center, world_radius, flip, shape_name(props), axes);
 }
 
 }  // namespace
