@@ -51,7 +51,7 @@ class Parallelogram final : public Shape {
     }
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override {
-        return {p0_ + e1_ * u.x + e2_ * u.y, n_, area_ > 0 ? 1.0f / area_ : 0.0f};
+        return {p0_ + e1_ * u.x + e2_ * u.y, n_, area_ > 0 ? 1.0f / area_ : 0.0f, u};
     }
     std::string to_string() const override { return "Parallelogram"; }
 
@@ -93,7 +93,7 @@ class TestSphere final : public Shape {
     float surface_area() const override { return 4.0f * kPi * r_ * r_; }
     ShapeSample sample_area(Vec2 u) const override {
         Vec3 d = warp::square_to_uniform_sphere(u);
-        return {c_ + d * r_, inward_ ? -d : d, 1.0f / surface_area()};
+        return {c_ + d * r_, inward_ ? -d : d, 1.0f / surface_area(), Vec2(0.0f, 0.0f)};
     }
     std::string to_string() const override { return "TestSphere"; }
     // Far hit from a point inside the sphere: point and normal.
