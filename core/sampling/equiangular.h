@@ -25,6 +25,7 @@
 #include <cmath>
 
 #include "core/math/vec.h"
+#include "core/sampling/ray_point_geometry.h"
 
 namespace render {
 
@@ -35,13 +36,9 @@ class EquiAngularSampler {
     EquiAngularSampler(const Vec3& origin, const Vec3& direction, const Vec3& light, float t0,
                        float t1)
         : t0_(t0), t1_(t1) {
-        const double lx = double(light.x) - origin.x, ly = double(light.y) - origin.y,
-                     lz = double(light.z) - origin.z;
-        delta_ = lx * direction.x + ly * direction.y + lz * direction.z;
-        const double px = lx - delta_ * direction.x, py = ly - delta_ * direction.y,
-                     pz = lz - delta_ * direction.z;
-        const double scale = std::max({std::abs(double(t1) - t0), std::abs(delta_), 1e-30});
-        distance_ = std::max(std::sqrt(px * px + py * py + pz * pz), 1e-6 * scale);
+        const RayPointGeometry g = ray_point_geometry(origin, direction, light, t0, t1);
+        delta_ = g.delta;
+        distance_ = g.distance;
         a0_ = t0 - delta_;
         const double a1 = t1 - delta_;
         dtheta_ = std::atan2(distance_ * (double(t1) - t0), distance_ * distance_ + a0_ * a1);

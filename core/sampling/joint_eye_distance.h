@@ -28,6 +28,7 @@
 #include <cmath>
 
 #include "core/math/vec.h"
+#include "core/sampling/ray_point_geometry.h"
 
 namespace render {
 
@@ -38,13 +39,9 @@ class JointEyeDistanceSampler {
     JointEyeDistanceSampler(const Vec3& origin, const Vec3& direction, const Vec3& light, float t0,
                             float t1)
         : t0_(t0), t1_(t1) {
-        const double lx = double(light.x) - origin.x, ly = double(light.y) - origin.y,
-                     lz = double(light.z) - origin.z;
-        delta_ = lx * direction.x + ly * direction.y + lz * direction.z;
-        const double px = lx - delta_ * direction.x, py = ly - delta_ * direction.y,
-                     pz = lz - delta_ * direction.z;
-        const double scale = std::max({std::abs(double(t1) - t0), std::abs(delta_), 1e-30});
-        distance_ = std::max(std::sqrt(px * px + py * py + pz * pz), 1e-6 * scale);
+        const RayPointGeometry g = ray_point_geometry(origin, direction, light, t0, t1);
+        delta_ = g.delta;
+        distance_ = g.distance;
         x0_ = t0 - delta_;
         r0_ = std::hypot(distance_, x0_);
         const double x1 = t1 - delta_;
