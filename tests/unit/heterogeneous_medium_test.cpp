@@ -302,5 +302,34 @@ TEST(HeterogeneousMedium, FactoryReadsScaleAndValidates) {
     }
 }
 
+// A grid too dense for tracking to step through (a scale of 1e30 kept a worker on one ray for
+// ever) is refused at load with the parameter's location; one just below the bound loads. The
+// grid is the unit cube (diagonal sqrt(3)) with sigma_t up to 1.
+TEST(HeterogeneousMedium, FactoryRefusesGridsTooDenseToTrack) {
+    const SourceLocation here{"scene.xml", 9};
+    const std::shared_ptr<GridVolume> grid = Ramp{4, Rgb(1.0f), Rgb(0.0f), 1.0f}.volume(true);
+    auto medium_with_scale = [&](float scale) {
+        Properties p("medium", "heterogeneous", here);
+        p.set("scale", scale, here);
+        return make_heterogeneous_medium(p, grid, nullptr, nullptr);
+    };
+    EXPECT_NO_THROW(medium_with_scale(5e4f));  // 8.7e4 mean free paths across
+    for (float scale : {1e5f, 1e30f}) {
+        try {
+            medium_with_scale(scale);
+            ADD_FAILURE() << "scale " << scale << " was accepted";
+        } catch (const SceneError& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find("scene.xml:9"), std::string::npos) << what;
+            EXPECT_NE(what.find("mean free paths"), std::string::npos) << what;
+        }
+    }
+    // A constant (unbounded) volume has no extent to step through here: any finite density.
+    Properties p("medium", "heterogeneous", here);
+    p.set("scale", 1e30f, here);
+    EXPECT_NO_THROW(make_heterogeneous_medium(p, std::make_shared<ConstantVolume>(Rgb(1.0f)),
+                                              nullptr, nullptr));
+}
+
 }  // namespace
 }  // namespace render::testing

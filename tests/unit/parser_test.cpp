@@ -331,6 +331,13 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
          "<string>:3: unknown attribute \"colour\" on <shape type=\"sphere\">"},
         {"<shape type=\"sphere\"><float name=\"radius\" value=\"1\" unit=\"m\"/></shape>",
          "<string>:3: unknown attribute \"unit\""},
+        // geometry our floats and Embree cannot handle (a scale of -1e30 aborted the process
+        // in Embree's ray validity assertion)
+        {"<shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"-1e30\"/>"
+         "</transform></shape>",
+         "<string>:3: <shape type=\"rectangle\">: its geometry reaches beyond 1e12"},
+        {"<shape type=\"sphere\"><float name=\"radius\" value=\"1e13\"/></shape>",
+         "<string>:3:|beyond 1e12"},
         // unknown plugin types
         {"<shape type=\"teapot\"/>", "<string>:3: unknown shape type \"teapot\""},
         {"<bsdf type=\"velvet\"/>", "<string>:3:|velvet"},
