@@ -13,11 +13,11 @@
 #include <utility>
 #include <vector>
 
+#include "core/base/shape.h"
 #include "core/lights/light.h"
 #include "core/math/constants.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
-#include "core/base/shape.h"
 #include "tests/support/statistics.h"
 
 namespace render::testing {
