@@ -238,7 +238,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"iteration, with its records and tables, costs {c['t'] / pw['t']:.2f}× a "
                   f"power-sampling one).", "",
                   f"Importance-cached connections in bpt: **{bpt_ratio:.2f} ± "
-                  f"{bpt_ratio_se:.2f}×** lower relative MSE than plain bpt at equal time; "
+                  f"{bpt_ratio_se:.2g}×** lower relative MSE than plain bpt at equal time; "
                   f"{b['v'] / bi['v']:.2f}× lower variance per iteration, at "
                   f"{bi['t'] / b['t']:.2f}× the cost.", "",
                   f"Pictures (`--time {cfg['picture_time']:g}`; tone-mapped by `render --png`): "
@@ -278,7 +278,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     for name, v in verdicts.items():
         bpt_ratio, bpt_ratio_se, v_ratio, t_ratio = v[9:]
         lines.append(f"- {name}, importance-cached connections: {bpt_ratio:.2f} ± "
-                     f"{bpt_ratio_se:.2f}× lower relative MSE than bpt at equal time "
+                     f"{bpt_ratio_se:.2g}× lower relative MSE than bpt at equal time "
                      f"({v_ratio:.2f}× lower variance per iteration, {t_ratio:.2f}× the cost).")
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "many-lights.md"
