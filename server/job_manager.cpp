@@ -258,9 +258,18 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         // Bad settings are the request's fault and say so; scene and load errors are prefixed.
         const bool scene = dynamic_cast<const SceneError*>(&e) != nullptr;
         const bool settings = !scene && dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
-        if (settings) return invalid(e.what());
-        Log("warn", "submit_rejected").kv("reason", scene ? "scene" : "load").kv("error", e.what());
-        return invalid(std::string(scene ? "scene error: " : "cannot load the scene: ") + e.what());
+        // Files are named as in the client's bundle, not by the store's own folder (which
+        // would tell the client nothing and show the server's layout).
+        std::string what = e.what();
+        const std::string store_prefix = scene_dir.string() + "/";
+        for (size_t at; (at = what.find(store_prefix)) != std::string::npos;)
+            what.erase(at, store_prefix.size());
+        if (settings) return invalid(what);
+        Log("warn", "submit_rejected")
+            .kv("reason", scene ? "scene" : "load")
+            .kv("job_dir", job_dir.string())
+            .kv("error", what);
+        return invalid(std::string(scene ? "scene error: " : "cannot load the scene: ") + what);
     }
 
     auto job = std::make_shared<JobData>();

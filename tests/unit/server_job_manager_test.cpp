@@ -125,7 +125,13 @@ TEST_F(ManagerTest, RejectsBadRequestsWithPreciseCodes) {
     std::string broken = "<scene version=\"3.0.0\"><shape type=\"nonsense\"/></scene>";
     r.mutable_bundle()->mutable_files(0)->set_sha256(upload(m, broken));
     r.mutable_bundle()->mutable_files(0)->set_size(broken.size());
-    EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    const grpc::Status scene_error = m.submit(r, &job);
+    EXPECT_EQ(scene_error.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    // Named as in the bundle ("scene.xml:1"), never by the server's store folder.
+    EXPECT_EQ(scene_error.error_message().rfind("scene error: scene.xml:1: ", 0), 0u)
+        << scene_error.error_message();
+    EXPECT_EQ(scene_error.error_message().find("jobs/"), std::string::npos)
+        << scene_error.error_message();
     r = good;
     for (int i = 0; i < 1001; ++i) r.add_frames();
     EXPECT_EQ(m.submit(r, &job).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
