@@ -539,11 +539,40 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
     return Status::OK;
 }
 
+// A job whose leases failed on this many distinct workers (or on every worker the server
+// knows, if fewer) is a poison job: it FAILS with the last error instead of being handed out
+// for ever.
+constexpr size_t kMaxFailedWorkers = 3;
+
+void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
+    const std::optional<LeaseGrant> grant = scheduler_.release(worker_id, failure.lease_id());
+    if (!grant) return;  // not this worker's active lease: nothing to count
+    const std::string error = failure.error().substr(0, 2000);
+    Log("warn", "lease_failed")
+        .kv("lease", grant->lease_id)
+        .kv("worker", worker_id)
+        .kv("job", grant->job_id)
+        .kv("error", error);
+    auto job = find(grant->job_id);
+    if (!job || is_terminal(scheduler_.state(grant->job_id))) return;
+    job->failed_workers.insert(worker_id);
+    job->last_failure = error;
+    const size_t needed = std::clamp<size_t>(workers_.size(), 1, kMaxFailedWorkers);
+    if (job->failed_workers.size() < needed) return;
+    const std::string why = "failed on " + std::to_string(job->failed_workers.size()) + " worker" +
+                            (job->failed_workers.size() == 1 ? "" : "s") + "; last error: " + error;
+    Log("error", "job_failed").kv("job", grant->job_id).kv("error", why);
+    set_state(*job, JobState::Failed, why);
+}
+
 Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply) {
     if (!is_safe_id(request.worker_id())) return invalid("worker_id is empty or malformed");
+    if (request.failed_leases_size() > 64) return invalid("at most 64 failed leases per heartbeat");
     std::vector<std::string> ids(request.lease_ids().begin(), request.lease_ids().end());
     std::lock_guard lock(mu_);
     touch_worker(request.worker_id());
+    for (const v1::LeaseFailure& failure : request.failed_leases())
+        lease_failed(request.worker_id(), failure);
     for (const std::string& id : scheduler_.heartbeat(request.worker_id(), ids))
         reply->add_cancelled_lease_ids(id);
     return Status::OK;

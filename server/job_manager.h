@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <span>
 #include <string>
 #include <vector>
@@ -86,6 +87,10 @@ class JobManager {
         v1::SubmitJobRequest request;  // settings resolved
         RenderSettings settings;       // what the request's complete options give (job_settings)
         std::vector<std::unique_ptr<FrameData>> frames;
+        // Workers that reported a lease of this job as failed, and the last error (in memory:
+        // a restarted server counts afresh).
+        std::set<std::string> failed_workers;
+        std::string last_failure;
     };
     struct WorkerInfo {
         std::string host;
@@ -99,6 +104,9 @@ class JobManager {
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
     void finish_frame(const std::string& job_id, uint32_t frame);
     void touch_worker(const std::string& worker_id);  // mu_ held
+    // A worker could not render a lease: its range is queued again, and the job FAILS once
+    // min(kMaxFailedWorkers, known workers) distinct workers failed it.
+    void lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure);  // mu_ held
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);

@@ -110,6 +110,21 @@ void Scheduler::expire(TimePoint now) {
     while (expired_.size() > kMaxExpiredKept) expired_.erase(expired_.begin());
 }
 
+std::optional<LeaseGrant> Scheduler::release(const std::string& worker_id,
+                                             const std::string& lease_id) {
+    auto l = leases_.find(lease_id);
+    if (l == leases_.end() || l->second.grant.worker_id != worker_id) return std::nullopt;
+    const LeaseGrant g = l->second.grant;
+    auto job = jobs_.find(g.job_id);
+    if (job != jobs_.end() && g.frame < job->second.frames.size()) {
+        Frame& f = job->second.frames[g.frame];
+        f.leased.subtract(g.range);
+        f.pending.add(g.range);
+    }
+    leases_.erase(l);
+    return g;
+}
+
 void Scheduler::close_budgets(TimePoint now) {
     for (auto& [id, job] : jobs_) {
         if (is_terminal(job.state)) continue;

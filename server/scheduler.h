@@ -76,6 +76,11 @@ class Scheduler {
     std::vector<std::string> heartbeat(const std::string& worker_id,
                                        const std::vector<std::string>& lease_ids);
 
+    // The worker gave lease `lease_id` up (it could not render it): its range goes back to be
+    // handed out again, as on expiry. Returns the grant, or nothing when the lease is not an
+    // active lease of `worker_id`.
+    std::optional<LeaseGrant> release(const std::string& worker_id, const std::string& lease_id);
+
     // Looks up an active (or expired but not yet reissued) lease without changing anything.
     std::optional<LeaseGrant> find_lease(const std::string& lease_id) const;
 

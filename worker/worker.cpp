@@ -216,6 +216,20 @@ bool Worker::heartbeat(const std::string& lease_id) {
     return true;
 }
 
+void Worker::report_failure(const std::string& lease_id, const std::string& error) {
+    grpc::ClientContext context;
+    prepare_context(context, options_.token, kRpcTimeout);
+    v1::HeartbeatRequest request;
+    request.set_worker_id(worker_id_);
+    v1::LeaseFailure* failure = request.add_failed_leases();
+    failure->set_lease_id(lease_id);
+    failure->set_error(error);
+    v1::HeartbeatReply reply;
+    grpc::Status status = stub_->Heartbeat(&context, request, &reply);
+    if (!status.ok())
+        log_warn("failure_report_failed").kv("lease", lease_id).kv("status", describe(status));
+}
+
 Worker::Outcome Worker::process(const v1::Lease& lease) {
     const uint64_t first = lease.first_iteration(), end = lease.end_iteration();
     log_info("lease")
@@ -226,8 +240,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         .kv("end", end)
         .kv("algorithm", lease.settings().algorithm());
     auto fail = [&](const std::string& why) {
-        // Nothing to report: the lease expires and the server hands the range out again.
+        // The server queues the range again and fails the job if it fails on several workers.
         log_error("lease_failed").kv("lease", lease.lease_id()).kv("error", why);
+        report_failure(lease.lease_id(), why);
         return Outcome::Failed;
     };
     if (first < 1 || end <= first) return fail("empty or invalid iteration range");

@@ -41,6 +41,9 @@ class Worker {
     grpc::Status fetch_asset(const std::string& sha256,
                              const std::function<void(const std::string&)>& sink);
     bool heartbeat(const std::string& lease_id);  // false: the lease was cancelled
+    // Tells the server that this worker cannot render the lease (best effort: if the server
+    // does not hear it, the lease expires as before).
+    void report_failure(const std::string& lease_id, const std::string& error);
     Outcome report(const v1::Lease& lease, const struct RangeResult& result);
     // Sleeps up to `seconds`, waking early when a stop is requested.
     static void nap(double seconds);

@@ -293,3 +293,74 @@ TEST_F(ManagerTest, CancelTellsWorkersThroughHeartbeats) {
     ASSERT_TRUE(m.lease(lr, &none).ok());
     EXPECT_FALSE(none.granted());
 }
+
+// A worker that cannot render a lease says so in a heartbeat: the range is handed out again at
+// once (not after the lease expires), and once three distinct workers (or every worker the
+// server knows, if fewer) failed the job it FAILS with the last error instead of being leased
+// for ever (a poison scene would otherwise keep every worker busy failing).
+TEST_F(ManagerTest, LeasesFailedOnThreeWorkersFailTheJob) {
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    auto lease_for = [&](const std::string& worker) {
+        v1::LeaseRequest lr;
+        lr.set_worker_id(worker);
+        v1::LeaseReply reply;
+        EXPECT_TRUE(m.lease(lr, &reply).ok());
+        return reply;
+    };
+    auto fail = [&](const std::string& worker, const v1::LeaseReply& lease,
+                    const std::string& error) {
+        v1::HeartbeatRequest hb;
+        hb.set_worker_id(worker);
+        v1::LeaseFailure* f = hb.add_failed_leases();
+        f->set_lease_id(lease.lease().lease_id());
+        f->set_error(error);
+        v1::HeartbeatReply reply;
+        EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
+    };
+    auto state = [&] {
+        EXPECT_TRUE(m.get(job.id(), &job).ok());
+        return job.state();
+    };
+    const v1::LeaseReply a1 = lease_for("w-1"), a2 = lease_for("w-2"), a3 = lease_for("w-3");
+    ASSERT_TRUE(a1.granted() && a2.granted() && a3.granted());
+
+    fail("w-2", a1, "not my lease");  // ignored: only the holder can give a lease up
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    fail("w-1", a1, "boom on w-1");
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    // The failed range is handed out again at once.
+    const v1::LeaseReply b = lease_for("w-1");
+    ASSERT_TRUE(b.granted());
+    EXPECT_EQ(b.lease().first_iteration(), a1.lease().first_iteration());
+    fail("w-1", b, "boom on w-1 again");  // the same worker counts once
+    fail("w-2", a2, "boom on w-2");
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    fail("w-3", a3, "boom on w-3");
+    EXPECT_EQ(state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(job.error().find("failed on 3 workers"), std::string::npos) << job.error();
+    EXPECT_NE(job.error().find("boom on w-3"), std::string::npos) << job.error();
+    EXPECT_FALSE(lease_for("w-1").granted());
+}
+
+// With fewer workers than three, the job fails once every worker the server knows failed it.
+TEST_F(ManagerTest, ALeaseFailedOnTheOnlyWorkerFailsTheJob) {
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    v1::LeaseRequest lr;
+    lr.set_worker_id("w-1");
+    v1::LeaseReply a;
+    ASSERT_TRUE(m.lease(lr, &a).ok());
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id("w-1");
+    v1::LeaseFailure* f = hb.add_failed_leases();
+    f->set_lease_id(a.lease().lease_id());
+    f->set_error("scene error: scene.xml:3: cannot load");
+    v1::HeartbeatReply reply;
+    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(job.error().find("scene.xml:3"), std::string::npos) << job.error();
+}
