@@ -671,6 +671,9 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     {
         std::lock_guard lock(mu_);
         scheduler_.end_merge(grant);
+        // The job renders somewhere: earlier failures were not the scene's fault (a poison job
+        // never merges anything), so they no longer count toward failing it.
+        job->failed_workers.clear();
     }
     *merged = true;
     Log("info", "merged")

@@ -87,8 +87,8 @@ class JobManager {
         v1::SubmitJobRequest request;  // settings resolved
         RenderSettings settings;       // what the request's complete options give (job_settings)
         std::vector<std::unique_ptr<FrameData>> frames;
-        // Workers that reported a lease of this job as failed, and the last error (in memory:
-        // a restarted server counts afresh).
+        // Workers that reported a lease of this job as failed since its last merged report,
+        // and the last error (in memory: a restarted server counts afresh).
         std::set<std::string> failed_workers;
         std::string last_failure;
     };
