@@ -178,7 +178,8 @@ class Iteration {
           vpl_scale_(float(1.0 / double(light_path_count_))),
           ic_light_path_count_(ic_connections_
                                    ? std::min<uint64_t>(config.ic_light_paths, light_path_count_)
-                                   : light_path_count_) {}
+                                   : light_path_count_),
+          ic_connection_scale_(float(1.0 / double(ic_light_path_count_))) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
@@ -298,6 +299,7 @@ class Iteration {
     // The light paths whose vertices the importance caches cover (ic: all; bpt: a prefix) and
     // those vertices (a prefix of light_vertices_, set by build_importance_cache).
     uint64_t ic_light_path_count_;
+    float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
     size_t ic_vertex_count_ = 0;
 
     std::vector<LightVertex> light_vertices_;
@@ -795,9 +797,7 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
 void Iteration::build_importance_cache(RenderStats& stats) {
     // Paths are concatenated in order, so the first ic_light_path_count_ paths' vertices are a
     // prefix of light_vertices_.
-    ic_vertex_count_ = ic_light_path_count_ == 0 || path_ends_.empty()
-                           ? light_vertices_.size()
-                           : path_ends_[ic_light_path_count_ - 1];
+    ic_vertex_count_ = path_ends_.empty() ? 0 : path_ends_[ic_light_path_count_ - 1];
     const size_t m = ic_vertex_count_;
     path_ends_.clear();  // importance caching draws from the cached vertices; no paths needed
     ic_weighting_.heuristic = config_.ic_heuristic;
@@ -1010,12 +1010,11 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             if (ic_connections_) {
                 // (1 / N) sum over the N cached light paths of their connections to v: its
                 // expectation is one light path's, so every MIS weight stays as it is.
-                const float scale = float(1.0 / double(ic_light_path_count_));
                 draw_from_importance_caches(
                     *v, state.path_length, rng,
                     [&](const LightVertex& lv) {
                         return lv.throughput * connect_vertices(lv, *v, wo, state.mis, rng, stats) *
-                               scale;
+                               ic_connection_scale_;
                     },
                     [&](int s, const Rgb& c) {
                         add(Technique::Connection, s, state.throughput * c);

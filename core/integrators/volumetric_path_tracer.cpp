@@ -152,11 +152,8 @@ class Tracer {
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
-        DirectLightSample dl;
-        dl.light = light;
-        dl.pick_probability = pick_probability;
-        dl.ls = ls;
-        const Rgb tr_to_light = light_visibility(q, Vec3(0.0f), dl, segment.medium);
+        const Rgb tr_to_light = light_visibility(
+            q, Vec3(0.0f), DirectLightSample{light, pick_probability, ls}, segment.medium);
         return tr_to_q * sigma_s * ls.radiance * tr_to_light *
                (phase * w / (equiangular * light_pdf_w));
     }
@@ -222,11 +219,8 @@ class Tracer {
         const Rgb tr = medium.transmittance(segment.ray, t_dc, rng_) *
                        medium.transmittance(ray_cb, t_cb, rng_);
         if (tr.is_black()) return Rgb(0.0f);
-        DirectLightSample dl;
-        dl.light = light;
-        dl.pick_probability = pick_probability;
-        dl.ls = ls;
-        const Rgb tr_to_light = light_visibility(b, Vec3(0.0f), dl, segment.medium);
+        const Rgb tr_to_light = light_visibility(
+            b, Vec3(0.0f), DirectLightSample{light, pick_probability, ls}, segment.medium);
         return tr * sigma_s * ls.radiance * tr_to_light *
                float(double(phase_c) * phase_b * w / joint);
     }
