@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import math
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import time
@@ -306,3 +308,36 @@ def error_metrics(image: np.ndarray, reference: np.ndarray) -> dict:
         "mean_difference": float(diff.mean()),
         "non_finite_pixels": int((~np.isfinite(image)).any(axis=-1).sum()),
     }
+
+
+@functools.lru_cache(maxsize=None)
+def realtime_prefix() -> tuple[str, ...]:
+    """`chrt -f 10` where real-time scheduling is allowed (root): timing runs then take the
+    cores from other load on the machine (Linux leaves others 5 % of each second)."""
+    chrt = shutil.which("chrt")
+    if chrt and subprocess.run([chrt, "-f", "10", "true"], capture_output=True).returncode == 0:
+        return (chrt, "-f", "10")
+    return ()
+
+
+def variance_and_time(render, variance, cfg) -> dict:
+    """The two factors of an equal-time comparison of unbiased estimators (relMSE(T) = v t / T):
+    v, one iteration's variance from cfg["runs"] independent runs of cfg["iterations"] each
+    (`variance(images, iterations)`), with its standard error over cfg["groups"] disjoint
+    groups of runs; and t, the median over cfg["timing_repeats"] real-time runs of about
+    cfg["timing_seconds"] of render's own seconds per iteration.
+    `render(index, seed, iterations, realtime)` renders and returns (image, header)."""
+    images = [render(f"v-{i}", 10_000 + 100 * i, cfg["iterations"], False)[0]
+              for i in range(cfg["runs"])]
+    v = variance(images, cfg["iterations"])
+    size = cfg["runs"] // cfg["groups"]
+    groups = [variance(images[g * size:(g + 1) * size], cfg["iterations"])
+              for g in range(cfg["groups"])]
+    v_se = float(np.std(groups, ddof=1) / math.sqrt(len(groups)))
+    # Seconds per iteration: a short run predicts the count that takes timing_seconds.
+    _, header = render("probe", 7, 1, True)
+    count = max(2, round(cfg["timing_seconds"] / max(float(header["render:seconds"]), 1e-3)))
+    per_iteration = [float(render("timing", 20_000 + repeat, count, True)[1]["render:seconds"])
+                     / count for repeat in range(cfg["timing_repeats"])]
+    return {"v": v, "v_se": v_se, "t": float(np.median(per_iteration)), "images": images,
+            "timing_iterations": count}

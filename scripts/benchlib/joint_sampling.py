@@ -31,7 +31,6 @@ from pathlib import Path
 import numpy as np
 
 from . import common
-from .many_lights import realtime_prefix
 
 SCENE = common.REPO_ROOT / "scenes" / "tests" / "fog-box.xml"
 VARIANTS = {"isotropic": ["-D", "g=0"], "g = 0.9": ["-D", "g=0.9"]}
@@ -69,7 +68,7 @@ def render(binary, out, flags, seed, resolution, threads, iterations, realtime=F
                                 seed=seed, resolution=resolution, threads=threads,
                                 extra=[*flags, "--layers", "st"])
     if realtime:
-        cmd = [*realtime_prefix(), *cmd]
+        cmd = [*common.realtime_prefix(), *cmd]
     common.run_render(cmd)
     image, header = read_layer(out, LAYER)
     out.unlink()
@@ -82,23 +81,17 @@ def variance(images, iterations) -> float:
 
 
 def measure_arm(binary, flags, resolution, threads, workdir, cfg):
-    images = [render(binary, workdir / f"v-{i}.exr", flags, 10_000 + 100 * i, resolution,
-                     threads, cfg["iterations"])[0] for i in range(cfg["runs"])]
-    v = variance(images, cfg["iterations"])
-    size = cfg["runs"] // cfg["groups"]
-    groups = [variance(images[g * size:(g + 1) * size], cfg["iterations"])
-              for g in range(cfg["groups"])]
-    v_se = float(np.std(groups, ddof=1) / math.sqrt(len(groups)))
-    _, header, _ = render(binary, workdir / "probe.exr", flags, 7, resolution, threads, 1,
-                          realtime=True)
-    count = max(2, round(cfg["timing_seconds"] / max(float(header["render:seconds"]), 1e-3)))
-    per_iteration = []
-    for repeat in range(cfg["timing_repeats"]):
-        _, header, cmd = render(binary, workdir / "timing.exr", flags, 20_000 + repeat,
-                                resolution, threads, count, realtime=True)
-        per_iteration.append(float(header["render:seconds"]) / count)
-    return {"v": v, "v_se": v_se, "t": float(np.median(per_iteration)), "mean":
-            float(np.stack(images).mean()), "command": cmd}
+    commands = []
+
+    def render_arm(tag, seed, iterations, realtime):
+        image, header, cmd = render(binary, workdir / f"{tag}.exr", flags, seed, resolution,
+                                    threads, iterations, realtime=realtime)
+        commands.append(cmd)
+        return image, header
+
+    m = common.variance_and_time(render_arm, variance, cfg)
+    return {"v": m["v"], "v_se": m["v_se"], "t": m["t"],
+            "mean": float(np.stack(m["images"]).mean()), "command": commands[-1]}
 
 
 def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
@@ -119,7 +112,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
              f"{resolution[0]}x{resolution[1]}, {threads or 'all'} threads, {cfg['runs']} "
              f"variance runs of {cfg['iterations']} iterations per arm, {cfg['groups']} groups; "
              f"{cfg['timing_repeats']} timing runs of about {cfg['timing_seconds']:g} s"
-             + (" under SCHED_FIFO (`chrt -f 10`)" if realtime_prefix() else
+             + (" under SCHED_FIFO (`chrt -f 10`)" if common.realtime_prefix() else
                 " at normal priority")
              + f"{' (quick mode)' if quick else ''}.", ""]
     verdicts = {}

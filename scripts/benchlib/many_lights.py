@@ -37,9 +37,7 @@ importance-driven distribution was made for), the Cornell box (every VPL matters
 control) and many-emitters (36 small lights in four bays joined by gaps). `render` runs with all cores.
 """
 
-import functools
 import math
-import shutil
 import subprocess
 import tempfile
 from pathlib import Path
@@ -91,16 +89,6 @@ def acceptance(stdout: str):
     return None
 
 
-@functools.lru_cache(maxsize=None)
-def realtime_prefix() -> tuple[str, ...]:
-    """`chrt -f 10` where real-time scheduling is allowed (root): timing runs then take the
-    cores from other load on the machine (Linux leaves others 5 % of each second)."""
-    chrt = shutil.which("chrt")
-    if chrt and subprocess.run([chrt, "-f", "10", "true"], capture_output=True).returncode == 0:
-        return (chrt, "-f", "10")
-    return ()
-
-
 def render(binary, scene, out, arm, seed, resolution, threads, *, seconds=None, iterations=None,
            png=None, realtime=False):
     algo, *flags = ARMS[arm][1:]
@@ -108,7 +96,7 @@ def render(binary, scene, out, arm, seed, resolution, threads, *, seconds=None, 
                                 iterations=iterations, seed=seed, resolution=resolution,
                                 threads=threads, extra=flags, png=png)
     if realtime:
-        cmd = [*realtime_prefix(), *cmd]
+        cmd = [*common.realtime_prefix(), *cmd]
     proc = subprocess.run(cmd, cwd=common.REPO_ROOT, capture_output=True, text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"render failed: {' '.join(cmd)}\n{proc.stderr[-2000:]}")
@@ -129,32 +117,20 @@ def geometric_mean(values):
 
 def measure_arm(binary, scene, name, arm, reference, resolution, threads, workdir, cfg):
     """v (with its standard error over groups of runs), t and the acceptance of one arm."""
-    images, kept = [], []
-    for run_index in range(cfg["runs"]):
-        image, _, accepted, _ = render(binary, scene, workdir / f"{name}-{arm}-{run_index}.exr",
-                                       arm, 10_000 + 100 * run_index, resolution, threads,
-                                       iterations=cfg["iterations"])
-        images.append(image)
-        kept.append(accepted if accepted is not None else 100.0)
-    v = relative_variance(images, reference, cfg["iterations"])
-    size = cfg["runs"] // cfg["groups"]
-    groups = [relative_variance(images[g * size:(g + 1) * size], reference, cfg["iterations"])
-              for g in range(cfg["groups"])]
-    v_se = float(np.std(groups, ddof=1) / math.sqrt(len(groups)))
-    # Seconds per iteration: a short run predicts the count that takes timing_seconds.
-    _, header, _, _ = render(binary, scene, workdir / f"{name}-{arm}-probe.exr", arm, 7,
-                             resolution, threads, iterations=1, realtime=True)
-    probe = max(float(header["render:seconds"]), 1e-3)
-    count = max(2, round(cfg["timing_seconds"] / probe))
-    per_iteration = []
-    for repeat in range(cfg["timing_repeats"]):
-        _, header, _, _ = render(binary, scene, workdir / f"{name}-{arm}-timing.exr", arm,
-                                 20_000 + repeat, resolution, threads, iterations=count,
-                                 realtime=True)
-        per_iteration.append(float(header["render:seconds"]) / count)
-    t = float(np.median(per_iteration))
-    return {"v": v, "v_se": v_se, "t": t, "kept": sum(kept) / len(kept),
-            "timing_iterations": count}
+    kept = []
+
+    def render_arm(tag, seed, iterations, realtime):
+        image, header, accepted, _ = render(binary, scene, workdir / f"{name}-{arm}-{tag}.exr",
+                                            arm, seed, resolution, threads,
+                                            iterations=iterations, realtime=realtime)
+        if not realtime:
+            kept.append(accepted if accepted is not None else 100.0)
+        return image, header
+
+    m = common.variance_and_time(
+        render_arm, lambda images, n: relative_variance(images, reference, n), cfg)
+    return {"v": m["v"], "v_se": m["v_se"], "t": m["t"], "kept": sum(kept) / len(kept),
+            "timing_iterations": m["timing_iterations"]}
 
 
 def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
@@ -176,7 +152,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
               f"{cfg['runs']} variance runs of {cfg['iterations']} iterations per arm, "
               f"{cfg['groups']} groups; {cfg['timing_repeats']} timing runs of about "
               f"{cfg['timing_seconds']:g} s"
-              + (" under SCHED_FIFO (`chrt -f 10`)" if realtime_prefix() else
+              + (" under SCHED_FIFO (`chrt -f 10`)" if common.realtime_prefix() else
                  " at normal priority (real-time scheduling not permitted here)")
               + f"{' (quick mode)' if quick else ''}.", ""]
     verdicts = {}
