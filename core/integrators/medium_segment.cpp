@@ -48,6 +48,7 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
                 out.position = ray.at(ms.t);
                 out.medium = medium;
                 out.densities = densities.finish(true);
+                out.one_piece = densities.pieces() == 1;
                 out.distance = length(out.position - start);
                 return out;
             }
@@ -68,6 +69,7 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
             out.position = si.p;
             out.medium = medium;
             out.densities = densities.finish(false);
+            out.one_piece = densities.pieces() == 1;
             out.distance = length(si.p - start);
             return out;
         }
@@ -96,6 +98,7 @@ SegmentConnection connect_segment(const Scene& scene, const Ray& connection, con
             densities.add_piece(medium, ray, ray.t_max);
             out.transmittance = tr;
             out.densities = densities.finish(end_in_medium);
+            out.one_piece = densities.pieces() == 1;
             return out;
         }
         if (!si.bsdf->is_null()) return out;  // blocked
@@ -108,6 +111,7 @@ SegmentConnection connect_segment(const Scene& scene, const Ray& connection, con
         if (!(remaining > 0)) {
             out.transmittance = tr;
             out.densities = densities.finish(end_in_medium);
+            out.one_piece = densities.pieces() == 1;
             return out;
         }
         ray = Ray(next.origin, ray.direction, 0.0f, remaining);

@@ -38,6 +38,7 @@ class SegmentDensityBuilder {
     // A piece of `length` along `ray` in `medium` (null: vacuum).
     void add_piece(const Medium* medium, const Ray& ray, float length);
     SegmentDensities finish(bool end_in_medium) const;
+    int pieces() const { return pieces_; }
 
   private:
     bool start_in_medium_;
@@ -58,7 +59,8 @@ struct SampledSegment {
     const Medium* medium = nullptr;  // the medium the segment ended in
     Rgb weight{1.0f};                // product of the pieces' distance-sampling weights
     SegmentDensities densities;
-    float distance = 0;  // from the ray's origin to the vertex
+    float distance = 0;      // from the ray's origin to the vertex
+    bool one_piece = false;  // no boundary crossed on the way (joint connections need it)
 };
 
 // Traces `ray` from a vertex (in a medium when `start_in_medium`) through null boundaries and
@@ -70,6 +72,7 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
 struct SegmentConnection {
     Rgb transmittance{0.0f};  // zero when a non-null surface blocks the segment
     SegmentDensities densities;
+    bool one_piece = false;  // no null boundary crossed
 };
 
 // The deterministic segment between two vertices: `ray` as Scene::spawn_ray_to builds it

@@ -59,6 +59,12 @@ struct ConnectionTechnique {
     float eye_reverse_w = 0;
     bool light_medium = false;
     bool eye_medium = false;
+    // Joint (J1) connections (bpt --jis on, docs/media.md): the density of the J1 technique of
+    // a junction over that of the plain connection of the same junction (0 where there is no
+    // J1 technique). light_joint_ratio: the junction one step toward the light (its eye-side
+    // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.
+    float light_joint_ratio = 0;
+    float joint_ratio = 0;
 };
 
 // Eq. (46): a light vertex connected to the camera.
@@ -68,6 +74,9 @@ struct CameraTechnique {
     // The vertex's density back along the light subpath given the direction to the camera.
     float light_reverse_w = 0;
     bool light_medium = false;
+    // J1 of the junction whose eye-side vertex is the light vertex, sampled from the camera
+    // (ConnectionTechnique::light_joint_ratio).
+    float light_joint_ratio = 0;
 };
 
 // Eqs. (38) and (39): merging an eye vertex with a light vertex.
@@ -160,6 +169,30 @@ class VcmMis {
         q.dVCM = mis(1.0f / forward_w);
     }
 
+    // Joint (J1) connections. A J1 technique samples the eye-side vertex x_j of junction j (a
+    // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1}
+    // instead of by distance sampling; its density is the connection's times
+    // r_j = p_eq(x_j) / p_distance(x_j), so every connection term of the recursion is
+    // multiplied by (1 + mis(r_j)). Eye subpaths know r_j of the junction toward the camera
+    // when they arrive at a vertex (include_joint_junction); light subpaths know it one vertex
+    // later, so the term a scatter adds (carried_connection_term) is kept aside and completed
+    // at the next arrival (add_joint_term). Merging is not combined with J1 (bpt only).
+    void include_joint_junction(MisQuantities& q, float joint_ratio) const {
+        q.dVCM *= 1.0f + mis(joint_ratio);
+    }
+    // The connection term that scatter() is about to add to dVC, as arrive() will scale it.
+    float carried_connection_term(const MisQuantities& q, float cos_out, float forward_w,
+                                  bool specular) const {
+        return specular || !(forward_w > 0) ? 0.0f : mis(cos_out / forward_w) * q.dVCM;
+    }
+    // After arrive(): the J1 technique of the junction whose eye-side vertex is the one the
+    // segment started at, with joint_pdf_l its equi-angular density there (arrive() gave the
+    // plain connection the reverse distance density instead).
+    void add_joint_term(MisQuantities& q, float carried, float joint_pdf_l, float cos_in,
+                        float forward_distance) const {
+        q.dVC += carried * mis(joint_pdf_l) / mis(cos_in * forward_distance);
+    }
+
     // Eq. (43): the eye subpath hit an emitter. direct_pdf_a and emission_pdf_w include the
     // light selection probability.
     float weight_emission(const MisQuantities& eye, float direct_pdf_a,
@@ -185,18 +218,26 @@ class VcmMis {
     // Eqs. (40) and (41): connecting an eye vertex to a light vertex (ConnectionTechnique).
     float weight_connection(const MisQuantities& light, const MisQuantities& eye,
                             const ConnectionTechnique& t) const {
-        const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] + light.dVCM +
+        const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] +
+                                                  light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
                                                   light.dVC * mis(t.light_reverse_w));
         const float w_camera = mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + eye.dVCM +
                                                      eye.dVC * mis(t.eye_reverse_w));
-        return 1.0f / (w_light + 1.0f + w_camera);
+        return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
+    }
+
+    // The J1 technique of the same junction (the eye vertex sampled toward the light vertex).
+    float weight_joint_connection(const MisQuantities& light, const MisQuantities& eye,
+                                  const ConnectionTechnique& t) const {
+        return mis(t.joint_ratio) * weight_connection(light, eye, t);
     }
 
     // Eq. (46): a light vertex connected to the camera (CameraTechnique).
     float weight_camera(const MisQuantities& light, const CameraTechnique& t) const {
         const float w_light =
             mis(t.camera_pdf_a / light_path_count_) *
-            (vm_weight_factor_[t.light_medium] + light.dVCM + light.dVC * mis(t.light_reverse_w));
+            (vm_weight_factor_[t.light_medium] + light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
+             light.dVC * mis(t.light_reverse_w));
         return 1.0f / (w_light + 1.0f);
     }
 

@@ -24,6 +24,7 @@
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
+#include "core/sampling/half_line_equiangular.h"
 
 namespace render {
 namespace {
@@ -58,6 +59,14 @@ struct SubpathState {
     MisQuantities mis;
     const Medium* medium = nullptr;  // where the next segment starts (null: vacuum)
     bool in_medium = false;          // the next segment starts at a medium vertex
+    // Joint connections: the vertex the next segment starts at (the camera or the light point
+    // at first), the position it was reached from, its J1 distance density (Vertex) and
+    // whether it scatters in a medium; on light subpaths, the connection term its scatter
+    // added to dVC, completed at the next arrival (vcm_mis.h).
+    Vec3 origin, origin_previous;
+    float origin_joint_pdf = 0;
+    bool origin_in_medium = false;
+    float carried_connection = 0;
 };
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
@@ -70,6 +79,11 @@ struct Vertex {
     const Medium* medium = nullptr;  // the medium the path arrived in
     std::optional<SurfaceBsdf> bsdf;
     const PhaseFunction* phase = nullptr;
+    // Joint connections: the position the subpath reached this vertex from, and (a medium
+    // vertex reached without crossing a boundary) the distance density of reaching it, with
+    // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
+    Vec3 previous;
+    float joint_distance_pdf = 0;
 
     bool in_medium() const { return phase != nullptr; }
     bool has_non_delta() const { return phase || bsdf->bsdf().has_non_delta(); }
@@ -115,7 +129,17 @@ struct Link {
     SegmentDensities densities;
     Rgb transmittance{1.0f};
     bool traced = false;
+    bool one_piece = false;  // traced, and no boundary crossed
 };
+
+// J1's density of the medium vertex x sampled on the half-line from `from` through it, toward
+// the vertex `toward` (half_line_equiangular.h).
+float joint_pdf_l(const Vec3& from, const Vec3& x, const Vec3& toward) {
+    const Vec3 d = x - from;
+    const float t = length(d);
+    if (!(t > 0)) return 0.0f;
+    return HalfLineEquiAngularSampler(from, d / t, toward).pdf_l(t);
+}
 
 struct Splat {
     uint32_t pixel;
@@ -179,7 +203,9 @@ class Iteration {
           ic_light_path_count_(ic_connections_
                                    ? std::min<uint64_t>(config.ic_light_paths, light_path_count_)
                                    : light_path_count_),
-          ic_connection_scale_(float(1.0 / double(ic_light_path_count_))) {}
+          ic_connection_scale_(float(1.0 / double(ic_light_path_count_))),
+          joint_(config.mode == BidirectionalMode::Bpt && config.joint_connections &&
+                 !ic_connections_ && scene.has_media()) {}
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
@@ -228,6 +254,16 @@ class Iteration {
                             RenderStats& stats) const;
     Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
                          const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const;
+    // Joint connections for the eye segment about to be traced along `ray` from the eye
+    // subpath's last vertex: each light vertex in [first, end) joined through a medium vertex
+    // of the segment's first piece, sampled toward it; each passed to add(s, contribution).
+    template <class Add>
+    void joint_connections(const Ray& ray, const SubpathState& state, uint32_t first, uint32_t end,
+                           Rng& rng, RenderStats& stats, Add&& add) const;
+    // The eye subpath arrived at v: its connection term gains the J1 technique of the junction
+    // toward the camera (vcm_mis.h, include_joint_junction).
+    void include_joint_junction(MisQuantities& mis, const SubpathState& state,
+                                const Vertex& v) const;
     // A connection's MIS-weighted contribution before visibility (f_eye G f_light w, without
     // the subpaths' throughputs) and the segment that decides its visibility; empty when it is
     // zero whatever the visibility.
@@ -237,10 +273,11 @@ class Iteration {
         Ray ray;
         Link link;
     };
+    // joint: v was sampled by the J1 technique (the weight is that technique's).
     std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
                                                     const Vertex& v, const Vec3& wo,
                                                     const MisQuantities& eye_mis, Rng& rng,
-                                                    RenderStats& stats) const;
+                                                    RenderStats& stats, bool joint = false) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
@@ -300,6 +337,7 @@ class Iteration {
     // those vertices (a prefix of light_vertices_, set by build_importance_cache).
     uint64_t ic_light_path_count_;
     float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
+    bool joint_;                 // joint (J1) connections (bpt in a scene with media)
     size_t ic_vertex_count_ = 0;
 
     std::vector<LightVertex> light_vertices_;
@@ -341,9 +379,11 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     Vertex v;
     v.p = seg.position;
     v.medium = seg.medium;
+    v.previous = state.origin;
     const Vec3 wo = -ray.direction;
     if (seg.end == SegmentEnd::Medium) {
         v.phase = &seg.medium->phase();
+        if (seg.one_piece) v.joint_distance_pdf = seg.densities.toward_end;
     } else {
         v.n = seg.si.geometric_normal;
         v.shape = seg.si.shape;
@@ -355,6 +395,14 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     mis_.arrive(state.mis, seg.distance * seg.distance,
                 state.path_length > 1 || state.is_finite_light, cos_in, seg.densities.toward_end,
                 seg.densities.toward_start);
+    // Light subpaths: the J1 technique of the junction whose eye-side vertex is the one this
+    // segment left (a medium vertex past the first, so that its light-side neighbour scatters),
+    // sampled from here.
+    if (joint_ && mode == TransportMode::Importance && state.carried_connection > 0 &&
+        state.origin_in_medium && state.path_length >= 3 && seg.one_piece)
+        mis_.add_joint_term(state.mis, state.carried_connection,
+                            joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in,
+                            seg.densities.toward_end);
     return v;
 }
 
@@ -363,7 +411,7 @@ Link Iteration::link(const Ray& ray, const Medium* medium, bool start_in_medium,
     if (!scene_.has_media()) return Link{};
     const SegmentConnection c =
         connect_segment(scene_, ray, medium, start_in_medium, end_in_medium, rng, stats);
-    return Link{c.densities, c.transmittance, true};
+    return Link{c.densities, c.transmittance, true, c.one_piece};
 }
 
 Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) const {
@@ -394,6 +442,7 @@ bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) c
     // hit, so no technique ends on it by chance (eqs. 31-33).
     state.mis = mis_.start_light(direct_pdf_a, emission_pdf_w,
                                  light->is_finite() ? e.cos_at_light : 1.0f, light->is_delta());
+    state.origin = e.origin;
     // Offsetting along the direction keeps the ray off the emitting surface.
     ray = light->is_finite() ? scene_.spawn_ray(e.origin, e.direction, e.direction)
                              : Ray(e.origin, e.direction);
@@ -488,9 +537,16 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     if (!(cos_out > 0)) return false;
 
     if (!bs->delta && !(bs->pdf_w.forward > 0)) return false;
+    if (joint_)
+        state.carried_connection =
+            mis_.carried_connection_term(state.mis, cos_out, bs->pdf_w.forward, bs->delta);
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
     mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta,
                  v.in_medium());
+    state.origin = v.p;
+    state.origin_previous = v.previous;
+    state.origin_joint_pdf = v.joint_distance_pdf;
+    state.origin_in_medium = v.in_medium();
     state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 
@@ -521,11 +577,18 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float camera_pdf_w = camera_pixel_pdf_w(-d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
     const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
-    const float weight = light_trace_only_
-                             ? 1.0f
-                             : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
-                                                              .light_reverse_w = pdf_w.reverse,
-                                                              .light_medium = v.in_medium()});
+    // J1 of the junction whose eye-side vertex is this one, sampled along the camera ray.
+    float light_joint_ratio = 0;
+    if (joint_ && v.in_medium() && state.path_length >= 2 && l.one_piece &&
+        l.densities.toward_start > 0)
+        light_joint_ratio =
+            joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
+    const float weight =
+        light_trace_only_ ? 1.0f
+                          : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
+                                                           .light_reverse_w = pdf_w.reverse,
+                                                           .light_medium = v.in_medium(),
+                                                           .light_joint_ratio = light_joint_ratio});
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
@@ -601,7 +664,7 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
 
 std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const LightVertex& lv, const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
-    RenderStats& stats) const {
+    RenderStats& stats, bool joint) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
     const Vertex& w = lv.vertex;
@@ -616,14 +679,26 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     // medium, with the distance sampling through media).
     const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
     const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.densities.toward_start / dist2;
+    // J1 techniques of this junction (the eye vertex sampled toward the light vertex) and of
+    // the one before it (the light vertex sampled from the eye vertex toward its predecessor).
+    float joint_ratio = 0, light_joint_ratio = 0;
+    if (joint_) {
+        if (v.joint_distance_pdf > 0)
+            joint_ratio = joint_pdf_l(v.previous, v.p, w.p) / v.joint_distance_pdf;
+        if (w.in_medium() && lv.path_length >= 2 && l.one_piece && l.densities.toward_end > 0)
+            light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
+    }
     // Eqs. (40) and (41).
-    const float weight = mis_.weight_connection(lv.mis, eye_mis,
-                                                {.eye_pdf_a = eye_pdf_a,
-                                                 .light_pdf_a = light_pdf_a,
-                                                 .light_reverse_w = light_pdf_w.reverse,
-                                                 .eye_reverse_w = eye_pdf_w.reverse,
-                                                 .light_medium = w.in_medium(),
-                                                 .eye_medium = v.in_medium()});
+    const ConnectionTechnique technique{.eye_pdf_a = eye_pdf_a,
+                                        .light_pdf_a = light_pdf_a,
+                                        .light_reverse_w = light_pdf_w.reverse,
+                                        .eye_reverse_w = eye_pdf_w.reverse,
+                                        .light_medium = w.in_medium(),
+                                        .eye_medium = v.in_medium(),
+                                        .light_joint_ratio = light_joint_ratio,
+                                        .joint_ratio = joint_ratio};
+    const float weight = joint ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
+                               : mis_.weight_connection(lv.mis, eye_mis, technique);
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return std::nullopt;
@@ -635,6 +710,63 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
     const std::optional<ConnectionTerms> t = connection_terms(lv, v, wo, eye_mis, rng, stats);
     if (!t) return Rgb(0.0f);
     return t->unoccluded * visibility(t->link, t->ray, stats);
+}
+
+void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& state,
+                                       const Vertex& v) const {
+    // The junction's eye-side vertex is the one the eye came from (a medium vertex reached in
+    // one piece, else it has no J1 technique), sampled toward v.
+    if (!joint_ || !(state.origin_joint_pdf > 0)) return;
+    mis_.include_joint_junction(
+        mis, joint_pdf_l(state.origin_previous, state.origin, v.p) / state.origin_joint_pdf);
+}
+
+template <class Add>
+void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uint32_t first,
+                                  uint32_t end, Rng& rng, RenderStats& stats, Add&& add) const {
+    const Medium* medium = state.medium;
+    if (!medium || first == end) return;
+    // The segment's first piece ends at the first surface, null or not: J1 samples past it
+    // contribute nothing (the technique's density is over the whole half-line, so that every
+    // other technique can evaluate it without tracing).
+    SurfaceInteraction si;
+    ++stats.rays;
+    const float first_piece = scene_.intersect(ray, si) ? si.t : kInfinity;
+    const Vec3 wo = -ray.direction;
+    for (uint32_t i = first; i < end; ++i) {
+        const LightVertex& lv = light_vertices_[i];
+        if (lv.path_length + 1 + state.path_length > max_length_) break;
+        const HalfLineEquiAngularSampler sampler(state.origin, ray.direction, lv.vertex.p);
+        const float t = sampler.sample(rng.next_1d());
+        const float pdf = sampler.pdf_l(t);
+        const Vec3 z = state.origin + ray.direction * t;
+        const float t_ray = dot(z - ray.origin, ray.direction);
+        if (!(t_ray > 0 && t_ray < first_piece && pdf > 0)) continue;
+        const Rgb sigma_s = medium->sigma_s(z);
+        if (sigma_s.is_black()) continue;
+        const Rgb eye_weight =
+            state.throughput * medium->transmittance(ray, t_ray, rng) * sigma_s * (1.0f / pdf);
+        if (eye_weight.is_black() || !eye_weight.is_finite()) continue;
+        // The vertex as distance sampling would have produced it: its MIS quantities and the
+        // plain connection's density, against which J1's weight is taken.
+        SegmentDensityBuilder builder(state.in_medium);
+        builder.add_piece(medium, ray, t_ray);
+        const SegmentDensities densities = builder.finish(true);
+        Vertex v;
+        v.p = z;
+        v.medium = medium;
+        v.phase = &medium->phase();
+        v.previous = state.origin;
+        v.joint_distance_pdf = densities.toward_end;
+        MisQuantities mis = state.mis;
+        mis_.arrive(mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
+        include_joint_junction(mis, state, v);
+        const std::optional<ConnectionTerms> c =
+            connection_terms(lv, v, wo, mis, rng, stats, /*joint=*/true);
+        if (!c) continue;
+        add(lv.path_length + 1,
+            eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
+    }
 }
 
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
@@ -948,6 +1080,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
     state.initial_luminance = 1.0f;
     state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
     state.medium = scene_.camera_medium();
+    state.origin = ray.origin;
 
     Rgb color(0.0f);
     // s light vertices and t = path_length + 1 eye vertices (the camera included).
@@ -955,7 +1088,17 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         color += contribution;
         sink.add(kind, s, state.path_length + 1, contribution);
     };
+    // The pixel's light path (connections and joint connections).
+    uint32_t light_first = 0, light_end = 0;
+    if (use_vc_ && !ic_connections_ && !path_ends_.empty()) {
+        const uint64_t path = pixel % light_path_count_;
+        light_first = path == 0 ? 0 : path_ends_[path - 1];
+        light_end = path_ends_[path];
+    }
     for (;; ++state.path_length) {
+        if (joint_ && state.path_length < max_length_)
+            joint_connections(ray, state, light_first, light_end, rng, stats,
+                              [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
@@ -975,6 +1118,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             add(Technique::Connection, 0,
                 state.throughput * emission(seg.si.emitter, state, v->p, v->n, ray.direction));
         if (state.path_length >= max_length_) break;
+        // Every technique below treats v as a scattering vertex (emission above: as the light).
+        include_joint_junction(state.mis, state, *v);
 
         // Light tracing and PPM leave every non-delta scattering of the eye path to the light
         // paths (camera connections or the one merge); the eye continues only through delta
@@ -1019,10 +1164,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     [&](int s, const Rgb& c) {
                         add(Technique::Connection, s, state.throughput * c);
                     });
-            } else if (use_vc_ && !path_ends_.empty()) {
-                const uint64_t path = pixel % light_path_count_;
-                const uint32_t first = path == 0 ? 0 : path_ends_[path - 1];
-                for (uint32_t i = first; i < path_ends_[path]; ++i) {
+            } else if (use_vc_) {
+                for (uint32_t i = light_first; i < light_end; ++i) {
                     const LightVertex& lv = light_vertices_[i];
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
                     add(Technique::Connection, lv.path_length + 1,

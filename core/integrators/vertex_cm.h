@@ -75,6 +75,11 @@ struct BidirectionalConfig {
     // path; ic_samples per technique, the records and the heuristic as Ic's.
     bool ic_connections = false;
     uint64_t ic_light_paths = 64;
+    // Bpt (with path connections) in homogeneous media: joint (J1) connections. Each eye
+    // segment in a medium also joins every vertex of the pixel's light path through a medium
+    // vertex sampled by half-line equi-angular sampling toward it, an extra technique in the
+    // MIS (Georgiev et al. 2013, the "vertex-segment" connection; docs/media.md).
+    bool joint_connections = false;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

@@ -124,8 +124,9 @@ const std::vector<RenderOption>& table() {
          .flag = "--jis",
          .metavar = "on|off",
          .type = OptionType::Choice,
-         .help = "joint path sampling of double scattering on the camera ray in homogeneous "
-                 "media, combined by MIS with the other techniques (volpt)",
+         .help = "joint path sampling in homogeneous media, combined by MIS with the other "
+                 "techniques: volpt samples double scattering on the camera ray jointly; bpt "
+                 "adds vertex-segment (J1) connections from each eye segment in a medium",
          .choices = {"on", "off"},
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.jis = v == "on"; },

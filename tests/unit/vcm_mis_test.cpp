@@ -48,6 +48,7 @@
 #include "core/math/constants.h"
 #include "core/media/henyey_greenstein.h"
 #include "core/media/homogeneous_medium.h"
+#include "core/sampling/half_line_equiangular.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/shapes/triangle_mesh.h"
@@ -81,10 +82,12 @@ struct LightEnd {
     float cos_light = 1;
 };
 
-enum class TechniqueKind { Emission, Direct, Connection, Camera, Merge };
+enum class TechniqueKind { Emission, Direct, Connection, Camera, Merge, JointConnection };
 struct Technique {
     TechniqueKind kind;
-    // Connection: light vertex `vertex` to eye vertex `vertex + 1`; Merge: the vertex merged at.
+    // Connection: light vertex `vertex` to eye vertex `vertex + 1`; Merge: the vertex merged at;
+    // JointConnection: as Connection, with the eye vertex (in the medium) sampled by half-line
+    // equi-angular sampling toward the light vertex instead of by distance sampling (J1).
     size_t vertex = 0;
 };
 
@@ -299,6 +302,30 @@ class MisSumTest : public ::testing::Test {
         return SegmentDensities{distance_density(to, ray, t), distance_density(from, ray, t)};
     }
 
+    // --- joint (J1) connections ----------------------------------------------------------------
+
+    // J1's density of the medium vertex `at` sampled on the half-line from endpoint `from`
+    // through it, toward endpoint `toward` (equi-angular over the whole half-line).
+    float joint_pdf(int from, int at, int toward) const {
+        const Vec3 o = endpoint(from), x = endpoint(at);
+        return HalfLineEquiAngularSampler(o, normalize(x - o), endpoint(toward))
+            .pdf_l(length(x - o));
+    }
+    // Whether junction `eye_side` (its eye-side vertex; the light-side vertex is eye_side - 1)
+    // has a J1 technique: the eye-side vertex is in the medium and the light-side one is a
+    // scattering vertex (not the light).
+    bool has_joint(int eye_side) const {
+        return joint_ && eye_side >= 1 && eye_side < int(vertices_.size()) &&
+               vertices_[size_t(eye_side)].in_medium();
+    }
+    // r = p_J1 / p_connection of that junction when its eye-side vertex is sampled from `from`
+    // (the next vertex toward the eye, or the camera): only the eye-side distance density
+    // differs.
+    float joint_ratio(int eye_side, int from) const {
+        if (!has_joint(eye_side)) return 0.0f;
+        return joint_pdf(from, eye_side, eye_side - 1) / segment(from, eye_side).toward_end;
+    }
+
     // --- the integrator's recursion ---------------------------------------------------------
 
     SubpathStates trace_states(const VcmMis& mis) const {
@@ -309,16 +336,22 @@ class MisSumTest : public ::testing::Test {
         // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
         MisQuantities q =
             mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
+        float carried = 0;  // J1: the previous vertex's connection term (vertex_cm.cpp)
         for (size_t i = 0; i < m; ++i) {
             const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_light(i);
             const SegmentDensities s = segment(int(i) - 1, int(i));
             mis.arrive(q, distance2_to_light_side(i), i > 0 || end_.finite, v.cos(wo), s.toward_end,
                        s.toward_start);
+            // The junction whose eye-side vertex is i - 1, sampled from i.
+            if (i >= 1 && has_joint(int(i) - 1))
+                mis.add_joint_term(q, carried, joint_pdf(int(i), int(i) - 1, int(i) - 2), v.cos(wo),
+                                   s.toward_end);
             st.light[i] = q;
             if (i + 1 == m) break;
             const Vec3 wi = toward_eye(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Importance, wo, wi);
+            carried = mis.carried_connection_term(q, v.cos(wi), pdf_w.forward, v.specular);
             mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
         }
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
@@ -329,6 +362,8 @@ class MisSumTest : public ::testing::Test {
             const Vec3 wo = toward_eye(i);
             const SegmentDensities s = segment(int(i) + 1, int(i));
             mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
+            // The junction toward the camera (eye-side vertex i + 1, sampled from i + 2).
+            mis.include_joint_junction(q, joint_ratio(int(i) + 1, int(i) + 2));
             st.eye[i] = q;
             const Vec3 wi = toward_light(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Radiance, wo, wi);
@@ -355,6 +390,9 @@ class MisSumTest : public ::testing::Test {
             if (!vertices_[a].specular && !vertices_[a + 1].specular)
                 list.push_back({TechniqueKind::Connection, a});
         if (use_vc && !vertices_[m - 1].specular) list.push_back({TechniqueKind::Camera, m - 1});
+        for (size_t a = 0; use_vc && a + 1 < m; ++a)
+            if (!vertices_[a].specular && has_joint(int(a) + 1))
+                list.push_back({TechniqueKind::JointConnection, a});
         for (size_t i = 0; use_vm && i < m; ++i)
             if (!vertices_[i].specular) list.push_back({TechniqueKind::Merge, i});
         return list;
@@ -383,7 +421,8 @@ class MisSumTest : public ::testing::Test {
                                                      .pass_to_light_probability = l.toward_end,
                                                      .distance_from_light = l.toward_start});
             }
-            case TechniqueKind::Connection: {  // eqs. 40-41 (connect_vertices)
+            case TechniqueKind::Connection:  // eqs. 40-41 (connect_vertices)
+            case TechniqueKind::JointConnection: {
                 const size_t a = t.vertex, b = a + 1;
                 const PathVertex &w = vertices_[a], &v = vertices_[b];
                 const Vec3 d = toward_eye(a);  // from the light vertex a to the eye vertex b
@@ -394,13 +433,19 @@ class MisSumTest : public ::testing::Test {
                 const SegmentDensities l = segment(int(b), int(a));  // traced from the eye
                 const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.toward_end / dist2;
                 const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.toward_start / dist2;
-                return mis.weight_connection(st.light[a], st.eye[b],
-                                             {.eye_pdf_a = eye_pdf_a,
-                                              .light_pdf_a = light_pdf_a,
-                                              .light_reverse_w = light_pdf_w.reverse,
-                                              .eye_reverse_w = eye_pdf_w.reverse,
-                                              .light_medium = w.in_medium(),
-                                              .eye_medium = v.in_medium()});
+                const ConnectionTechnique c{.eye_pdf_a = eye_pdf_a,
+                                            .light_pdf_a = light_pdf_a,
+                                            .light_reverse_w = light_pdf_w.reverse,
+                                            .eye_reverse_w = eye_pdf_w.reverse,
+                                            .light_medium = w.in_medium(),
+                                            .eye_medium = v.in_medium(),
+                                            // The light vertex sampled from the eye vertex; the eye
+                                            // vertex from its successor (the camera for the last).
+                                            .light_joint_ratio = joint_ratio(int(a), int(b)),
+                                            .joint_ratio = joint_ratio(int(b), int(b) + 1)};
+                return t.kind == TechniqueKind::Connection
+                           ? mis.weight_connection(st.light[a], st.eye[b], c)
+                           : mis.weight_joint_connection(st.light[a], st.eye[b], c);
             }
             case TechniqueKind::Camera: {  // eq. 46 (connect_to_camera)
                 const size_t i = m - 1;
@@ -410,9 +455,15 @@ class MisSumTest : public ::testing::Test {
                 const BsdfPdf pdf_w = pdf_at(i, TransportMode::Importance, toward_light(i), d);
                 const SegmentDensities l = segment(int(i), int(m));  // traced to the camera
                 const float camera_pdf_a = camera_pdf_w(-d) * v.cos(d) * l.toward_start / dist2;
+                // J1 of the last vertex, sampled along the camera ray: its distance density from
+                // the camera is the segment's toward_start here (traced from the vertex).
+                const float joint = has_joint(int(i))
+                                        ? joint_pdf(int(m), int(i), int(i) - 1) / l.toward_start
+                                        : 0.0f;
                 return mis.weight_camera(st.light[i], {.camera_pdf_a = camera_pdf_a,
                                                        .light_reverse_w = pdf_w.reverse,
-                                                       .light_medium = v.in_medium()});
+                                                       .light_medium = v.in_medium(),
+                                                       .light_joint_ratio = joint});
             }
             case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
                 const size_t i = t.vertex;
@@ -498,6 +549,14 @@ class MisSumTest : public ::testing::Test {
                 case TechniqueKind::Camera:  // every light subpath is connected to the camera
                     p.push_back(kLightPaths * light_prefix(m));
                     break;
+                case TechniqueKind::JointConnection: {
+                    // The eye-side vertex's distance density replaced by J1's, written out.
+                    const size_t b = t.vertex + 1;
+                    const double joint = eye_fwd[b] / segment(int(b) + 1, int(b)).toward_end *
+                                         joint_pdf(int(b) + 1, int(b), int(t.vertex));
+                    p.push_back(light_prefix(t.vertex + 1) * joint * eye_suffix(b + 1));
+                    break;
+                }
                 case TechniqueKind::Merge: {  // the light subpath ends within r of the eye's
                     const double eta = vertices_[t.vertex].in_medium() ? eta_volume : eta_surface;
                     p.push_back(eta * light_prefix(t.vertex + 1) * eye_suffix(t.vertex));
@@ -513,13 +572,15 @@ class MisSumTest : public ::testing::Test {
 
     // Checks both properties for one family (with the listed techniques' weights).
     void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
-                      const char* name) const {
+                      const char* name, bool joint = false) {
+        joint_ = joint;
         const std::vector<Technique> list = techniques(use_vc, use_vm);
         if (list.empty()) return;
         const VcmMis mis(power, use_vc, use_vm, eta_surface, kLightPaths, eta_volume);
         const std::vector<double> w = weights(mis, list);
         const std::vector<double> reference =
             reference_weights(list, power, eta_surface, eta_volume);
+        for (const Technique& t : list) joint_checked_ += t.kind == TechniqueKind::JointConnection;
         double sum = 0;
         for (double x : w) sum += x;
         // float arithmetic over a handful of terms: 1e-4 relative.
@@ -544,6 +605,8 @@ class MisSumTest : public ::testing::Test {
     TriangleMesh rectangle_;
     HomogeneousMedium fog_medium_;
     const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
+    bool joint_ = false;           // the J1 techniques are enabled (bpt --jis on)
+    int joint_checked_ = 0;        // J1 weights checked so far
     float fog_exit_ = 0;           // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
@@ -623,6 +686,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                                      << " vertices, light kind " << int(kind) << ", trial " << trial
                                      << ", radius " << radius << ", power " << power);
                         check_family(power, true, false, eta_surface, eta_volume, "BPT");
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", true);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
                         ++checked;
@@ -631,6 +695,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
             }
     EXPECT_GT(checked, 500);
     EXPECT_GT(with_medium_vertex, 400);
+    EXPECT_GT(joint_checked_, 400);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
