@@ -59,7 +59,7 @@ struct ConnectionTechnique {
     float eye_reverse_w = 0;
     bool light_medium = false;
     bool eye_medium = false;
-    // Joint (J1) connections (bpt --jis on, docs/media.md): the density of the J1 technique of
+    // Joint (J1) connections (bpt --joint-connections on, docs/media.md): the density of the J1 technique of
     // a junction over that of the plain connection of the same junction (0 where there is no
     // J1 technique). light_joint_ratio: the junction one step toward the light (its eye-side
     // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.

@@ -83,13 +83,14 @@ const std::vector<Algorithm>& table() {
          .description = "bidirectional path tracing (homogeneous media); --connections ic: "
                         "importance-cached connections",
          .support = {.homogeneous_media = true},
-         .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections", "jis",
-                     "ic_light_paths", "connection_samples", "ic_record_density", "ic_heuristic"},
-         .variants = {{{"connections", "ic"}}},
+         .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections",
+                     "joint_connections", "ic_light_paths", "connection_samples",
+                     "ic_record_density", "ic_heuristic"},
+         .variants = {{{"connections", "ic"}}, {{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
              config.ic_connections = s.ic_connections;
-             config.joint_connections = s.jis;
+             config.joint_connections = s.joint_connections;
              config.ic_light_paths = s.ic_light_paths;
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.connection_samples;

@@ -31,10 +31,12 @@ struct RenderSettings {
     // volpt: equi-angular sampling of single scattering toward finite lights, combined by MIS
     // with distance sampling (off: distance sampling only, for comparisons).
     bool equiangular = true;
-    // Joint path sampling (Georgiev et al. 2013) in homogeneous media, combined by MIS with the
-    // other techniques (docs/media.md): volpt's double scattering on the camera ray (J3), bpt's
-    // vertex-segment connections (J1).
+    // volpt: joint path sampling (Georgiev et al. 2013) of double scattering on the camera ray in
+    // homogeneous media, combined by MIS with the other techniques (docs/media.md).
     bool jis = true;
+    // bpt: joint (J1, vertex-segment) connections from eye segments in homogeneous media, one
+    // more technique in the MIS (docs/media.md, "Joint connections in bpt").
+    bool joint_connections = false;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

@@ -249,19 +249,20 @@ TEST(Convergence, JointSamplingMatchesVolptWithoutItOnIsosph) {
 // rule must respect), all orders. Tolerance: the file's k = 5 combined standard errors.
 TEST(Convergence, JointConnectionsMatchBptWithoutThemOnTheFogBox) {
     auto scene = fog_box("0");
-    expect_same_blocks(render_blocks(*scene, "bpt", 4, {{"jis", "off"}}),
-                       render_blocks(*scene, "bpt", 4, {{"jis", "on"}}), "bpt jis on",
-                       "bpt jis off");
-    expect_same_blocks(render_blocks(*scene, "bpt", 4, {{"jis", "off"}, {"max_depth", "6"}}),
-                       render_blocks(*scene, "bpt", 4, {{"jis", "on"}, {"max_depth", "6"}}),
-                       "bpt jis on, max_depth 6", "bpt jis off, max_depth 6");
+    expect_same_blocks(render_blocks(*scene, "bpt", 4, {{"joint_connections", "off"}}),
+                       render_blocks(*scene, "bpt", 4, {{"joint_connections", "on"}}), "bpt J1 on",
+                       "bpt J1 off");
+    expect_same_blocks(
+        render_blocks(*scene, "bpt", 4, {{"joint_connections", "off"}, {"max_depth", "6"}}),
+        render_blocks(*scene, "bpt", 4, {{"joint_connections", "on"}, {"max_depth", "6"}}),
+        "bpt J1 on, max_depth 6", "bpt J1 off, max_depth 6");
 }
 
 TEST(Convergence, JointConnectionsMatchBptWithoutThemOnIsosph) {
     auto scene = shipped("smallupbp/isosph.xml");
-    expect_same_blocks(render_blocks(*scene, "bpt", 8, {{"jis", "off"}}),
-                       render_blocks(*scene, "bpt", 8, {{"jis", "on"}}), "bpt jis on",
-                       "bpt jis off");
+    expect_same_blocks(render_blocks(*scene, "bpt", 8, {{"joint_connections", "off"}}),
+                       render_blocks(*scene, "bpt", 8, {{"joint_connections", "on"}}), "bpt J1 on",
+                       "bpt J1 off");
 }
 
 // The J1 terms of light subpaths (a light vertex in the medium as the eye-side vertex of a
@@ -280,8 +281,9 @@ TEST(Convergence, JointConnectionsKeepTheMeanOfHigherOrders) {
     struct Means {
         testing::MeanAccumulator six_vertices, image;
     };
-    auto render_means = [&](const std::string& jis) {
-        RenderSettings settings = resolve_render_settings("bpt", {{"jis", jis}}, scene->settings);
+    auto render_means = [&](const std::string& joint) {
+        RenderSettings settings =
+            resolve_render_settings("bpt", {{"joint_connections", joint}}, scene->settings);
         settings.seed = 1234;
         settings.layers = LayerMode::PathVertices;
         constexpr int kIterations = 8;

@@ -605,7 +605,7 @@ class MisSumTest : public ::testing::Test {
     TriangleMesh rectangle_;
     HomogeneousMedium fog_medium_;
     const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
-    bool joint_ = false;           // the J1 techniques are enabled (bpt --jis on)
+    bool joint_ = false;           // the J1 techniques are enabled (bpt --joint-connections on)
     int joint_checked_ = 0;        // J1 weights checked so far
     float fog_exit_ = 0;           // from the first vertex toward an infinite light
     PerspectiveCamera camera_;

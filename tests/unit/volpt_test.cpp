@@ -29,7 +29,8 @@ IterationResult render(const std::string& xml, const std::string& algorithm, uin
     settings.seed = 1234;
     settings.max_depth = max_depth;
     settings.equiangular = equiangular;
-    settings.jis = jis;
+    settings.jis = jis;                // volpt
+    settings.joint_connections = jis;  // bpt
     if (radius_factor > 0) settings.radius_factor = radius_factor;
     return render_iterations(*scene, settings, 0, IterationRange{1, 1 + iterations});
 }
@@ -115,7 +116,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 // The bidirectional family through the same media: light subpaths start in the emitter's
 // medium, vertices in the medium are connected and (ppm, bpm, vcm) merged as photon points.
-// bpt runs its joint (J1) connections (--jis on, the default), also with g = +-0.99 where the
+// bpt runs its joint (J1) connections (--joint-connections on), also with g = +-0.99 where the
 // equi-angular densities ignore the phase function's lobe.
 INSTANTIATE_TEST_SUITE_P(Bidirectional, MediumFurnace,
                          ::testing::Values(FurnaceCase{"lt", "1", kIsotropic, true},
@@ -312,8 +313,9 @@ TEST(HardCases, JointSamplingAtExtremeThicknessAndAnisotropyStaysFinite) {
         for (const char* algorithm : {"volpt", "bpt"}) {
             SCOPED_TRACE(::testing::Message()
                          << algorithm << " sigma_t " << k.sigma_t << " g " << k.g);
+            const std::string joint = std::string(algorithm) == "bpt" ? "joint_connections" : "jis";
             RenderSettings settings =
-                resolve_render_settings(algorithm, {{"jis", "on"}}, scene->settings);
+                resolve_render_settings(algorithm, {{joint, "on"}}, scene->settings);
             settings.seed = 1234;
             const IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 9});
             EXPECT_EQ(r.stats.non_finite, 0u);
