@@ -1,7 +1,8 @@
 // `server`: the render service's gRPC frontend.
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
-//          [--heartbeat SECONDS] [--metrics HOST:PORT] [--http HOST:PORT]
+//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--metrics HOST:PORT]
+//          [--http HOST:PORT]
 //
 // The token may also come from the environment variable RENDER_TOKEN. With PORT 0 the kernel
 // picks a port; once listening the server prints `listening on HOST:PORT` on stdout, then
@@ -72,6 +73,12 @@ ArgumentParser make_parser(Options& o) {
     p.value({"--heartbeat"}, "SECONDS", "how often workers heartbeat (default 2)",
             [&](const std::string& v) {
                 o.server.heartbeat_seconds = parse_seconds("--heartbeat", v);
+            });
+    p.value({"--lease-seconds"}, "SECONDS",
+            "how long a lease should take at the worker's measured rate (default 3): shorter "
+            "leases merge (and refresh previews) more often, at more report traffic",
+            [&](const std::string& v) {
+                o.server.target_lease_seconds = parse_seconds("--lease-seconds", v);
             });
     p.value({"--metrics"}, "HOST:PORT",
             "serve Prometheus metrics at http://HOST:PORT/metrics (port 0: any free port)",

@@ -103,7 +103,8 @@ function drawJobs(jobs) {
     tr.className = "job" + (job.id === selected ? " selected" : "");
     tr.dataset.job = job.id;
     tr.dataset.state = state;
-    const active = job.frames.filter((f) => !f.done);
+    const ended = ["DONE", "CANCELLED", "FAILED"].includes(state);
+    const active = ended ? [] : job.frames.filter((f) => !f.done);
     const rate = active.reduce((a, f) => a + Number(f.iterations_per_second), 0);
     const eta = Math.max(0, ...active.map((f) => Number(f.eta_seconds)));
     const error = Math.max(0, ...job.frames.map((f) => Number(f.relative_error)));
@@ -122,10 +123,8 @@ function drawJobs(jobs) {
     label.textContent = pct + " %";
     prog.append(bar, label);
     tr.append(prog, cell(active.length ? fmt(rate) : "–", "num"),
-              cell(active.length && state !== "CANCELLED" && state !== "FAILED" ? fmtSeconds(eta) : "–", "num"),
-              cell(fmt(error), "num error"));
+              cell(active.length ? fmtSeconds(eta) : "–", "num"), cell(fmt(error), "num error"));
     const prio = document.createElement("td");
-    const ended = ["DONE", "CANCELLED", "FAILED"].includes(state);
     prio.append(document.createTextNode(job.priority + " "));
     if (!ended) {
       prio.append(button("+", "priority-up", job.id,
@@ -216,7 +215,9 @@ function drawPlot(points) {
   g.font = "11px system-ui, sans-serif";
   g.strokeStyle = "#889";
   g.strokeRect(L, T, W - L - R, H - T - B);
-  const pts = points.filter((p) => p.relative_error > 0 && isFinite(p.relative_error));
+  // One iteration has no odd/even estimate (the server reports 1): not plotted.
+  const pts = points.filter((p) => p.iterations >= 2 && p.relative_error > 0 &&
+                                   isFinite(p.relative_error));
   g.fillStyle = "#334";
   g.fillText("seconds", W / 2 - 20, H - 4);
   if (!pts.length) { g.fillText("no merged reports yet", L + 10, T + 20); return; }
@@ -233,8 +234,10 @@ function drawPlot(points) {
   }
   for (let i = 0; i <= 4; ++i) {
     const s = xMax * i / 4;
-    g.fillText(fmt(s, 2), x(s) - 8, H - B + 14);
+    g.textAlign = i === 0 ? "left" : i === 4 ? "right" : "center";
+    g.fillText(fmt(s, 2), x(s), H - B + 14);
   }
+  g.textAlign = "left";
   g.strokeStyle = "#1559c7";
   g.lineWidth = 2;
   g.beginPath();
