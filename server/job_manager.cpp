@@ -93,6 +93,7 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
         acc.relative_error(),          stats.non_finite, frame_defines(request, index)};
     facts.vpl_candidates = stats.vpl_candidates;
     facts.vpl_accepted = stats.vpl_accepted;
+    facts.target_error = request.settings().target_error();
     std::map<std::string, std::string> metadata = image_metadata(settings, facts);
     metadata["render:job"] = job_id;
     metadata["render:frame"] = std::to_string(index);
@@ -657,6 +658,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     }
     using clock = std::chrono::steady_clock;
     clock::duration add_time{}, checkpoint_time{};
+    uint64_t merged_count = 0;
+    double merged_error = 1;
     {
         std::lock_guard lock(frame.mu);
         const clock::time_point add_start = clock::now();
@@ -680,6 +683,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
             frame.history.resize(kept);
         }
         frame.history.push_back({elapsed, frame.acc->count(), frame.relative_error.load()});
+        merged_count = frame.acc->count();
+        merged_error = frame.relative_error.load();
         const clock::time_point checkpoint_start = clock::now();
         add_time = checkpoint_start - add_start;
         try {
@@ -694,6 +699,15 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     {
         std::lock_guard lock(mu_);
         scheduler_.end_merge(grant);
+        const double target = job->request.settings().target_error();
+        if (target > 0 && merged_count >= kMinTargetErrorIterations && merged_error <= target) {
+            scheduler_.close_frame(grant.job_id, grant.frame);
+            Log("info", "target_error_reached")
+                .kv("job", grant.job_id)
+                .kv("frame", grant.frame)
+                .kv("iterations", merged_count)
+                .kv("relative_error", merged_error);
+        }
         if (header.render_seconds() > 0) {
             v1::WorkerRates& rates = workers_[grant.worker_id].rates;
             rates.set_iterations_per_second(double(header.count()) / header.render_seconds());

@@ -335,6 +335,12 @@ std::vector<std::pair<std::string, uint32_t>> Scheduler::tick() {
     return complete;
 }
 
+void Scheduler::close_frame(const std::string& job_id, uint32_t frame) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return;
+    it->second.frames[frame].closed = true;
+}
+
 bool Scheduler::finish_frame(const std::string& job_id, uint32_t frame) {
     auto it = jobs_.find(job_id);
     if (it == jobs_.end() || frame >= it->second.frames.size()) return false;

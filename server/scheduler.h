@@ -105,6 +105,9 @@ class Scheduler {
     // Expires leases and closes time budgets; returns frames that just became complete, each
     // once (also reported by complete_frames_after_merge).
     std::vector<std::pair<std::string, uint32_t>> tick();
+    // No iterations past those handed out: the frame completes once they are merged (as when
+    // its time budget runs out). For a target error reached.
+    void close_frame(const std::string& job_id, uint32_t frame);
     // Marks a frame finished (after its EXR is written); returns true when the whole job is.
     bool finish_frame(const std::string& job_id, uint32_t frame);
 
