@@ -64,6 +64,8 @@ const char* code_name(grpc::StatusCode code) {
             return "INVALID_ARGUMENT";
         case grpc::StatusCode::UNAUTHENTICATED:
             return "UNAUTHENTICATED";
+        case grpc::StatusCode::PERMISSION_DENIED:
+            return "PERMISSION_DENIED";
         case grpc::StatusCode::NOT_FOUND:
             return "NOT_FOUND";
         case grpc::StatusCode::FAILED_PRECONDITION:
@@ -143,8 +145,16 @@ HttpServer::HttpServer(JobManager& manager, const Auth& auth, bool dashboard)
         res.set_content(a->data, a->size, a->content_type);
     });
 
-    // Every /api/ call checks the token first, as the gRPC services do.
+    // Every /api/ call checks the token first, as the gRPC services do. A POST from a page of
+    // another origin is refused as well: without a token, a cancel would otherwise be a
+    // cross-site request any web page could make from a browser on the same network.
     auto authorized = [this](const httplib::Request& req, httplib::Response& res) {
+        if (req.method == "POST" && req.has_header("Origin") &&
+            req.get_header_value("Origin") != "http://" + req.get_header_value("Host")) {
+            send_error(res, grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                                         "cross-origin request refused"));
+            return false;
+        }
         const bool present = req.has_header("Authorization");
         const std::string value = present ? req.get_header_value("Authorization") : "";
         grpc::Status st = auth_.check_header(present, value);

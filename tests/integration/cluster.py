@@ -416,7 +416,7 @@ class Api:
         return path
 
 
-def http_get(address, path, token=None, timeout=10, method="GET"):
+def http_get(address, path, token=None, timeout=10, method="GET", headers=None):
     """An HTTP request to the server's HTTP side; returns (status, content type, body bytes)."""
     import urllib.error
     import urllib.request
@@ -424,6 +424,8 @@ def http_get(address, path, token=None, timeout=10, method="GET"):
                                  data=b"" if method == "POST" else None)
     if token:
         req.add_header("Authorization", f"Bearer {token}")
+    for name, value in (headers or {}).items():
+        req.add_header(name, value)
     opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))  # never a proxy
     try:
         with opener.open(req, timeout=timeout) as r:

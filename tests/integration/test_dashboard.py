@@ -87,6 +87,12 @@ class Dashboard(cluster.ClusterTestCase):
             status, _, body = cluster.http_get(addr, f"/api/jobs/{job.id}/cancel", token=token,
                                                method="POST")
             self.assertEqual(status, 401, body)
+        # A page of another origin cannot post, even with the token.
+        status, _, body = cluster.http_get(addr, f"/api/jobs/{job.id}/cancel", token=TOKEN,
+                                           method="POST",
+                                           headers={"Origin": "http://elsewhere.example"})
+        self.assertEqual(status, 403, body)
+        self.assertIn(b"PERMISSION_DENIED", body)
         self.assertNotEqual(c.api.get_job(job.id).state, P.JOB_STATE_CANCELLED)
         status, ctype, body = cluster.http_get(addr, "/api/jobs", token=TOKEN)
         self.assertEqual(status, 200)
