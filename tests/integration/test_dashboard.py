@@ -7,7 +7,8 @@ EXR's tone-mapped PNG: the test tone-maps the EXR from FetchResult itself (clamp
 sRGB curve, 8 bits, as core/image/exr_io.cpp's write_png_preview) and compares it with the
 pixels the browser decoded (read back through a canvas); tolerance: 1 of 255 per channel (one
 rounding step), every pixel. It cancels a second job with its Cancel button and checks its
-state through the gRPC API, and saves a screenshot to docs/img/dashboard.png.
+state through the gRPC API, raises a third job's priority with its + button (checked through
+gRPC too), and saves a screenshot to docs/img/dashboard.png.
 
 Without the browser the browser case is skipped with a message; the HTTP API's token rule and
 the static files' path handling are checked over plain HTTP either way."""
@@ -140,8 +141,8 @@ class Dashboard(cluster.ClusterTestCase):
         long = c.api.submit(scene, algorithm="pt", iterations=200000, resolution=RESOLUTION,
                             seed=8, name="long", priority=0)
         # A third that keeps rendering while the screenshot is taken.
-        c.api.submit(scene, algorithm="pt", iterations=200000, resolution=RESOLUTION, seed=9,
-                     name="running", priority=0)
+        running = c.api.submit(scene, algorithm="pt", iterations=200000, resolution=RESOLUTION,
+                               seed=9, name="running", priority=0)
         tmp = tempfile.mkdtemp(prefix="render-it-chromium-")
         driver = start_browser(tmp)
         try:
@@ -208,6 +209,11 @@ class Dashboard(cluster.ClusterTestCase):
             self.assertEqual(done.state, P.JOB_STATE_CANCELLED)
             cluster.wait_until(lambda: (row_state(long.id) or {}).get("state") == "CANCELLED",
                                timeout=10, what="the page to show the job cancelled")
+
+            # Its priority goes up with the + button; the gRPC API sees it.
+            click(f'tr[data-job="{running.id}"] button.priority-up')
+            cluster.wait_until(lambda: c.api.get_job(running.id).priority == 1, timeout=10,
+                               what="the + button to raise the priority to 1")
 
             # The screenshot of docs/service.md: the finished job selected, its preview and plot.
             click(f'tr[data-job="{short.id}"] td.id')
