@@ -133,6 +133,7 @@ v1::RenderSettings request_settings(const render::JobOptions& job) {
     s.set_algorithm(job.algorithm);
     if (job.iterations) s.set_iterations(*job.iterations);
     if (job.seconds) s.set_time_budget_seconds(*job.seconds);
+    if (job.target_error) s.set_target_error(*job.target_error);
     s.set_width(uint32_t(job.width));
     s.set_height(uint32_t(job.height));
     for (const auto& [name, value] : job.defines) (*s.mutable_defines())[name] = value;

@@ -14,6 +14,9 @@ class Auth {
     explicit Auth(std::string token) : token_(std::move(token)) {}
     bool enabled() const { return !token_.empty(); }
     grpc::Status check(const grpc::ServerContext* context) const;
+    // The same rule for an `authorization` header's value (the HTTP API); `present` false when
+    // the request has no such header.
+    grpc::Status check_header(bool present, std::string_view value) const;
 
   private:
     std::string token_;

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "core/base/error.h"
+#include "core/image/exr_io.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
 #include "core/render/job_limits.h"
@@ -23,6 +24,9 @@ using grpc::Status;
 using grpc::StatusCode;
 
 namespace {
+
+// Points of a frame's error history kept (halved when full).
+constexpr size_t kMaxHistory = 512;
 
 int64_t unix_ms() {
     return std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -89,6 +93,7 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
         acc.relative_error(),          stats.non_finite, frame_defines(request, index)};
     facts.vpl_candidates = stats.vpl_candidates;
     facts.vpl_accepted = stats.vpl_accepted;
+    facts.target_error = request.settings().target_error();
     std::map<std::string, std::string> metadata = image_metadata(settings, facts);
     metadata["render:job"] = job_id;
     metadata["render:frame"] = std::to_string(index);
@@ -462,6 +467,8 @@ void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
         s->set_last_seen_unix_ms(w.last_seen_unix_ms);
         auto leases = scheduler_.worker_leases(id);
         if (!leases.empty()) s->set_lease_id(leases.front());
+        s->set_active_leases(uint32_t(leases.size()));
+        *s->mutable_rates() = w.rates;
     }
     for (const auto& [id, job] : jobs_) {
         JobState st = scheduler_.state(id);
@@ -547,6 +554,7 @@ constexpr size_t kMaxFailedWorkers = 3;
 void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
     const std::optional<LeaseGrant> grant = scheduler_.release(worker_id, failure.lease_id());
     if (!grant) return;  // not this worker's active lease: nothing to count
+    metrics_.lease_failed();
     const std::string error = failure.error().substr(0, 2000);
     Log("warn", "lease_failed")
         .kv("lease", grant->lease_id)
@@ -571,6 +579,12 @@ Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatR
     std::vector<std::string> ids(request.lease_ids().begin(), request.lease_ids().end());
     std::lock_guard lock(mu_);
     touch_worker(request.worker_id());
+    if (request.has_rates()) {
+        const v1::WorkerRates& r = request.rates();
+        if (std::isfinite(r.iterations_per_second()) && std::isfinite(r.samples_per_second()) &&
+            std::isfinite(r.rays_per_second()))
+            workers_[request.worker_id()].rates = r;
+    }
     for (const v1::LeaseFailure& failure : request.failed_leases())
         lease_failed(request.worker_id(), failure);
     for (const std::string& id : scheduler_.heartbeat(request.worker_id(), ids))
@@ -629,6 +643,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
     }
     if (decision != MergeDecision::Accept || !job) {
+        metrics_.report_dropped(decision == MergeDecision::Accept ? "job_inactive"
+                                                                  : to_string(decision));
         Log("warn", "report_dropped")
             .kv("lease", header.lease_id())
             .kv("reason", to_string(decision));
@@ -642,6 +658,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     }
     using clock = std::chrono::steady_clock;
     clock::duration add_time{}, checkpoint_time{};
+    uint64_t merged_count = 0;
+    double merged_error = 1;
     {
         std::lock_guard lock(frame.mu);
         const clock::time_point add_start = clock::now();
@@ -657,6 +675,16 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         frame.acc->add(grant.range, sum, odd_sum, layer_sums, header.odd_count(), stats);
         frame.relative_error = frame.acc->relative_error();
         frame.non_finite = frame.acc->result().stats.non_finite;
+        if (frame.history.size() >= kMaxHistory) {
+            // Keep every other point: the plot keeps its shape over any length of render.
+            size_t kept = 0;
+            for (size_t i = 0; i < frame.history.size(); i += 2)
+                frame.history[kept++] = frame.history[i];
+            frame.history.resize(kept);
+        }
+        frame.history.push_back({elapsed, frame.acc->count(), frame.relative_error.load()});
+        merged_count = frame.acc->count();
+        merged_error = frame.relative_error.load();
         const clock::time_point checkpoint_start = clock::now();
         add_time = checkpoint_start - add_start;
         try {
@@ -671,11 +699,28 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     {
         std::lock_guard lock(mu_);
         scheduler_.end_merge(grant);
+        const double target = job->request.settings().target_error();
+        if (target > 0 && merged_count >= kMinTargetErrorIterations && merged_error <= target) {
+            scheduler_.close_frame(grant.job_id, grant.frame);
+            Log("info", "target_error_reached")
+                .kv("job", grant.job_id)
+                .kv("frame", grant.frame)
+                .kv("iterations", merged_count)
+                .kv("relative_error", merged_error);
+        }
+        if (header.render_seconds() > 0) {
+            v1::WorkerRates& rates = workers_[grant.worker_id].rates;
+            rates.set_iterations_per_second(double(header.count()) / header.render_seconds());
+            rates.set_samples_per_second(double(header.samples()) / header.render_seconds());
+            rates.set_rays_per_second(double(header.rays()) / header.render_seconds());
+        }
         // The job renders somewhere: earlier failures were not the scene's fault (a poison job
         // never merges anything), so they no longer count toward failing it.
         job->failed_workers.clear();
     }
     *merged = true;
+    metrics_.report_merged(std::chrono::duration<double>(add_time).count(),
+                           std::chrono::duration<double>(checkpoint_time).count());
     Log("info", "merged")
         .kv("lease", grant.lease_id)
         .kv("job", grant.job_id)
@@ -750,6 +795,115 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         set_state(*job, JobState::Done, "");
         Log("info", "job_done").kv("job", job_id);
     }
+}
+
+Status JobManager::set_priority(const std::string& job_id, int priority, v1::Job* out) {
+    std::lock_guard lock(mu_);
+    auto job = find(job_id);
+    if (!job)
+        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    if (is_terminal(scheduler_.state(job_id)))
+        return Status(StatusCode::FAILED_PRECONDITION, "job " + job_id + " has ended");
+    scheduler_.set_priority(job_id, priority);
+    job->row.priority = priority;
+    job->request.set_priority(priority);
+    store_or_log("job", job_id, [&] { store_.update_job_priority(job_id, priority); });
+    Log("info", "job_priority").kv("job", job_id).kv("priority", priority);
+    fill_job(*job, out);
+    return Status::OK;
+}
+
+Status JobManager::preview_image(const std::string& job_id, uint32_t index, Image* image) {
+    std::shared_ptr<JobData> job;
+    FrameProgress progress;
+    {
+        std::lock_guard lock(mu_);
+        job = find(job_id);
+        if (!job)
+            return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+        if (index >= job->frames.size())
+            return Status(StatusCode::NOT_FOUND,
+                          "job " + job_id + " has no frame " + std::to_string(index));
+        progress = scheduler_.progress(job_id, index);
+    }
+    FrameData& frame = *job->frames[index];
+    {
+        std::lock_guard lock(frame.mu);
+        if (frame.acc && frame.acc->count() > 0) {
+            *image = frame.acc->average();
+            return Status::OK;
+        }
+    }
+    const fs::path done = result_path(job_id, index);
+    if (fs::exists(done)) {
+        try {
+            *image = read_image(done);
+            return Status::OK;
+        } catch (const std::exception& e) {
+            return Status(StatusCode::INTERNAL, e.what());
+        }
+    }
+    return Status(StatusCode::FAILED_PRECONDITION, "frame " + std::to_string(index) + " of job " +
+                                                       job_id + " has no iterations yet");
+}
+
+Status JobManager::error_history(const std::string& job_id, uint32_t index,
+                                 std::vector<ErrorPoint>* points) {
+    std::shared_ptr<JobData> job;
+    {
+        std::lock_guard lock(mu_);
+        job = find(job_id);
+        if (!job)
+            return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+        if (index >= job->frames.size())
+            return Status(StatusCode::NOT_FOUND,
+                          "job " + job_id + " has no frame " + std::to_string(index));
+    }
+    FrameData& frame = *job->frames[index];
+    std::lock_guard lock(frame.mu);
+    *points = frame.history;
+    return Status::OK;
+}
+
+std::string JobManager::metrics_text() {
+    MetricsSnapshot s;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t now = unix_ms();
+        const auto connected_ms = int64_t(options_.lease_timeout_seconds * 1000);
+        for (const auto& [id, w] : workers_) {
+            if (now - w.last_seen_unix_ms > connected_ms) continue;
+            WorkerSnapshot ws;
+            ws.id = id;
+            ws.host = w.host;
+            ws.threads = w.threads;
+            ws.iterations_per_second = w.rates.iterations_per_second();
+            ws.samples_per_second = w.rates.samples_per_second();
+            ws.rays_per_second = w.rates.rays_per_second();
+            ws.active_leases = uint32_t(scheduler_.worker_leases(id).size());
+            s.workers.push_back(std::move(ws));
+        }
+        for (const auto& [id, job] : jobs_) {
+            const JobState state = scheduler_.state(id);
+            if (size_t(state) < s.jobs_by_state.size()) ++s.jobs_by_state[size_t(state)];
+            if (is_terminal(state)) continue;
+            JobSnapshot js;
+            js.id = id;
+            js.relative_error = 0;
+            for (uint32_t i = 0; i < job->frames.size(); ++i) {
+                const FrameProgress p = scheduler_.progress(id, i);
+                if (!p.done && p.elapsed_seconds > 0)
+                    js.iterations_per_second += double(p.merged) / p.elapsed_seconds;
+                js.relative_error =
+                    std::max(js.relative_error, job->frames[i]->relative_error.load());
+            }
+            s.jobs.push_back(std::move(js));
+        }
+        s.queued_iterations = scheduler_.queued_iterations();
+        s.active_leases = scheduler_.active_lease_count();
+        s.leases = scheduler_.lease_counters();
+    }
+    return metrics_.exposition(s);
 }
 
 void JobManager::checkpoint_all() {

@@ -20,6 +20,7 @@
 #include "server/accumulator.h"
 #include "server/asset_store.h"
 #include "server/job_store.h"
+#include "server/metrics.h"
 #include "server/scheduler.h"
 
 namespace render::server {
@@ -47,6 +48,22 @@ class JobManager {
     grpc::Status result_file(const v1::FetchResultRequest& request, std::filesystem::path* file,
                              bool* temporary);
     void cluster_status(v1::ClusterStatusReply* reply);
+    // Sets a job's priority (higher first); FAILED_PRECONDITION for a finished job.
+    grpc::Status set_priority(const std::string& job_id, int priority, v1::Job* job);
+    // The current mean image of a frame (the result once it is done), for the dashboard's
+    // preview; FAILED_PRECONDITION while nothing has merged.
+    grpc::Status preview_image(const std::string& job_id, uint32_t frame, Image* image);
+    // A frame's estimated relative error after each merged report, against its render time.
+    struct ErrorPoint {
+        double seconds = 0;
+        uint64_t iterations = 0;
+        double relative_error = 1;
+    };
+    grpc::Status error_history(const std::string& job_id, uint32_t frame,
+                               std::vector<ErrorPoint>* points);
+    // The Prometheus text exposition of the server's metrics (server/metrics.h).
+    std::string metrics_text();
+    ServerMetrics& metrics() { return metrics_; }
     void has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply);
     // Records an uploaded asset.
     void asset_added(const std::string& sha256, uint64_t size);
@@ -81,6 +98,7 @@ class JobManager {
         std::unique_ptr<FrameAccumulator> acc;  // null until something merges, or when done
         std::atomic<double> relative_error{1.0};
         std::atomic<uint64_t> non_finite{0};
+        std::vector<ErrorPoint> history;  // under mu (kept to kMaxHistory points)
     };
     struct JobData {
         JobRow row;
@@ -97,6 +115,7 @@ class JobManager {
         uint32_t threads = 0;
         std::string version;
         int64_t last_seen_unix_ms = 0;
+        v1::WorkerRates rates;  // from the latest heartbeat with rates or merged report
     };
 
     void restore();
@@ -112,6 +131,7 @@ class JobManager {
     std::shared_ptr<JobData> find(const std::string& job_id);
 
     ServerOptions options_;
+    ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;
     mutable std::mutex mu_;

@@ -66,6 +66,7 @@ Status JobServiceImpl::UploadAsset(grpc::ServerContext* context,
         return Status(StatusCode::INVALID_ARGUMENT, e);
     }
     manager_.asset_added(sha, size);
+    manager_.metrics().asset_received(size);
     Log("info", "asset_uploaded").kv("sha256", sha).kv("size", size);
     reply->set_sha256(sha);
     reply->set_size(size);

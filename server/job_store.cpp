@@ -136,6 +136,13 @@ void JobStore::insert_job(const JobRow& job, uint32_t frame_count) {
     }
 }
 
+void JobStore::update_job_priority(const std::string& job_id, int priority) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "UPDATE jobs SET priority = ?2 WHERE id = ?1");
+    s.text(1, job_id).bind(2, int64_t(priority));
+    s.run();
+}
+
 void JobStore::update_job_state(const std::string& job_id, int state, const std::string& error) {
     std::lock_guard lock(mu_);
     Statement s(db_, "UPDATE jobs SET state = ?2, error = ?3 WHERE id = ?1");

@@ -42,6 +42,7 @@ class JobStore {
     JobStore& operator=(const JobStore&) = delete;
 
     void insert_job(const JobRow& job, uint32_t frame_count);
+    void update_job_priority(const std::string& job_id, int priority);
     void update_job_state(const std::string& job_id, int state, const std::string& error);
     void update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed);
     std::vector<JobRow> load_jobs();

@@ -1,11 +1,14 @@
 // `server`: the render service's gRPC frontend.
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
-//          [--heartbeat SECONDS]
+//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--metrics HOST:PORT]
+//          [--http HOST:PORT]
 //
 // The token may also come from the environment variable RENDER_TOKEN. With PORT 0 the kernel
-// picks a port; once listening the server prints `listening on HOST:PORT` on stdout. Structured
-// log lines go to stderr. SIGTERM/SIGINT: stop accepting, checkpoint, exit 0.
+// picks a port; once listening the server prints `listening on HOST:PORT` on stdout, then
+// `metrics on HOST:PORT` and `http on HOST:PORT` for the HTTP listeners asked for (/metrics;
+// the dashboard, /api/ and /metrics). Structured log lines go to stderr. SIGTERM/SIGINT: stop
+// accepting, checkpoint, exit 0.
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
@@ -17,13 +20,17 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "core/util/arguments.h"
 #include "core/util/log.h"
 #include "server/auth.h"
+#include "server/http_server.h"
 #include "server/job_manager.h"
 #include "server/job_service.h"
 #include "server/worker_service.h"
@@ -36,6 +43,8 @@ using namespace render::server;
 struct Options {
     std::string listen;
     std::string token;
+    std::string metrics;  // HOST:PORT for /metrics alone
+    std::string http;     // HOST:PORT for the dashboard, /api/ and /metrics
     ServerOptions server;
     bool help = false;
 };
@@ -65,6 +74,18 @@ ArgumentParser make_parser(Options& o) {
             [&](const std::string& v) {
                 o.server.heartbeat_seconds = parse_seconds("--heartbeat", v);
             });
+    p.value({"--lease-seconds"}, "SECONDS",
+            "how long a lease should take at the worker's measured rate (default 3): shorter "
+            "leases merge (and refresh previews) more often, at more report traffic",
+            [&](const std::string& v) {
+                o.server.target_lease_seconds = parse_seconds("--lease-seconds", v);
+            });
+    p.value({"--metrics"}, "HOST:PORT",
+            "serve Prometheus metrics at http://HOST:PORT/metrics (port 0: any free port)",
+            [&](const std::string& v) { o.metrics = v; });
+    p.value({"--http"}, "HOST:PORT",
+            "serve the web dashboard, its JSON API under /api/ and /metrics (port 0: any)",
+            [&](const std::string& v) { o.http = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
 }
@@ -74,6 +95,8 @@ std::string usage() {
     return "usage: server --listen HOST:PORT --store DIR [options]\n\noptions:\n" +
            make_parser(unused).help();
 }
+
+std::optional<std::pair<std::string, int>> split_address(const std::string& address);
 
 [[noreturn]] void usage_error(const std::string& message) {
     std::cerr << "server: " << message << "\n\n" << usage();
@@ -95,7 +118,31 @@ Options parse(int argc, char** argv) {
     if (o.listen.empty()) usage_error("--listen HOST:PORT is required");
     if (o.server.store.empty()) usage_error("--store DIR is required");
     if (o.listen.rfind(':') == std::string::npos) usage_error("--listen expects HOST:PORT");
+    for (const auto& [flag, value] : {std::pair{"--metrics", &o.metrics}, {"--http", &o.http}})
+        if (!value->empty() && !split_address(*value))
+            usage_error(std::string(flag) + " expects HOST:PORT, got " + *value);
     return o;
+}
+
+// HOST:PORT ([::1]:PORT for IPv6) to a host httplib binds and a port in [0, 65535].
+std::optional<std::pair<std::string, int>> split_address(const std::string& address) {
+    const size_t colon = address.rfind(':');
+    if (colon == std::string::npos || colon == 0) return std::nullopt;
+    std::string host = address.substr(0, colon);
+    const std::string port = address.substr(colon + 1);
+    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != port.npos)
+        return std::nullopt;
+    const int p = std::stoi(port);
+    if (p > 65535) return std::nullopt;
+    if (host.size() > 2 && host.front() == '[' && host.back() == ']')
+        host = host.substr(1, host.size() - 2);
+    return std::pair{host, p};
+}
+
+std::string shown_host(std::string host) {
+    if (host.empty() || host == "0.0.0.0" || host == "[::]" || host == "::" || host == "localhost")
+        return "127.0.0.1";
+    return host;
 }
 
 }  // namespace
@@ -140,10 +187,30 @@ int main(int argc, char** argv) {
         Log("error", "listen_failed").kv("address", options.listen);
         return 1;
     }
-    std::string host = options.listen.substr(0, options.listen.rfind(':'));
-    if (host.empty() || host == "0.0.0.0" || host == "[::]" || host == "::" || host == "localhost")
-        host = "127.0.0.1";
-    std::printf("listening on %s:%d\n", host.c_str(), port);
+    const std::string host = shown_host(options.listen.substr(0, options.listen.rfind(':')));
+    // The HTTP listeners are bound before anything is printed, so that the lines come together.
+    std::vector<std::pair<std::string, std::unique_ptr<HttpServer>>> http_servers;
+    std::string http_lines;
+    for (const auto& [name, address] :
+         {std::pair{"metrics", options.metrics}, std::pair{"http", options.http}}) {
+        if (address.empty()) continue;
+        const auto [http_host, http_port] = *split_address(address);
+        auto http = std::make_unique<HttpServer>(*manager, auth, std::string(name) == "http");
+        const int bound = http->start(http_host, http_port);
+        if (bound == 0) {
+            std::cerr << "server: cannot listen on " << address << " (--" << name << ")\n";
+            Log("error", "listen_failed").kv("address", address);
+            server->Shutdown();
+            return 1;
+        }
+        http_lines +=
+            std::string(name) + " on " + shown_host(http_host) + ":" + std::to_string(bound) + "\n";
+        Log("info", "http_listening")
+            .kv("what", name)
+            .kv("address", shown_host(http_host) + ":" + std::to_string(bound));
+        http_servers.emplace_back(name, std::move(http));
+    }
+    std::printf("listening on %s:%d\n%s", host.c_str(), port, http_lines.c_str());
     std::fflush(stdout);
     Log("info", "listening")
         .kv("address", host + ":" + std::to_string(port))
@@ -168,6 +235,7 @@ int main(int argc, char** argv) {
     sigwait(&signals, &sig);
     Log("info", "shutting_down").kv("signal", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     stopping = true;
+    for (auto& [name, http] : http_servers) http->stop();
     server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
     ticker_stop = true;
     ticker.join();

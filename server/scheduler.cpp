@@ -65,6 +65,13 @@ JobState Scheduler::state(const std::string& job_id) const {
     return it == jobs_.end() ? JobState::Failed : it->second.state;
 }
 
+bool Scheduler::set_priority(const std::string& job_id, int priority) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end()) return false;
+    it->second.priority = priority;
+    return true;
+}
+
 void Scheduler::set_state(const std::string& job_id, JobState state) {
     auto it = jobs_.find(job_id);
     if (it == jobs_.end()) return;
@@ -102,6 +109,7 @@ void Scheduler::expire(TimePoint now) {
                 f.pending.add(g.range);
             }
             expired_[l->first] = g;
+            ++counters_.expired;
             l = leases_.erase(l);
         } else {
             ++l;
@@ -122,7 +130,22 @@ std::optional<LeaseGrant> Scheduler::release(const std::string& worker_id,
         f.pending.add(g.range);
     }
     leases_.erase(l);
+    ++counters_.released;
     return g;
+}
+
+uint64_t Scheduler::queued_iterations() const {
+    uint64_t n = 0;
+    for (const auto& [id, job] : jobs_) {
+        if (is_terminal(job.state)) continue;
+        for (const Frame& f : job.frames) {
+            if (f.plan.done || f.complete_reported) continue;
+            n += f.pending.total();
+            if (!f.closed && f.plan.target > 0 && f.frontier <= f.plan.target)
+                n += f.plan.target + 1 - f.frontier;
+        }
+    }
+    return n;
 }
 
 void Scheduler::close_budgets(TimePoint now) {
@@ -204,6 +227,7 @@ std::optional<LeaseGrant> Scheduler::lease(const std::string& worker_id) {
             if (!f.started) f.started = now;
             if (job->state == JobState::Queued) job->state = JobState::Running;
             LeaseGrant g{new_lease_id(), worker_id, job->id, index, r};
+            ++counters_.granted;
             leases_[g.lease_id] =
                 Lease{g, now + std::chrono::duration_cast<SteadyClock::duration>(
                                    std::chrono::duration<double>(options_.lease_timeout_seconds))};
@@ -309,6 +333,12 @@ std::vector<std::pair<std::string, uint32_t>> Scheduler::tick() {
         }
     }
     return complete;
+}
+
+void Scheduler::close_frame(const std::string& job_id, uint32_t frame) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return;
+    it->second.frames[frame].closed = true;
 }
 
 bool Scheduler::finish_frame(const std::string& job_id, uint32_t frame) {

@@ -47,6 +47,13 @@ struct FrameProgress {
     bool done = false;
 };
 
+// Monotonic counts of lease events since the server started (for /metrics).
+struct LeaseCounters {
+    uint64_t granted = 0;
+    uint64_t expired = 0;   // not heartbeaten in time: the range went back to the queue
+    uint64_t released = 0;  // given up by a worker that could not render it: queued again
+};
+
 enum class MergeDecision { Accept, UnknownLease, AlreadyMerged, Reissued, JobInactive };
 const char* to_string(MergeDecision d);
 
@@ -66,6 +73,8 @@ class Scheduler {
                  std::vector<FramePlan> frames);
     bool has_job(const std::string& job_id) const { return jobs_.count(job_id) > 0; }
     JobState state(const std::string& job_id) const;
+    // Changes a job's priority (higher is leased first); false for an unknown job.
+    bool set_priority(const std::string& job_id, int priority);
     // Sets a job's state; a terminal state voids its leases (heartbeats report them cancelled).
     void set_state(const std::string& job_id, JobState state);
 
@@ -96,6 +105,9 @@ class Scheduler {
     // Expires leases and closes time budgets; returns frames that just became complete, each
     // once (also reported by complete_frames_after_merge).
     std::vector<std::pair<std::string, uint32_t>> tick();
+    // No iterations past those handed out: the frame completes once they are merged (as when
+    // its time budget runs out). For a target error reached.
+    void close_frame(const std::string& job_id, uint32_t frame);
     // Marks a frame finished (after its EXR is written); returns true when the whole job is.
     bool finish_frame(const std::string& job_id, uint32_t frame);
 
@@ -104,6 +116,11 @@ class Scheduler {
     // Lease ids currently held by a worker.
     std::vector<std::string> worker_leases(const std::string& worker_id) const;
     size_t active_lease_count() const { return leases_.size(); }
+    const LeaseCounters& lease_counters() const { return counters_; }
+    // Iterations of unfinished jobs not handed out yet: ranges waiting to be leased again plus
+    // those below the iteration target never leased (a pure time budget counts its pending
+    // ranges only).
+    uint64_t queued_iterations() const;
 
   private:
     struct Frame {
@@ -144,6 +161,7 @@ class Scheduler {
     std::map<std::pair<std::string, std::string>, double> rates_;  // (worker, job) -> it/s
     std::string lease_prefix_;
     uint64_t lease_counter_ = 0;
+    LeaseCounters counters_;
 };
 
 }  // namespace render::server

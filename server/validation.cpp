@@ -76,6 +76,10 @@ Status check_submit_request(const v1::SubmitJobRequest& r) {
         s.time_budget_seconds() > kMaxTimeBudgetSeconds)
         return invalid("settings.time_budget_seconds must be a finite number in [0, " +
                        std::to_string(int64_t(kMaxTimeBudgetSeconds)) + "]");
+    if (!std::isfinite(s.target_error()) || s.target_error() < 0 ||
+        s.target_error() > kMaxTargetError)
+        return invalid("settings.target_error must be a finite number in [0, " +
+                       std::to_string(int(kMaxTargetError)) + "]");
     if (s.width() > uint32_t(kMaxFilmResolution) || s.height() > uint32_t(kMaxFilmResolution))
         return invalid("settings.width/height " + std::to_string(s.width()) + "x" +
                        std::to_string(s.height()) + " exceeds " +

@@ -75,8 +75,10 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         return s;
     }
     if (drop) {
-        while (reader->Read(&chunk)) {
-        }
+        uint64_t bytes = header.ByteSizeLong();
+        while (reader->Read(&chunk)) bytes += chunk.values().size();
+        manager_.metrics().report_received(bytes);
+        manager_.metrics().report_dropped("unknown_lease");
         Log("warn", "report_dropped").kv("lease", header.lease_id()).kv("reason", "unknown_lease");
         reply->set_merged(false);
         return Status::OK;
@@ -111,6 +113,7 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, n),
                                   layer_sums = all.subspan(2 * n);
     const auto received_at = std::chrono::steady_clock::now();
+    manager_.metrics().report_received(header.ByteSizeLong() + received);
     bool merged = false;
     if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged); !s.ok()) return s;
     reply->set_merged(merged);

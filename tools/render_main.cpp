@@ -17,6 +17,7 @@
 #include "core/image/metrics.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
+#include "core/render/job_limits.h"
 #include "core/render/job_options.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
@@ -191,6 +192,9 @@ int render_scene(const Options& o) {
         accumulated.layers.add(r.layers);
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
+        if (o.job.target_error && accumulated.count >= kMinTargetErrorIterations &&
+            estimate_relative_error(accumulated) <= *o.job.target_error)
+            break;
     }
     progress.finish();
 
@@ -200,6 +204,7 @@ int render_scene(const Options& o) {
         o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.job.defines};
     facts.vpl_candidates = accumulated.stats.vpl_candidates;
     facts.vpl_accepted = accumulated.stats.vpl_accepted;
+    facts.target_error = o.job.target_error.value_or(0.0);
     const auto metadata = image_metadata(settings, facts);
     write_exr(o.out, image, metadata, accumulated.layers.named_averages(accumulated.count));
     if (!o.png.empty()) write_png_preview(o.png, image);

@@ -199,12 +199,13 @@ const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::pa
     return *scene_;
 }
 
-bool Worker::heartbeat(const std::string& lease_id) {
+bool Worker::heartbeat(const std::string& lease_id, const v1::WorkerRates* rates) {
     grpc::ClientContext context;
     prepare_context(context, options_.token, kRpcTimeout);
     v1::HeartbeatRequest request;
     request.set_worker_id(worker_id_);
     request.add_lease_ids(lease_id);
+    if (rates) *request.mutable_rates() = *rates;
     v1::HeartbeatReply reply;
     grpc::Status status = stub_->Heartbeat(&context, request, &reply);
     if (!status.ok()) {
@@ -281,6 +282,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     std::condition_variable done_cv;
     bool done = false;
     std::string error;
+    // Progress of the range so far, for the rates the heartbeats carry.
+    std::atomic<uint64_t> done_iterations{0}, done_samples{0}, done_rays{0};
     auto t0 = Clock::now();
     std::thread renderer([&] {
         try {
@@ -303,6 +306,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 result.count += r.count;
                 result.odd_count += r.odd_count;
                 result.stats += r.stats;
+                done_samples = result.stats.samples;
+                done_rays = result.stats.rays;
+                done_iterations = result.count;
             }
         } catch (const std::exception& e) {
             error = e.what();
@@ -324,7 +330,15 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             }
             if (Clock::now() >= next_beat && !abandon) {
                 lock.unlock();
-                bool alive = heartbeat(lease.lease_id());
+                const double seconds = seconds_since(t0);
+                v1::WorkerRates rates;
+                const bool measured = done_iterations.load() > 0 && seconds > 0;
+                if (measured) {
+                    rates.set_iterations_per_second(double(done_iterations.load()) / seconds);
+                    rates.set_samples_per_second(double(done_samples.load()) / seconds);
+                    rates.set_rays_per_second(double(done_rays.load()) / seconds);
+                }
+                bool alive = heartbeat(lease.lease_id(), measured ? &rates : nullptr);
                 lock.lock();
                 next_beat = Clock::now() + std::chrono::duration<double>(heartbeat_seconds_);
                 if (!alive) {

@@ -40,7 +40,8 @@ class Worker {
     const Scene& scene_for(const v1::Lease& lease, const std::filesystem::path& scene_file);
     grpc::Status fetch_asset(const std::string& sha256,
                              const std::function<void(const std::string&)>& sink);
-    bool heartbeat(const std::string& lease_id);  // false: the lease was cancelled
+    // false: the lease was cancelled. `rates`: the lease's render rates so far, if measured.
+    bool heartbeat(const std::string& lease_id, const v1::WorkerRates* rates);
     // Tells the server that this worker cannot render the lease (best effort: if the server
     // does not hear it, the lease expires as before).
     void report_failure(const std::string& lease_id, const std::string& error);

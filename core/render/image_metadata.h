@@ -21,6 +21,7 @@ struct RenderedImageFacts {
     // vpl with the importance-driven distribution: VPL candidates and accepted ones over all
     // iterations (render:vpl_acceptance, render:vpl_candidates_per_iteration when non-zero).
     uint64_t vpl_candidates = 0, vpl_accepted = 0;
+    double target_error = 0;  // the job's target (render:target_error when > 0)
 };
 
 std::map<std::string, std::string> image_metadata(const RenderSettings& settings,

@@ -20,4 +20,12 @@ double parse_time_budget(const std::string& flag, const std::string& text) {
     return s;
 }
 
+double parse_target_error(const std::string& flag, const std::string& text) {
+    const double e = parse_number<double>(flag, text);
+    if (!(e > 0) || e > kMaxTargetError)
+        throw UsageError(flag + " must be a relative error in (0, " +
+                         std::to_string(int(kMaxTargetError)) + "], got " + text);
+    return e;
+}
+
 }  // namespace render

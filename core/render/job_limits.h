@@ -11,6 +11,11 @@ namespace render {
 
 inline constexpr uint64_t kMaxIterations = 10000000;
 inline constexpr double kMaxTimeBudgetSeconds = 30 * 24 * 3600.0;  // 30 days
+// A target error (--target-error, RenderSettings.target_error) is in (0, kMaxTargetError] and
+// stops a frame no earlier than after kMinTargetErrorIterations iterations: the odd/even
+// estimate of fewer is too rough to stop on (with one iteration there is none).
+inline constexpr double kMaxTargetError = 10.0;
+inline constexpr uint64_t kMinTargetErrorIterations = 4;
 // Largest film side: an 8192^2 frame's two float64 sums take 3.2 GB at the server.
 inline constexpr int kMaxFilmResolution = 8192;
 
@@ -18,5 +23,6 @@ inline constexpr int kMaxFilmResolution = 8192;
 // a time budget in (0, kMaxTimeBudgetSeconds].
 uint64_t parse_iterations(const std::string& flag, const std::string& text);
 double parse_time_budget(const std::string& flag, const std::string& text);
+double parse_target_error(const std::string& flag, const std::string& text);
 
 }  // namespace render

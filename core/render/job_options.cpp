@@ -15,6 +15,13 @@ void add_job_options(ArgumentParser& p, JobOptions& job) {
     p.value({"--time"}, "S",
             "time budget per frame in seconds (with --iterations: whichever comes first)",
             [&job](const std::string& v) { job.seconds = parse_time_budget("--time", v); });
+    p.value({"--target-error"}, "E",
+            "stop a frame once its estimated relative error (odd/even iterations, relative L2 "
+            "norm over all pixels) is at most E, after at least 4 iterations; --iterations "
+            "(default: the scene's sample_count) and --time still cap it",
+            [&job](const std::string& v) {
+                job.target_error = parse_target_error("--target-error", v);
+            });
     p.value({"--resolution"}, "WxH", "override the film resolution", [&job](const std::string& v) {
         std::tie(job.width, job.height) = parse_resolution("--resolution", v, kMaxFilmResolution);
     });

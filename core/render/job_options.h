@@ -19,12 +19,14 @@ struct JobOptions {
     std::string algorithm;                       // "" = the scene's integrator
     std::optional<uint64_t> iterations;          // per frame
     std::optional<double> seconds;               // time budget per frame
+    std::optional<double> target_error;          // stop a frame at this estimated error
     int width = 0, height = 0;                   // 0 = the scene's film
     std::map<std::string, std::string> defines;  // -D overrides of the scene's <default>s
     OptionMap options;                           // the render options table's
 };
 
-// Declares --algo, --iterations (--spp), --time, --resolution, -D and every render option.
+// Declares --algo, --iterations (--spp), --time, --target-error, --resolution, -D and every
+// render option.
 void add_job_options(ArgumentParser& parser, JobOptions& job);
 
 }  // namespace render

@@ -226,7 +226,7 @@ def read_line_with_timeout(proc, timeout):
     """Reads the first stdout line of `proc` within `timeout` seconds (None on EOF/timeout)."""
     fd = proc.popen.stdout.fileno()
     deadline = time.monotonic() + timeout
-    data = b""
+    data = getattr(proc, "stdout_rest", b"")  # what the previous call read past its line
     while b"\n" not in data:
         remaining = deadline - time.monotonic()
         if remaining <= 0:
@@ -245,7 +245,8 @@ def read_line_with_timeout(proc, timeout):
             return data.decode(errors="replace") if data else None
         data += chunk
     line, rest = data.split(b"\n", 1)
-    proc.log.write(b"[stdout] " + line + b"\n" + rest)
+    proc.log.write(b"[stdout] " + line + b"\n")
+    proc.stdout_rest = rest
     return line.decode(errors="replace")
 
 
@@ -415,6 +416,41 @@ class Api:
         return path
 
 
+def http_get(address, path, token=None, timeout=10, method="GET", headers=None):
+    """An HTTP request to the server's HTTP side; returns (status, content type, body bytes)."""
+    import urllib.error
+    import urllib.request
+    req = urllib.request.Request(f"http://{address}{path}", method=method,
+                                 data=b"" if method == "POST" else None)
+    if token:
+        req.add_header("Authorization", f"Bearer {token}")
+    for name, value in (headers or {}).items():
+        req.add_header(name, value)
+    opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))  # never a proxy
+    try:
+        with opener.open(req, timeout=timeout) as r:
+            return r.status, r.headers.get("Content-Type", ""), r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.headers.get("Content-Type", ""), e.read()
+
+
+def parse_metrics(text):
+    """Prometheus text exposition to {'name{label="v",...}': value} (labels sorted by name)."""
+    out = {}
+    for line in text.splitlines():
+        if not line or line.startswith("#"):
+            continue
+        m = re.fullmatch(r'([a-zA-Z_:][a-zA-Z0-9_:]*)(\{(.*)\})?\s+(\S+)(\s+\d+)?', line)
+        if not m:
+            raise AssertionError(f"unparsable metrics line: {line!r}")
+        labels = re.findall(r'([a-zA-Z_][a-zA-Z0-9_]*)="((?:[^"\\]|\\.)*)"', m.group(3) or "")
+        key = m.group(1)
+        if labels:
+            key += "{" + ",".join(f'{k}="{v}"' for k, v in sorted(labels)) + "}"
+        out[key] = float(m.group(4))
+    return out
+
+
 def status_code(fn, *args, **kwargs):
     """Runs a call; returns grpc.StatusCode.OK or the error's code (and the error)."""
     try:
@@ -516,6 +552,18 @@ class Cluster:
             proc.kill()
             raise RuntimeError(f"server did not print 'listening on 127.0.0.1:PORT' within "
                                f"{timeout} s (got {line!r}):\n{proc.log_tail()}")
+        # `metrics on HOST:PORT` / `http on HOST:PORT` follow for --metrics / --http.
+        self.http_addresses = {}
+        for _ in range(sum(1 for a in args if a in ("--metrics", "--http"))):
+            extra = read_line_with_timeout(proc, timeout)
+            m2 = re.fullmatch(r"(metrics|http) on (127\.0\.0\.1:\d+)", (extra or "").strip())
+            if not m2:
+                proc.kill()
+                raise RuntimeError(f"server did not print its HTTP address (got {extra!r}):\n"
+                                   f"{proc.log_tail()}")
+            self.http_addresses[m2.group(1)] = m2.group(2)
+        if getattr(proc, "stdout_rest", b""):
+            proc.log.write(proc.stdout_rest)
         threading.Thread(target=_drain, args=(proc,), daemon=True).start()
         self.server = proc
         self.port = int(m.group(1))

@@ -219,3 +219,57 @@ TEST_F(SchedulerTest, TimeBudgetClosesTheFrame) {
     EXPECT_TRUE(scheduler.finish_frame("a", 0));
     EXPECT_EQ(scheduler.progress("a", 0).merged, 1u);
 }
+
+TEST_F(SchedulerTest, LeaseCountersAndQueuedIterations) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 10));
+    EXPECT_EQ(scheduler.queued_iterations(), 10u);
+    auto dead = scheduler.lease("dead");
+    ASSERT_TRUE(dead);
+    EXPECT_EQ(scheduler.queued_iterations(), 9u);
+    auto failed = scheduler.lease("failing");
+    ASSERT_TRUE(failed);
+    EXPECT_EQ(scheduler.lease_counters().granted, 2u);
+    EXPECT_EQ(scheduler.queued_iterations(), 8u);
+    // A given-up lease is released (requeued), an unheard one expires (requeued too).
+    ASSERT_TRUE(scheduler.release("failing", failed->lease_id));
+    EXPECT_FALSE(scheduler.release("failing", failed->lease_id));  // counted once
+    EXPECT_EQ(scheduler.queued_iterations(), 9u);
+    clock.advance(11);
+    scheduler.tick();
+    EXPECT_EQ(scheduler.lease_counters().expired, 1u);
+    EXPECT_EQ(scheduler.lease_counters().released, 1u);
+    EXPECT_EQ(scheduler.queued_iterations(), 10u);
+    EXPECT_EQ(scheduler.active_lease_count(), 0u);
+    scheduler.set_state("a", JobState::Cancelled);
+    EXPECT_EQ(scheduler.queued_iterations(), 0u);
+}
+
+TEST_F(SchedulerTest, ClosedFrameCompletesWithTheIterationsHandedOut) {
+    // A target error reached: the frame takes no new iterations, the ones out finish.
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 1000));
+    auto first = scheduler.lease("w");
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(first->lease_id, 0.1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto second = scheduler.lease("w");  // [2, 32)
+    ASSERT_TRUE(second);
+    scheduler.close_frame("a", 0);
+    EXPECT_FALSE(scheduler.lease("other"));
+    EXPECT_TRUE(scheduler.tick().empty());  // [2, 32) still out
+    ASSERT_EQ(scheduler.begin_merge(second->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    auto complete = scheduler.tick();
+    ASSERT_EQ(complete.size(), 1u);
+    EXPECT_TRUE(scheduler.finish_frame("a", 0));
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 31u);  // iterations 1 to 31
+    EXPECT_EQ(scheduler.merged_ranges("a", 0), (std::vector<Range>{{1, 32}}));
+}
+
+TEST_F(SchedulerTest, PriorityChangeReordersLeases) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 10));
+    scheduler.add_job("b", 0, 2, JobState::Queued, frames(1, 10));
+    EXPECT_EQ(scheduler.lease("w")->job_id, "a");
+    EXPECT_TRUE(scheduler.set_priority("b", 5));
+    EXPECT_FALSE(scheduler.set_priority("nonsense", 5));
+    EXPECT_EQ(scheduler.lease("w")->job_id, "b");
+}

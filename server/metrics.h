@@ -1,0 +1,98 @@
+#pragma once
+
+// The server's Prometheus metrics (prometheus-cpp's core library: registry, families and the
+// text serializer; the HTTP side is server/http_server.h). Counters and histograms are updated
+// where things happen; gauges (jobs by state, queue, workers, rates) are set from a snapshot of
+// the JobManager at each scrape. Names and meanings: docs/service.md, "Metrics".
+
+#include <prometheus/counter.h>
+#include <prometheus/family.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "server/scheduler.h"
+
+namespace render::server {
+
+struct WorkerSnapshot {
+    std::string id, host;
+    uint32_t threads = 0;
+    double iterations_per_second = 0, samples_per_second = 0, rays_per_second = 0;
+    uint32_t active_leases = 0;
+};
+
+struct JobSnapshot {
+    std::string id;
+    double iterations_per_second = 0;  // summed over the job's unfinished frames
+    double relative_error = 1;         // the largest of its frames'
+};
+
+struct MetricsSnapshot {
+    std::array<uint64_t, 6> jobs_by_state{};  // indexed by JobState (1..5)
+    uint64_t queued_iterations = 0;
+    uint64_t active_leases = 0;
+    LeaseCounters leases;
+    std::vector<WorkerSnapshot> workers;  // connected ones
+    std::vector<JobSnapshot> jobs;        // unfinished ones
+};
+
+class ServerMetrics {
+  public:
+    ServerMetrics();
+
+    // A worker reported a lease it could not render.
+    void lease_failed() { leases_failed_->Increment(); }
+    // A report's sums were added (merge) and checkpointed and stored (store).
+    void report_merged(double merge_seconds, double store_seconds);
+    // A report was dropped; reason as MergeDecision's to_string or "unknown_lease".
+    void report_dropped(std::string_view reason);
+    // A report's bytes on the wire (header and values), merged or not.
+    void report_received(uint64_t bytes);
+    // An uploaded asset's bytes.
+    void asset_received(uint64_t bytes);
+
+    // Sets the gauges from `snapshot` and returns the whole exposition (text format 0.0.4).
+    std::string exposition(const MetricsSnapshot& snapshot);
+
+  private:
+    void set_counter(prometheus::Counter& counter, uint64_t total);
+
+    std::mutex mu_;  // exposition() and the per-worker/per-job children
+    std::shared_ptr<prometheus::Registry> registry_;
+    prometheus::Family<prometheus::Gauge>* jobs_;
+    std::array<prometheus::Gauge*, 6> jobs_by_state_{};
+    prometheus::Gauge* queued_iterations_;
+    prometheus::Gauge* workers_connected_;
+    prometheus::Gauge* leases_active_;
+    prometheus::Counter* leases_granted_;
+    prometheus::Counter* leases_expired_;
+    prometheus::Counter* leases_requeued_;
+    prometheus::Counter* leases_failed_;
+    prometheus::Counter* reports_merged_;
+    prometheus::Family<prometheus::Counter>* reports_dropped_;
+    prometheus::Counter* bytes_reports_;
+    prometheus::Counter* bytes_assets_;
+    prometheus::Histogram* merge_seconds_;
+    prometheus::Histogram* store_seconds_;
+    prometheus::Histogram* report_bytes_;
+    prometheus::Family<prometheus::Gauge>* job_rate_;
+    prometheus::Family<prometheus::Gauge>* job_error_;
+    prometheus::Family<prometheus::Gauge>* worker_iterations_;
+    prometheus::Family<prometheus::Gauge>* worker_samples_;
+    prometheus::Family<prometheus::Gauge>* worker_rays_;
+    prometheus::Family<prometheus::Gauge>* worker_leases_;
+    // Children of the per-job and per-worker families, by job or worker id, so that those of
+    // finished jobs and departed workers are removed.
+    std::map<std::string, std::vector<prometheus::Gauge*>> job_children_, worker_children_;
+};
+
+}  // namespace render::server
