@@ -137,8 +137,8 @@ const std::vector<RenderOption>& table() {
          .help = "joint (J1, vertex-segment) connections in homogeneous media: each eye segment "
                  "in a medium also joins the vertices of the pixel's light path through a "
                  "medium vertex sampled toward each, combined by MIS (off by default: on the fog "
-                 "box it lowers the equal-time error of double scattering 1.14x but raises it "
-                 "1.1x at all orders; docs/joint-sampling.md)",
+                 "box it lowers the equal-time error of double scattering 1.05-1.14x but not "
+                 "that of all orders, 0.90-0.97x; docs/joint-sampling.md)",
          .choices = {"off", "on"},
          .default_text = "off",
          .apply = [](RenderSettings& s, const std::string& v) { s.joint_connections = v == "on"; },
