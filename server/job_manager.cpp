@@ -565,12 +565,36 @@ void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailu
     if (!job || is_terminal(scheduler_.state(grant->job_id))) return;
     job->failed_workers.insert(worker_id);
     job->last_failure = error;
-    const size_t needed = std::clamp<size_t>(workers_.size(), 1, kMaxFailedWorkers);
-    if (job->failed_workers.size() < needed) return;
-    const std::string why = "failed on " + std::to_string(job->failed_workers.size()) + " worker" +
-                            (job->failed_workers.size() == 1 ? "" : "s") + "; last error: " + error;
-    Log("error", "job_failed").kv("job", grant->job_id).kv("error", why);
-    set_state(*job, JobState::Failed, why);
+    fail_if_poison(*job, grant->job_id);
+}
+
+void JobManager::lease_lost(const LeaseGrant& grant) {
+    Log("warn", "lease_lost")
+        .kv("lease", grant.lease_id)
+        .kv("worker", grant.worker_id)
+        .kv("job", grant.job_id);
+    auto job = find(grant.job_id);
+    if (!job || is_terminal(scheduler_.state(grant.job_id))) return;
+    job->lost_workers.insert(grant.worker_id);
+    fail_if_poison(*job, grant.job_id);
+}
+
+void JobManager::fail_if_poison(JobData& job, const std::string& job_id) {
+    std::set<std::string> either = job.failed_workers;
+    either.insert(job.lost_workers.begin(), job.lost_workers.end());
+    // Reported failures: on every known worker (up to the limit) is enough; with lost leases
+    // the limit itself is needed.
+    const size_t needed_reported = std::clamp<size_t>(workers_.size(), 1, kMaxFailedWorkers);
+    if (job.failed_workers.size() < needed_reported && either.size() < kMaxFailedWorkers) return;
+    std::string why =
+        "failed on " + std::to_string(either.size()) + " worker" + (either.size() == 1 ? "" : "s");
+    if (!job.lost_workers.empty())
+        why += " (" + std::to_string(job.lost_workers.size()) +
+               " lost the lease: died or stopped heartbeating while rendering it)";
+    why += job.last_failure.empty() ? std::string("; no worker reported an error")
+                                    : "; last error: " + job.last_failure;
+    Log("error", "job_failed").kv("job", job_id).kv("error", why);
+    set_state(job, JobState::Failed, why);
 }
 
 Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply) {
@@ -717,6 +741,7 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         // The job renders somewhere: earlier failures were not the scene's fault (a poison job
         // never merges anything), so they no longer count toward failing it.
         job->failed_workers.clear();
+        job->lost_workers.clear();
     }
     *merged = true;
     metrics_.report_merged(std::chrono::duration<double>(add_time).count(),
@@ -740,6 +765,7 @@ void JobManager::tick() {
     {
         std::lock_guard lock(mu_);
         complete = scheduler_.tick();
+        for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
     }
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
 }

@@ -106,8 +106,10 @@ class JobManager {
         RenderSettings settings;       // what the request's complete options give (job_settings)
         std::vector<std::unique_ptr<FrameData>> frames;
         // Workers that reported a lease of this job as failed since its last merged report,
-        // and the last error (in memory: a restarted server counts afresh).
+        // those whose lease of it expired (the worker died or hung on it) in that time, and
+        // the last error (in memory: a restarted server counts afresh).
         std::set<std::string> failed_workers;
+        std::set<std::string> lost_workers;
         std::string last_failure;
     };
     struct WorkerInfo {
@@ -126,6 +128,12 @@ class JobManager {
     // A worker could not render a lease: its range is queued again, and the job FAILS once
     // min(kMaxFailedWorkers, known workers) distinct workers failed it.
     void lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure);  // mu_ held
+    // A lease of the job expired: its worker died or stopped heartbeating while rendering it.
+    // The job FAILS once kMaxFailedWorkers distinct workers failed it or lost it (a crash
+    // is not told apart from a worker taken away, so every known worker is not enough).
+    void lease_lost(const LeaseGrant& grant);  // mu_ held
+    // FAILS `job` if its failed and lost workers reach the limits above.
+    void fail_if_poison(JobData& job, const std::string& job_id);  // mu_ held
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);

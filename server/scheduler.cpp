@@ -109,6 +109,7 @@ void Scheduler::expire(TimePoint now) {
                 f.pending.add(g.range);
             }
             expired_[l->first] = g;
+            newly_expired_.push_back(g);
             ++counters_.expired;
             l = leases_.erase(l);
         } else {
@@ -314,6 +315,12 @@ void Scheduler::end_merge(const LeaseGrant& grant) {
     Frame& f = job->second.frames[grant.frame];
     f.merging.subtract(grant.range);
     f.plan.merged.add(grant.range);
+}
+
+std::vector<LeaseGrant> Scheduler::take_expired() {
+    std::vector<LeaseGrant> out;
+    out.swap(newly_expired_);
+    return out;
 }
 
 std::vector<std::pair<std::string, uint32_t>> Scheduler::tick() {

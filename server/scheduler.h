@@ -105,6 +105,8 @@ class Scheduler {
     // Expires leases and closes time budgets; returns frames that just became complete, each
     // once (also reported by complete_frames_after_merge).
     std::vector<std::pair<std::string, uint32_t>> tick();
+    // The leases expired since the last call (each once), for counting lost workers per job.
+    std::vector<LeaseGrant> take_expired();
     // No iterations past those handed out: the frame completes once they are merged (as when
     // its time budget runs out). For a target error reached.
     void close_frame(const std::string& job_id, uint32_t frame);
@@ -158,6 +160,7 @@ class Scheduler {
     std::map<std::string, Job> jobs_;
     std::map<std::string, Lease> leases_;
     std::map<std::string, LeaseGrant> expired_;  // expired, range maybe not yet reissued
+    std::vector<LeaseGrant> newly_expired_;      // expired since the last take_expired()
     std::map<std::pair<std::string, std::string>, double> rates_;  // (worker, job) -> it/s
     std::string lease_prefix_;
     uint64_t lease_counter_ = 0;

@@ -50,5 +50,39 @@ class WorkerKilled(cluster.ClusterTestCase):
         self.assertTrue(c.server.alive(), "the server died")
 
 
+    def test_job_fails_once_three_workers_die_on_it(self):
+        """A poison job (one that kills every worker that renders it) must not take the farm
+        down for ever: each dead worker's lease expires, and after three distinct workers lost
+        it with no merged report in between, the job FAILS with a message saying so."""
+        P = cluster.pb()
+        c = self.new_cluster(lease_timeout=LEASE_TIMEOUT, heartbeat=0.5)
+        c.start_server()
+        scene = cluster.cornell_box()
+        # 512x512 vcm: a first lease takes about a second, so each worker is killed before it
+        # can report (a merged report would clear the count).
+        job = c.api.submit(scene, algorithm=ALGO, iterations=ITERATIONS, resolution=(512, 512),
+                           seed=SEED, name="poison")
+        for victim_number in range(3):
+            victim = c.start_worker(threads=1)
+
+            def holds_lease():
+                st = c.api.cluster_status()
+                return any(w.lease_id for w in st.workers if w.worker_id and w.lease_id)
+            cluster.wait_until(holds_lease, timeout=30, what=f"worker {victim_number} to lease")
+            victim.kill()
+            state = c.api.get_job(job.id)
+            self.assertEqual(state.frames[0].iterations_done if state.frames else 0, 0,
+                             "a report was merged before the kill; make the range slower")
+            if victim_number < 2:
+                # Its lease expires; the job waits for the next worker.
+                time.sleep(LEASE_TIMEOUT + 1.5)
+                self.assertEqual(c.api.get_job(job.id).state, P.JOB_STATE_RUNNING)
+        done = c.api.wait_job(job.id, states={P.JOB_STATE_FAILED}, timeout=30,
+                              procs=[c.server])
+        self.assertEqual(done.state, P.JOB_STATE_FAILED, str(done))
+        self.assertIn("failed on 3 workers (3 lost the lease", done.error)
+        self.assertTrue(c.server.alive(), "the server died")
+
+
 if __name__ == "__main__":
     cluster.main()

@@ -355,6 +355,62 @@ TEST_F(ManagerTest, LeasesFailedOnThreeWorkersFailTheJob) {
     EXPECT_FALSE(lease_for("w-1").granted());
 }
 
+// A lease that expires (its worker died, e.g. killed by the scene it renders, or hung on it)
+// counts against the job as a failed lease does, but only three distinct workers fail the job,
+// whatever the number of workers known (one worker restarted by systemd gets a new id each
+// time; a single loss may be a machine taken away). A merged report clears the count.
+TEST_F(ManagerTest, LeasesLostOnThreeWorkersFailTheJob) {
+    TimePoint now = SteadyClock::now();
+    JobManager m(options, [&] { return now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 200), &job).ok());
+    auto lease_for = [&](const std::string& worker) {
+        v1::LeaseRequest lr;
+        lr.set_worker_id(worker);
+        v1::LeaseReply reply;
+        EXPECT_TRUE(m.lease(lr, &reply).ok());
+        return reply;
+    };
+    auto expire_all = [&] {
+        now += std::chrono::seconds(int(options.lease_timeout_seconds) + 1);
+        m.tick();
+    };
+    auto state = [&] {
+        EXPECT_TRUE(m.get(job.id(), &job).ok());
+        return job.state();
+    };
+    ASSERT_TRUE(lease_for("w-1").granted());
+    expire_all();
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);  // the only known worker: not enough
+    ASSERT_TRUE(lease_for("w-2").granted());
+    expire_all();
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    // A merged report: the job renders somewhere, the losses so far stop counting.
+    const v1::LeaseReply merged = lease_for("w-3");
+    ASSERT_TRUE(merged.granted());
+    EXPECT_TRUE(render_and_report(m, merged.lease()));
+    ASSERT_TRUE(lease_for("w-3").granted());  // the rest of the frame (w-3's rate is known)
+    expire_all();
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    ASSERT_TRUE(lease_for("w-4").granted());
+    expire_all();
+    EXPECT_EQ(state(), v1::JOB_STATE_RUNNING);
+    // A third: a worker reporting a failure counts with the lost ones.
+    const v1::LeaseReply last = lease_for("w-5");
+    ASSERT_TRUE(last.granted());
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id("w-5");
+    v1::LeaseFailure* f = hb.add_failed_leases();
+    f->set_lease_id(last.lease().lease_id());
+    f->set_error("renderer: out of memory");
+    v1::HeartbeatReply reply;
+    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    EXPECT_EQ(state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(job.error().find("failed on 3 workers (2 lost the lease"), std::string::npos)
+        << job.error();
+    EXPECT_NE(job.error().find("out of memory"), std::string::npos) << job.error();
+}
+
 // With fewer workers than three, the job fails once every worker the server knows failed it.
 TEST_F(ManagerTest, ALeaseFailedOnTheOnlyWorkerFailsTheJob) {
     JobManager m(options);
