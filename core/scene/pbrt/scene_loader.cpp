@@ -41,14 +41,6 @@ fs::path canonical_path(const fs::path& p) {
     return ec ? fs::absolute(p).lexically_normal() : c;
 }
 
-// pbrt's integrator names as ours (render --algo names and aliases).
-std::string integrator_name(const std::string& pbrt) {
-    if (pbrt == "bdpt") return "bpt";
-    if (pbrt == "lightpath") return "lt";
-    if (pbrt == "sppm") return "ppm";
-    return pbrt;  // path, volpath; others name no algorithm of ours (render needs --algo)
-}
-
 class Loader {
   public:
     Loader(Scene& scene, fs::path scene_dir, const fs::path& confine_to)
@@ -565,6 +557,13 @@ std::unique_ptr<Scene> load(const std::function<void(Loader&)>& run, const fs::p
 }
 
 }  // namespace
+
+std::string integrator_name(const std::string& pbrt) {
+    if (pbrt == "bdpt") return "bpt";
+    if (pbrt == "lightpath") return "lt";
+    if (pbrt == "sppm") return "ppm";
+    return pbrt;
+}
 
 std::unique_ptr<Scene> load_scene(const fs::path& file, const fs::path& confine_to) {
     const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();

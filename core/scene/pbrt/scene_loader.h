@@ -21,9 +21,21 @@ std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
 std::unique_ptr<Scene> load_scene_from_string(const std::string& text,
                                               const std::filesystem::path& base_dir);
 
-// Every file a pbrt scene reads (Include/Import files, "string filename" parameters), resolved
-// as the loader resolves them (relative to the main scene's folder), without the scene itself.
-// For the client's bundle. Throws SceneError for unreadable files or a malformed file.
-std::vector<std::filesystem::path> referenced_files(const std::filesystem::path& file);
+// pbrt's integrator names as ours (render --algo names or aliases): bdpt -> bpt, lightpath ->
+// lt, sppm -> ppm; path and volpath are aliases already; other names are kept (rendering them
+// needs --algo, as for a Mitsuba integrator that names no algorithm).
+std::string integrator_name(const std::string& pbrt_name);
+
+// What the client's bundle needs of a pbrt scene, read without building it.
+struct SceneSummary {
+    // Every file the scene reads (Include/Import files, "string filename" parameters but
+    // Film's), resolved as the loader resolves them (relative to the main scene's folder),
+    // without the scene itself.
+    std::vector<std::filesystem::path> files;
+    std::string integrator;       // as the loader names it ("volpath" when the file has none)
+    long long sample_count = 16;  // the Sampler's pixel samples (pbrt's default 16)
+};
+// Throws SceneError for unreadable files or a malformed file.
+SceneSummary summarize(const std::filesystem::path& file);
 
 }  // namespace render::pbrt

@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/scene/pbrt/parameters.h"
 #include "core/scene/pbrt/scene_loader.h"
 #include "core/scene/pbrt/tokenizer.h"
 
@@ -15,8 +16,8 @@ namespace {
 namespace fs = std::filesystem;
 
 void collect(const fs::path& file, const fs::path& scene_dir, int depth,
-             std::set<std::string>& active, std::set<std::string>& seen,
-             std::vector<fs::path>& out) {
+             std::set<std::string>& active, std::set<std::string>& seen, SceneSummary& summary) {
+    std::vector<fs::path>& out = summary.files;
     if (depth > 32) throw SceneError(file.string() + ": includes are nested too deeply");
     if (!active.insert(file.string()).second) throw SceneError(file.string() + ": include cycle");
     std::ifstream in(file, std::ios::binary);
@@ -32,14 +33,42 @@ void collect(const fs::path& file, const fs::path& scene_dir, int depth,
         return p;
     };
     std::string directive;  // the last one: Film's "filename" is an output, not an input
+    bool after_directive = false;
+    long long xsamples = 4, ysamples = 4;
     while (std::optional<Token> t = tokens.next()) {
-        if (!t->quoted && !t->text.empty() && std::isupper(static_cast<unsigned char>(t->text[0])))
+        const bool type_token = after_directive && t->quoted;
+        after_directive = false;
+        if (!t->quoted && !t->text.empty() &&
+            std::isupper(static_cast<unsigned char>(t->text[0]))) {
             directive = t->text;
+            after_directive = true;
+            continue;
+        }
+        if (type_token) {
+            if (directive == "Integrator") summary.integrator = integrator_name(t->text);
+            continue;
+        }
+        if (t->quoted && (directive == "Sampler")) {
+            std::istringstream decl(t->text);
+            std::string type, name;
+            decl >> type >> name;
+            if (type == "integer" &&
+                (name == "pixelsamples" || name == "xsamples" || name == "ysamples")) {
+                std::optional<Token> value = tokens.next();
+                if (value && value->is("[")) value = tokens.next();
+                if (!value || value->quoted) continue;
+                const long long n = static_cast<long long>(parse_number(*value, name));
+                if (name == "pixelsamples") summary.sample_count = n;
+                if (name == "xsamples") xsamples = n, summary.sample_count = xsamples * ysamples;
+                if (name == "ysamples") ysamples = n, summary.sample_count = xsamples * ysamples;
+            }
+            continue;
+        }
         if (t->is("Include") || t->is("Import")) {
             std::optional<Token> name = tokens.next();
             if (!name || !name->quoted)
                 throw SceneError(t->where, t->text + ": expected a quoted file name");
-            collect(add(*name), scene_dir, depth + 1, active, seen, out);
+            collect(add(*name), scene_dir, depth + 1, active, seen, summary);
         } else if (t->quoted) {
             std::istringstream decl(t->text);
             std::string type, name, rest;
@@ -58,12 +87,13 @@ void collect(const fs::path& file, const fs::path& scene_dir, int depth,
 
 }  // namespace
 
-std::vector<fs::path> referenced_files(const fs::path& file) {
-    std::vector<fs::path> out;
+SceneSummary summarize(const fs::path& file) {
+    SceneSummary summary;
+    summary.integrator = "volpath";
     std::set<std::string> active, seen;
     const fs::path scene = fs::absolute(file).lexically_normal();
-    collect(scene, scene.parent_path(), 0, active, seen, out);
-    return out;
+    collect(scene, scene.parent_path(), 0, active, seen, summary);
+    return summary;
 }
 
 }  // namespace render::pbrt
