@@ -124,6 +124,9 @@ class Loader {
         }
         for (size_t i = 0; i < N; ++i) {
             Token t = need_token(tokens, directive, "number");
+            if (t.is("]") || t.is("["))
+                throw SceneError(t.where, directive.text + ": expected " + std::to_string(N) +
+                                              " numbers, got " + std::to_string(i));
             out[i] = parse_number(t, directive.text);
         }
         if (bracketed) {

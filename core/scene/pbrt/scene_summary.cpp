@@ -36,6 +36,13 @@ void collect(const fs::path& file, const fs::path& scene_dir, int depth,
     bool after_directive = false;
     long long xsamples = 4, ysamples = 4;
     while (std::optional<Token> t = tokens.next()) {
+        if (t->is("Include") || t->is("Import")) {
+            std::optional<Token> name = tokens.next();
+            if (!name || !name->quoted)
+                throw SceneError(t->where, t->text + ": expected a quoted file name");
+            collect(add(*name), scene_dir, depth + 1, active, seen, summary);
+            continue;
+        }
         const bool type_token = after_directive && t->quoted;
         after_directive = false;
         if (!t->quoted && !t->text.empty() &&
@@ -64,12 +71,7 @@ void collect(const fs::path& file, const fs::path& scene_dir, int depth,
             }
             continue;
         }
-        if (t->is("Include") || t->is("Import")) {
-            std::optional<Token> name = tokens.next();
-            if (!name || !name->quoted)
-                throw SceneError(t->where, t->text + ": expected a quoted file name");
-            collect(add(*name), scene_dir, depth + 1, active, seen, summary);
-        } else if (t->quoted) {
+        if (t->quoted) {
             std::istringstream decl(t->text);
             std::string type, name, rest;
             decl >> type >> name;
