@@ -312,6 +312,32 @@ TEST_F(PbrtTest, ShapesAreasAndBounds) {
     EXPECT_NEAR(scene->shapes()[0]->surface_area(), 1, 1e-5);
 }
 
+// The geometric normal where a ray from (0, 0, 5) towards the origin first hits the scene.
+Vec3 normal_seen_from_above(const Scene& scene) {
+    SurfaceInteraction si;
+    if (!scene.intersect(Ray(Vec3(0.1f, 0.1f, 5), Vec3(0, 0, -1)), si)) return Vec3(0.0f);
+    return si.geometric_normal;
+}
+
+TEST_F(PbrtTest, OrientationFollowsPbrt) {
+    // Spheres and disks face outwards (+z here); ReverseOrientation flips them, and so does a
+    // transform that swaps handedness (pbrt flips quadrics' normals then).
+    EXPECT_GT(normal_seen_from_above(*load_world("Shape \"sphere\"\n")).z, 0.5f);
+    EXPECT_LT(normal_seen_from_above(*load_world("ReverseOrientation\nShape \"sphere\"\n")).z,
+              -0.5f);
+    EXPECT_LT(normal_seen_from_above(*load_world("Scale -1 1 1\nShape \"sphere\"\n")).z, -0.5f);
+    EXPECT_GT(normal_seen_from_above(*load_world("Shape \"disk\"\n")).z, 0.5f);
+    // pbrt: the object normal +z, flipped (the transform swaps handedness) to -z, mirrored by the
+    // transform back to +z.
+    EXPECT_GT(normal_seen_from_above(*load_world("Scale 1 1 -1\nShape \"disk\"\n")).z, 0.5f);
+    // Triangles without normals follow the winding, also under a mirror (pbrt flips the
+    // world-space cross product back when the transform swaps handedness).
+    const std::string tri = "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 0 1 0]\n";
+    EXPECT_GT(normal_seen_from_above(*load_world(tri)).z, 0.5f);
+    EXPECT_GT(normal_seen_from_above(*load_world("Scale -1 1 1\n" + tri)).z, 0.5f);
+    EXPECT_LT(normal_seen_from_above(*load_world("ReverseOrientation\n" + tri)).z, -0.5f);
+}
+
 TEST_F(PbrtTest, UnsupportedShapeVariantsAreErrors) {
     EXPECT_NE(world_error("Shape \"sphere\" \"float zmax\" 0.5\n")
                   .find(at_body_line(1) + " Shape \"sphere\": \"zmax\": partial shapes"),

@@ -140,13 +140,16 @@ std::unique_ptr<Shape> make_shape(
             throw params.error("displacement", "displacement is not supported");
         shape = finish_mesh(std::move(mesh), params, to_world, reverse_orientation);
     } else if (type == "sphere") {
+        // pbrt flips a quadric's normal when the transform swaps handedness (a mirrored sphere
+        // faces inwards), as well as for ReverseOrientation.
+        const bool flip = reverse_orientation != (to_world.determinant3x3() < 0);
         Properties props("shape", "sphere", params.where);
         props.set("radius", float(params.get_float("radius", 1.0)), params.where);
         refuse_partial(params, "zmin", -params.get_float("radius", 1.0));
         refuse_partial(params, "zmax", params.get_float("radius", 1.0));
         refuse_partial(params, "phimax", 360.0);
         props.set("to_world", to_world, params.where);
-        props.set("flip_normals", reverse_orientation, params.where);
+        props.set("flip_normals", flip, params.where);
         shape = render::make_shape(props, {});
     } else if (type == "disk") {
         const double radius = params.get_float("radius", 1.0),
@@ -154,12 +157,13 @@ std::unique_ptr<Shape> make_shape(
         if (!(radius > 0)) throw params.error("radius", "must be positive");
         refuse_partial(params, "innerradius", 0.0);
         refuse_partial(params, "phimax", 360.0);
+        const bool flip = reverse_orientation != (to_world.determinant3x3() < 0);  // as sphere
         Properties props("shape", "disk", params.where);
         props.set("to_world",
                   to_world * Transform::translate(Vec3(0, 0, float(height))) *
                       Transform::scale(Vec3(float(radius), float(radius), 1)),
                   params.where);
-        props.set("flip_normals", reverse_orientation, params.where);
+        props.set("flip_normals", flip, params.where);
         shape = render::make_shape(props, {});
     } else if (type == "cylinder" || type == "curve" || type == "loopsubdiv") {
         throw SceneError(params.where,
