@@ -60,6 +60,10 @@ std::unique_ptr<Light> make_light(const std::string& type, const ParamList& para
         props.set("to_world", Transform::look_at(from, from + dir, up), at);
         props.set("cutoff_angle", float(cone), at);
         props.set("beam_width", float(std::max(0.0, cone - delta)), at);
+        if (delta > 0)
+            warn(at, params.context() +
+                         ": the falloff between coneangle - conedelta and coneangle is linear "
+                         "in the angle (Mitsuba's), not pbrt's smoothstep in the cosine");
         light = render::make_light(props, nullptr, {});
     } else if (type == "distant") {
         if (params.has("illuminance"))
