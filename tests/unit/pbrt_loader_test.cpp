@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/base/error.h"
+#include "core/media/medium.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/parameters.h"
 #include "core/scene/pbrt/scene_loader.h"
@@ -573,9 +574,6 @@ TEST_F(PbrtTest, DirectiveErrorsNameFileAndLine) {
               std::string::npos);
     EXPECT_NE(world_error("ObjectBegin \"x\"\n").find("instancing is not supported yet"),
               std::string::npos);
-    EXPECT_NE(world_error("MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\n")
-                  .find("media in pbrt files are not supported yet"),
-              std::string::npos);
     EXPECT_NE(world_error("Translate 1 2\nShape \"sphere\"\n")
                   .find(at_body_line(2) + " \"Translate\": \"Shape\" is not a number"),
               std::string::npos);
@@ -597,6 +595,58 @@ TEST_F(PbrtTest, DirectiveErrorsNameFileAndLine) {
     } catch (const SceneError& e) {
         EXPECT_NE(std::string(e.what()).find("pbrt files take no parameters"), std::string::npos);
     }
+}
+
+TEST_F(PbrtTest, Media) {
+    // homogeneous: sigma_t = scale (sigma_a + sigma_s), sigma_s = scale sigma_s; inside a
+    // sphere (MediumInterface inside outside) with the interface material.
+    auto scene = load_world(
+        "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.1 0.2 0.3] "
+        "\"rgb sigma_s\" [1 1 1] \"float scale\" 2 \"float g\" 0.5\n"
+        "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\nShape \"sphere\"\n"
+        "AttributeEnd\nShape \"disk\"\n");
+    EXPECT_TRUE(scene->has_media());
+    const Shape& sphere = *scene->shapes()[0];
+    ASSERT_NE(sphere.interior, nullptr);
+    EXPECT_EQ(sphere.exterior, nullptr);
+    EXPECT_NEAR(sphere.interior->sigma_t(Vec3(0.0f)).b, 2 * 1.3, 1e-5);
+    EXPECT_NEAR(sphere.interior->sigma_s(Vec3(0.0f)).r, 2, 1e-5);
+    EXPECT_EQ(sphere.bsdf->to_string(), "null");       // "interface": an index-matched boundary
+    EXPECT_EQ(scene->shapes()[1]->interior, nullptr);  // after AttributeEnd: no interface
+    // uniformgrid: sigma_t(p) = scale (sigma_a + sigma_s) density(p) over [p0, p1], placed by
+    // the CTM; cell-centred trilinear lookups (2 x 1 x 1 voxels: 1 at x = 0.25, 3 at 0.75).
+    scene = load_world(
+        "Translate 10 0 0\nMakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" "
+        "\"integer nx\" 2 \"float density\" [1 3] \"rgb sigma_a\" [0 0 0] \"rgb sigma_s\" [2 2 2] "
+        "\"point3 p0\" [0 0 0] \"point3 p1\" [2 1 1]\nIdentity\n"
+        "MediumInterface \"smoke\" \"\"\nMaterial \"interface\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    const Medium* smoke = scene->shapes()[0]->interior;
+    ASSERT_NE(smoke, nullptr);
+    EXPECT_NEAR(smoke->sigma_t(Vec3(10.5f, 0.5f, 0.5f)).g, 2 * 1, 1e-5);
+    EXPECT_NEAR(smoke->sigma_t(Vec3(11.0f, 0.5f, 0.5f)).g, 2 * 2, 1e-5);
+    EXPECT_NEAR(smoke->sigma_t(Vec3(11.5f, 0.5f, 0.5f)).g, 2 * 3, 1e-5);
+    EXPECT_NEAR(smoke->sigma_s(Vec3(11.5f, 0.5f, 0.5f)).g, 2 * 3, 1e-5);  // albedo 1
+    // The camera sits in the outside medium current at Camera.
+    scene = load(
+        "MakeNamedMedium \"air\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.01 0.01 0.01] "
+        "\"rgb sigma_s\" [0 0 0]\nMediumInterface \"air\"\nCamera \"perspective\"\nWorldBegin\n");
+    EXPECT_NE(scene->camera_medium(), nullptr);
+    // Errors.
+    EXPECT_NE(world_error("MediumInterface \"nope\" \"\"\n")
+                  .find(at_body_line(1) + " MediumInterface: unknown medium \"nope\""),
+              std::string::npos);
+    EXPECT_NE(
+        world_error("MakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"rgb Le\" [1 1 1]\n")
+            .find("emissive media are not supported yet"),
+        std::string::npos);
+    EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 "
+                          "\"float density\" [1]\n")
+                  .find("expects nx * ny * nz = 2 values, got 1"),
+              std::string::npos);
+    EXPECT_NE(
+        world_error("MakeNamedMedium \"m\" \"string type\" \"cloud\"\n").find("not supported yet"),
+        std::string::npos);
 }
 
 TEST_F(PbrtTest, Textures) {

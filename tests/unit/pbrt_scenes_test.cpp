@@ -24,6 +24,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/pbrt/scene_loader.h"
 #include "tests/support/statistics.h"
 
 namespace render {
@@ -130,6 +131,42 @@ TEST(PbrtScenes, ShippedScenesRenderWithPtAndVcm) {
             EXPECT_TRUE(std::isfinite(total)) << file << " " << algorithm;
         }
     }
+}
+
+// A pbrt file with both media types (a homogeneous sphere and a grid sphere, with the interface
+// material) renders with volpt: finite, lit, and the media absorb (darker than without them).
+TEST(PbrtScenes, MediaRenderWithVolpt) {
+    const std::string head =
+        "LookAt 0 0 -4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 50\n"
+        "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 16\nWorldBegin\n"
+        "LightSource \"infinite\" \"rgb L\" [1 1 1]\n";
+    const std::string media =
+        "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [1 1 1] "
+        "\"rgb sigma_s\" [1 1 1] \"float g\" 0.3\n"
+        "MakeNamedMedium \"grid\" \"string type\" \"uniformgrid\" \"integer nx\" 2 "
+        "\"integer ny\" 2 \"float density\" [0 1 2 3] \"point3 p0\" [-1 -1 -1] \"point3 p1\" "
+        "[1 1 1]\n";
+    const std::string shapes =
+        "AttributeBegin\nMediumInterface \"fog\" \"\"\nMaterial \"interface\"\n"
+        "Translate -1 0 0\nShape \"sphere\" \"float radius\" 0.8\nAttributeEnd\n"
+        "AttributeBegin\nMediumInterface \"grid\" \"\"\nMaterial \"interface\"\nTranslate 1 0 0\n"
+        "Shape \"sphere\" \"float radius\" 0.8\nAttributeEnd\n";
+    auto total = [](const Scene& scene) {
+        RenderSettings settings = resolve_render_settings("volpt", {}, scene.settings);
+        settings.seed = 3;
+        IterationResult r = render_iterations(scene, settings, 0, IterationRange{1, 9});
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        double sum = 0;
+        for (size_t p = 0; p < 16 * 16; ++p)
+            for (int c = 0; c < 3; ++c) sum += r.sum.channel(p, c);
+        return sum;
+    };
+    auto with_media = pbrt::load_scene_from_string(head + media + shapes, ".");
+    EXPECT_TRUE(with_media->has_media());
+    auto without = pbrt::load_scene_from_string(head, ".");
+    const double a = total(*with_media), b = total(*without);
+    EXPECT_GT(a, 0.0);
+    EXPECT_LT(a, 0.9 * b);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "core/lights/light.h"
 #include "core/materials/bsdf.h"
 #include "core/math/transform.h"
+#include "core/media/medium.h"
 #include "core/scene/pbrt/parameters.h"
 #include "core/textures/texture.h"
 
@@ -51,6 +52,10 @@ std::unique_ptr<Light> make_light(const std::string& type, const ParamList& para
 // `AreaLightSource "diffuse"` on `shape`.
 std::unique_ptr<Light> make_area_light(const std::string& type, const ParamList& params,
                                        const Shape* shape);
+
+// `MakeNamedMedium` of "string type" homogeneous or uniformgrid, with the current transform.
+std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamList& params,
+                                          const Transform& medium_to_world);
 
 // `Texture "name" "spectrum"|"float" "class"`.
 std::shared_ptr<const Texture> make_texture(

@@ -8,6 +8,7 @@
 
 #include "core/materials/bsdf.h"
 #include "core/math/transform.h"
+#include "core/media/medium.h"
 #include "core/scene/pbrt/parameters.h"
 
 namespace render::pbrt {
@@ -22,6 +23,10 @@ struct GraphicsState {
     bool reverse_orientation = false;
     std::shared_ptr<const Bsdf> material;  // null: pbrt's default, diffuse 0.5
     std::optional<AreaLightState> area_light;
+    // MediumInterface: the media inside and outside the following shapes (null: vacuum); the
+    // outside one also holds the camera and lights defined next.
+    const Medium* inside = nullptr;
+    const Medium* outside = nullptr;
 };
 
 }  // namespace render::pbrt

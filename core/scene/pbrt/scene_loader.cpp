@@ -307,7 +307,9 @@ class Loader {
                 const std::string type = need_string(tokens, d, "light type");
                 ParamList p = ParamList::parse(tokens, "LightSource \"" + type + "\"");
                 p.where = d.where;
-                scene_.add_light(make_light(type, p, state_.ctm));
+                std::unique_ptr<Light> light = make_light(type, p, state_.ctm);
+                light->medium = state_.outside;
+                scene_.add_light(std::move(light));
             } else if (n == "AreaLightSource") {
                 need_world(d);
                 const std::string type = need_string(tokens, d, "area light type");
@@ -341,6 +343,7 @@ class Loader {
                              "Camera \"" + type + "\" is not supported yet (only perspective)");
         camera_ = p;
         camera_from_world_ = state_.ctm;
+        scene_.set_camera_medium(state_.outside);
         coordinate_systems_["camera"] = state_.ctm.inverse();
     }
 
@@ -455,20 +458,31 @@ class Loader {
 
     void read_media(Tokenizer& tokens, const Token& d) {
         if (d.text == "MediumInterface") {
-            std::string inside = need_string(tokens, d, "interior medium");
-            std::string outside = inside;
-            if (tokens.peek() && tokens.peek()->quoted &&
-                tokens.peek()->text.find(' ') == std::string::npos)
-                outside = need_string(tokens, d, "exterior medium");
-            if (!inside.empty() || !outside.empty())
-                throw SceneError(d.where,
-                                 "MediumInterface: participating media in pbrt files "
-                                 "are not supported yet");
+            // One name (inside and outside alike) or two: inside, outside. "" is vacuum.
+            const Token first = need_token(tokens, d, "interior medium");
+            if (!first.quoted)
+                throw SceneError(first.where, "MediumInterface: expected a quoted medium name");
+            Token second = first;
+            if (tokens.peek() && tokens.peek()->quoted) second = *tokens.next();
+            state_.inside = lookup_medium(first);
+            state_.outside = lookup_medium(second);
             return;
         }
-        throw SceneError(d.where,
-                         "MakeNamedMedium: participating media in pbrt files are not "
-                         "supported yet");
+        const std::string name = need_string(tokens, d, "medium name");
+        ParamList p = ParamList::parse(tokens, "MakeNamedMedium \"" + name + "\"");
+        p.where = d.where;
+        if (media_.count(name)) throw SceneError(d.where, "medium \"" + name + "\" redefined");
+        if (!p.has("type")) throw p.error("type", "\"string type\" is required");
+        media_[name] = scene_.add_medium(make_medium(p.get_string("type", ""), p, state_.ctm));
+    }
+
+    const Medium* lookup_medium(const Token& name) const {
+        if (name.text.empty()) return nullptr;
+        auto it = media_.find(name.text);
+        if (it == media_.end())
+            throw SceneError(name.where, "MediumInterface: unknown medium \"" + name.text +
+                                             "\" (MakeNamedMedium must come first)");
+        return it->second;
     }
 
     void read_shape(Tokenizer& tokens, const Token& d) {
@@ -483,6 +497,12 @@ class Loader {
             light =
                 make_area_light(state_.area_light->type, *state_.area_light->params, shape.get());
             shape->emitter = light.get();
+            light->medium = state_.outside;  // it emits on its outside
+        }
+        // pbrt: a shape is a medium boundary only when the media on its sides differ.
+        if (state_.inside != state_.outside) {
+            shape->interior = state_.inside;
+            shape->exterior = state_.outside;
         }
         if (!state_.material) {
             // pbrt-v4's default material: diffuse, reflectance 0.5.
@@ -534,6 +554,7 @@ class Loader {
     std::vector<Transform> transforms_;
     std::map<std::string, Transform> coordinate_systems_;
     std::map<std::string, std::shared_ptr<const Bsdf>> named_materials_;
+    std::map<std::string, const Medium*> media_;
     TextureTable textures_;
     std::set<const Bsdf*> kept_;
     std::optional<ParamList> camera_;
