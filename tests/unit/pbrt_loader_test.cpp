@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/base/error.h"
+#include "core/image/exr_io.h"
 #include "core/media/medium.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/parameters.h"
@@ -495,13 +496,48 @@ TEST_F(PbrtTest, LightsEmitRgbTimesScale) {
     EXPECT_EQ(scene->lights().size(), 2u);
 }
 
+// pbrt-v4's image infinite light: a square equal-area octahedral map in light space. Its
+// quadrants hold the directions by the signs of (x, y): top-left x < 0, y < 0 (rows top first),
+// top-right x > 0, y < 0, bottom-left x < 0, y > 0, bottom-right both positive.
+TEST_F(PbrtTest, ImageInfiniteLightIsEqualAreaOctahedral) {
+    Image image(8, 8);
+    const Rgb colours[4] = {Rgb(1, 0, 0), Rgb(0, 1, 0), Rgb(0, 0, 1), Rgb(1, 1, 0)};
+    for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) image.set(size_t(y) * 8 + x, colours[(y / 4) * 2 + x / 4]);
+    write_exr(dir_ / "sky.exr", image);
+    auto seen = [](const Scene& scene, const Vec3& d) {
+        return scene.background_lights()
+            .at(0)
+            ->radiance(Vec3(0.0f), Vec3(0.0f), normalize(d))
+            .radiance;
+    };
+    auto scene =
+        load_world("LightSource \"infinite\" \"string filename\" \"sky.exr\" \"float scale\" 2\n");
+    for (float z : {0.3f, -0.3f}) {
+        EXPECT_NEAR(seen(*scene, Vec3(-1, -1, z)).r, 2, 1e-5);
+        EXPECT_NEAR(seen(*scene, Vec3(1, -1, z)).g, 2, 1e-5);
+        EXPECT_NEAR(seen(*scene, Vec3(-1, 1, z)).b, 2, 1e-5);
+        EXPECT_NEAR(seen(*scene, Vec3(1, 1, z)).g, 2, 1e-5);
+        EXPECT_NEAR(seen(*scene, Vec3(1, 1, z)).b, 0, 1e-5);
+    }
+    // The CTM places the map: with Rotate 90 about z, world (1, 1) is light (1, -1).
+    scene =
+        load_world("Rotate 90 0 0 1\nLightSource \"infinite\" \"string filename\" \"sky.exr\"\n");
+    EXPECT_NEAR(seen(*scene, Vec3(1, 1, 0.3f)).g, 1, 1e-5);
+    EXPECT_NEAR(seen(*scene, Vec3(1, 1, 0.3f)).r, 0, 1e-5);
+    write_exr(dir_ / "wide.exr", Image(4, 2));
+    EXPECT_NE(world_error("LightSource \"infinite\" \"string filename\" \"wide.exr\"\n")
+                  .find("must be square"),
+              std::string::npos);
+}
+
 TEST_F(PbrtTest, LightErrors) {
     EXPECT_NE(world_error("AreaLightSource \"diffuse\" \"bool twosided\" true\nShape \"sphere\"\n")
                   .find("two-sided area lights are not supported yet"),
               std::string::npos);
     EXPECT_NE(world_error("LightSource \"infinite\"\n \"string filename\" \"sky.exr\"\n")
-                  .find(at_body_line(2) + " LightSource \"infinite\": \"filename\": image infinite "
-                                          "lights are not supported yet"),
+                  .find(at_body_line(2) +
+                        " LightSource \"infinite\": \"filename\": image file not found"),
               std::string::npos);
     EXPECT_NE(world_error("LightSource \"point\" \"float power\" 10\n").find("\"power\""),
               std::string::npos);

@@ -45,9 +45,10 @@ std::unique_ptr<Shape> make_shape(
     bool reverse_orientation,
     const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
-// `LightSource "type"` with the current transform.
-std::unique_ptr<Light> make_light(const std::string& type, const ParamList& params,
-                                  const Transform& light_to_world);
+// `LightSource "type"` with the current transform; `resolve` as for shapes (image lights).
+std::unique_ptr<Light> make_light(
+    const std::string& type, const ParamList& params, const Transform& light_to_world,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
 // `AreaLightSource "diffuse"` on `shape`.
 std::unique_ptr<Light> make_area_light(const std::string& type, const ParamList& params,

@@ -4,9 +4,12 @@
 // photometric value so that RGB (1, 1, 1) is a 1-nit white, which pbrt's RGB film records as
 // (1, 1, 1). An RGB renderer therefore emits the RGB value times `scale`, unchanged.
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/base/properties.h"
+#include "core/image/exr_io.h"
+#include "core/lights/envmap_light.h"
 #include "core/lights/light_factory.h"
 #include "core/math/constants.h"
 #include "core/scene/pbrt/builders.h"
@@ -33,10 +36,89 @@ Vec3 position(const Transform& t, const ParamList& params, const char* name, con
     return p;
 }
 
+// pbrt-v4's equal-area octahedral mapping (Clarberg) of a unit direction to [0,1]^2.
+Vec2 equal_area_sphere_to_square(const Vec3& d) {
+    const double x = std::abs(d.x), y = std::abs(d.y), z = std::abs(d.z);
+    const double r = std::sqrt(std::max(0.0, 1 - z));
+    const double a = std::max(x, y), b = a == 0 ? 0 : std::min(x, y) / a;
+    double phi = std::atan(b) * 2 / 3.14159265358979323846;
+    if (x < y) phi = 1 - phi;
+    double v = phi * r, u = r - v;
+    if (d.z < 0) {
+        std::swap(u, v);
+        u = 1 - u;
+        v = 1 - v;
+    }
+    u = std::copysign(u, double(d.x));
+    v = std::copysign(v, double(d.y));
+    return Vec2(float(0.5 * (u + 1)), float(0.5 * (v + 1)));
+}
+
+// Bilinear lookup of a square equal-area image at uv, texel centres at (i + 1/2) / n, rows top
+// first (pbrt's Image::Bilerp); beyond an edge the octahedral map continues mirrored across
+// that edge (pbrt's OctahedralSphere wrap).
+Rgb octahedral_lookup(const Image& image, Vec2 uv) {
+    const int n = image.width();
+    auto texel = [&](int x, int y) {
+        if (x < 0 || x >= n || y < 0 || y >= n) {
+            if (x < 0) x = -x - 1, y = n - 1 - y;
+            if (x >= n) x = 2 * n - 1 - x, y = n - 1 - y;
+            if (y < 0) y = -y - 1, x = n - 1 - x;
+            if (y >= n) y = 2 * n - 1 - y, x = n - 1 - x;
+            x = std::clamp(x, 0, n - 1);
+            y = std::clamp(y, 0, n - 1);
+        }
+        return image.at(x, y);
+    };
+    const float fx = uv.x * float(n) - 0.5f, fy = uv.y * float(n) - 0.5f;
+    const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+    const float dx = fx - float(x0), dy = fy - float(y0);
+    return texel(x0, y0) * ((1 - dx) * (1 - dy)) + texel(x0 + 1, y0) * (dx * (1 - dy)) +
+           texel(x0, y0 + 1) * ((1 - dx) * dy) + texel(x0 + 1, y0 + 1) * (dx * dy);
+}
+
+// pbrt-v4's image infinite light: a square equal-area octahedral image in light space (the
+// CTM), resampled onto our lat-long environment map (2n x n texels for an n x n image).
+std::unique_ptr<Light> image_infinite(const ParamList& params, const Transform& to_world,
+                                      const std::filesystem::path& file) {
+    Image image(1, 1);
+    try {
+        image = read_image(file);
+    } catch (const std::exception& e) {
+        throw params.error("filename", e.what());
+    }
+    if (image.width() != image.height())
+        throw params.error("filename",
+                           "an image infinite light must be square (pbrt-v4's "
+                           "equal-area octahedral map), not " +
+                               std::to_string(image.width()) + " x " +
+                               std::to_string(image.height()));
+    const double scale = params.get_float("scale", 1.0);
+    if (!(scale >= 0)) throw params.error("scale", "must be non-negative");
+    if (!EnvmapLight::rotation_frame(to_world))
+        throw params.error("filename", "the light's transform must be a rotation");
+    const Transform to_light = to_world.inverse();
+    const int n = image.width(), width = 2 * n, height = n;
+    std::vector<Rgb> texels(size_t(width) * height);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const Vec3 world = EnvmapLight::uv_to_direction(
+                Vec2((float(x) + 0.5f) / float(width), (float(y) + 0.5f) / float(height)));
+            const Vec3 light = normalize(to_light.apply_vector(world));
+            const Rgb c = octahedral_lookup(image, equal_area_sphere_to_square(light));
+            for (int k = 0; k < 3; ++k)
+                if (!(std::isfinite(c[k]) && c[k] >= 0))
+                    throw params.error("filename", "the image has negative or non-finite texels");
+            texels[size_t(y) * width + x] = c * float(scale);
+        }
+    return std::make_unique<EnvmapLight>(std::move(texels), width, height, Frame(), file.string());
+}
+
 }  // namespace
 
-std::unique_ptr<Light> make_light(const std::string& type, const ParamList& params,
-                                  const Transform& to_world) {
+std::unique_ptr<Light> make_light(
+    const std::string& type, const ParamList& params, const Transform& to_world,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
     const SourceLocation at = params.where;
     std::unique_ptr<Light> light;
     if (type == "point") {
@@ -78,13 +160,17 @@ std::unique_ptr<Light> make_light(const std::string& type, const ParamList& para
         props.set("irradiance", emission(params, "L"), at);
         light = render::make_light(props, nullptr, {});
     } else if (type == "infinite") {
-        if (params.has("filename"))
-            throw params.error("filename",
-                               "image infinite lights are not supported yet (pbrt-v4 stores "
-                               "them as equal-area octahedral maps; ours are lat-long)");
         if (params.has("illuminance"))
             throw params.error("illuminance", "not supported yet (give L and scale)");
         if (params.has("portal")) throw params.error("portal", "portals are not supported yet");
+        if (params.has("filename")) {
+            if (params.has("L")) throw params.error("L", "give either \"L\" or \"filename\"");
+            if (params.get_string("filename", "").empty())
+                throw params.error("filename", "empty file name");
+            light = image_infinite(params, to_world, resolve(params, "filename"));
+            params.check_all_used();
+            return light;
+        }
         Properties props("emitter", "constant", at);
         props.set("radiance", emission(params, "L"), at);
         light = render::make_light(props, nullptr, {});

@@ -307,7 +307,7 @@ class Loader {
                 const std::string type = need_string(tokens, d, "light type");
                 ParamList p = ParamList::parse(tokens, "LightSource \"" + type + "\"");
                 p.where = d.where;
-                std::unique_ptr<Light> light = make_light(type, p, state_.ctm);
+                std::unique_ptr<Light> light = make_light(type, p, state_.ctm, resolver());
                 light->medium = state_.outside;
                 scene_.add_light(std::move(light));
             } else if (n == "AreaLightSource") {
