@@ -707,6 +707,26 @@ TEST_F(PbrtTest, Textures) {
     EXPECT_NEAR(albedo_at(0.7f, 0.2f).b, 1, 1e-5);  // 1 + 0: tex2
     EXPECT_NEAR(albedo_at(0.7f, 0.7f).r, 1, 1e-5);  // 1 + 1: tex1
     EXPECT_NEAR(albedo_at(0.2f, 0.7f).b, 1, 1e-5);  // 0 + 1: tex2
+    // imagemap: pbrt looks the image up at (s, 1 - t), row 0 on top: t near 1 is the top row.
+    Image image(2, 2);
+    image.set(0, Rgb(1, 0, 0));  // top left
+    image.set(1, Rgb(0, 1, 0));  // top right
+    image.set(2, Rgb(0, 0, 1));  // bottom left
+    image.set(3, Rgb(1, 1, 1));  // bottom right
+    write_exr(dir_ / "tex.exr", image);
+    scene = load_world(
+        "Texture \"i\" \"spectrum\" \"imagemap\" \"string filename\" \"tex.exr\" "
+        "\"string filter\" \"point\" \"float uscale\" 2\n"
+        "Material \"diffuse\" \"texture reflectance\" \"i\"\n" +
+        quad);
+    bsdf = scene->shapes()[0]->bsdf;
+    EXPECT_NEAR(albedo_at(0.1f, 0.9f).r, 1, 1e-5);  // s' = 0.2, top: red
+    EXPECT_NEAR(albedo_at(0.1f, 0.9f).g, 0, 1e-5);
+    EXPECT_NEAR(albedo_at(0.3f, 0.9f).g, 1, 1e-5);  // s' = 0.6: green
+    EXPECT_NEAR(albedo_at(0.3f, 0.9f).r, 0, 1e-5);
+    EXPECT_NEAR(albedo_at(0.1f, 0.2f).b, 1, 1e-5);  // bottom: blue
+    EXPECT_NEAR(albedo_at(0.1f, 0.2f).r, 0, 1e-5);
+    EXPECT_NEAR(albedo_at(0.8f, 0.2f).g, 1, 1e-5);  // s' = 1.6, repeat: 0.6: white
     EXPECT_NE(world_error("Texture \"t\" \"spectrum\" \"marble\"\n").find("not supported yet"),
               std::string::npos);
     EXPECT_NE(world_error("Material \"diffuse\" \"texture reflectance\" \"none\"\n")
