@@ -15,6 +15,7 @@
 #include "core/image/exr_io.h"
 #include "core/media/medium.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/pbrt/builders.h"
 #include "core/scene/pbrt/parameters.h"
 #include "core/scene/pbrt/scene_loader.h"
 #include "core/scene/pbrt/tokenizer.h"
@@ -531,6 +532,25 @@ TEST_F(PbrtTest, ImageInfiniteLightIsEqualAreaOctahedral) {
               std::string::npos);
 }
 
+// pbrt-v4 normalises a blackbody light to unit luminance: our RGB is the blackbody's
+// chromaticity at luminance 1 (times scale).
+TEST_F(PbrtTest, BlackbodyLightsHaveUnitLuminance) {
+    auto luminance = [](const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; };
+    for (double kelvin : {2700.0, 4000.0, 6504.0, 10000.0}) {
+        const Rgb c = *pbrt::blackbody_rgb(kelvin);
+        EXPECT_NEAR(luminance(c), 1.0f, 2e-3f) << kelvin;
+    }
+    const Rgb warm = *pbrt::blackbody_rgb(3000), cool = *pbrt::blackbody_rgb(10000);
+    EXPECT_GT(warm.r, warm.g);
+    EXPECT_GT(warm.g, warm.b);
+    EXPECT_GT(cool.b, cool.r);
+    const Rgb d65ish = *pbrt::blackbody_rgb(6504);  // near white
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(d65ish[c], 1.0f, 0.1f) << c;
+    EXPECT_FALSE(pbrt::blackbody_rgb(1000));
+    auto scene = load_world("LightSource \"point\" \"blackbody I\" 3000 \"float scale\" 2\n");
+    EXPECT_NEAR(luminance(scene->lights()[0]->power()) / float(4 * kPi), 2.0f, 5e-3f);
+}
+
 TEST_F(PbrtTest, LightErrors) {
     EXPECT_NE(world_error("AreaLightSource \"diffuse\" \"bool twosided\" true\nShape \"sphere\"\n")
                   .find("two-sided area lights are not supported yet"),
@@ -541,7 +561,7 @@ TEST_F(PbrtTest, LightErrors) {
               std::string::npos);
     EXPECT_NE(world_error("LightSource \"point\" \"float power\" 10\n").find("\"power\""),
               std::string::npos);
-    EXPECT_NE(world_error("LightSource \"point\" \"blackbody I\" 3000\n").find("blackbody"),
+    EXPECT_NE(world_error("LightSource \"point\" \"blackbody I\" 1000\n").find("1667 to 25000 K"),
               std::string::npos);
     EXPECT_NE(world_error("LightSource \"goniometric\"\n").find("not supported yet"),
               std::string::npos);

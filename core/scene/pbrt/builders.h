@@ -34,6 +34,11 @@ void warn(const SourceLocation& where, const std::string& message);
 // all equal); nothing when absent. Other spectra (named, varying, blackbody) are refused.
 std::optional<Rgb> get_rgb(const ParamList& params, const std::string& name);
 
+// The linear sRGB colour of a blackbody at `kelvin` with luminance 1 (pbrt-v4 normalises a
+// blackbody light to unit luminance), negative components clamped to 0; nothing outside
+// [1667, 25000] K, where the chromaticity approximation holds.
+std::optional<Rgb> blackbody_rgb(double kelvin);
+
 // `Material "type"` / MakeNamedMaterial's "string type". `named` resolves `mix`'s materials.
 std::shared_ptr<const Bsdf> make_material(
     const std::string& type, const ParamList& params, const TextureTable& textures,

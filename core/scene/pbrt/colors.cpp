@@ -1,5 +1,6 @@
 // Colour parameters of pbrt-v4 files as RGB, and warnings.
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
@@ -42,6 +43,24 @@ std::optional<Rgb> get_rgb(const ParamList& params, const std::string& name) {
         if (!std::isfinite(out[c])) throw params.error(name, "must be finite");
     p->used = true;
     return out;
+}
+
+std::optional<Rgb> blackbody_rgb(double kelvin) {
+    if (!(kelvin >= 1667 && kelvin <= 25000)) return std::nullopt;
+    // The chromaticity of the Planckian locus: Kim et al.'s cubic approximation (2002).
+    const double t = kelvin, t2 = t * t, t3 = t2 * t;
+    const double x = t <= 4000 ? -0.2661239e9 / t3 - 0.2343589e6 / t2 + 0.8776956e3 / t + 0.179910
+                               : -3.0258469e9 / t3 + 2.1070379e6 / t2 + 0.2226347e3 / t + 0.240390;
+    const double x2 = x * x, x3 = x2 * x;
+    const double y = t <= 2222   ? -1.1063814 * x3 - 1.34811020 * x2 + 2.18555832 * x - 0.20219683
+                     : t <= 4000 ? -0.9549476 * x3 - 1.37418593 * x2 + 2.09137015 * x - 0.16748867
+                                 : 3.0817580 * x3 - 5.87338670 * x2 + 3.75112997 * x - 0.37001483;
+    // XYZ with Y = 1 (pbrt's photometric normalisation of the light), to linear sRGB.
+    const double X = x / y, Y = 1, Z = (1 - x - y) / y;
+    const Rgb rgb(float(3.2404542 * X - 1.5371385 * Y - 0.4985314 * Z),
+                  float(-0.9692660 * X + 1.8760108 * Y + 0.0415560 * Z),
+                  float(0.0556434 * X - 0.2040259 * Y + 1.0572252 * Z));
+    return Rgb(std::max(rgb.r, 0.0f), std::max(rgb.g, 0.0f), std::max(rgb.b, 0.0f));
 }
 
 }  // namespace render::pbrt

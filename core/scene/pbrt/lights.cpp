@@ -22,9 +22,17 @@ Rgb emission(const ParamList& params, const char* name) {
     if (params.has("power"))
         throw params.error("power", "lights given by their power are not supported yet (use " +
                                         std::string(name) + " and scale)");
-    if (params.type_of(name) == "blackbody")
-        throw params.error(name, "blackbody emission is not supported yet (give rgb)");
-    const Rgb colour = get_rgb(params, name).value_or(Rgb(1.0f));
+    Rgb colour(1.0f);
+    if (params.type_of(name) == "blackbody") {
+        const Param* p = params.find(name);
+        if (p->numbers.size() != 1) throw params.error(name, "expects one temperature (kelvin)");
+        p->used = true;
+        const std::optional<Rgb> c = blackbody_rgb(p->numbers[0]);
+        if (!c) throw params.error(name, "temperatures from 1667 to 25000 K are supported");
+        colour = *c;
+    } else {
+        colour = get_rgb(params, name).value_or(Rgb(1.0f));
+    }
     const double scale = params.get_float("scale", 1.0);
     if (!(scale >= 0)) throw params.error("scale", "must be non-negative");
     return colour * float(scale);
