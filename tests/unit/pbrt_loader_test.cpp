@@ -401,6 +401,10 @@ TEST_F(PbrtTest, MaterialsMapToOurBsdfs) {
     scene = load_world("Material \"dielectric\" \"float eta\" 1.5\n" + tri);
     EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("1.5"), std::string::npos)
         << scene->shapes()[0]->bsdf->to_string();
+    // pbrt's named dispersive BK7: its index at 589 nm, without dispersion.
+    scene = load_world("Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n" + tri);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("1.50"), std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
     // coateddiffuse -> plastic: its diffuse part at normal incidence is below albedo/pi.
     scene = load_world("Material \"coateddiffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n" + tri);
     const Rgb f = f_normal(*scene);

@@ -6,6 +6,7 @@
 
 #include "core/base/properties.h"
 #include "core/materials/bsdf_factory.h"
+#include "core/materials/ior.h"
 #include "core/scene/pbrt/builders.h"
 
 namespace render::pbrt {
@@ -68,6 +69,14 @@ void put_alphas(Properties& props, const Alphas& a, const SourceLocation& where)
 
 // A float `eta`; a named or varying spectrum (dispersion) is refused.
 float read_eta(const ParamList& params, double def) {
+    if (const Param* p = params.find("eta");
+        p && p->type == "spectrum" && p->strings.size() == 1 && p->strings[0] == "glass-BK7") {
+        // pbrt's dispersive BK7; we render without dispersion at BK7's index at 589 nm.
+        p->used = true;
+        warn(p->where,
+             params.context() + ": \"glass-BK7\" is rendered without dispersion (index 1.5046)");
+        return *lookup_dielectric_ior("bk7");
+    }
     if (params.type_of("eta") == "spectrum") {
         if (std::optional<Rgb> c = get_rgb(params, "eta")) return c->r;
     }
