@@ -152,7 +152,7 @@ SCENES: tuple[BenchScene, ...] = (
     BenchScene("scenes/smoke/scene.xml", "smoke", "volpt", 512, GRID_SKIPS, False,
                "heterogeneous smoke grid in a Cornell-like room (volpt only)"),
     # pbrt-v4 scene (docs/scene-format.md, "pbrt-v4 scenes").
-    BenchScene("scenes/bitterli-pbrt/water-caustic/scene-v4.pbrt", "water-caustic", "vcm", 256,
+    BenchScene("scenes/bitterli-pbrt/water-caustic/scene-v4.pbrt", "water-caustic", "vcm", 768,
                {**SURFACE, **NO_VPL, "lt": lt_sees_no_specular("the water surface")}, True,
                "Cornell box under a water surface (dielectric), lit by a tiny bright light: the "
                "floor's caustics are `E S D S L` paths seen through the water (pbrt-v4 file)"),
