@@ -2,11 +2,13 @@
 
 #include <pugixml.hpp>
 
+#include <algorithm>
 #include <set>
 #include <stdexcept>
 #include <system_error>
 
 #include "core/scene/loader/file_resolver.h"
+#include "core/scene/pbrt/scene_loader.h"
 #include "core/util/sha256.h"
 
 namespace render::service {
@@ -174,7 +176,16 @@ SceneBundleInfo collect_bundle(const fs::path& scene_file,
     info.root = scene.parent_path();
     Collector collector(info.root, defines);
     collector.add_file(scene, scene);
-    collector.visit_scene_file(scene, 0);
+    if (scene.extension() == ".pbrt") {
+        // pbrt-v4: Include/Import files and "string filename" parameters, relative to the
+        // scene's folder, as the pbrt loader resolves them.
+        const pbrt::SceneSummary summary = pbrt::summarize(scene);
+        for (const fs::path& file : summary.files) collector.add_file(file, scene);
+        collector.integrator = summary.integrator;
+        collector.sample_count = uint64_t(std::max(1ll, summary.sample_count));
+    } else {
+        collector.visit_scene_file(scene, 0);
+    }
     info.scene_path = scene.filename().generic_string();
     info.files = std::move(collector.files);
     info.integrator = collector.integrator;

@@ -65,7 +65,7 @@ ArgumentParser make_parser(Options& o) {
 std::string usage() {
     Options unused;
     return "usage:\n"
-           "  render SCENE.xml --out FILE.exr [options]\n"
+           "  render SCENE.xml|SCENE.pbrt --out FILE.exr [options]\n"
            "  render --compare TEST.exr REFERENCE.exr\n\n"
            "options:\n" +
            make_parser(unused).help() + "\nalgorithms (--algo):\n" + algorithms_help();

@@ -204,9 +204,23 @@ def run_render(cmd: list[str], *, timeout: Optional[float] = None) -> RenderRun:
 # Scenes
 
 
+def pbrt_film_size(scene: Path) -> tuple[int, int]:
+    """A pbrt-v4 file's Film `xresolution`/`yresolution` (pbrt's 1280x720 when absent)."""
+    text = Path(scene).read_text()
+
+    def value(name: str, default: int) -> int:
+        m = re.search(r'"integer\s+' + name + r'"\s*\[?\s*(\d+)', text)
+        return int(m.group(1)) if m else default
+
+    return value("xresolution", 1280), value("yresolution", 720)
+
+
 def scene_film_size(scene: Path) -> tuple[int, int]:
     """The film size a scene file asks for: its `resx`/`resy` defaults when present,
-    otherwise the film's integer `width`/`height` (Mitsuba's 768x576 when neither is set)."""
+    otherwise the film's integer `width`/`height` (Mitsuba's 768x576 when neither is set).
+    pbrt-v4 files (.pbrt): their Film's resolution."""
+    if Path(scene).suffix == ".pbrt":
+        return pbrt_film_size(scene)
     root = ElementTree.parse(scene).getroot()
     defaults = {d.get("name"): d.get("value") for d in root.iter("default")}
 

@@ -151,6 +151,11 @@ SCENES: tuple[BenchScene, ...] = (
                "(`E M S L` paths; volpt must hit the 2e-5 m^2 light by chance)"),
     BenchScene("scenes/smoke/scene.xml", "smoke", "volpt", 512, GRID_SKIPS, False,
                "heterogeneous smoke grid in a Cornell-like room (volpt only)"),
+    # pbrt-v4 scene (docs/scene-format.md, "pbrt-v4 scenes").
+    BenchScene("scenes/bitterli-pbrt/water-caustic/scene-v4.pbrt", "water-caustic", "vcm", 768,
+               {**SURFACE, **NO_VPL, "lt": lt_sees_no_specular("the water surface")}, True,
+               "Cornell box under a water surface (dielectric), lit by a tiny bright light: the "
+               "floor's caustics are `E S D S L` paths seen through the water (pbrt-v4 file)"),
 )
 
 QUICK_SCENES = ("cornell-box", "glm_c")  # the default scene set of --quick

@@ -15,6 +15,7 @@
 #include <set>
 #include <string>
 
+#include "core/base/error.h"
 #include "core/scene/loader/scene_loader.h"
 
 namespace render::service {
@@ -111,6 +112,48 @@ TEST(ClientBundle, SearchPathsMustStayInTheScenesFolder) {
     EXPECT_NE(message("nowhere").find((dir.path / "scene/m.obj").string() + " (referenced from"),
               std::string::npos)
         << message("nowhere");
+}
+
+}  // namespace
+}  // namespace render::service
+
+namespace render::service {
+namespace {
+
+// A pbrt-v4 scene bundles its Include/Import files and "string filename" files (not Film's
+// output name); copied to a job folder, it loads there, confined to that folder.
+TEST(ClientBundle, PbrtScenesCarryIncludedFilesAndMeshes) {
+    const fs::path root = fs::path(RENDER_SOURCE_DIR) / "scenes/bitterli-pbrt/coffee";
+    const SceneBundleInfo info = collect_bundle(root / "scene-v4.pbrt", {});
+    EXPECT_EQ(info.files.size(), 21u);  // the scene and its 20 PLY meshes
+    EXPECT_EQ(paths_of(info).count("models/Mesh004.ply"), 1u);
+    EXPECT_EQ(info.integrator, "path");
+    EXPECT_EQ(info.sample_count, 64u);
+
+    TempDir dir("client_bundle_test_pbrt");
+    dir.write("scene.pbrt",
+              "Film \"rgb\" \"string filename\" \"out.exr\" \"integer xresolution\" 4 "
+              "\"integer yresolution\" 4\nWorldBegin\nInclude \"inc/shapes.pbrt\"\n");
+    dir.write("inc/shapes.pbrt", "Shape \"plymesh\" \"string filename\" \"m/tri.ply\"\n");
+    dir.write("m/tri.ply",
+              "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+              "end_header\n0 0 1\n1 0 1\n0 1 1\n3 0 1 2\n");
+    const SceneBundleInfo small = collect_bundle(dir.path / "scene.pbrt", {});
+    EXPECT_EQ(paths_of(small),
+              (std::set<std::string>{"scene.pbrt", "inc/shapes.pbrt", "m/tri.ply"}));
+    EXPECT_EQ(small.integrator, "volpath");
+    TempDir job("client_bundle_test_pbrt_job");
+    for (const BundleEntry& e : small.files) {
+        fs::create_directories((job.path / e.path).parent_path());
+        fs::copy_file(e.absolute, job.path / e.path);
+    }
+    auto scene = render::load_scene(job.path / "scene.pbrt", {}, job.path);
+    EXPECT_EQ(scene->shapes().size(), 1u);
+    // A file outside the job's folder is refused.
+    dir.write("escape.pbrt", "WorldBegin\nShape \"plymesh\" \"string filename\" \"../x.ply\"\n");
+    EXPECT_THROW(render::load_scene(dir.path / "escape.pbrt", {}, dir.path), render::SceneError);
+    EXPECT_THROW(collect_bundle(dir.path / "escape.pbrt", {}), std::runtime_error);
 }
 
 }  // namespace

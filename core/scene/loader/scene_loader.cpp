@@ -20,6 +20,7 @@
 #include "core/scene/loader/values.h"
 #include "core/scene/loader/xml_element.h"
 #include "core/scene/loader/xml_file.h"
+#include "core/scene/pbrt/scene_loader.h"
 #include "core/textures/texture_factory.h"
 
 namespace render {
@@ -829,6 +830,15 @@ std::unique_ptr<Scene> load(const XmlFile& file, const std::map<std::string, std
 std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
                                   const std::map<std::string, std::string>& defines,
                                   const std::filesystem::path& confine_to) {
+    if (file.extension() == ".pbrt") {
+        // pbrt-v4 files have no $name parameters.
+        if (!defines.empty())
+            throw SceneError(SourceLocation{file.string(), 0},
+                             "-D " + defines.begin()->first +
+                                 "=...: pbrt files take no parameters (defines are for Mitsuba "
+                                 "files)");
+        return pbrt::load_scene(file, confine_to);
+    }
     std::unique_ptr<XmlFile> xml = XmlFile::load(file);
     return load(*xml, defines, file.string(), confine_to);
 }

@@ -1,0 +1,247 @@
+// pbrt-v4 materials as the BSDFs of the Mitsuba loader (make_bsdf). docs/scene-format.md,
+// "pbrt-v4 scenes", lists each mapping and where our image differs from pbrt's.
+
+#include <cmath>
+#include <iostream>
+
+#include "core/base/properties.h"
+#include "core/materials/bsdf_factory.h"
+#include "core/materials/ior.h"
+#include "core/scene/pbrt/builders.h"
+
+namespace render::pbrt {
+namespace {
+
+// pbrt-v4 treats a microfacet distribution with alphas below this as a perfect specular one.
+constexpr double kSmoothAlpha = 1e-3;
+
+// Reflectance-like parameter `name` (rgb, grey float, constant spectrum or a texture) given to
+// the Mitsuba parameter `to`. False when absent.
+bool put_color(const ParamList& params, const std::string& name, Properties& props,
+               const std::string& to, const TextureTable& textures) {
+    if (!params.has(name)) return false;
+    const SourceLocation where = params.find(name)->where;
+    if (params.type_of(name) == "texture") {
+        const Param* p = params.find(name);
+        p->used = true;
+        if (p->strings.size() != 1) throw params.error(name, "expects one texture name");
+        auto it = textures.spectrum.find(p->strings[0]);
+        if (it == textures.spectrum.end()) {
+            it = textures.floats.find(p->strings[0]);
+            if (it == textures.floats.end())
+                throw params.error(name, "unknown texture \"" + p->strings[0] +
+                                             "\" (a texture must be defined before it is used)");
+        }
+        props.set(to, it->second, where);
+        return true;
+    }
+    props.set(to, *get_rgb(params, name), where);
+    return true;
+}
+
+struct Alphas {
+    double u = 0, v = 0;
+    bool smooth() const { return std::max(u, v) < kSmoothAlpha; }
+};
+
+// roughness / uroughness / vroughness and remaproughness (pbrt-v4: alpha = sqrt(roughness)).
+Alphas read_roughness(const ParamList& params, double def) {
+    for (const char* n : {"roughness", "uroughness", "vroughness"})
+        if (params.type_of(n) == "texture")
+            throw params.error(n, "textured roughness is not supported yet for pbrt materials");
+    const double r = params.get_float("roughness", def);
+    double u = params.get_float("uroughness", r), v = params.get_float("vroughness", r);
+    for (const char* n : {"roughness", "uroughness", "vroughness"})
+        if (params.has(n) && !(params.get_float(n, 0) >= 0))
+            throw params.error(n, "must be non-negative");
+    if (params.get_bool("remaproughness", true)) {
+        u = std::sqrt(u);
+        v = std::sqrt(v);
+    }
+    return {u, v};
+}
+
+void put_alphas(Properties& props, const Alphas& a, const SourceLocation& where) {
+    props.set("distribution", std::string("ggx"), where);  // pbrt's Trowbridge-Reitz
+    props.set("alpha_u", float(a.u), where);
+    props.set("alpha_v", float(a.v), where);
+}
+
+// A float `eta`; a named or varying spectrum (dispersion) is refused.
+float read_eta(const ParamList& params, double def) {
+    if (const Param* p = params.find("eta");
+        p && p->type == "spectrum" && p->strings.size() == 1 && p->strings[0] == "glass-BK7") {
+        // pbrt's dispersive BK7; we render without dispersion at BK7's index at 589 nm.
+        p->used = true;
+        warn(p->where,
+             params.context() + ": \"glass-BK7\" is rendered without dispersion (index 1.5046)");
+        return *lookup_dielectric_ior("bk7");
+    }
+    if (params.type_of("eta") == "spectrum") {
+        if (std::optional<Rgb> c = get_rgb(params, "eta")) return c->r;
+    }
+    if (params.type_of("eta") == "texture")
+        throw params.error("eta", "a textured index of refraction is not supported");
+    const double eta = params.get_float("eta", def);
+    if (!(eta > 0)) throw params.error("eta", "must be positive");
+    return float(eta);
+}
+
+// pbrt-v4's named metal spectra ("metal-Ag-eta", "metal-Ag-k") that our RGB table has.
+std::string metal_of(const ParamList& params, const std::string& name, const char* suffix) {
+    const Param* p = params.find(name);
+    if (!p || p->type != "spectrum" || p->strings.size() != 1) return "";
+    const std::string& s = p->strings[0];
+    const std::string head = "metal-", tail = std::string("-") + suffix;
+    if (s.size() > head.size() + tail.size() && s.rfind(head, 0) == 0 &&
+        s.compare(s.size() - tail.size(), tail.size(), tail) == 0) {
+        const std::string metal = s.substr(head.size(), s.size() - head.size() - tail.size());
+        if (metal == "Au" || metal == "Ag" || metal == "Cu" || metal == "Al" || metal == "Cr") {
+            p->used = true;
+            return metal;
+        }
+    }
+    throw params.error(name, "the spectrum \"" + s +
+                                 "\" is not supported (named metals: metal-Au, metal-Ag, "
+                                 "metal-Cu, metal-Al, metal-Cr with -eta and -k)");
+}
+
+std::shared_ptr<const Bsdf> conductor(const ParamList& params, const SourceLocation& at) {
+    const Alphas a = read_roughness(params, 0.0);
+    Properties props("bsdf", a.smooth() ? "conductor" : "roughconductor", at);
+    if (params.has("reflectance")) {
+        if (params.has("eta") || params.has("k"))
+            throw params.error("reflectance", "give either \"reflectance\" or \"eta\" and \"k\"");
+        if (params.type_of("reflectance") == "texture")
+            throw params.error("reflectance", "a textured conductor reflectance is not supported");
+        // pbrt-v4's artist-friendly conductor: eta 1 and k = 2 sqrt(r) / sqrt(1 - r), whose
+        // normal-incidence Fresnel reflectance is r.
+        const Rgb r = *get_rgb(params, "reflectance");
+        Rgb k;
+        for (int c = 0; c < 3; ++c) {
+            if (!(r[c] >= 0 && r[c] <= 1)) throw params.error("reflectance", "must be in [0, 1]");
+            const float rc = std::min(r[c], 0.9999f);
+            k[c] = 2 * std::sqrt(rc) / std::sqrt(1 - rc);
+        }
+        props.set("eta", Rgb(1.0f), params.find("reflectance")->where);
+        props.set("k", k, params.find("reflectance")->where);
+    } else {
+        // pbrt-v4's default conductor is copper.
+        const std::string eta_metal = metal_of(params, "eta", "eta");
+        const std::string k_metal = metal_of(params, "k", "k");
+        if (!eta_metal.empty() || !k_metal.empty() || (!params.has("eta") && !params.has("k"))) {
+            const std::string metal =
+                eta_metal.empty() ? (k_metal.empty() ? "Cu" : k_metal) : eta_metal;
+            if ((!eta_metal.empty() && eta_metal != metal) ||
+                (!k_metal.empty() && k_metal != metal) ||
+                (params.has("eta") && eta_metal.empty()) || (params.has("k") && k_metal.empty()))
+                throw params.error("k", "\"eta\" and \"k\" must name the same metal");
+            props.set("material", metal, at);
+        } else {
+            if (!params.has("eta") || !params.has("k"))
+                throw params.error(params.has("eta") ? "eta" : "k",
+                                   "give both \"eta\" and \"k\" as rgb (or named metals)");
+            put_color(params, "eta", props, "eta", {});
+            put_color(params, "k", props, "k", {});
+        }
+    }
+    if (!a.smooth()) put_alphas(props, a, at);
+    return make_bsdf(props);
+}
+
+std::shared_ptr<const Bsdf> dielectric(const ParamList& params, const SourceLocation& at,
+                                       bool thin) {
+    const float eta = read_eta(params, 1.5);
+    const Alphas a = thin ? Alphas{} : read_roughness(params, 0.0);
+    Properties props("bsdf",
+                     thin         ? "thindielectric"
+                     : a.smooth() ? "dielectric"
+                                  : "roughdielectric",
+                     at);
+    props.set("int_ior", eta, at);
+    props.set("ext_ior", 1.0f, at);
+    if (!thin && !a.smooth()) put_alphas(props, a, at);
+    return make_bsdf(props);
+}
+
+std::shared_ptr<const Bsdf> coated_diffuse(const ParamList& params, const SourceLocation& at,
+                                           const TextureTable& textures) {
+    Properties props("bsdf", "plastic", at);
+    if (!put_color(params, "reflectance", props, "diffuse_reflectance", textures))
+        props.set("diffuse_reflectance", Rgb(0.5f), at);
+    props.set("int_ior", read_eta(params, 1.5), at);
+    props.set("ext_ior", 1.0f, at);
+    props.set("nonlinear", true, at);
+    const Alphas a = read_roughness(params, 0.0);
+    if (!a.smooth())
+        warn(params.where, params.context() + ": a rough coating (alpha " + std::to_string(a.u) +
+                               ", " + std::to_string(a.v) +
+                               ") is rendered as a smooth plastic coating (no rough plastic yet)");
+    // pbrt's stochastic layer evaluation: no effect on the mean of our analytic plastic.
+    params.get_float("thickness", 0.01);
+    params.get_int("maxdepth", 10);
+    params.get_int("nsamples", 1);
+    params.get_float("g", 0.0);
+    if (std::optional<Rgb> albedo = get_rgb(params, "albedo"); albedo && albedo->max() > 0)
+        throw params.error("albedo", "a scattering medium in the coating is not supported");
+    return make_bsdf(props);
+}
+
+// pbrt's reflective BxDFs act on both sides of a surface (they work in whichever hemisphere wo
+// is); ours are one-sided unless wrapped in `twosided`.
+std::shared_ptr<const Bsdf> two_sided(std::shared_ptr<const Bsdf> bsdf, const SourceLocation& at) {
+    Properties props("bsdf", "twosided", at);
+    props.nested_bsdfs.push_back(std::move(bsdf));
+    return make_bsdf(props);
+}
+
+}  // namespace
+
+std::shared_ptr<const Bsdf> make_material(
+    const std::string& type, const ParamList& params, const TextureTable& textures,
+    const std::map<std::string, std::shared_ptr<const Bsdf>>& named) {
+    const SourceLocation at = params.where;
+    std::shared_ptr<const Bsdf> bsdf;
+    if (type == "diffuse") {
+        Properties props("bsdf", "diffuse", at);
+        put_color(params, "reflectance", props, "reflectance", textures);
+        bsdf = two_sided(make_bsdf(props), at);
+    } else if (type == "conductor") {
+        bsdf = two_sided(conductor(params, at), at);
+    } else if (type == "dielectric") {
+        bsdf = dielectric(params, at, false);
+    } else if (type == "thindielectric") {
+        bsdf = dielectric(params, at, true);
+    } else if (type == "coateddiffuse") {
+        bsdf = two_sided(coated_diffuse(params, at, textures), at);
+    } else if (type == "interface" || type == "") {
+        Properties props("bsdf", "null", at);
+        bsdf = make_bsdf(props);
+    } else if (type == "mix") {
+        const Param* m = params.find("materials");
+        if (!m || m->type != "string" || m->strings.size() != 2)
+            throw params.error("materials", "mix needs \"string materials\" with two names");
+        m->used = true;
+        if (params.type_of("amount") == "texture")
+            throw params.error("amount", "a textured mix amount is not supported yet");
+        const double amount = params.get_float("amount", 0.5);
+        if (amount != 0 && amount != 1)
+            throw params.error("amount",
+                               "blending two materials is not supported yet (only "
+                               "amount 0 or 1, which picks one of them)");
+        const std::string& pick = m->strings[amount == 0 ? 0 : 1];
+        auto it = named.find(pick);
+        if (it == named.end())
+            throw params.error("materials", "unknown named material \"" + pick + "\"");
+        bsdf = it->second;
+    } else if (type == "diffusetransmission" || type == "coatedconductor" || type == "hair" ||
+               type == "measured" || type == "subsurface") {
+        throw SceneError(at, params.context() + ": material \"" + type + "\" is not supported yet");
+    } else {
+        throw SceneError(at, params.context() + ": unknown material \"" + type + "\"");
+    }
+    params.check_all_used();
+    return bsdf;
+}
+
+}  // namespace render::pbrt

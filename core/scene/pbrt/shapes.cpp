@@ -1,0 +1,179 @@
+// pbrt-v4 shapes: trianglemesh, plymesh and bilinearmesh as our TriangleMesh; sphere and disk
+// through the Mitsuba loader's shape factory. docs/scene-format.md, "pbrt-v4 scenes".
+
+#include <cmath>
+
+#include "core/base/properties.h"
+#include "core/mesh_io/ply_reader.h"
+#include "core/scene/loader/shape_factory.h"
+#include "core/scene/pbrt/builders.h"
+#include "core/shapes/triangle_mesh.h"
+
+namespace render::pbrt {
+namespace {
+
+std::vector<Vec3> vec3s(const std::vector<double>& v) {
+    std::vector<Vec3> out(v.size() / 3);
+    for (size_t i = 0; i < out.size(); ++i)
+        out[i] = Vec3(float(v[3 * i]), float(v[3 * i + 1]), float(v[3 * i + 2]));
+    return out;
+}
+
+// pbrt orients a triangle whose mesh has normals towards them (its geometric normal is flipped
+// to the shading normal's side); ours follow the winding. Reverses triangles whose winding
+// disagrees with their vertex normals (object space: TriangleMesh keeps the two consistent
+// under the transform).
+void orient_to_normals(MeshData& mesh) {
+    if (mesh.normals.size() != mesh.positions.size()) return;
+    for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+        const uint32_t a = mesh.indices[t], b = mesh.indices[t + 1], c = mesh.indices[t + 2];
+        if (a >= mesh.positions.size() || b >= mesh.positions.size() || c >= mesh.positions.size())
+            continue;  // TriangleMesh reports the bad index
+        const Vec3 ng =
+            cross(mesh.positions[b] - mesh.positions[a], mesh.positions[c] - mesh.positions[a]);
+        const Vec3 ns = mesh.normals[a] + mesh.normals[b] + mesh.normals[c];
+        if (dot(ng, ns) < 0) std::swap(mesh.indices[t + 1], mesh.indices[t + 2]);
+    }
+}
+
+// uv as pbrt writes them (v up) to our lookups' convention (v = 0 at the image's top), as the
+// Mitsuba loader flips mesh files' v.
+void flip_v(MeshData& mesh) {
+    for (Vec2& uv : mesh.uvs) uv.y = 1.0f - uv.y;
+}
+
+std::unique_ptr<Shape> finish_mesh(MeshData mesh, const ParamList& params,
+                                   const Transform& to_world, bool reverse_orientation) {
+    if (mesh.indices.empty()) throw params.error("indices", "the mesh has no triangles");
+    orient_to_normals(mesh);
+    flip_v(mesh);
+    // Without normals pbrt shades with the geometric normal (flat).
+    const bool flat = mesh.normals.empty();
+    try {
+        return std::make_unique<TriangleMesh>(
+            std::move(mesh), to_world, reverse_orientation, flat,
+            params.context() + " (" + params.where.to_string() + ")");
+    } catch (const SceneError& e) {
+        throw SceneError(params.where, e.what());
+    }
+}
+
+MeshData inline_mesh(const ParamList& params, size_t corners) {
+    MeshData mesh;
+    mesh.positions = vec3s(params.get_numbers("P", {"point3", "point"}, 3));
+    if (mesh.positions.empty()) throw params.error("P", "the vertex positions are required");
+    std::vector<long long> indices = params.get_ints("indices");
+    if (indices.empty()) {
+        if (mesh.positions.size() != corners)
+            throw params.error("indices", "required unless the mesh is a single " +
+                                              std::string(corners == 3 ? "triangle" : "patch"));
+        for (size_t i = 0; i < corners; ++i) indices.push_back((long long)i);
+    }
+    if (indices.size() % corners != 0)
+        throw params.error("indices", "the count, " + std::to_string(indices.size()) +
+                                          ", is not a multiple of " + std::to_string(corners));
+    for (long long i : indices)
+        if (i < 0 || size_t(i) >= mesh.positions.size())
+            throw params.error("indices", "index " + std::to_string(i) + " is out of range (" +
+                                              std::to_string(mesh.positions.size()) + " vertices)");
+    mesh.normals = vec3s(params.get_numbers("N", {"normal", "normal3"}, 3));
+    if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+        throw params.error("N", "one normal per vertex is needed");
+    const std::vector<double> uv = params.get_numbers("uv", {"point2", "float"}, 2);
+    for (size_t i = 0; i + 1 < uv.size(); i += 2)
+        mesh.uvs.emplace_back(float(uv[i]), float(uv[i + 1]));
+    if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+        throw params.error("uv", "one uv per vertex is needed");
+    if (corners == 3) {
+        for (long long i : indices) mesh.indices.push_back(uint32_t(i));
+        params.get_ints("faceIndices");  // per-face ids for Ptex: no effect here
+        return mesh;
+    }
+    // Bilinear patches (p00, p10, p01, p11) as two triangles; only planar patches, which the
+    // triangles reproduce exactly.
+    for (size_t q = 0; q < indices.size(); q += 4) {
+        const uint32_t v[4] = {uint32_t(indices[q]), uint32_t(indices[q + 1]),
+                               uint32_t(indices[q + 2]), uint32_t(indices[q + 3])};
+        const Vec3 &p00 = mesh.positions[v[0]], &p10 = mesh.positions[v[1]],
+                   &p01 = mesh.positions[v[2]], &p11 = mesh.positions[v[3]];
+        const Vec3 n = cross(p10 - p00, p01 - p00);
+        const float size = std::max(length(p10 - p00), length(p01 - p00));
+        const float len = length(n);
+        if (len > 0 && std::abs(dot(n / len, p11 - p00)) > 1e-4f * size)
+            throw params.error("P", "bilinear patch " + std::to_string(q / 4) +
+                                        " is not planar (only planar patches are supported)");
+        for (uint32_t i : {v[0], v[1], v[3], v[0], v[3], v[2]}) mesh.indices.push_back(i);
+    }
+    return mesh;
+}
+
+void refuse_partial(const ParamList& params, const char* name, double full) {
+    if (params.get_float(name, full) != full)
+        throw params.error(name, "partial shapes are not supported yet");
+}
+
+}  // namespace
+
+std::unique_ptr<Shape> make_shape(
+    const std::string& type, const ParamList& params, const Transform& to_world,
+    bool reverse_orientation,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
+    std::unique_ptr<Shape> shape;
+    if (type == "trianglemesh" || type == "bilinearmesh") {
+        if (params.has("S")) throw params.error("S", "per-vertex tangents are not supported");
+        shape = finish_mesh(inline_mesh(params, type == "trianglemesh" ? 3 : 4), params, to_world,
+                            reverse_orientation);
+    } else if (type == "plymesh") {
+        const std::string name = params.get_string("filename", "");
+        if (name.empty()) throw params.error("filename", "a file name is required");
+        const std::filesystem::path path = resolve(params, "filename");
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec))
+            throw params.error("filename", "mesh file not found: " + path.string());
+        MeshData mesh;
+        try {
+            mesh = read_ply(path);
+        } catch (const SceneError& e) {
+            throw params.error("filename", e.what());
+        }
+        if (params.has("displacement"))
+            throw params.error("displacement", "displacement is not supported");
+        shape = finish_mesh(std::move(mesh), params, to_world, reverse_orientation);
+    } else if (type == "sphere") {
+        // pbrt flips a quadric's normal when the transform swaps handedness (a mirrored sphere
+        // faces inwards), as well as for ReverseOrientation.
+        const bool flip = reverse_orientation != (to_world.determinant3x3() < 0);
+        Properties props("shape", "sphere", params.where);
+        props.set("radius", float(params.get_float("radius", 1.0)), params.where);
+        refuse_partial(params, "zmin", -params.get_float("radius", 1.0));
+        refuse_partial(params, "zmax", params.get_float("radius", 1.0));
+        refuse_partial(params, "phimax", 360.0);
+        props.set("to_world", to_world, params.where);
+        props.set("flip_normals", flip, params.where);
+        shape = render::make_shape(props, {});
+    } else if (type == "disk") {
+        const double radius = params.get_float("radius", 1.0),
+                     height = params.get_float("height", 0);
+        if (!(radius > 0)) throw params.error("radius", "must be positive");
+        refuse_partial(params, "innerradius", 0.0);
+        refuse_partial(params, "phimax", 360.0);
+        const bool flip = reverse_orientation != (to_world.determinant3x3() < 0);  // as sphere
+        Properties props("shape", "disk", params.where);
+        props.set("to_world",
+                  to_world * Transform::translate(Vec3(0, 0, float(height))) *
+                      Transform::scale(Vec3(float(radius), float(radius), 1)),
+                  params.where);
+        props.set("flip_normals", flip, params.where);
+        shape = render::make_shape(props, {});
+    } else if (type == "cylinder" || type == "curve" || type == "loopsubdiv") {
+        throw SceneError(params.where,
+                         params.context() + ": shape \"" + type + "\" is not supported yet");
+    } else {
+        throw SceneError(params.where, params.context() + ": unknown shape \"" + type + "\"");
+    }
+    if (params.has("alpha")) throw params.error("alpha", "alpha cut-outs are not supported yet");
+    params.check_all_used();
+    return shape;
+}
+
+}  // namespace render::pbrt
