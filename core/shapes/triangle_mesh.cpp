@@ -46,12 +46,16 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
         for (size_t i = 0; i + 2 < indices_.size(); i += 3)
             std::swap(indices_[i + 1], indices_[i + 2]);
     std::vector<float> areas(triangle_count());
+    face_normals_.resize(triangle_count());
     double total = 0;
     for (size_t i = 0; i < triangle_count(); ++i) {
         const Vec3& p0 = positions_[indices_[3 * i]];
         const Vec3& p1 = positions_[indices_[3 * i + 1]];
         const Vec3& p2 = positions_[indices_[3 * i + 2]];
-        float a = 0.5f * length(cross(p1 - p0, p2 - p0));
+        const Vec3 ng = cross(p1 - p0, p2 - p0);
+        const float len = length(ng);
+        if (len > 0) face_normals_[i] = flip_normals_ ? -(ng / len) : ng / len;
+        float a = 0.5f * len;
         areas[i] = std::isfinite(a) ? a : 0.0f;
         total += areas[i];
     }
@@ -90,10 +94,11 @@ void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, f
     // ray origin.
     si.p = p0 * b0 + p1 * u + p2 * v;
     si.t = t;
-    Vec3 ng = cross(p1 - p0, p2 - p0);
-    float len = length(ng);
-    ng = len > 0 ? ng / len : (ray.direction * -1.0f);  // degenerate: face the ray
-    if (flip_normals_) ng = -ng;
+    Vec3 ng = face_normals_[prim_id];
+    if (ng.x == 0 && ng.y == 0 && ng.z == 0) {  // degenerate: face the ray
+        ng = ray.direction * -1.0f;
+        if (flip_normals_) ng = -ng;
+    }
     si.geometric_normal = ng;
 
     Vec3 ns = ng;

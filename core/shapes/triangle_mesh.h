@@ -48,6 +48,9 @@ class TriangleMesh final : public Shape {
     Vec2 uv_of(size_t tri, float b1, float b2) const;
 
     std::vector<Vec3> positions_;
+    // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate
+    // one: computed once here instead of at every hit (a cross product and a square root).
+    std::vector<Vec3> face_normals_;
     std::vector<Vec3> normals_;
     std::vector<Vec2> uvs_;
     std::vector<uint32_t> indices_;
