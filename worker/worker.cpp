@@ -251,12 +251,19 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     // Assets and scene.
     const Scene* scene = nullptr;
     RenderSettings settings;
+    std::string job_prefix;  // the job's folder in this worker's cache, with a trailing '/'
     try {
         std::filesystem::path scene_file = cache_.prepare_job(
             lease.job_id(), lease.bundle(),
             [this](const std::string& sha, const std::function<void(const std::string&)>& sink) {
                 return fetch_asset(sha, sink);
             });
+        std::filesystem::path job_dir = scene_file;
+        for (const auto& part : std::filesystem::path(lease.bundle().scene_path())) {
+            (void)part;
+            job_dir = job_dir.parent_path();
+        }
+        job_prefix = job_dir.string() + "/";
         scene = &scene_for(lease, scene_file);
         // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
@@ -264,7 +271,13 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                                            request_options(s), scene->settings);
         settings.threads = options_.threads;
     } catch (const std::exception& e) {
-        return fail(e.what());
+        // Files named as in the client's bundle (as the server's submit errors do), not by
+        // this worker's cache folder, which the job's owner cannot see.
+        std::string what = e.what();
+        if (!job_prefix.empty())
+            for (size_t at; (at = what.find(job_prefix)) != std::string::npos;)
+                what.erase(at, job_prefix.size());
+        return fail(what);
     }
 
     // Render in a thread, one iteration per call (the sum equals one call over the range, and

@@ -582,7 +582,8 @@ class Cluster:
 
     # -- workers
 
-    def start_worker(self, threads=1, token=None, extra=()):
+    def start_worker(self, threads=1, token=None, extra=(), env=None):
+        """A worker process; `env`: variables added to this environment for it."""
         self._n_worker += 1
         n = self._n_worker
         cache = os.path.join(self.dir, f"cache-{n}")
@@ -593,7 +594,8 @@ class Cluster:
         if token:
             args += ["--token", token]
         args += list(extra)
-        proc = Proc(f"worker#{n}", args, os.path.join(self.dir, f"worker-{n}.log"))
+        proc = Proc(f"worker#{n}", args, os.path.join(self.dir, f"worker-{n}.log"),
+                    env={**os.environ, **env} if env else None)
         self.workers.append(proc)
         self.procs.append(proc)
         return proc
