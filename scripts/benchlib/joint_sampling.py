@@ -131,6 +131,28 @@ def measure_arm(binary, flags, resolution, threads, workdir, cfg, algo="volpt", 
             "mean": float(np.stack(m["images"]).mean()), "command": commands[-1]}
 
 
+def compare_arms(lines, title, what, arms, off_name, on_name, of_what, technique):
+    """Appends a section comparing two measured arms (their table and the equal-time RMSE
+    ratio sqrt((v t)_off / (v t)_on)) to `lines`; returns the ratio and its standard error."""
+    for arm, m in arms.items():
+        print(f"  {title[:60]:60s} {arm:9s} v {m['v']:.4g} ± {m['v_se']:.2g}  "
+              f"t {m['t']:.4f} s", flush=True)
+    off, on = arms[off_name], arms[on_name]
+    ratio = math.sqrt((off["v"] * off["t"]) / (on["v"] * on["t"]))
+    ratio_se = 0.5 * ratio * math.hypot(off["v_se"] / off["v"], on["v_se"] / on["v"])
+    lines += [f"## {title}", "", f"Timing command ({on_name}): `{' '.join(on['command'])}`", "",
+              f"| arm | mean of {what} | variance of one iteration v (± SE) | "
+              "seconds per iteration t | v·t |", "| --- | --- | --- | --- | --- |"]
+    for arm, m in arms.items():
+        lines.append(f"| {arm} | {m['mean']:.4g} | {m['v']:.4g} ± {m['v_se']:.2g} | "
+                     f"{m['t']:.4f} | {m['v'] * m['t']:.4g} |")
+    lines += ["", f"Equal-time RMSE({off_name}) / RMSE({on_name}){' ' + of_what if of_what else ''}"
+              f" = sqrt((v·t)_off / (v·t)_on) = **{ratio:.2f} ± {ratio_se:.2f}**; per "
+              f"iteration {technique} costs {on['t'] / off['t']:.2f}× and has "
+              f"{on['v'] / off['v']:.3f}× the variance.", ""]
+    return ratio, ratio_se
+
+
 def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     binary = common.render_binary(build_dir)
     workdir = Path(tempfile.mkdtemp(prefix="bench-joint-sampling-"))
@@ -154,52 +176,20 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
              + f"{' (quick mode)' if quick else ''}.", ""]
     verdicts = {}
     for variant, defines in VARIANTS.items():
-        arms = {}
-        for arm, flags in ARMS.items():
-            arms[arm] = measure_arm(binary, [*defines, *flags], resolution, threads, workdir,
-                                    cfg)
-            m = arms[arm]
-            print(f"  fog box {variant:9s} {arm:7s} v {m['v']:.4g} ± {m['v_se']:.2g}  "
-                  f"t {m['t']:.4f} s", flush=True)
-        off, on = arms["jis off"], arms["jis on"]
-        ratio = math.sqrt((off["v"] * off["t"]) / (on["v"] * on["t"]))
-        ratio_se = 0.5 * ratio * math.hypot(off["v_se"] / off["v"], on["v_se"] / on["v"])
-        verdicts[variant] = (ratio, ratio_se)
-        lines += [f"## Fog box, {variant}", "",
-                  f"Timing command (jis on): `{' '.join(on['command'])}`", "",
-                  f"| arm | mean of the {LAYER} layer | variance of one iteration v (± SE) | "
-                  "seconds per iteration t | v·t |", "| --- | --- | --- | --- | --- |"]
-        for arm, m in arms.items():
-            lines.append(f"| {arm} | {m['mean']:.4g} | {m['v']:.4g} ± {m['v_se']:.2g} | "
-                         f"{m['t']:.4f} | {m['v'] * m['t']:.4g} |")
-        lines += ["", f"Equal-time RMSE(jis off) / RMSE(jis on) of double scattering = "
-                  f"sqrt((v·t)_off / (v·t)_on) = **{ratio:.2f} ± {ratio_se:.2f}**; per "
-                  f"iteration joint sampling costs {on['t'] / off['t']:.2f}× and has "
-                  f"{on['v'] / off['v']:.3f}× the variance.", ""]
+        verdicts[variant] = compare_arms(
+            lines, f"Fog box, {variant}", f"the {LAYER} layer",
+            {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg)
+             for arm, flags in ARMS.items()},
+            "jis off", "jis on", "of double scattering", "joint sampling")
     bpt_verdicts = {}
     for case, (defines, vertices) in BPT_CASES.items():
-        arms = {}
-        for arm, flags in BPT_ARMS.items():
-            arms[arm] = measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg,
-                                    algo="bpt", vertices=vertices)
-            m = arms[arm]
-            print(f"  fog box bpt {case:32s} {arm:9s} v {m['v']:.4g} ± {m['v_se']:.2g}  "
-                  f"t {m['t']:.4f} s", flush=True)
-        off, on = arms["bpt"], arms["bpt + J1"]
-        ratio = math.sqrt((off["v"] * off["t"]) / (on["v"] * on["t"]))
-        ratio_se = 0.5 * ratio * math.hypot(off["v_se"] / off["v"], on["v_se"] / on["v"])
-        bpt_verdicts[case] = (ratio, ratio_se)
-        what = "the image" if vertices is None else f"paths of {vertices} vertices"
-        lines += [f"## bpt with and without J1 connections, isotropic fog box, {case}", "",
-                  f"Timing command (J1 on): `{' '.join(on['command'])}`", "",
-                  f"| arm | mean of {what} | variance of one iteration v (± SE) | "
-                  "seconds per iteration t | v·t |", "| --- | --- | --- | --- | --- |"]
-        for arm, m in arms.items():
-            lines.append(f"| {arm} | {m['mean']:.4g} | {m['v']:.4g} ± {m['v_se']:.2g} | "
-                         f"{m['t']:.4f} | {m['v'] * m['t']:.4g} |")
-        lines += ["", f"Equal-time RMSE(bpt) / RMSE(bpt + J1) = **{ratio:.2f} ± "
-                  f"{ratio_se:.2f}**; per iteration J1 costs {on['t'] / off['t']:.2f}× and has "
-                  f"{on['v'] / off['v']:.3f}× the variance.", ""]
+        bpt_verdicts[case] = compare_arms(
+            lines, f"bpt with and without J1 connections, isotropic fog box, {case}",
+            "the image" if vertices is None else f"paths of {vertices} vertices",
+            {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg,
+                              algo="bpt", vertices=vertices)
+             for arm, flags in BPT_ARMS.items()},
+            "bpt", "bpt + J1", "", "J1")
     ratio, ratio_se = verdicts["isotropic"]
     lines += ["## The claim", "",
               f"- Isotropic fog box: {ratio:.2f} ± {ratio_se:.2f}× lower double-scattering RMSE "

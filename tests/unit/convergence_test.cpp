@@ -16,6 +16,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/block_estimate.h"
 #include "tests/support/statistics.h"
 
 namespace render {
@@ -26,10 +27,7 @@ constexpr int kBlocksPerSide = 2;
 constexpr int kBatches = 32;
 constexpr double kStandardErrors = 5.0;
 
-struct BlockEstimate {
-    std::vector<double> mean;            // [block * 3 + channel]
-    std::vector<double> standard_error;  // of the mean
-};
+using testing::BlockEstimate;
 
 BlockEstimate render_blocks(const Scene& scene, const std::string& algorithm,
                             int iterations_per_batch, const OptionMap& options = {},
@@ -42,30 +40,8 @@ BlockEstimate render_blocks(const Scene& scene, const std::string& algorithm,
     // hundreds of times more iterations for the same precision. The radius bias stays far
     // below the tolerance at the block level (blocks are 16 x 16 pixels).
     settings.radius_factor = 0.01;
-    const int blocks = kBlocksPerSide * kBlocksPerSide, block_size = kResolution / kBlocksPerSide;
-    std::vector<std::vector<double>> batch_means(kBatches, std::vector<double>(blocks * 3, 0.0));
-    for (int b = 0; b < kBatches; ++b) {
-        const uint64_t first = 1 + uint64_t(b) * iterations_per_batch;
-        IterationResult r = render_iterations(scene, settings, 0,
-                                              IterationRange{first, first + iterations_per_batch});
-        EXPECT_EQ(r.stats.non_finite, 0u) << algorithm;
-        for (int y = 0; y < kResolution; ++y)
-            for (int x = 0; x < kResolution; ++x) {
-                const int block = (y / block_size) * kBlocksPerSide + x / block_size;
-                for (int c = 0; c < 3; ++c)
-                    batch_means[b][block * 3 + c] +=
-                        r.sum.channel(size_t(y) * kResolution + x, c) /
-                        (double(iterations_per_batch) * block_size * block_size);
-            }
-    }
-    BlockEstimate e{std::vector<double>(blocks * 3, 0.0), std::vector<double>(blocks * 3, 0.0)};
-    for (int i = 0; i < blocks * 3; ++i) {
-        testing::MeanAccumulator m;
-        for (int b = 0; b < kBatches; ++b) m.add(batch_means[b][i]);
-        e.mean[i] = m.mean();
-        e.standard_error[i] = m.standard_error();
-    }
-    return e;
+    return testing::render_block_estimate(scene, settings, kBatches, iterations_per_batch,
+                                          kBlocksPerSide);
 }
 
 // Photon mapping is far noisier per iteration on glossy and small scenes (1024 photons per

@@ -25,6 +25,7 @@
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "tests/support/block_estimate.h"
 #include "tests/support/statistics.h"
 
 namespace render {
@@ -38,10 +39,7 @@ constexpr double kStandardErrors = 5.0;
 
 const std::string kScenes = std::string(RENDER_SOURCE_DIR) + "/scenes/";
 
-struct BlockEstimate {
-    std::vector<double> mean;            // [block * 3 + channel]
-    std::vector<double> standard_error;  // of the mean
-};
+using testing::BlockEstimate;
 
 std::unique_ptr<Scene> load_small(const std::string& file, int resolution) {
     std::unique_ptr<Scene> scene = load_scene(kScenes + file);
@@ -52,34 +50,10 @@ std::unique_ptr<Scene> load_small(const std::string& file, int resolution) {
 BlockEstimate render_blocks(const Scene& scene, uint64_t seed) {
     RenderSettings settings = resolve_render_settings("pt", {}, scene.settings);
     settings.seed = seed;
-    const int blocks = kBlocksPerSide * kBlocksPerSide, block_size = kResolution / kBlocksPerSide;
-    std::vector<std::vector<double>> batch_means(kBatches, std::vector<double>(blocks * 3, 0.0));
-    for (int b = 0; b < kBatches; ++b) {
-        const uint64_t first = 1 + uint64_t(b) * kIterationsPerBatch;
-        IterationResult r = render_iterations(scene, settings, 0,
-                                              IterationRange{first, first + kIterationsPerBatch});
-        EXPECT_EQ(r.stats.non_finite, 0u);
-        for (int y = 0; y < kResolution; ++y)
-            for (int x = 0; x < kResolution; ++x) {
-                const int block = (y / block_size) * kBlocksPerSide + x / block_size;
-                for (int c = 0; c < 3; ++c)
-                    batch_means[b][block * 3 + c] +=
-                        r.sum.channel(size_t(y) * kResolution + x, c) /
-                        (double(kIterationsPerBatch) * block_size * block_size);
-            }
-    }
-    BlockEstimate e{std::vector<double>(blocks * 3, 0.0), std::vector<double>(blocks * 3, 0.0)};
-    for (int i = 0; i < blocks * 3; ++i) {
-        testing::MeanAccumulator m;
-        for (int b = 0; b < kBatches; ++b) m.add(batch_means[b][i]);
-        e.mean[i] = m.mean();
-        e.standard_error[i] = m.standard_error();
-    }
-    return e;
+    return testing::render_block_estimate(scene, settings, kBatches, kIterationsPerBatch,
+                                          kBlocksPerSide);
 }
 
-// The blocks whose means differ by more than kStandardErrors combined standard errors when
-// `b`'s means are multiplied by `scale`.
 std::vector<std::string> differing_blocks(const BlockEstimate& a, const BlockEstimate& b,
                                           double scale) {
     std::vector<std::string> out;

@@ -69,6 +69,15 @@ struct ManagerTest : ::testing::Test {
     }
 
     // Renders a lease like a worker would and reports it.
+    // Asks for a lease as worker `worker` (granted or not).
+    static v1::LeaseReply lease_for(JobManager& m, const std::string& worker) {
+        v1::LeaseRequest lr;
+        lr.set_worker_id(worker);
+        v1::LeaseReply reply;
+        EXPECT_TRUE(m.lease(lr, &reply).ok());
+        return reply;
+    }
+
     bool render_and_report(JobManager& m, const v1::Lease& lease) {
         auto scene = render::load_scene_from_string(kScene, ".");
         render::RenderSettings s;
@@ -303,13 +312,7 @@ TEST_F(ManagerTest, LeasesFailedOnThreeWorkersFailTheJob) {
     JobManager m(options);
     v1::Job job;
     ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
-    auto lease_for = [&](const std::string& worker) {
-        v1::LeaseRequest lr;
-        lr.set_worker_id(worker);
-        v1::LeaseReply reply;
-        EXPECT_TRUE(m.lease(lr, &reply).ok());
-        return reply;
-    };
+    auto lease_for = [&](const std::string& worker) { return ManagerTest::lease_for(m, worker); };
     auto fail = [&](const std::string& worker, const v1::LeaseReply& lease,
                     const std::string& error) {
         v1::HeartbeatRequest hb;
@@ -364,13 +367,7 @@ TEST_F(ManagerTest, LeasesLostOnThreeWorkersFailTheJob) {
     JobManager m(options, [&] { return now; });
     v1::Job job;
     ASSERT_TRUE(m.submit(request(m, 200), &job).ok());
-    auto lease_for = [&](const std::string& worker) {
-        v1::LeaseRequest lr;
-        lr.set_worker_id(worker);
-        v1::LeaseReply reply;
-        EXPECT_TRUE(m.lease(lr, &reply).ok());
-        return reply;
-    };
+    auto lease_for = [&](const std::string& worker) { return ManagerTest::lease_for(m, worker); };
     auto expire_all = [&] {
         now += std::chrono::seconds(int(options.lease_timeout_seconds) + 1);
         m.tick();
