@@ -171,10 +171,8 @@ int render_scene(const Options& o) {
                  total ? (std::to_string(*total) + " iterations").c_str() : "time budget",
                  load_seconds);
 
-    IterationResult accumulated;
-    accumulated.sum = AccumulationBuffer(width, height);
-    accumulated.odd_sum = AccumulationBuffer(width, height);
-    accumulated.layers = TechniqueLayers(settings.layers, width, height);
+    IterationRenderer renderer(*scene, settings, 0);
+    IterationResult accumulated = renderer.empty_result();
     Progress progress(total, o.job.seconds);
     auto t0 = Clock::now();
     double elapsed = 0;
@@ -183,13 +181,7 @@ int render_scene(const Options& o) {
     for (uint64_t i = 1;; ++i) {
         if (total && i > *total) break;
         if (o.job.seconds && elapsed >= *o.job.seconds && i > 1) break;
-        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{i, i + 1});
-        accumulated.sum.add(r.sum);
-        accumulated.odd_sum.add(r.odd_sum);
-        accumulated.count += r.count;
-        accumulated.odd_count += r.odd_count;
-        accumulated.stats += r.stats;
-        accumulated.layers.add(r.layers);
+        renderer.add(IterationRange{i, i + 1}, accumulated);
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
         if (o.job.target_error && accumulated.count >= kMinTargetErrorIterations &&

@@ -300,29 +300,31 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     auto t0 = Clock::now();
     std::thread renderer([&] {
         try {
+            // One renderer for the range: its integrator, arena and buffers are made once,
+            // and each iteration adds to `sums` (no full-frame allocation or copy per
+            // iteration).
+            IterationRenderer iterations(*scene, settings, lease.frame());
+            IterationResult sums = iterations.empty_result();
             for (uint64_t i = first; i < end && !abandon.load(); ++i) {
-                IterationResult r = render_iterations(*scene, settings, lease.frame(), {i, i + 1});
-                const std::vector<double>& sum = r.sum.values();
-                const std::vector<double>& odd = r.odd_sum.values();
-                // The iteration contract sizes both buffers by the scene's camera; anything else
-                // is a broken build or a bug, never to be read past the end.
-                if (sum.size() != values || odd.size() != values)
-                    throw std::runtime_error("iteration result has " + std::to_string(sum.size()) +
-                                             " values, expected " + std::to_string(values));
-                for (size_t k = 0; k < values; ++k) result.sum[k] += sum[k];
-                if (r.odd_count > 0)
-                    for (size_t k = 0; k < values; ++k) result.odd_sum[k] += odd[k];
-                for (size_t l = 0; l < result.layers.size(); ++l) {
-                    const std::vector<double>& layer = r.layers.buffer(l).values();
-                    for (size_t k = 0; k < values; ++k) result.layers[l][k] += layer[k];
-                }
-                result.count += r.count;
-                result.odd_count += r.odd_count;
-                result.stats += r.stats;
-                done_samples = result.stats.samples;
-                done_rays = result.stats.rays;
-                done_iterations = result.count;
+                iterations.add({i, i + 1}, sums);
+                done_samples = sums.stats.samples;
+                done_rays = sums.stats.rays;
+                done_iterations = sums.count;
             }
+            // The iteration contract sizes the buffers by the scene's camera; anything else is a
+            // broken build or a bug, never to be sent.
+            if (sums.sum.values().size() != values || sums.odd_sum.values().size() != values ||
+                sums.layers.size() != result.layers.size())
+                throw std::runtime_error("iteration result has " +
+                                         std::to_string(sums.sum.values().size()) +
+                                         " values, expected " + std::to_string(values));
+            result.sum = std::move(sums.sum.values());
+            result.odd_sum = std::move(sums.odd_sum.values());
+            for (size_t l = 0; l < result.layers.size(); ++l)
+                result.layers[l] = std::move(sums.layers.buffer(l).values());
+            result.count = sums.count;
+            result.odd_count = sums.odd_count;
+            result.stats = sums.stats;
         } catch (const std::exception& e) {
             error = e.what();
         }

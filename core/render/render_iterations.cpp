@@ -10,36 +10,72 @@
 
 namespace render {
 
-IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,
-                                  uint32_t frame, IterationRange range) {
-    if (range.first < 1 || range.end <= range.first)
-        throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
-                                    ", " + std::to_string(range.end) + ")");
-    std::unique_ptr<Integrator> integrator = make_integrator(settings);
+struct IterationRenderer::State {
+    const Scene& scene;
+    RenderSettings settings;
+    uint32_t frame;
+    std::unique_ptr<Integrator> integrator;
+    AccumulationBuffer iteration_image;
+    tbb::task_arena arena;
+
+    State(const Scene& s, const RenderSettings& rs, uint32_t f)
+        : scene(s),
+          settings(rs),
+          frame(f),
+          integrator(make_integrator(rs)),
+          iteration_image(s.camera().width(), s.camera().height()),
+          arena(rs.threads > 0 ? rs.threads : tbb::task_arena::automatic) {}
+};
+
+IterationRenderer::IterationRenderer(const Scene& scene, const RenderSettings& settings,
+                                     uint32_t frame)
+    : state_(std::make_unique<State>(scene, settings, frame)) {
     check_algorithm_supports_scene(settings.algorithm, scene);
-    const int width = scene.camera().width(), height = scene.camera().height();
+}
+
+IterationRenderer::~IterationRenderer() = default;
+
+IterationResult IterationRenderer::empty_result() const {
+    const int width = state_->scene.camera().width(), height = state_->scene.camera().height();
     IterationResult result;
     result.sum = AccumulationBuffer(width, height);
     result.odd_sum = AccumulationBuffer(width, height);
-    result.layers = TechniqueLayers(settings.layers, width, height);
-    AccumulationBuffer iteration_image(width, height);
-    tbb::task_arena arena(settings.threads > 0 ? settings.threads : tbb::task_arena::automatic);
-    arena.execute([&] {
+    result.layers = TechniqueLayers(state_->settings.layers, width, height);
+    return result;
+}
+
+void IterationRenderer::add(IterationRange range, IterationResult& result) {
+    if (range.first < 1 || range.end <= range.first)
+        throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
+                                    ", " + std::to_string(range.end) + ")");
+    State& s = *state_;
+    AccumulationBuffer& image = s.iteration_image;
+    s.arena.execute([&] {
         for (uint64_t i = range.first; i < range.end; ++i) {
-            std::fill(iteration_image.values().begin(), iteration_image.values().end(), 0.0);
+            std::fill(image.values().begin(), image.values().end(), 0.0);
             // Layers are sums like the image; each pixel is written by one task per iteration,
             // so they accumulate directly.
-            integrator->render_iteration(
-                scene, IterationKey{settings.seed, frame, i}, iteration_image,
+            s.integrator->render_iteration(
+                s.scene, IterationKey{s.settings.seed, s.frame, i}, image,
                 result.layers.enabled() ? &result.layers : nullptr, result.stats);
-            result.sum.add(iteration_image);
+            result.sum.add(image);
             if (i % 2 == 1) {
-                result.odd_sum.add(iteration_image);
+                result.odd_sum.add(image);
                 ++result.odd_count;
             }
             ++result.count;
         }
     });
+}
+
+IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,
+                                  uint32_t frame, IterationRange range) {
+    if (range.first < 1 || range.end <= range.first)
+        throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
+                                    ", " + std::to_string(range.end) + ")");
+    IterationRenderer renderer(scene, settings, frame);
+    IterationResult result = renderer.empty_result();
+    renderer.add(range, result);
     return result;
 }
 

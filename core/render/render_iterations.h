@@ -4,6 +4,7 @@
 // a pure function of (scene, settings, frame, [first, end)).
 
 #include <cstdint>
+#include <memory>
 
 #include "core/image/image.h"
 #include "core/image/technique_layers.h"
@@ -31,6 +32,31 @@ struct IterationResult {
 // Throws std::invalid_argument for an unknown algorithm or an empty/invalid range.
 IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,
                                   uint32_t frame, IterationRange range);
+
+class Integrator;
+
+// The same, for callers that render a frame a few iterations at a time (render's progress bar
+// and time budget, a worker's cancellation between iterations): the integrator, the thread
+// arena and the per-iteration image are made once, and each call adds to the caller's result,
+// so no call allocates a full-frame buffer (per-call buffers cost page faults every
+// iteration). add(r1), add(r2) gives exactly what render_iterations over r1 then r2 adds.
+class IterationRenderer {
+  public:
+    // Throws as render_iterations does for an unknown algorithm or an unsupported scene.
+    IterationRenderer(const Scene& scene, const RenderSettings& settings, uint32_t frame);
+    ~IterationRenderer();
+    IterationRenderer(const IterationRenderer&) = delete;
+    IterationRenderer& operator=(const IterationRenderer&) = delete;
+
+    // An empty result with the frame's buffers (and layers, if the settings ask for them).
+    IterationResult empty_result() const;
+    // Renders `range` and adds it to `result` (made by empty_result()).
+    void add(IterationRange range, IterationResult& result);
+
+  private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 // Estimated relative error of the mean image from the even/odd half sums: the RMS of the
 // difference of the two half means over the RMS of the full mean (0 if black).
