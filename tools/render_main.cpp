@@ -36,6 +36,7 @@ struct Options {
     std::string png;
     JobOptions job;  // algorithm, iterations, time, film, defines, render options
     int threads = 0;
+    uint32_t frame = 0;  // the frame index of the random numbers (a service job's frame)
     bool help = false;
     bool describe = false;
 };
@@ -50,6 +51,11 @@ ArgumentParser make_parser(Options& o) {
                 o.threads = parse_number<int>("--threads", v);
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
             });
+    p.value({"--frame"}, "F",
+            "render as frame F of a job (an animation's frame index, from 0, seeds the random "
+            "numbers with the seed); with that frame's -D defines the image equals the "
+            "service's frame F (default 0)",
+            [&](const std::string& v) { o.frame = parse_number<uint32_t>("--frame", v); });
     p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
             [&](const std::string& v) { o.png = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
@@ -183,7 +189,7 @@ int render_scene(const Options& o) {
     for (uint64_t i = 1;; ++i) {
         if (total && i > *total) break;
         if (o.job.seconds && elapsed >= *o.job.seconds && i > 1) break;
-        IterationResult r = render_iterations(*scene, settings, 0, IterationRange{i, i + 1});
+        IterationResult r = render_iterations(*scene, settings, o.frame, IterationRange{i, i + 1});
         accumulated.sum.add(r.sum);
         accumulated.odd_sum.add(r.odd_sum);
         accumulated.count += r.count;
