@@ -6,6 +6,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <stdexcept>
 
 #include "core/base/error.h"
 #include "core/image/exr_io.h"
@@ -81,6 +82,11 @@ std::map<std::string, std::string> frame_defines(const v1::SubmitJobRequest& req
         for (const auto& [k, v] : request.frames(int(frame)).defines()) defines[k] = v;
     return defines;
 }
+
+// Thrown when loading an animation's frames at submit would take too long.
+struct ValidationBudgetExceeded : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
 
 // The frame's own overrides (without the job's defines), sorted by name.
 std::map<std::string, std::string> frame_overrides(const v1::SubmitJobRequest& request,
@@ -276,11 +282,32 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         s->set_height(uint32_t(height));
         // Every other frame's defines must give a scene that loads and that the algorithm
         // renders. Frames with the same defines as an earlier one give the same scene.
+        // Loads cost time (a 320k-triangle OBJ takes about 0.4 s); an animation whose loads
+        // would exceed options_.submit_validation_seconds, estimated from the average so far,
+        // is refused before the budget is spent.
         std::set<std::map<std::string, std::string>> checked{frame_defines(request, 0)};
+        std::vector<uint32_t> to_load;
+        for (uint32_t i = 1; i < frames_requested; ++i)
+            if (checked.insert(frame_defines(request, i)).second) to_load.push_back(i);
         scene.reset();
-        for (uint32_t i = 1; i < frames_requested; ++i) {
+        for (size_t k = 0; k < to_load.size(); ++k) {
+            const uint32_t i = to_load[k];
+            const double spent =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - validate_start)
+                    .count();
+            const double estimate = spent + spent / double(k + 1) * double(to_load.size() - k);
+            if (estimate > options_.submit_validation_seconds)
+                throw ValidationBudgetExceeded(
+                    "frames: loading the scene of each of " + std::to_string(to_load.size() + 1) +
+                    " distinct frames to validate them would take about " +
+                    std::to_string(int64_t(std::ceil(estimate))) + " s (" +
+                    std::to_string(spent / double(k + 1)) +
+                    " s per frame so far), more than "
+                    "the server's limit of " +
+                    std::to_string(int64_t(std::ceil(options_.submit_validation_seconds))) +
+                    " s (server --submit-validation-seconds): submit the animation as several "
+                    "jobs of fewer frames");
             std::map<std::string, std::string> defines = frame_defines(request, i);
-            if (!checked.insert(defines).second) continue;
             loading_frame = i;
             std::unique_ptr<Scene> frame_scene =
                 load_scene(scene_dir / request.bundle().scene_path(), defines, scene_dir);
@@ -290,6 +317,11 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         validate_seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - validate_start)
                 .count();
+    } catch (const ValidationBudgetExceeded& e) {
+        std::error_code ec;
+        fs::remove_all(job_dir, ec);
+        Log("warn", "submit_rejected").kv("reason", "validation_budget").kv("error", e.what());
+        return Status(StatusCode::RESOURCE_EXHAUSTED, e.what());
     } catch (const std::exception& e) {
         std::error_code ec;
         fs::remove_all(job_dir, ec);
