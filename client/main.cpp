@@ -85,8 +85,8 @@ bad usage.
 }
 
 constexpr double kRpcTimeout = 30.0;
-// SubmitJob's deadline grows with the frame count: the server loads every frame's scene.
-constexpr double kSubmitSecondsPerFrame = 0.5;
+// SubmitJob's deadline for an animation: the server loads every frame's scene.
+constexpr double kAnimationSubmitTimeout = 600.0;
 
 [[noreturn]] void usage_error(const std::string& message) {
     std::cerr << "client: " << message << "\n\n" << usage();
@@ -350,8 +350,9 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     v1::Job job;
     {
         grpc::ClientContext context;
-        // The server loads every frame's scene before it answers.
-        c.prepare(context, kRpcTimeout + kSubmitSecondsPerFrame * double(frames.size()));
+        // The server loads every frame's scene before it answers (within its
+        // --submit-validation-seconds, 120 s by default).
+        c.prepare(context, frames.size() > 1 ? kAnimationSubmitTimeout : kRpcTimeout);
         grpc::Status status = c.stub->SubmitJob(&context, request, &job);
         if (!status.ok()) throw RpcFailure("SubmitJob", status);
     }

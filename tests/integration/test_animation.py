@@ -5,7 +5,9 @@ whose light power is 10, 20, 30 and writes DIR/frame_0000.exr ... frame_0002.exr
 power/10 (the define does what it says). `fetch --out DIR` and `fetch --frame F --out FILE.exr`
 work, `fetch --out FILE.exr` of an animation is refused, `watch` shows the frame strip. A
 frames file whose frame 2 does not load is refused naming frame 2; a malformed frames-file
-line names file:line; a bad --frames range says why."""
+line names file:line; a bad --frames range says why. A server whose submit-time validation
+budget (--submit-validation-seconds) is too small for the frames refuses the animation with
+RESOURCE_EXHAUSTED."""
 
 import os
 import subprocess
@@ -136,6 +138,21 @@ class Animation(cluster.ClusterTestCase):
             r = self.client(c, "submit", scene(), *common, *args, expect=2)
             self.assertIn(message, r.stderr, args)
         self.assertEqual(self.job_ids(c), before)
+
+    def test_validation_budget(self):
+        # A server whose submit-time validation budget every scene load exceeds: a single
+        # frame is still accepted (it is loaded anyway), an animation is refused up front.
+        c = self.new_cluster(token=TOKEN, server_args=["--submit-validation-seconds", "1e-9"])
+        c.start_server()
+        common = ["--algo", "pt", "--iterations", 1, "--resolution", "8x8"]
+        r = self.client(c, "submit", scene(), *common, "--frames", "0:2", "-D",
+                        "power={frame}", expect=1)
+        self.assertIn("RESOURCE_EXHAUSTED", r.stderr)
+        self.assertIn("3 distinct frames", r.stderr)
+        self.assertIn("--submit-validation-seconds", r.stderr)
+        self.assertEqual(self.job_ids(c), [])
+        self.client(c, "submit", scene(), *common)
+        self.assertEqual(len(self.job_ids(c)), 1)
 
 
 if __name__ == "__main__":
