@@ -263,6 +263,11 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     std::vector<Defines> frames;
     if (!o.frames.empty()) {
         frames = range_frames(parse_frame_range(o.frames), o.job.defines);
+        if (frames.front().empty())
+            std::fprintf(stderr,
+                         "client: note: no -D value has a {frame} placeholder: the %zu frames "
+                         "differ only in their noise\n",
+                         frames.size());
         for (auto it = o.job.defines.begin(); it != o.job.defines.end();)
             it = has_frame_placeholder(it->second) ? o.job.defines.erase(it) : std::next(it);
     } else if (!o.frames_file.empty()) {
