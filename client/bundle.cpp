@@ -166,8 +166,12 @@ class Collector {
 
 }  // namespace
 
+void hash_bundle(SceneBundleInfo& bundle) {
+    for (BundleEntry& entry : bundle.files) entry.sha256 = sha256_file(entry.absolute, &entry.size);
+}
+
 SceneBundleInfo collect_bundle(const fs::path& scene_file,
-                               const std::map<std::string, std::string>& defines) {
+                               const std::map<std::string, std::string>& defines, bool hash) {
     fs::path scene = fs::absolute(scene_file).lexically_normal();
     std::error_code ec;
     if (!fs::is_regular_file(scene, ec))
@@ -190,7 +194,7 @@ SceneBundleInfo collect_bundle(const fs::path& scene_file,
     info.files = std::move(collector.files);
     info.integrator = collector.integrator;
     info.sample_count = collector.sample_count;
-    for (BundleEntry& entry : info.files) entry.sha256 = sha256_file(entry.absolute, &entry.size);
+    if (hash) hash_bundle(info);
     return info;
 }
 

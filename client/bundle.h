@@ -31,8 +31,12 @@ struct SceneBundleInfo {
 
 // Throws std::runtime_error naming the file (and the referencing file) for unreadable or
 // malformed XML, a missing file, an undefined $name in a file name, or a file outside the
-// scene's folder.
+// scene's folder. Without `hash`, the entries' sha256 and size are left empty (see
+// hash_bundle).
 SceneBundleInfo collect_bundle(const std::filesystem::path& scene_file,
-                               const std::map<std::string, std::string>& defines);
+                               const std::map<std::string, std::string>& defines, bool hash = true);
+
+// Sets the sha256 and size of every entry.
+void hash_bundle(SceneBundleInfo& bundle);
 
 }  // namespace render::service

@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "client/bundle.h"
+#include "client/frames.h"
 #include "client/progress.h"
 #include "core/render/algorithms.h"
 #include "core/render/job_options.h"
@@ -43,6 +45,8 @@ struct SubmitOptions {
     std::string name;
     bool wait = false;
     std::string out;
+    std::string frames;       // --frames A:B
+    std::string frames_file;  // --frames-file F
 };
 
 render::ArgumentParser submit_parser(SubmitOptions& o);
@@ -56,8 +60,12 @@ commands:
   submit SCENE.xml [options]   pack the scene and the files it references, upload what the
                                server lacks, submit a job and print its id
   watch JOB                    progress until the job ends; exit status 1 unless it is DONE
-  fetch JOB [--frame F] [--preview] --out FILE.exr
-                               download a frame's EXR (--preview: the current average)
+  fetch JOB [--frame F] [--preview] --out FILE.exr|DIR
+                               download a frame's EXR (--preview: the current average);
+                               --out DIR (a name not ending in .exr) without --frame
+                               writes every frame as DIR/frame_0000.exr, frame_0001.exr, ...
+                               (frame numbers are the job's frame indices, from 0); a job
+                               of several frames needs --out DIR or --frame F
   cancel JOB                   cancel a job
   list                         all jobs
   status                       workers and queue
@@ -77,6 +85,8 @@ bad usage.
 }
 
 constexpr double kRpcTimeout = 30.0;
+// SubmitJob's deadline for an animation: the server loads every frame's scene.
+constexpr double kAnimationSubmitTimeout = 600.0;
 
 [[noreturn]] void usage_error(const std::string& message) {
     std::cerr << "client: " << message << "\n\n" << usage();
@@ -111,8 +121,19 @@ render::ArgumentParser submit_parser(SubmitOptions& o) {
     p.value({"--name"}, "NAME", "job name (default: the scene file's name)",
             [&](const std::string& v) { o.name = v; });
     p.flag({"--wait"}, "show progress until the job ends (as `watch`)", [&] { o.wait = true; });
-    p.value({"--out", "-o"}, "FILE.exr", "wait, then fetch frame 0 into FILE.exr",
+    p.value({"--out", "-o"}, "FILE.exr|DIR",
+            "wait, then fetch the result as `fetch --out` does: FILE.exr for a single frame, "
+            "DIR for every frame of an animation",
             [&](const std::string& v) { o.out = v; });
+    p.value({"--frames"}, "A:B",
+            "an animation: one job with the frames A, A+1, ..., B (both included, at most 1000); "
+            "in -D values {frame} is the frame number, {frame:04} the number zero-padded to 4 "
+            "digits",
+            [&](const std::string& v) { o.frames = v; });
+    p.value({"--frames-file"}, "F",
+            "an animation: one frame per line of F, each line name=value defines separated by "
+            "spaces ('-' alone: no overrides; blank lines and # comments skipped)",
+            [&](const std::string& v) { o.frames_file = v; });
     p.positional([&](const std::string& v) {
         if (!o.scene.empty()) throw UsageError("submit: more than one scene file given");
         o.scene = v;
@@ -124,6 +145,13 @@ SubmitOptions parse_submit(const std::vector<std::string>& args) {
     SubmitOptions o;
     submit_parser(o).parse(args);
     if (o.scene.empty()) usage_error("submit: no scene file given");
+    if (!o.frames.empty() && !o.frames_file.empty())
+        usage_error("submit: give --frames or --frames-file, not both");
+    if (o.frames.empty())
+        for (const auto& [name, value] : o.job.defines)
+            if (has_frame_placeholder(value))
+                usage_error("submit: -D " + name + "=" + value +
+                            " has a {frame} placeholder, which needs --frames A:B");
     return o;
 }
 
@@ -174,9 +202,106 @@ int watch(const Connection& c, const std::string& job_id);
 int fetch(const Connection& c, const std::string& job_id, uint32_t frame, bool preview,
           const std::string& out);
 
+// What `fetch --out OUT` writes: OUT ending in .exr is one file, of --frame F or of the only
+// frame of a single-frame job; any other OUT is a folder that receives frame_NNNN.exr for
+// --frame F or else for every frame. Throws UsageError for a job of several frames with
+// FILE.exr and no --frame, a folder that is a file, or a file that is a folder.
+struct OutputPlan {
+    bool folder = false;
+    std::vector<uint32_t> frames;
+};
+OutputPlan output_plan(const std::string& out, uint32_t frame_count,
+                       std::optional<uint32_t> frame) {
+    std::string lower = out;
+    for (char& ch : lower) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    OutputPlan plan;
+    plan.folder = !(lower.size() > 4 && lower.substr(lower.size() - 4) == ".exr");
+    std::error_code ec;
+    if (plan.folder && fs::exists(out, ec) && !fs::is_directory(out, ec))
+        throw render::UsageError("--out " + out +
+                                 " is a file, not a folder (a single frame's "
+                                 "file name ends in .exr)");
+    if (!plan.folder && fs::is_directory(out, ec))
+        throw render::UsageError("--out " + out + " is a folder; its name must not end in .exr");
+    if (frame) {
+        plan.frames = {*frame};
+    } else if (plan.folder) {
+        for (uint32_t i = 0; i < frame_count; ++i) plan.frames.push_back(i);
+    } else if (frame_count > 1) {
+        throw render::UsageError("the job has " + std::to_string(frame_count) +
+                                 " frames: give --out DIR (without .exr) for all of them, or "
+                                 "--frame F --out FILE.exr for one");
+    } else {
+        plan.frames = {0};
+    }
+    return plan;
+}
+
+int fetch_output(const Connection& c, const std::string& job_id, uint32_t frame_count,
+                 std::optional<uint32_t> frame, bool preview, const std::string& out) {
+    OutputPlan plan = output_plan(out, frame_count, frame);
+    if (!plan.folder) return fetch(c, job_id, plan.frames[0], preview, out);
+    fs::create_directories(out);
+    int failed = 0;
+    for (uint32_t f : plan.frames) {
+        try {
+            fetch(c, job_id, f, preview, (fs::path(out) / frame_file_name(f)).string());
+        } catch (const RpcFailure& e) {
+            std::fprintf(stderr, "client: frame %u: %s\n", f, e.what());
+            ++failed;
+        }
+    }
+    if (failed)
+        std::fprintf(stderr, "client: %d of %zu frame(s) not fetched\n", failed,
+                     plan.frames.size());
+    return failed ? 1 : 0;
+}
+
 int submit(const Connection& c, const std::vector<std::string>& args) {
     SubmitOptions o = parse_submit(args);
-    SceneBundleInfo bundle = collect_bundle(o.scene, o.job.defines);
+    // An animation: each frame's overrides. The job's defines are the -D without {frame}.
+    std::vector<Defines> frames;
+    if (!o.frames.empty()) {
+        frames = range_frames(parse_frame_range(o.frames), o.job.defines);
+        if (frames.front().empty())
+            std::fprintf(stderr,
+                         "client: note: no -D value has a {frame} placeholder: the %zu frames "
+                         "differ only in their noise\n",
+                         frames.size());
+        for (auto it = o.job.defines.begin(); it != o.job.defines.end();)
+            it = has_frame_placeholder(it->second) ? o.job.defines.erase(it) : std::next(it);
+    } else if (!o.frames_file.empty()) {
+        frames = read_frames_file(o.frames_file);
+    }
+    // Refuse an --out that does not fit the job before submitting it.
+    if (!o.out.empty())
+        output_plan(o.out, uint32_t(std::max<size_t>(1, frames.size())), std::nullopt);
+    // The files of every frame (a define may name a file, e.g. a mesh per frame), hashed once.
+    SceneBundleInfo bundle = collect_bundle(o.scene, o.job.defines, false);
+    {
+        std::set<Defines> seen{{}};
+        std::set<std::string> paths;
+        for (const BundleEntry& e : bundle.files) paths.insert(e.path);
+        for (size_t i = 0; i < frames.size(); ++i) {
+            if (!seen.insert(frames[i]).second) continue;
+            Defines defines = o.job.defines;
+            for (const auto& [k, v] : frames[i]) defines[k] = v;
+            SceneBundleInfo more;
+            try {
+                more = collect_bundle(o.scene, defines, false);
+            } catch (const std::exception& e) {
+                throw std::runtime_error("frame " + std::to_string(i) + " (" +
+                                         format_defines(frames[i]) + "): " + e.what());
+            }
+            if (i == 0) {
+                bundle.integrator = more.integrator;
+                bundle.sample_count = more.sample_count;
+            }
+            for (BundleEntry& e : more.files)
+                if (paths.insert(e.path).second) bundle.files.push_back(std::move(e));
+        }
+        hash_bundle(bundle);
+    }
     v1::RenderSettings s = request_settings(o.job);
     // Without --algo the server takes the scene's integrator (Mitsuba's "path" is "pt").
     if (!o.job.iterations && !o.job.seconds) {
@@ -215,6 +340,10 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     request.set_name(o.name.empty() ? fs::path(o.scene).filename().string() : o.name);
     request.set_priority(o.priority);
     *request.mutable_settings() = s;
+    for (const Defines& frame : frames) {
+        v1::FrameOverride* f = request.add_frames();
+        for (const auto& [k, v] : frame) (*f->mutable_defines())[k] = v;
+    }
     v1::SceneBundle* b = request.mutable_bundle();
     b->set_scene_path(bundle.scene_path);
     for (const BundleEntry& e : bundle.files) {
@@ -226,7 +355,9 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     v1::Job job;
     {
         grpc::ClientContext context;
-        c.prepare(context);
+        // The server loads every frame's scene before it answers (within its
+        // --submit-validation-seconds, 120 s by default).
+        c.prepare(context, frames.size() > 1 ? kAnimationSubmitTimeout : kRpcTimeout);
         grpc::Status status = c.stub->SubmitJob(&context, request, &job);
         if (!status.ok()) throw RpcFailure("SubmitJob", status);
     }
@@ -235,7 +366,7 @@ int submit(const Connection& c, const std::vector<std::string>& args) {
     if (!o.wait && o.out.empty()) return 0;
     int rc = watch(c, job.id());
     if (rc != 0 || o.out.empty()) return rc;
-    return fetch(c, job.id(), 0, false, o.out);
+    return fetch_output(c, job.id(), uint32_t(job.frames_size()), std::nullopt, false, o.out);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -493,17 +624,18 @@ int main(int argc, char** argv) {
         }
         if (command == "fetch") {
             std::string job = job_arg("fetch"), out;
-            uint32_t frame = 0;
+            std::optional<uint32_t> frame;
             bool preview = false;
             render::ArgumentParser p;
             p.value({"--frame"}, "F", "", [&](const std::string& v) {
                 frame = render::parse_number<uint32_t>("--frame", v);
             });
             p.flag({"--preview"}, "", [&] { preview = true; });
-            p.value({"--out", "-o"}, "FILE.exr", "", [&](const std::string& v) { out = v; });
+            p.value({"--out", "-o"}, "FILE.exr|DIR", "", [&](const std::string& v) { out = v; });
             p.parse(std::vector<std::string>(args.begin() + 1, args.end()));
-            if (out.empty()) usage_error("fetch: --out FILE.exr is required");
-            return fetch(c, job, frame, preview, out);
+            if (out.empty()) usage_error("fetch: --out FILE.exr or --out DIR is required");
+            const uint32_t frame_count = uint32_t(get_job(c, job).frames_size());
+            return fetch_output(c, job, frame_count, frame, preview, out);
         }
         if (command == "cancel") {
             if (args.size() != 1) usage_error("cancel expects one job id");

@@ -19,7 +19,34 @@ double frame_fraction(const v1::Job& job, const v1::FrameStatus& f) {
     if (budget > 0) fraction = std::max(fraction, f.render_seconds() / budget);
     return std::clamp(fraction, 0.0, 1.0);
 }
+bool started(const v1::FrameStatus& f) {
+    return f.done() || f.iterations_done() > 0 || f.render_seconds() > 0;
+}
 }  // namespace
+
+std::string frame_strip(const v1::Job& job, size_t width) {
+    const size_t n = size_t(job.frames_size());
+    size_t done = 0;
+    for (const auto& f : job.frames()) done += f.done();
+    std::string out = "frames " + std::to_string(done) + "/" + std::to_string(n) + " done [";
+    width = std::max<size_t>(width, 1);
+    const size_t per = (n + width - 1) / width;  // frames per character
+    for (size_t start = 0; start < n; start += per) {
+        // The least advanced frame of the group: not started < decile 0..9 < done.
+        int rank = 11;
+        for (size_t i = start; i < std::min(n, start + per); ++i) {
+            const v1::FrameStatus& f = job.frames(int(i));
+            int r = f.done()     ? 11
+                    : started(f) ? 1 + std::min(9, int(frame_fraction(job, f) * 10))
+                                 : 0;
+            rank = std::min(rank, r);
+        }
+        out += rank == 11 ? '#' : rank == 0 ? '.' : char('0' + rank - 1);
+    }
+    out += ']';
+    if (per > 1) out += " (" + std::to_string(per) + " frames per mark)";
+    return out;
+}
 
 const char* state_name(v1::JobState state) {
     switch (state) {
@@ -85,19 +112,54 @@ void ProgressDisplay::update(const v1::Job& job) {
         out += "\x1b[2Kjob " + job.id() + (job.name().empty() ? "" : " (" + job.name() + ")") +
                ": " + state_name(job.state()) + "\n";
         ++lines;
-        size_t shown = std::min<size_t>(job.frames_size(), kMaxBars);
-        for (size_t i = 0; i < shown; ++i, ++lines)
-            out += "\x1b[2K" + frame_line(job, job.frames(int(i)), true) + "\n";
-        if (size_t(job.frames_size()) > shown) {
-            size_t done = 0;
-            for (const auto& f : job.frames()) done += f.done();
-            out += "\x1b[2K... " + std::to_string(job.frames_size()) + " frames, " +
-                   std::to_string(done) + " done\n";
+        if (job.frames_size() > 1) {
+            out += "\x1b[2K" + frame_strip(job) + "\n";
             ++lines;
         }
+        if (job.frames_size() <= kAllBarsFrames) {
+            for (const auto& f : job.frames()) {
+                out += "\x1b[2K" + frame_line(job, f, true) + "\n";
+                ++lines;
+            }
+        } else {
+            // An animation: bars for the frames being rendered only.
+            size_t shown = 0, active = 0;
+            for (const auto& f : job.frames()) {
+                if (f.done() || !started(f)) continue;
+                if (++active > kMaxBars) continue;
+                out += "\x1b[2K" + frame_line(job, f, true) + "\n";
+                ++lines;
+                ++shown;
+            }
+            if (active > shown) {
+                out += "\x1b[2K... and " + std::to_string(active - shown) + " more frames\n";
+                ++lines;
+            }
+        }
+        // Clear lines left over from a longer drawing.
+        for (int extra = lines; extra < drawn_lines_; ++extra) out += "\x1b[2K\n";
+        lines = std::max(lines, drawn_lines_);
         std::fputs(out.c_str(), stderr);
         std::fflush(stderr);
         drawn_lines_ = lines;
+        return;
+    }
+    if (job.frames_size() > kAllBarsFrames) {
+        // An animation: a line per finished frame, the strip on changes and every 10 s.
+        if (state_changed)
+            std::fprintf(stderr, "job %s: %s\n", job.id().c_str(), state_name(job.state()));
+        for (const auto& f : job.frames())
+            if (f.done() && !reported_done_[f.index()]) {
+                reported_done_[f.index()] = true;
+                std::fprintf(stderr, "  %s\n", frame_line(job, f, false).c_str());
+            }
+        std::string strip = frame_strip(job);
+        if (strip != last_strip_ || now - last_plain_ >= 10s) {
+            last_strip_ = strip;
+            last_plain_ = now;
+            std::fprintf(stderr, "  %s\n", strip.c_str());
+        }
+        std::fflush(stderr);
         return;
     }
     bool print = state_changed || now - last_plain_ >= 10s;
@@ -115,6 +177,7 @@ void ProgressDisplay::update(const v1::Job& job) {
         std::fprintf(stderr, "job %s: %s\n", job.id().c_str(), state_name(job.state()));
     for (const auto& f : job.frames())
         std::fprintf(stderr, "  %s\n", frame_line(job, f, false).c_str());
+    if (job.frames_size() > 1) std::fprintf(stderr, "  %s\n", frame_strip(job).c_str());
     std::fflush(stderr);
 }
 

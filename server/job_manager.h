@@ -32,6 +32,9 @@ struct ServerOptions {
     double lease_timeout_seconds = 30;
     double heartbeat_seconds = 2;
     double target_lease_seconds = 3;
+    // SubmitJob loads every frame's scene; an animation whose loads would take longer than this
+    // (estimated from the frames loaded so far) is refused with RESOURCE_EXHAUSTED.
+    double submit_validation_seconds = 120;
 };
 
 class JobManager {

@@ -80,6 +80,13 @@ ArgumentParser make_parser(Options& o) {
             [&](const std::string& v) {
                 o.server.target_lease_seconds = parse_seconds("--lease-seconds", v);
             });
+    p.value({"--submit-validation-seconds"}, "SECONDS",
+            "refuse an animation whose frames' scenes would take longer than this to load at "
+            "submit (every frame is loaded to validate it; default 120)",
+            [&](const std::string& v) {
+                o.server.submit_validation_seconds =
+                    parse_seconds("--submit-validation-seconds", v);
+            });
     p.value({"--metrics"}, "HOST:PORT",
             "serve Prometheus metrics at http://HOST:PORT/metrics (port 0: any free port)",
             [&](const std::string& v) { o.metrics = v; });

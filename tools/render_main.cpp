@@ -36,6 +36,7 @@ struct Options {
     std::string png;
     JobOptions job;  // algorithm, iterations, time, film, defines, render options
     int threads = 0;
+    uint32_t frame = 0;  // the frame index of the random numbers (a service job's frame)
     bool help = false;
     bool describe = false;
 };
@@ -50,6 +51,11 @@ ArgumentParser make_parser(Options& o) {
                 o.threads = parse_number<int>("--threads", v);
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
             });
+    p.value({"--frame"}, "F",
+            "render as frame F of a job (an animation's frame index, from 0, seeds the random "
+            "numbers with the seed); with that frame's -D defines the image equals the "
+            "service's frame F (default 0)",
+            [&](const std::string& v) { o.frame = parse_number<uint32_t>("--frame", v); });
     p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
             [&](const std::string& v) { o.png = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
@@ -171,7 +177,7 @@ int render_scene(const Options& o) {
                  total ? (std::to_string(*total) + " iterations").c_str() : "time budget",
                  load_seconds);
 
-    IterationRenderer renderer(*scene, settings, 0);
+    IterationRenderer renderer(*scene, settings, o.frame);
     IterationResult accumulated = renderer.empty_result();
     Progress progress(total, o.job.seconds);
     auto t0 = Clock::now();

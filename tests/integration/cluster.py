@@ -655,12 +655,13 @@ _reference_cache = {}
 _ref_dir = None
 
 
-def render_reference(scene, algorithm, iterations, resolution, seed, threads=2, defines=None):
-    """Renders the scene with the local `render` binary in one process; cached per settings.
-    Returns the EXR path."""
+def render_reference(scene, algorithm, iterations, resolution, seed, threads=2, defines=None,
+                     frame=0):
+    """Renders the scene with the local `render` binary in one process (as the job's frame
+    `frame`: it seeds the random numbers); cached per settings. Returns the EXR path."""
     global _ref_dir
     key = (scene, algorithm, iterations, tuple(resolution), seed,
-           tuple(sorted((defines or {}).items())))
+           tuple(sorted((defines or {}).items())), frame)
     if key in _reference_cache:
         return _reference_cache[key]
     if _ref_dir is None:
@@ -670,6 +671,8 @@ def render_reference(scene, algorithm, iterations, resolution, seed, threads=2, 
     args = [binary("render"), scene, "--algo", algorithm, "--iterations", str(iterations),
             "--resolution", f"{resolution[0]}x{resolution[1]}", "--seed", str(seed),
             "--threads", str(threads), "--out", out]
+    if frame:
+        args += ["--frame", str(frame)]
     for k, v in (defines or {}).items():
         args += ["-D", f"{k}={v}"]
     r = subprocess.run(args, capture_output=True, text=True, timeout=300,

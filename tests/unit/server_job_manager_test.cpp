@@ -428,3 +428,32 @@ TEST_F(ManagerTest, ALeaseFailedOnTheOnlyWorkerFailsTheJob) {
     EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
     EXPECT_NE(job.error().find("scene.xml:3"), std::string::npos) << job.error();
 }
+
+TEST_F(ManagerTest, ValidatesEveryFrameOfAnAnimation) {
+    JobManager m(options);
+    v1::Job job;
+    auto r = request(m, 2);
+    for (const char* value : {"0.25", "0.5", "0.75"})
+        (*r.add_frames()->mutable_defines())["r"] = value;
+    ASSERT_TRUE(m.submit(r, &job).ok());
+    EXPECT_EQ(job.frames_size(), 3);
+    // Frame 2's define breaks the scene: refused, naming frame 2 and its override.
+    (*r.mutable_frames(2)->mutable_defines())["r"] = "oops";
+    const grpc::Status bad = m.submit(r, &job);
+    EXPECT_EQ(bad.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(bad.error_message().rfind("frame 2 (r=oops): scene error: scene.xml:", 0), 0u)
+        << bad.error_message();
+    v1::ListJobsReply list;
+    m.list(&list);
+    EXPECT_EQ(list.jobs_size(), 1);
+    // A single frame is never refused for the validation budget; an animation is.
+    options.submit_validation_seconds = 1e-9;
+    options.store = dir / "tight";
+    JobManager tight(options);
+    r = request(tight, 2);
+    for (const char* value : {"0.25", "0.5", "0.75"})
+        (*r.add_frames()->mutable_defines())["r"] = value;
+    EXPECT_EQ(tight.submit(r, &job).error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    r.clear_frames();
+    EXPECT_TRUE(tight.submit(r, &job).ok());
+}
