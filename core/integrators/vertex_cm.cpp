@@ -166,10 +166,29 @@ struct ConnectionGeometry {
     BsdfEvaluation eye, light;
 };
 
-// Everything one iteration shares between the light pass and the eye pass.
+}  // namespace
+
+// Buffers of an iteration that VertexConnectionMerging keeps from one iteration to the next.
+struct IterationStorage {
+    std::vector<LightVertex> light_vertices;
+    std::vector<uint32_t> path_ends;
+    std::vector<std::vector<LightVertex>> chunk_vertices;
+    std::vector<std::vector<uint32_t>> chunk_path_sizes;
+    std::vector<std::vector<Splat>> chunk_splats;
+    std::vector<Splat> splats;
+    std::vector<Vec3> surface_positions, medium_positions;
+    std::vector<uint32_t> surface_index, medium_index;
+    HashGrid surface_grid, medium_grid;
+};
+
+namespace {
+
+// Everything one iteration shares between the light pass and the eye pass; its large buffers
+// are `storage`'s, cleared here.
 class Iteration {
   public:
-    Iteration(const BidirectionalConfig& config, const Scene& scene, const IterationKey& key)
+    Iteration(const BidirectionalConfig& config, const Scene& scene, const IterationKey& key,
+              IterationStorage& storage)
         : config_(config),
           scene_(scene),
           key_(key),
@@ -205,7 +224,20 @@ class Iteration {
                                    : light_path_count_),
           ic_connection_scale_(float(1.0 / double(ic_light_path_count_))),
           joint_(config.mode == BidirectionalMode::Bpt && config.joint_connections &&
-                 !ic_connections_ && scene.has_media()) {}
+                 !ic_connections_ && scene.has_media()),
+          storage_(storage),
+          light_vertices_(storage.light_vertices),
+          path_ends_(storage.path_ends),
+          surface_positions_(storage.surface_positions),
+          medium_positions_(storage.medium_positions),
+          surface_index_(storage.surface_index),
+          medium_index_(storage.medium_index),
+          surface_grid_(storage.surface_grid),
+          medium_grid_(storage.medium_grid) {
+        for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
+        for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
+        light_vertices_.clear();
+    }
 
     void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
@@ -340,8 +372,9 @@ class Iteration {
     bool joint_;                 // joint (J1) connections (bpt in a scene with media)
     size_t ic_vertex_count_ = 0;
 
-    std::vector<LightVertex> light_vertices_;
-    std::vector<uint32_t> path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
+    IterationStorage& storage_;
+    std::vector<LightVertex>& light_vertices_;
+    std::vector<uint32_t>& path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
     // lookup.
@@ -353,9 +386,9 @@ class Iteration {
     IcLookupSettings ic_lookup_;
     // Merging: surface and medium light vertices in separate grids (photons merge only with
     // eye vertices of their own kind); *_index_ maps a grid point to its light vertex.
-    std::vector<Vec3> surface_positions_, medium_positions_;
-    std::vector<uint32_t> surface_index_, medium_index_;
-    HashGrid surface_grid_, medium_grid_;
+    std::vector<Vec3>&surface_positions_, &medium_positions_;
+    std::vector<uint32_t>&surface_index_, &medium_index_;
+    HashGrid &surface_grid_, &medium_grid_;
 };
 
 // --- segments and links -----------------------------------------------------------------------
@@ -478,9 +511,18 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
 
 void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats) {
     const uint64_t chunks = (light_path_count_ + kLightPathChunk - 1) / kLightPathChunk;
-    std::vector<std::vector<LightVertex>> chunk_vertices(chunks);
-    std::vector<std::vector<uint32_t>> chunk_path_sizes(chunks);
-    std::vector<std::vector<Splat>> chunk_splats(chunks);
+    // Per-chunk buffers of the storage: cleared, their capacity kept from the last iteration.
+    std::vector<std::vector<LightVertex>>& chunk_vertices = storage_.chunk_vertices;
+    std::vector<std::vector<uint32_t>>& chunk_path_sizes = storage_.chunk_path_sizes;
+    std::vector<std::vector<Splat>>& chunk_splats = storage_.chunk_splats;
+    chunk_vertices.resize(chunks);
+    chunk_path_sizes.resize(chunks);
+    chunk_splats.resize(chunks);
+    for (uint64_t c = 0; c < chunks; ++c) {
+        chunk_vertices[c].clear();
+        chunk_path_sizes[c].clear();
+        chunk_splats[c].clear();
+    }
     tbb::combinable<RenderStats> chunk_stats;
     tbb::parallel_for(
         tbb::blocked_range<uint64_t>(0, chunks, 1), [&](const tbb::blocked_range<uint64_t>& range) {
@@ -1186,11 +1228,18 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
 
 }  // namespace
 
+VertexConnectionMerging::VertexConnectionMerging(const BidirectionalConfig& config)
+    : config_(config), storage_(std::make_unique<IterationStorage>()) {}
+
+VertexConnectionMerging::~VertexConnectionMerging() = default;
+
 void VertexConnectionMerging::render_iteration(const Scene& scene, const IterationKey& key,
                                                AccumulationBuffer& target, TechniqueLayers* layers,
                                                RenderStats& stats) const {
-    Iteration iteration(config_, scene, key);
-    std::vector<Splat> splats;
+    std::lock_guard lock(storage_mutex_);
+    Iteration iteration(config_, scene, key, *storage_);
+    std::vector<Splat>& splats = storage_->splats;
+    splats.clear();
     if (!scene.lights().empty()) {
         iteration.trace_light_paths(stats, splats);
         if (config_.mode == BidirectionalMode::Vpl && config_.vpl_importance)
@@ -1219,7 +1268,8 @@ VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
     VplSelection selection;
     if (config_.mode != BidirectionalMode::Vpl || !config_.vpl_importance || scene.lights().empty())
         return selection;
-    Iteration iteration(config_, scene, key);
+    IterationStorage storage;
+    Iteration iteration(config_, scene, key, storage);
     RenderStats stats;
     std::vector<Splat> splats;
     iteration.trace_light_paths(stats, splats);

@@ -9,6 +9,8 @@
 // techniques they enable, which is what BidirectionalMode selects.
 
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -103,9 +105,14 @@ struct VplSelection {
     double record_distance_clamp = 0;  // the records' connections use max(d, this)
 };
 
+// The buffers of an iteration (light vertices, splats, merging grids), kept from one
+// iteration to the next (vertex_cm.cpp).
+struct IterationStorage;
+
 class VertexConnectionMerging final : public Integrator {
   public:
-    explicit VertexConnectionMerging(const BidirectionalConfig& config) : config_(config) {}
+    explicit VertexConnectionMerging(const BidirectionalConfig& config);
+    ~VertexConnectionMerging() override;
 
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           TechniqueLayers* layers, RenderStats& stats) const override;
@@ -120,6 +127,11 @@ class VertexConnectionMerging final : public Integrator {
 
   private:
     BidirectionalConfig config_;
+    // Reused by each render_iteration (cleared, capacity kept), so that iterations after the
+    // first do not fault in hundreds of MB of fresh pages; calls on one integrator from
+    // several threads take turns.
+    mutable std::mutex storage_mutex_;
+    mutable std::unique_ptr<IterationStorage> storage_;
 };
 
 }  // namespace render
