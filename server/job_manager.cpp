@@ -431,11 +431,26 @@ void JobManager::fill_job(const JobData& job, v1::Job* out) const {
     }
 }
 
+namespace {
+
+// NOT_FOUND for a job id (cut to 80 characters: it is the caller's text).
+Status job_not_found(const std::string& job_id) {
+    return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+}
+
+// NOT_FOUND for a frame index past a job's frames.
+Status frame_not_found(const std::string& job_id, uint32_t index, size_t frames) {
+    return Status(StatusCode::NOT_FOUND, "job " + job_id + " has no frame " +
+                                             std::to_string(index) + " (" + std::to_string(frames) +
+                                             " frames)");
+}
+
+}  // namespace
+
 Status JobManager::get(const std::string& job_id, v1::Job* out) {
     std::lock_guard lock(mu_);
     auto job = find(job_id);
-    if (!job)
-        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    if (!job) return job_not_found(job_id);
     fill_job(*job, out);
     return Status::OK;
 }
@@ -460,8 +475,7 @@ void JobManager::set_state(JobData& job, JobState state, const std::string& erro
 Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
     std::lock_guard lock(mu_);
     auto job = find(job_id);
-    if (!job)
-        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    if (!job) return job_not_found(job_id);
     JobState state = scheduler_.state(job_id);
     if (state == JobState::Done || state == JobState::Failed)
         return Status(
@@ -482,14 +496,9 @@ Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* 
     {
         std::lock_guard lock(mu_);
         job = find(request.job_id());
-        if (!job)
-            return Status(StatusCode::NOT_FOUND,
-                          "job \"" + request.job_id().substr(0, 80) + "\" not found");
+        if (!job) return job_not_found(request.job_id());
         if (request.frame() >= job->frames.size())
-            return Status(StatusCode::NOT_FOUND, "job " + request.job_id() + " has no frame " +
-                                                     std::to_string(request.frame()) + " (" +
-                                                     std::to_string(job->frames.size()) +
-                                                     " frames)");
+            return frame_not_found(request.job_id(), request.frame(), job->frames.size());
         progress = scheduler_.progress(request.job_id(), request.frame());
     }
     *temporary = false;
@@ -903,8 +912,7 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
 Status JobManager::set_priority(const std::string& job_id, int priority, v1::Job* out) {
     std::lock_guard lock(mu_);
     auto job = find(job_id);
-    if (!job)
-        return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
+    if (!job) return job_not_found(job_id);
     if (is_terminal(scheduler_.state(job_id)))
         return Status(StatusCode::FAILED_PRECONDITION, "job " + job_id + " has ended");
     scheduler_.set_priority(job_id, priority);
@@ -922,11 +930,8 @@ Status JobManager::preview_image(const std::string& job_id, uint32_t index, Imag
     {
         std::lock_guard lock(mu_);
         job = find(job_id);
-        if (!job)
-            return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
-        if (index >= job->frames.size())
-            return Status(StatusCode::NOT_FOUND,
-                          "job " + job_id + " has no frame " + std::to_string(index));
+        if (!job) return job_not_found(job_id);
+        if (index >= job->frames.size()) return frame_not_found(job_id, index, job->frames.size());
         progress = scheduler_.progress(job_id, index);
     }
     FrameData& frame = *job->frames[index];
@@ -956,11 +961,8 @@ Status JobManager::error_history(const std::string& job_id, uint32_t index,
     {
         std::lock_guard lock(mu_);
         job = find(job_id);
-        if (!job)
-            return Status(StatusCode::NOT_FOUND, "job \"" + job_id.substr(0, 80) + "\" not found");
-        if (index >= job->frames.size())
-            return Status(StatusCode::NOT_FOUND,
-                          "job " + job_id + " has no frame " + std::to_string(index));
+        if (!job) return job_not_found(job_id);
+        if (index >= job->frames.size()) return frame_not_found(job_id, index, job->frames.size());
     }
     FrameData& frame = *job->frames[index];
     std::lock_guard lock(frame.mu);
