@@ -632,9 +632,12 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
     return Status::OK;
 }
 
-// A job whose leases failed on this many distinct workers (or on every worker the server
-// knows, if fewer) is a poison job: it FAILS with the last error instead of being handed out
-// for ever.
+// A job whose leases failed on this many distinct workers that reported an error (or on every
+// worker the server knows, if fewer) is a poison job: it FAILS with the last error instead of
+// being handed out for ever (issue 17: the same error from two workers).
+constexpr size_t kMaxReportingWorkers = 2;
+// Counting workers that lost a lease of the job (died or stopped heartbeating) as well, this
+// many distinct ones fail it: a loss may be a machine taken away, so one more is asked for.
 constexpr size_t kMaxFailedWorkers = 3;
 
 void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
@@ -670,7 +673,7 @@ void JobManager::fail_if_poison(JobData& job, const std::string& job_id) {
     either.insert(job.lost_workers.begin(), job.lost_workers.end());
     // Reported failures: on every known worker (up to the limit) is enough; with lost leases
     // the limit itself is needed.
-    const size_t needed_reported = std::clamp<size_t>(workers_.size(), 1, kMaxFailedWorkers);
+    const size_t needed_reported = std::clamp<size_t>(workers_.size(), 1, kMaxReportingWorkers);
     if (job.failed_workers.size() < needed_reported && either.size() < kMaxFailedWorkers) return;
     std::string why =
         "failed on " + std::to_string(either.size()) + " worker" + (either.size() == 1 ? "" : "s");

@@ -129,7 +129,7 @@ class JobManager {
     void finish_frame(const std::string& job_id, uint32_t frame);
     void touch_worker(const std::string& worker_id);  // mu_ held
     // A worker could not render a lease: its range is queued again, and the job FAILS once
-    // min(kMaxFailedWorkers, known workers) distinct workers failed it.
+    // min(kMaxReportingWorkers = 2, known workers) distinct workers failed it.
     void lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure);  // mu_ held
     // A lease of the job expired: its worker died or stopped heartbeating while rendering it.
     // The job FAILS once kMaxFailedWorkers distinct workers failed it or lost it (a crash
