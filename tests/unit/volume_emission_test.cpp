@@ -60,6 +60,12 @@ std::filesystem::path grid_folder() {
         write("sigma_t.vol", Rgb(0.5f, 1.0f, 4.0f));
         write("radiance.vol", Rgb(1.0f, 2.0f, 0.5f));
         write("albedo.vol", Rgb(0.6f));
+        VolumeGridData grey;  // one channel: classic delta tracking (w stays 1)
+        grey.xres = grey.yres = grey.zres = 4;
+        grey.bbox.lo = Vec3(-1.25f);
+        grey.bbox.hi = Vec3(1.25f);
+        grey.values.assign(grey.voxel_count(), 1.5f);
+        write_vol_file((d / "sigma_t_grey.vol").string(), grey);
         return d;
     }();
     return dir;
@@ -69,7 +75,8 @@ constexpr double kSigmaT[3] = {0.5, 1.0, 4.0};
 constexpr double kRadiance[3] = {1.0, 2.0, 0.5};
 
 // The emitting medium: homogeneous (constant RGB) or heterogeneous with the grids above.
-std::string medium_xml(bool grid, const std::string& albedo) {
+std::string medium_xml(bool grid, const std::string& albedo,
+                       const std::string& sigma_t_file = "sigma_t.vol") {
     if (!grid)
         return R"(<medium type="homogeneous" id="glow">
     <rgb name="sigma_t" value="0.5, 1, 4"/>
@@ -82,7 +89,8 @@ std::string medium_xml(bool grid, const std::string& albedo) {
             ? R"(<float name="albedo" value="0"/>)"
             : R"(<volume type="gridvolume" name="albedo"><string name="filename" value="albedo.vol"/><boolean name="use_grid_bbox" value="true"/></volume>)";
     return R"(<medium type="heterogeneous" id="glow">
-    <volume type="gridvolume" name="sigma_t"><string name="filename" value="sigma_t.vol"/><boolean name="use_grid_bbox" value="true"/></volume>
+    <volume type="gridvolume" name="sigma_t"><string name="filename" value=")" +
+           sigma_t_file + R"("/><boolean name="use_grid_bbox" value="true"/></volume>
     <volume type="gridvolume" name="radiance"><string name="filename" value="radiance.vol"/><boolean name="use_grid_bbox" value="true"/></volume>
     )" + albedo_xml +
            R"(
@@ -156,9 +164,10 @@ TEST(VolumeEmission, GridAbsorbingSphereMatchesTheClosedForm) {
 // emit L_e, the camera inside: L = L_e in every direction, whatever the albedo (< 1) and
 // sigma_t, by light found both through the medium and on the walls (NEE and phase sampling
 // combined by MIS).
-std::string closed_furnace(bool grid, const std::string& albedo) {
+std::string closed_furnace(bool grid, const std::string& albedo,
+                           const std::string& sigma_t_file = "sigma_t.vol") {
     return R"(<scene version="3.0.0">
-  )" + medium_xml(grid, albedo) +
+  )" + medium_xml(grid, albedo, sigma_t_file) +
            R"(
   <sensor type="perspective">
     <float name="fov" value="70"/>
@@ -180,14 +189,16 @@ struct FurnaceCase {
     bool grid;
     const char* albedo;
     uint64_t iterations = 64;
-    double max_relative_error = 0.03;  // bound on the standard error / L_e
+    double max_relative_error = 0.03;          // bound on the standard error / L_e
+    const char* sigma_t_file = "sigma_t.vol";  // grid: RGB (spectral tracking) or grey
 };
 
 class EmittingFurnace : public ::testing::TestWithParam<FurnaceCase> {};
 
 TEST_P(EmittingFurnace, RadianceEqualsTheEmittedRadiance) {
     const FurnaceCase& c = GetParam();
-    auto scene = load_scene_from_string(closed_furnace(c.grid, c.albedo), grid_folder().string());
+    auto scene = load_scene_from_string(closed_furnace(c.grid, c.albedo, c.sigma_t_file),
+                                        grid_folder().string());
     IterationResult r = render_volpt(*scene, c.iterations);
     EXPECT_EQ(r.stats.non_finite, 0u);
     for (int channel = 0; channel < 3; ++channel) {
@@ -207,7 +218,8 @@ TEST_P(EmittingFurnace, RadianceEqualsTheEmittedRadiance) {
 INSTANTIATE_TEST_SUITE_P(Volpt, EmittingFurnace,
                          ::testing::Values(FurnaceCase{false, "0"}, FurnaceCase{false, "0.6"},
                                            FurnaceCase{false, "0.95", 512, 0.05},
-                                           FurnaceCase{true, "0"}, FurnaceCase{true, "0.6"}));
+                                           FurnaceCase{true, "0"}, FurnaceCase{true, "0.6"},
+                                           FurnaceCase{true, "0.6", 64, 0.03, "sigma_t_grey.vol"}));
 
 // An infinite homogeneous medium (no surfaces) emitting L_e with albedo 0.5: the camera sees
 // L_e. Each segment's emission is in closed form (sigma_a L_e / sigma_t at infinite length),
