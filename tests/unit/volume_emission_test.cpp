@@ -31,11 +31,12 @@ namespace {
 using testing::pixel_statistics;
 using testing::PixelStatistics;
 
-IterationResult render_volpt(const Scene& scene, uint64_t iterations, uint64_t seed = 4321) {
+IterationResult render_volpt(const Scene& scene, uint64_t iterations, uint64_t seed = 4321,
+                             int max_depth = -1) {
     RenderSettings settings;
     settings.algorithm = "volpt";
     settings.seed = seed;
-    settings.max_depth = -1;
+    settings.max_depth = max_depth;
     return render_iterations(scene, settings, 0, IterationRange{1, 1 + iterations});
 }
 
@@ -102,10 +103,10 @@ std::string medium_xml(bool grid, const std::string& albedo,
 // line x = 0, y = y, whose chord is 2 sqrt(1 - y^2); over the pixels the chord varies by a
 // relative 1e-6 at most (the linear part cancels by symmetry), so every pixel sees the
 // closed form of that chord.
-std::string sphere_seen_from_outside(bool grid, double y = 0) {
+std::string sphere_seen_from_outside(bool grid, double y = 0, const std::string& albedo = "0") {
     const std::string ys = std::to_string(y);
     return R"(<scene version="3.0.0">
-  )" + medium_xml(grid, "0") +
+  )" + medium_xml(grid, albedo) +
            R"(
   <sensor type="perspective">
     <float name="fov" value="0.02"/>
@@ -155,6 +156,29 @@ TEST(VolumeEmission, GridAbsorbingSphereMatchesTheClosedForm) {
             ASSERT_GT(s.standard_error, 0.0);
             EXPECT_NEAR(s.mean, expected, 5 * s.standard_error)
                 << "y " << y << " channel " << channel;
+            EXPECT_LT(s.standard_error, 0.02 * expected);
+        }
+    }
+}
+
+// With scattering (albedo 0.6) and max_depth 1 only the camera segment's own emission counts
+// (paths of one segment): L = L_e (sigma_a / sigma_t) (1 - exp(-sigma_t chord)), issue 14's
+// formula, with sigma_a / sigma_t = 0.4.
+TEST(VolumeEmission, ScatteringSphereAtDepthOneMatchesTheClosedForm) {
+    for (const bool grid : {false, true}) {
+        auto scene = load_scene_from_string(sphere_seen_from_outside(grid, 0.8, "0.6"),
+                                            grid_folder().string());
+        IterationResult r = render_volpt(*scene, grid ? 64 : 4, 4321, 1);
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            const PixelStatistics s = pixel_statistics(r, channel);
+            const double expected = 0.4 * sphere_radiance(channel, 0.8);
+            if (!grid) {  // closed form: exact up to rounding
+                EXPECT_NEAR(s.mean, expected, 1e-5 * expected) << "channel " << channel;
+                continue;
+            }
+            ASSERT_GT(s.standard_error, 0.0);
+            EXPECT_NEAR(s.mean, expected, 5 * s.standard_error) << "grid channel " << channel;
             EXPECT_LT(s.standard_error, 0.02 * expected);
         }
     }
