@@ -23,7 +23,6 @@ class HomogeneousMedium final : public Medium {
     bool is_homogeneous() const override { return true; }
     bool is_emissive() const override { return emissive_; }
     Rgb radiance(const Vec3&) const override { return radiance_; }
-    Rgb sigma_a() const { return sigma_t_ - sigma_s_; }
     std::string to_string() const override;
 
     // exp(-sigma_t t) per channel; exactly 1 at t = 0 and 0 at t = infinity.
