@@ -1,12 +1,19 @@
 // `make_smoke`: writes the procedural smoke plume of scenes/smoke/ as a density grid.
 //
 //   make_smoke [--resolution N] [--seed S] --out FILE.vol|FILE.vdb [--out ...]
+//              [--emission FILE.vol [--emission-scale K]]
 //
 // The density is a rising column: a smooth envelope (a plume that widens and sways with
 // height, fading in above the floor and out below the top) times a few octaves of value noise,
 // exactly zero on the grid's border voxels, normalised to a maximum of 1. Everything follows
 // from (resolution, seed): the same arguments write the same bytes. The grid fills the unit
 // cube (the .vol bounding box is [0,1]^3; y is up).
+//
+// --emission writes a flame's emitted radiance on the same grid (RGB .vol, the `radiance`
+// volume of a heterogeneous medium, docs/media.md "Emission in media"): a temperature-like
+// field, hottest in a core on the plume's axis just above the floor, falling off with the
+// distance from the axis and with height, mapped to colour by a fire ramp (dark red, orange,
+// yellow-white at the hottest) times K (default 8).
 
 #include <algorithm>
 #include <cmath>
@@ -31,7 +38,9 @@ constexpr const char* kUsage =
     "usage: make_smoke [--resolution N] [--seed S] --out FILE.vol|FILE.vdb [--out ...]\n"
     "  --resolution N   voxels per axis (default 64, 4 to 512)\n"
     "  --seed S         noise seed (default 1)\n"
-    "  --out FILE       output file; .vol (Mitsuba) or .vdb (OpenVDB), may repeat\n";
+    "  --out FILE       output file; .vol (Mitsuba) or .vdb (OpenVDB), may repeat\n"
+    "  --emission FILE  also write a flame's emitted radiance (RGB .vol)\n"
+    "  --emission-scale K  the hottest voxel's red radiance (default 8)\n";
 
 float smoothstep(float a, float b, float x) {
     const float t = std::clamp((x - a) / (b - a), 0.0f, 1.0f);
@@ -93,6 +102,27 @@ float plume_density(const ValueNoise& noise, float x, float y, float z) {
     return radial * vertical * detail * window(x) * window(y) * window(z);
 }
 
+// Temperature-like field in [0, 1]: a hot core on the plume's axis near the floor, cooling
+// with the distance from the axis and with height, with some turbulence.
+float flame_temperature(const ValueNoise& noise, float x, float y, float z) {
+    const float h = y;
+    const float cx = 0.5f + 0.07f * std::sin(5.0f * h + 0.7f) * h;
+    const float cz = 0.5f + 0.05f * std::cos(4.0f * h + 1.3f) * h;
+    const float d2 = (x - cx) * (x - cx) + (z - cz) * (z - cz);
+    const float core = 0.08f + 0.15f * h;  // the hot region narrows less than the plume widens
+    const float radial = std::exp(-d2 / (core * core));
+    const float vertical = smoothstep(0.02f, 0.1f, h) * (1.0f - smoothstep(0.2f, 0.75f, h));
+    const float flicker =
+        std::clamp(0.75f + 0.5f * noise.fbm(6.0f * x, 4.0f * y - 3.0f, 6.0f * z), 0.0f, 1.0f);
+    return std::clamp(radial * vertical * flicker, 0.0f, 1.0f);
+}
+
+// Fire colour ramp: red rises first, then green, then blue (a blackbody's order).
+Rgb fire_colour(float temperature) {
+    const float t = temperature;
+    return Rgb(std::pow(t, 1.5f), std::pow(t, 3.0f), std::pow(t, 6.0f));
+}
+
 bool ends_with(const std::string& s, const std::string& suffix) {
     return s.size() >= suffix.size() &&
            s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -104,6 +134,8 @@ int main(int argc, char** argv) {
     int resolution = 64;
     uint64_t seed = 1;
     std::vector<std::string> outputs;
+    std::string emission_out;
+    float emission_scale = 8.0f;
     bool help = false;
     ArgumentParser parser;
     parser.value({"--resolution"}, "N", "",
@@ -111,6 +143,10 @@ int main(int argc, char** argv) {
     parser.value({"--seed"}, "S", "",
                  [&](const std::string& v) { seed = parse_number<uint64_t>("--seed", v); });
     parser.value({"--out"}, "FILE", "", [&](const std::string& v) { outputs.push_back(v); });
+    parser.value({"--emission"}, "FILE", "", [&](const std::string& v) { emission_out = v; });
+    parser.value({"--emission-scale"}, "K", "", [&](const std::string& v) {
+        emission_scale = float(parse_number<double>("--emission-scale", v));
+    });
     parser.flag({"--help", "-h"}, "", [&] { help = true; });
     try {
         parser.parse(argc, argv);
@@ -136,6 +172,16 @@ int main(int argc, char** argv) {
                          out.c_str());
             return 2;
         }
+
+    if (!emission_out.empty() && !ends_with(emission_out, ".vol")) {
+        std::fprintf(stderr, "make_smoke: %s: the emission output must end in .vol\n",
+                     emission_out.c_str());
+        return 2;
+    }
+    if (!(std::isfinite(emission_scale) && emission_scale >= 0)) {
+        std::fprintf(stderr, "make_smoke: --emission-scale must be finite and >= 0\n");
+        return 2;
+    }
 
     const ValueNoise noise{seed};
     VolumeGridData grid;
@@ -173,6 +219,26 @@ int main(int argc, char** argv) {
                 write_vdb_file(out, grid);
             std::printf("make_smoke: wrote %s (%d^3, seed %llu)\n", out.c_str(), resolution,
                         (unsigned long long)seed);
+        }
+        if (!emission_out.empty()) {
+            VolumeGridData emission = grid;
+            emission.channels = 3;
+            emission.values.assign(emission.voxel_count() * 3, 0.0f);
+            const ValueNoise flicker{seed + 1000};
+            size_t j = 0;
+            for (int z = 0; z < resolution; ++z)
+                for (int y = 0; y < resolution; ++y)
+                    for (int x = 0; x < resolution; ++x, j += 3) {
+                        const float r = float(resolution);
+                        const Rgb c =
+                            fire_colour(flame_temperature(flicker, (x + 0.5f) / r, (y + 0.5f) / r,
+                                                          (z + 0.5f) / r)) *
+                            emission_scale;
+                        for (int k = 0; k < 3; ++k) emission.values[j + size_t(k)] = c[k];
+                    }
+            write_vol_file(emission_out, emission);
+            std::printf("make_smoke: wrote %s (emitted radiance, RGB, max %g)\n",
+                        emission_out.c_str(), double(emission_scale));
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "make_smoke: %s\n", e.what());

@@ -332,6 +332,15 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                 sink.add(Technique::Connection, 1, depth + 2, c);
             }
             const MediumSample ms = medium->sample(ray, t_end, rng);
+            if (medium->is_emissive()) {
+                // Emission along this segment (docs/media.md, "Emission in media"): only the
+                // path finds it (no technique samples points of emissive media), so its MIS
+                // weight is 1. Like a surface emitter hit at the segment's end, it belongs to
+                // paths of `depth` segments.
+                const Rgb c = beta * ms.emission;
+                L += c;
+                sink.add(Technique::Connection, 0, depth + 1, c);
+            }
             beta *= ms.weight;
             if (beta.is_black() || !beta.is_finite()) break;
             if (ms.scattered) {

@@ -37,9 +37,11 @@ void HeterogeneousMedium::for_each_tentative_collision(const Ray& ray, float t_m
 HeterogeneousMedium::HeterogeneousMedium(std::shared_ptr<const Volume> sigma_t,
                                          std::shared_ptr<const Volume> albedo, float scale,
                                          std::shared_ptr<const PhaseFunction> phase,
-                                         std::array<int, 3> majorant_resolution)
+                                         std::array<int, 3> majorant_resolution,
+                                         std::shared_ptr<const Volume> radiance)
     : sigma_t_(std::move(sigma_t)),
       albedo_(std::move(albedo)),
+      radiance_(std::move(radiance)),
       scale_(scale),
       phase_(std::move(phase)),
       majorants_(*sigma_t_, scale_, majorant_resolution),
@@ -56,6 +58,12 @@ MediumSample HeterogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) 
     for_each_tentative_collision(ray, t_max, rng, [&](float t, float mu) {
         const Vec3 p = ray.at(t);
         const Rgb st = sigma_t(p);
+        if (radiance_) {
+            // sigma_a L_e / mu with the weight w carried to this collision (header comment).
+            const Rgb le = radiance_->eval(p);
+            if (!le.is_black())
+                s.emission += w * st * (Rgb(1.0f) - albedo_->eval(p)) * le * (1.0f / mu);
+        }
         if (grey_) {
             // Classic delta tracking, the exact grey case of the estimator below (where
             // w stays (1, 1, 1)): no rounding from the general weights.
@@ -142,7 +150,9 @@ std::string HeterogeneousMedium::to_string() const {
     const std::array<int, 3> r = majorants_.resolution();
     os << "heterogeneous(sigma_t=" << sigma_t_->to_string() << ", albedo=" << albedo_->to_string()
        << ", scale=" << scale_ << ", majorant grid " << r[0] << "x" << r[1] << "x" << r[2]
-       << ", phase=" << phase_->to_string() << ")";
+       << ", phase=" << phase_->to_string();
+    if (radiance_) os << ", radiance=" << radiance_->to_string();
+    os << ")";
     return os.str();
 }
 

@@ -22,10 +22,13 @@ namespace render {
 class HeterogeneousMedium final : public Medium {
   public:
     // `albedo` must lie in [0, 1]. `majorant_resolution` {0, 0, 0} chooses the default (one
-    // majorant cell per 8 voxels of sigma_t).
+    // majorant cell per 8 voxels of sigma_t). `radiance` (may be null: no emission) is the
+    // emitted radiance L_e(p); the source term is sigma_a(p) L_e(p) with
+    // sigma_a = sigma_t (1 - albedo), so emission lives only where the medium absorbs.
     HeterogeneousMedium(std::shared_ptr<const Volume> sigma_t, std::shared_ptr<const Volume> albedo,
                         float scale, std::shared_ptr<const PhaseFunction> phase,
-                        std::array<int, 3> majorant_resolution = {0, 0, 0});
+                        std::array<int, 3> majorant_resolution = {0, 0, 0},
+                        std::shared_ptr<const Volume> radiance = nullptr);
 
     // Spectral tracking. Let mu be the cell's scalar majorant (>= every channel of sigma_t)
     // and w the weight carried since the start of this call (w = (1, 1, 1) at the start). At a
@@ -42,6 +45,13 @@ class HeterogeneousMedium final : public Medium {
     // the same bounds as the homogeneous medium's spectral MIS, however different the channels.
     // For grey sigma_t, w stays (1, 1, 1): classic delta tracking (P_r = sigma_t / mu, weight
     // albedo on scattering, exactly 1 on passing).
+    //
+    // Emission (emissive media only): at every tentative collision reached, before the
+    // real/null choice, emission += w sigma_a L_e / mu. A collision at t is reached with only
+    // null events before it with probability prod (1 - P_r), and w = prod sigma_n / (mu (1 -
+    // P_r)), so E[w; reached] = E[prod sigma_n / mu] = T(0, t) (ratio tracking's identity);
+    // the collisions form a Poisson process of rate mu, so the sum's mean is
+    // integral T sigma_a L_e ds over (0, t_max) (docs/media.md, "Emission in media").
     MediumSample sample(const Ray& ray, float t_max, Rng& rng) const override;
 
     // Ratio tracking: T *= 1 - sigma_t / mu at each tentative collision. Once max(T) < 0.1 the
@@ -60,6 +70,10 @@ class HeterogeneousMedium final : public Medium {
     Rgb sigma_t(const Vec3& p) const override { return sigma_t_->eval(p) * scale_; }
     const PhaseFunction& phase() const override { return *phase_; }
     bool is_homogeneous() const override { return false; }
+    bool is_emissive() const override { return radiance_ != nullptr; }
+    Rgb radiance(const Vec3& p) const override {
+        return radiance_ ? radiance_->eval(p) : Rgb(0.0f);
+    }
     std::string to_string() const override;
 
     const MajorantGrid& majorant_grid() const { return majorants_; }
@@ -73,7 +87,7 @@ class HeterogeneousMedium final : public Medium {
 
     Rgb optical_depth(const Ray& ray, float t) const;
 
-    std::shared_ptr<const Volume> sigma_t_, albedo_;
+    std::shared_ptr<const Volume> sigma_t_, albedo_, radiance_;
     float scale_;
     std::shared_ptr<const PhaseFunction> phase_;
     MajorantGrid majorants_;

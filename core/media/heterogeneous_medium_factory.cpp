@@ -17,7 +17,8 @@ constexpr double kMaxGridOpticalDepth = 1e5;
 std::unique_ptr<Medium> make_heterogeneous_medium(const Properties& props,
                                                   std::shared_ptr<const Volume> sigma_t,
                                                   std::shared_ptr<const Volume> albedo,
-                                                  std::shared_ptr<const PhaseFunction> phase) {
+                                                  std::shared_ptr<const PhaseFunction> phase,
+                                                  std::shared_ptr<const Volume> radiance) {
     const float scale = props.get_float("scale", 1.0f);
     if (!(std::isfinite(scale) && scale >= 0))
         throw props.error("scale", "must be finite and >= 0");
@@ -50,8 +51,15 @@ std::unique_ptr<Medium> make_heterogeneous_medium(const Properties& props,
     if (!(max_albedo >= 0 && max_albedo <= 1.0f))
         throw props.error("albedo",
                           "must be in [0, 1] (its maximum is " + std::to_string(max_albedo) + ")");
+    if (radiance) {
+        const float max_radiance = radiance->max_value();
+        if (!(std::isfinite(max_radiance) && max_radiance >= 0))
+            throw props.error("radiance", "must be finite and >= 0");
+        if (max_radiance == 0) radiance = nullptr;  // no emission: no emission work
+    }
     return std::make_unique<HeterogeneousMedium>(std::move(sigma_t), std::move(albedo), scale,
-                                                 std::move(phase));
+                                                 std::move(phase), std::array<int, 3>{0, 0, 0},
+                                                 std::move(radiance));
 }
 
 }  // namespace render

@@ -6,8 +6,30 @@
 namespace render {
 
 HomogeneousMedium::HomogeneousMedium(const Rgb& sigma_a, const Rgb& sigma_s,
-                                     std::shared_ptr<const PhaseFunction> phase)
-    : sigma_s_(sigma_s), sigma_t_(sigma_a + sigma_s), phase_(std::move(phase)) {}
+                                     std::shared_ptr<const PhaseFunction> phase,
+                                     const Rgb& radiance)
+    : sigma_s_(sigma_s),
+      sigma_t_(sigma_a + sigma_s),
+      radiance_(radiance),
+      emissive_(!(sigma_a * radiance).is_black()),
+      phase_(std::move(phase)) {}
+
+Rgb HomogeneousMedium::emission(float t_max) const {
+    const Rgb sigma_a = sigma_t_ - sigma_s_;
+    Rgb e;
+    for (int c = 0; c < 3; ++c) {
+        const float source = std::max(sigma_a[c], 0.0f) * radiance_[c];
+        if (!(source > 0)) {
+            e[c] = 0.0f;
+            continue;
+        }
+        // (1 - exp(-sigma_t t)) / sigma_t, by expm1 so that optically thin segments keep
+        // their precision; sigma_t >= sigma_a > 0 here.
+        const float s = sigma_t_[c];
+        e[c] = source * (std::isinf(t_max) ? 1.0f / s : -std::expm1(-s * t_max) / s);
+    }
+    return e;
+}
 
 Rgb HomogeneousMedium::transmittance(float t) const {
     Rgb tr;
@@ -35,6 +57,7 @@ MediumSample HomogeneousMedium::sample(const Ray&, float t_max, Rng& rng) const 
         s.t = t_max;
         s.weight = probability > 0 ? tr / probability : Rgb(0.0f);
     }
+    if (emissive_) s.emission = emission(t_max);
     return s;
 }
 
@@ -53,7 +76,9 @@ float HomogeneousMedium::probability_pass(const Ray&, float t) const {
 std::string HomogeneousMedium::to_string() const {
     std::ostringstream os;
     os << "homogeneous(sigma_t=" << sigma_t_ << ", sigma_s=" << sigma_s_
-       << ", phase=" << phase_->to_string() << ")";
+       << ", phase=" << phase_->to_string();
+    if (emissive_) os << ", radiance=" << radiance_;
+    os << ")";
     return os.str();
 }
 

@@ -31,6 +31,11 @@ struct MediumSample {
     // T(t_max) / P(pass) otherwise. Absorption is part of the weight, never a termination, so
     // the weight may be zero.
     Rgb weight{1.0f};
+    // Emission (docs/media.md, "Emission in media"): an unbiased estimate of the radiance that
+    // the medium emits toward the ray origin from (0, t_max),
+    //     integral_0^t_max T(0, s) sigma_a(s) L_e(s) ds,
+    // to be multiplied by the throughput *before* `weight`. Zero unless is_emissive().
+    Rgb emission{0.0f};
 };
 
 class Medium {
@@ -58,6 +63,11 @@ class Medium {
 
     virtual const PhaseFunction& phase() const = 0;
     virtual bool is_homogeneous() const = 0;
+    // True when the medium emits (a non-zero `radiance`): sample() then fills
+    // MediumSample::emission. Non-emissive media do no emission work at all.
+    virtual bool is_emissive() const { return false; }
+    // Emitted radiance L_e(p) (the source term is sigma_a(p) L_e(p)); zero by default.
+    virtual Rgb radiance(const Vec3&) const { return Rgb(0.0f); }
     virtual std::string to_string() const = 0;
 };
 

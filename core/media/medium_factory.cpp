@@ -44,7 +44,10 @@ std::shared_ptr<const Medium> make_homogeneous(const Properties& props,
     const Rgb scaled_a = sigma_a * scale, scaled_s = sigma_s * scale;
     if (!(scaled_a + scaled_s).is_finite())
         throw props.error("scale", "the scaled coefficients overflow");
-    return std::make_shared<HomogeneousMedium>(scaled_a, scaled_s, std::move(phase));
+    // Emitted radiance L_e (source term sigma_a L_e, docs/media.md "Emission in media").
+    const Rgb radiance = props.get_rgb("radiance", Rgb(0.0f));
+    if (!valid_coefficient(radiance)) throw props.error("radiance", "must be finite and >= 0");
+    return std::make_shared<HomogeneousMedium>(scaled_a, scaled_s, std::move(phase), radiance);
 }
 
 }  // namespace
@@ -90,13 +93,17 @@ std::shared_ptr<const Medium> make_heterogeneous_plugin(const Properties& props,
             return it->second;
         }
         if (!props.has(name)) return nullptr;  // the factory applies Mitsuba's default
-        return std::make_shared<ConstantVolume>(props.get_rgb(name));
+        const Rgb value = props.get_rgb(name);
+        if (name == "radiance" && !valid_coefficient(value))
+            throw props.error(name, "must be finite and >= 0");
+        return std::make_shared<ConstantVolume>(value);
     };
     for (const auto& [name, v] : volumes)
-        if (name != "sigma_t" && name != "albedo")
+        if (name != "sigma_t" && name != "albedo" && name != "radiance")
             throw SceneError(props.where(), "heterogeneous medium: unknown volume \"" + name +
-                                                "\" (expected sigma_t or albedo)");
-    return make_heterogeneous_medium(props, volume("sigma_t"), volume("albedo"), std::move(phase));
+                                                "\" (expected sigma_t, albedo or radiance)");
+    return make_heterogeneous_medium(props, volume("sigma_t"), volume("albedo"), std::move(phase),
+                                     volume("radiance"));
 }
 
 const Plugin<std::shared_ptr<const Medium> (*)(

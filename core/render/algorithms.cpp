@@ -68,7 +68,7 @@ const std::vector<Algorithm>& table() {
          .description =
              "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
              "media)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+         .support = {.homogeneous_media = true, .grid_media = true, .emissive_media = true},
          .options = {"max_depth", "rr_depth", "equiangular", "jis"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
@@ -221,14 +221,27 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings) {
 void check_algorithm_supports_scene(const std::string& name, const Scene& scene) {
     const Algorithm& algorithm = find_algorithm_or_throw(name);
     bool homogeneous = false, grid = false;
-    for (const auto& medium : scene.media()) (medium->is_homogeneous() ? homogeneous : grid) = true;
+    std::string emissive;  // the first emitting medium's name
+    for (size_t i = 0; i < scene.media().size(); ++i) {
+        const Medium& medium = *scene.media()[i];
+        (medium.is_homogeneous() ? homogeneous : grid) = true;
+        if (medium.is_emissive() && emissive.empty()) {
+            emissive = scene.medium_name(i);
+            if (emissive.empty()) emissive = "a medium";
+        }
+    }
     const auto supported = [&](const Algorithm& a) {
-        return (!homogeneous || a.support.homogeneous_media) && (!grid || a.support.grid_media);
+        return (!homogeneous || a.support.homogeneous_media) && (!grid || a.support.grid_media) &&
+               (emissive.empty() || a.support.emissive_media);
     };
     if (supported(algorithm)) return;
     std::string can;
     for (const Algorithm& a : table())
         if (supported(a)) can += (can.empty() ? "" : ", ") + a.name;
+    if (!emissive.empty() && !algorithm.support.emissive_media)
+        throw std::invalid_argument("the scene's " + emissive +
+                                    " emits light (radiance), which algorithm \"" + algorithm.name +
+                                    "\" does not render (use " + can + ")");
     throw std::invalid_argument(
         "the scene has " +
         std::string(grid ? "a heterogeneous (grid) medium" : "participating media") +

@@ -23,7 +23,8 @@ struct RenderOption;
 // renders surfaces.
 struct SceneSupport {
     bool homogeneous_media = false;
-    bool grid_media = false;  // heterogeneous (grid) media
+    bool grid_media = false;      // heterogeneous (grid) media
+    bool emissive_media = false;  // media that emit (`radiance`)
 };
 
 struct Algorithm {

@@ -53,8 +53,9 @@ Shape* Scene::add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf) {
     return shapes_.back().get();
 }
 
-const Medium* Scene::add_medium(std::shared_ptr<const Medium> medium) {
+const Medium* Scene::add_medium(std::shared_ptr<const Medium> medium, std::string name) {
     media_.push_back(std::move(medium));
+    medium_names_.push_back(std::move(name));
     return media_.back().get();
 }
 

@@ -46,8 +46,9 @@ class Scene {
     // Adds a light (area lights must already be attached to their shape via shape->emitter).
     const Light* add_light(std::unique_ptr<Light> light);
     void set_camera(const PerspectiveCamera& camera) { camera_ = camera; }
-    // Keeps a medium alive for the scene's lifetime and returns the stable pointer.
-    const Medium* add_medium(std::shared_ptr<const Medium> medium);
+    // Keeps a medium alive for the scene's lifetime and returns the stable pointer. `name`
+    // describes it in messages (its id and where the scene file defines it).
+    const Medium* add_medium(std::shared_ptr<const Medium> medium, std::string name = "");
     // The medium around the camera (null: vacuum).
     void set_camera_medium(const Medium* medium) { camera_medium_ = medium; }
     SceneSettings settings;
@@ -75,6 +76,8 @@ class Scene {
     const PerspectiveCamera& camera() const { return camera_; }
     const Medium* camera_medium() const { return camera_medium_; }
     const std::vector<std::shared_ptr<const Medium>>& media() const { return media_; }
+    // The name given to add_medium for media()[i] ("" when none was given).
+    const std::string& medium_name(size_t i) const { return medium_names_[i]; }
     // True when a shape bounds a medium or the camera sits in one. Integrators take their
     // medium-aware code paths only then, so surface-only scenes pay nothing for media.
     bool has_media() const { return has_media_; }
@@ -102,6 +105,7 @@ class Scene {
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<const Light*> background_lights_;
     std::vector<std::shared_ptr<const Medium>> media_;
+    std::vector<std::string> medium_names_;
     const Medium* camera_medium_ = nullptr;
     bool has_media_ = false;
     Distribution1D light_distribution_;

@@ -221,7 +221,7 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
     }
     // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures
     EXPECT_EQ(surface_scenes, 11);
-    EXPECT_EQ(media_scenes, 5);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box
+    EXPECT_EQ(media_scenes, 6);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame
 }
 
 }  // namespace

@@ -643,7 +643,9 @@ class Loader {
             register_id(props.id, e.where());
             media_[props.id] = medium.get();
         }
-        return scene_.add_medium(std::move(medium));
+        const std::string name = (props.id.empty() ? "medium" : "medium \"" + props.id + "\"") +
+                                 " (" + e.where().to_string() + ")";
+        return scene_.add_medium(std::move(medium), name);
     }
 
     const Medium* lookup_medium(const XmlElement& ref) {

@@ -1,0 +1,367 @@
+// Emission inside participating media (`radiance` on homogeneous and heterogeneous media,
+// docs/media.md "Emission in media") in volpt, against closed forms:
+//   - an emitting, absorbing sphere seen from outside: L = L_e (sigma_a / sigma_t)
+//     (1 - exp(-sigma_t chord)) per channel;
+//   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit
+//     L_e too has L = L_e everywhere (sigma_a (L_e - L) = 0 in the transfer equation);
+//   - the same with grid (heterogeneous) media of constant data, tracked stochastically;
+//   - the scene format's validation and the bidirectional family's refusal.
+// Every statistical check states its tolerance in standard errors.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+#include "core/base/error.h"
+#include "core/media/medium.h"
+#include "core/media/vol_file.h"
+#include "core/render/algorithms.h"
+#include "core/render/render_iterations.h"
+#include "core/render/render_options.h"
+#include "core/scene/loader/scene_loader.h"
+#include "tests/support/pixel_statistics.h"
+
+namespace render {
+namespace {
+
+using testing::pixel_statistics;
+using testing::PixelStatistics;
+
+IterationResult render_volpt(const Scene& scene, uint64_t iterations, uint64_t seed = 4321,
+                             int max_depth = -1) {
+    RenderSettings settings;
+    settings.algorithm = "volpt";
+    settings.seed = seed;
+    settings.max_depth = max_depth;
+    return render_iterations(scene, settings, 0, IterationRange{1, 1 + iterations});
+}
+
+// A folder with constant .vol grids over [-1.25, 1.25]^3 (trilinear interpolation of a
+// constant grid is that constant everywhere inside the box).
+std::filesystem::path grid_folder() {
+    static const std::filesystem::path dir = [] {
+        const std::filesystem::path d = std::filesystem::temp_directory_path() /
+                                        ("volume_emission_test_" + std::to_string(::getpid()));
+        std::filesystem::create_directories(d);
+        auto write = [&](const std::string& name, const Rgb& value) {
+            VolumeGridData g;
+            g.xres = g.yres = g.zres = 4;
+            g.channels = 3;
+            g.bbox.lo = Vec3(-1.25f);
+            g.bbox.hi = Vec3(1.25f);
+            g.values.resize(g.voxel_count() * 3);
+            for (size_t i = 0; i < g.voxel_count(); ++i)
+                for (int c = 0; c < 3; ++c) g.values[3 * i + size_t(c)] = value[c];
+            write_vol_file((d / name).string(), g);
+        };
+        write("sigma_t.vol", Rgb(0.5f, 1.0f, 4.0f));
+        write("radiance.vol", Rgb(1.0f, 2.0f, 0.5f));
+        write("albedo.vol", Rgb(0.6f));
+        VolumeGridData grey;  // one channel: classic delta tracking (w stays 1)
+        grey.xres = grey.yres = grey.zres = 4;
+        grey.bbox.lo = Vec3(-1.25f);
+        grey.bbox.hi = Vec3(1.25f);
+        grey.values.assign(grey.voxel_count(), 1.5f);
+        write_vol_file((d / "sigma_t_grey.vol").string(), grey);
+        return d;
+    }();
+    return dir;
+}
+
+constexpr double kSigmaT[3] = {0.5, 1.0, 4.0};
+constexpr double kRadiance[3] = {1.0, 2.0, 0.5};
+
+// The emitting medium: homogeneous (constant RGB) or heterogeneous with the grids above.
+std::string medium_xml(bool grid, const std::string& albedo,
+                       const std::string& sigma_t_file = "sigma_t.vol") {
+    if (!grid)
+        return R"(<medium type="homogeneous" id="glow">
+    <rgb name="sigma_t" value="0.5, 1, 4"/>
+    <float name="albedo" value=")" +
+               albedo + R"("/>
+    <rgb name="radiance" value="1, 2, 0.5"/>
+  </medium>)";
+    const std::string albedo_xml =
+        albedo == "0"
+            ? R"(<float name="albedo" value="0"/>)"
+            : R"(<volume type="gridvolume" name="albedo"><string name="filename" value="albedo.vol"/><boolean name="use_grid_bbox" value="true"/></volume>)";
+    return R"(<medium type="heterogeneous" id="glow">
+    <volume type="gridvolume" name="sigma_t"><string name="filename" value=")" +
+           sigma_t_file + R"("/><boolean name="use_grid_bbox" value="true"/></volume>
+    <volume type="gridvolume" name="radiance"><string name="filename" value="radiance.vol"/><boolean name="use_grid_bbox" value="true"/></volume>
+    )" + albedo_xml +
+           R"(
+  </medium>)";
+}
+
+// A unit sphere of emitting, absorbing medium (null boundary) seen from (0, y, -5) along +z
+// with a field of view of 0.02 degrees: every camera ray crosses the sphere within 1e-3 of the
+// line x = 0, y = y, whose chord is 2 sqrt(1 - y^2); over the pixels the chord varies by a
+// relative 1e-6 at most (the linear part cancels by symmetry), so every pixel sees the
+// closed form of that chord.
+std::string sphere_seen_from_outside(bool grid, double y = 0, const std::string& albedo = "0") {
+    const std::string ys = std::to_string(y);
+    return R"(<scene version="3.0.0">
+  )" + medium_xml(grid, albedo) +
+           R"(
+  <sensor type="perspective">
+    <float name="fov" value="0.02"/>
+    <transform name="to_world"><lookat origin="0, )" +
+           ys + R"(, -5" target="0, )" + ys + R"(, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="1"/>
+    <bsdf type="null"/>
+    <ref name="interior" id="glow"/>
+  </shape>
+</scene>)";
+}
+
+double sphere_radiance(int channel, double y = 0) {
+    const double chord = 2.0 * std::sqrt(1.0 - y * y);
+    return kRadiance[channel] * (1.0 - std::exp(-kSigmaT[channel] * chord));
+}
+
+TEST(VolumeEmission, HomogeneousAbsorbingSphereMatchesTheClosedForm) {
+    for (const double y : {0.0, 0.8}) {  // chords 2 and 1.2
+        auto scene = load_scene_from_string(sphere_seen_from_outside(false, y), ".");
+        IterationResult r = render_volpt(*scene, 4);
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            // The homogeneous emission integral is in closed form: every sample is exact, and
+            // only float rounding and the chord's spread (relative 1e-6) remain: relative 1e-5.
+            const PixelStatistics s = pixel_statistics(r, channel);
+            const double expected = sphere_radiance(channel, y);
+            EXPECT_NEAR(s.mean, expected, 1e-5 * expected) << "y " << y << " channel " << channel;
+        }
+    }
+}
+
+TEST(VolumeEmission, GridAbsorbingSphereMatchesTheClosedForm) {
+    // Tracking estimates the emission integral stochastically (spectral tracking: sigma_t
+    // differs per channel): 5 standard errors.
+    for (const double y : {0.0, 0.8}) {
+        auto scene =
+            load_scene_from_string(sphere_seen_from_outside(true, y), grid_folder().string());
+        IterationResult r = render_volpt(*scene, 64);
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            const PixelStatistics s = pixel_statistics(r, channel);
+            const double expected = sphere_radiance(channel, y);
+            ASSERT_GT(s.standard_error, 0.0);
+            EXPECT_NEAR(s.mean, expected, 5 * s.standard_error)
+                << "y " << y << " channel " << channel;
+            EXPECT_LT(s.standard_error, 0.02 * expected);
+        }
+    }
+}
+
+// With scattering (albedo 0.6) and max_depth 1 only the camera segment's own emission counts
+// (paths of one segment): L = L_e (sigma_a / sigma_t) (1 - exp(-sigma_t chord)), issue 14's
+// formula, with sigma_a / sigma_t = 0.4.
+TEST(VolumeEmission, ScatteringSphereAtDepthOneMatchesTheClosedForm) {
+    for (const bool grid : {false, true}) {
+        auto scene = load_scene_from_string(sphere_seen_from_outside(grid, 0.8, "0.6"),
+                                            grid_folder().string());
+        IterationResult r = render_volpt(*scene, grid ? 64 : 4, 4321, 1);
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            const PixelStatistics s = pixel_statistics(r, channel);
+            const double expected = 0.4 * sphere_radiance(channel, 0.8);
+            if (!grid) {  // closed form: exact up to rounding
+                EXPECT_NEAR(s.mean, expected, 1e-5 * expected) << "channel " << channel;
+                continue;
+            }
+            ASSERT_GT(s.standard_error, 0.0);
+            EXPECT_NEAR(s.mean, expected, 5 * s.standard_error) << "grid channel " << channel;
+            EXPECT_LT(s.standard_error, 0.02 * expected);
+        }
+    }
+}
+
+// The emitting medium inside a closed sphere of radius 1 whose black walls (reflectance 0)
+// emit L_e, the camera inside: L = L_e in every direction, whatever the albedo (< 1) and
+// sigma_t, by light found both through the medium and on the walls (NEE and phase sampling
+// combined by MIS).
+std::string closed_furnace(bool grid, const std::string& albedo,
+                           const std::string& sigma_t_file = "sigma_t.vol") {
+    return R"(<scene version="3.0.0">
+  )" + medium_xml(grid, albedo, sigma_t_file) +
+           R"(
+  <sensor type="perspective">
+    <float name="fov" value="70"/>
+    <transform name="to_world"><lookat origin="0, 0, 0" target="0.3, 0.2, 1" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
+    <ref id="glow"/>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="1"/>
+    <boolean name="flip_normals" value="true"/>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+    <emitter type="area"><rgb name="radiance" value="1, 2, 0.5"/></emitter>
+    <ref name="exterior" id="glow"/>
+  </shape>
+</scene>)";
+}
+
+struct FurnaceCase {
+    bool grid;
+    const char* albedo;
+    uint64_t iterations = 64;
+    double max_relative_error = 0.03;          // bound on the standard error / L_e
+    const char* sigma_t_file = "sigma_t.vol";  // grid: RGB (spectral tracking) or grey
+};
+
+class EmittingFurnace : public ::testing::TestWithParam<FurnaceCase> {};
+
+TEST_P(EmittingFurnace, RadianceEqualsTheEmittedRadiance) {
+    const FurnaceCase& c = GetParam();
+    auto scene = load_scene_from_string(closed_furnace(c.grid, c.albedo, c.sigma_t_file),
+                                        grid_folder().string());
+    IterationResult r = render_volpt(*scene, c.iterations);
+    EXPECT_EQ(r.stats.non_finite, 0u);
+    for (int channel = 0; channel < 3; ++channel) {
+        const PixelStatistics s = pixel_statistics(r, channel);
+        ASSERT_GT(s.standard_error, 0.0);
+        // 5 standard errors: a false failure has probability < 1e-6 per check.
+        EXPECT_NEAR(s.mean, kRadiance[channel], 5 * s.standard_error)
+            << (c.grid ? "grid" : "homogeneous") << " albedo " << c.albedo << " channel "
+            << channel;
+        EXPECT_LT(s.standard_error, c.max_relative_error * kRadiance[channel]);
+    }
+}
+
+// Albedo 0.95: long paths whose spectral-MIS weights (up to 3 albedo per scattering for the
+// blue channel, sigma_t 4 against 0.5 and 1) make the blue estimate heavy-tailed, as in
+// volpt_test's chromatic furnace: its standard error at 512 iterations is about 3 %.
+INSTANTIATE_TEST_SUITE_P(Volpt, EmittingFurnace,
+                         ::testing::Values(FurnaceCase{false, "0"}, FurnaceCase{false, "0.6"},
+                                           FurnaceCase{false, "0.95", 512, 0.05},
+                                           FurnaceCase{true, "0"}, FurnaceCase{true, "0.6"},
+                                           FurnaceCase{true, "0.6", 64, 0.03, "sigma_t_grey.vol"}));
+
+// An infinite homogeneous medium (no surfaces) emitting L_e with albedo 0.5: the camera sees
+// L_e. Each segment's emission is in closed form (sigma_a L_e / sigma_t at infinite length),
+// so only the path's Russian roulette adds noise.
+TEST(VolumeEmission, InfiniteMediumRadianceIsTheEmittedRadiance) {
+    const std::string xml = R"(<scene version="3.0.0">
+  <medium type="homogeneous" id="glow">
+    <rgb name="sigma_t" value="0.5, 1, 4"/>
+    <float name="albedo" value="0.5"/>
+    <rgb name="radiance" value="1, 2, 0.5"/>
+  </medium>
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    <ref id="glow"/>
+  </sensor>
+</scene>)";
+    auto scene = load_scene_from_string(xml, ".");
+    IterationResult r = render_volpt(*scene, 64);
+    EXPECT_EQ(r.stats.non_finite, 0u);
+    for (int channel = 0; channel < 3; ++channel) {
+        const PixelStatistics s = pixel_statistics(r, channel);
+        ASSERT_GT(s.standard_error, 0.0);
+        EXPECT_NEAR(s.mean, kRadiance[channel], 5 * s.standard_error) << "channel " << channel;
+        EXPECT_LT(s.standard_error, 0.03 * kRadiance[channel]);
+    }
+}
+
+// A grid medium whose data are constant renders the homogeneous medium's image (the
+// absorbing sphere and the furnace): block means agree within 5 combined standard errors.
+TEST(VolumeEmission, ConstantGridMatchesHomogeneous) {
+    for (const bool furnace : {false, true}) {
+        const std::string hom =
+            furnace ? closed_furnace(false, "0.6") : sphere_seen_from_outside(false);
+        const std::string het =
+            furnace ? closed_furnace(true, "0.6") : sphere_seen_from_outside(true);
+        auto a = load_scene_from_string(hom, grid_folder().string());
+        auto b = load_scene_from_string(het, grid_folder().string());
+        IterationResult ra = render_volpt(*a, 64, 11), rb = render_volpt(*b, 64, 12);
+        for (int channel = 0; channel < 3; ++channel) {
+            const PixelStatistics sa = pixel_statistics(ra, channel);
+            const PixelStatistics sb = pixel_statistics(rb, channel);
+            const double se = std::hypot(sa.standard_error, sb.standard_error);
+            ASSERT_GT(se, 0.0);
+            EXPECT_NEAR(sa.mean, sb.mean, 5 * se)
+                << (furnace ? "furnace" : "sphere") << " channel " << channel;
+        }
+    }
+}
+
+TEST(VolumeEmission, NonEmissiveMediaReportNoEmission) {
+    auto scene = load_scene_from_string(R"(<scene version="3.0.0">
+  <medium type="homogeneous" id="fog"><rgb name="radiance" value="0"/></medium>
+  <medium type="heterogeneous" id="smoke"><rgb name="radiance" value="0"/></medium>
+  <medium type="homogeneous" id="black"><float name="albedo" value="1"/><rgb name="radiance" value="3"/></medium>
+  <sensor type="perspective"><ref id="fog"/></sensor>
+</scene>)",
+                                        ".");
+    for (const auto& m : scene->media()) EXPECT_FALSE(m->is_emissive()) << m->to_string();
+}
+
+TEST(VolumeEmission, SceneFormatRefusesBadRadiance) {
+    const auto load = [](const std::string& medium) {
+        return load_scene_from_string(R"(<scene version="3.0.0">
+  <sensor type="perspective"/>
+)" + medium + R"(
+</scene>)",
+                                      grid_folder().string());
+    };
+    for (
+        const std::string& medium :
+        {std::string(
+             R"(<medium type="homogeneous"><rgb name="radiance" value="1, -1, 1"/></medium>)"),
+         std::string(R"(<medium type="homogeneous"><float name="radiance" value="inf"/></medium>)"),
+         std::string(R"(<medium type="homogeneous"><float name="radiance" value="nan"/></medium>)"),
+         std::string(R"(<medium type="heterogeneous"><rgb name="radiance" value="-2"/></medium>)"),
+         std::string(
+             R"(<medium type="heterogeneous"><volume type="constvolume" name="radiance"><float name="value" value="-1"/></volume></medium>)")}) {
+        try {
+            load(medium);
+            ADD_FAILURE() << "accepted: " << medium;
+        } catch (const SceneError& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find(":3"), std::string::npos) << what;  // file:line of the medium
+            // The medium's parameter, or the nested volume's value.
+            EXPECT_TRUE(what.find("radiance") != std::string::npos ||
+                        what.find("constvolume") != std::string::npos)
+                << what;
+        }
+    }
+    // A homogeneous medium's radiance is a constant, not a volume.
+    EXPECT_THROW(
+        load(R"(<medium type="homogeneous"><volume type="constvolume" name="radiance"/></medium>)"),
+        SceneError);
+}
+
+TEST(VolumeEmission, BidirectionalAlgorithmsRefuseEmissiveMedia) {
+    for (const bool grid : {false, true}) {
+        auto scene = load_scene_from_string(closed_furnace(grid, "0.6"), grid_folder().string());
+        EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
+        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm", "pt"}) {
+            try {
+                check_algorithm_supports_scene(algorithm, *scene);
+                ADD_FAILURE() << algorithm << " accepted an emissive medium";
+            } catch (const std::invalid_argument& e) {
+                const std::string what = e.what();
+                EXPECT_NE(what.find("medium \"glow\""), std::string::npos) << what;
+                EXPECT_NE(what.find("volpt"), std::string::npos) << what;
+                EXPECT_NE(what.find("emits"), std::string::npos) << what;
+            }
+            RenderSettings settings;
+            settings.algorithm = algorithm;
+            EXPECT_THROW(render_iterations(*scene, settings, 0, IterationRange{1, 2}),
+                         std::invalid_argument)
+                << algorithm;
+        }
+    }
+}
+
+}  // namespace
+}  // namespace render
