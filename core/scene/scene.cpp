@@ -98,6 +98,15 @@ void Scene::commit() {
     committed_ = true;
 }
 
+bool within_scene_limits(const Shape& shape) {
+    const Aabb b = shape.bounds();
+    bool ok = !b.empty() && std::isfinite(shape.surface_area());
+    for (int a = 0; a < 3 && ok; ++a)
+        ok = std::isfinite(b.lo[a]) && std::isfinite(b.hi[a]) &&
+             std::abs(b.lo[a]) <= kMaxSceneCoordinate && std::abs(b.hi[a]) <= kMaxSceneCoordinate;
+    return ok;
+}
+
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
@@ -113,6 +122,14 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
         si.hit_bsdf.reset();  // an interaction reused from a textured hit
     }
     return true;
+}
+
+float Scene::closest_hit_distance(const Ray& ray) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh = to_rtc_ray_hit(ray);
+    rtcIntersect1(rtc_scene_, &context, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? kInfinity : rh.ray.tfar;
 }
 
 bool Scene::occluded(const Ray& ray) const {

@@ -23,6 +23,14 @@ namespace render {
 
 class Medium;
 
+// Geometry our float arithmetic and Embree can handle: finite bounds within
+// kMaxSceneCoordinate of the origin and a finite area. A transform such as a scale of 1e30
+// would otherwise overflow ray offsets and light densities into non-finite rays, which Embree
+// asserts on (the process aborts: a worker would die on the scene, again and again). The
+// loaders refuse other shapes at their line.
+inline constexpr float kMaxSceneCoordinate = 1e12f;
+bool within_scene_limits(const Shape& shape);
+
 // Settings a scene file carries (integrator, sampler, film). Command-line options override them.
 struct SceneSettings {
     std::string integrator = "path";
@@ -61,6 +69,9 @@ class Scene {
     // --- queries (thread-safe after commit) ---
     // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit.
     bool intersect(const Ray& ray, SurfaceInteraction& si) const;
+    // The distance to the closest hit in (ray.t_min, ray.t_max), infinity if none: for callers
+    // that need no interaction (no shading frame, uv or per-hit BSDF is built).
+    float closest_hit_distance(const Ray& ray) const;
     // True if anything blocks the open segment (ray.t_min, ray.t_max).
     bool occluded(const Ray& ray) const;
 

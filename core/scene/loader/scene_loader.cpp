@@ -776,19 +776,9 @@ class Loader {
         if (light) scene_.add_light(std::move(light));
     }
 
-    // Geometry our float arithmetic and Embree can handle: finite bounds within
-    // kMaxSceneCoordinate of the origin and a finite area. A transform such as a scale of 1e30
-    // would otherwise overflow ray offsets and light densities into non-finite rays, which
-    // Embree asserts on (the process aborts: a worker would die on the scene, again and again).
-    static constexpr float kMaxSceneCoordinate = 1e12f;
+    // Refuses geometry beyond the scene's limits (within_scene_limits, core/scene/scene.h).
     static void check_shape_extent(const Shape& shape, const XmlElement& e) {
-        const Aabb b = shape.bounds();
-        bool ok = !b.empty() && std::isfinite(shape.surface_area());
-        for (int a = 0; a < 3 && ok; ++a)
-            ok = std::isfinite(b.lo[a]) && std::isfinite(b.hi[a]) &&
-                 std::abs(b.lo[a]) <= kMaxSceneCoordinate &&
-                 std::abs(b.hi[a]) <= kMaxSceneCoordinate;
-        if (!ok)
+        if (!within_scene_limits(shape))
             throw SceneError(e.where(), e.describe() +
                                             ": its geometry reaches beyond 1e12 from the origin "
                                             "or is not finite (check its to_world transform)");

@@ -23,7 +23,6 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr int kMaxIncludeDepth = 32;
-constexpr float kMaxSceneCoordinate = 1e12f;
 
 std::string read_text(const fs::path& path, const SourceLocation& from) {
     std::error_code ec;
@@ -514,15 +513,9 @@ class Loader {
         if (light) scene_.add_light(std::move(light));
     }
 
-    // As the Mitsuba loader: geometry far beyond 1e12 or non-finite would overflow ray offsets.
+    // Refuses geometry beyond the scene's limits (within_scene_limits, core/scene/scene.h).
     static void check_extent(const Shape& shape, const Token& d) {
-        const Aabb b = shape.bounds();
-        bool ok = !b.empty() && std::isfinite(shape.surface_area());
-        for (int a = 0; a < 3 && ok; ++a)
-            ok = std::isfinite(b.lo[a]) && std::isfinite(b.hi[a]) &&
-                 std::abs(b.lo[a]) <= kMaxSceneCoordinate &&
-                 std::abs(b.hi[a]) <= kMaxSceneCoordinate;
-        if (!ok)
+        if (!within_scene_limits(shape))
             throw SceneError(d.where,
                              "Shape: its geometry reaches beyond 1e12 from the origin or "
                              "is not finite (check the transform)");
