@@ -17,6 +17,7 @@
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
 #include "server/validation.h"
+#include "service/bundle_paths.h"
 #include "service/request_options.h"
 
 namespace render::server {
@@ -330,10 +331,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         const bool settings = !scene && dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
         // Files are named as in the client's bundle, not by the store's own folder (which
         // would tell the client nothing and show the server's layout).
-        std::string what = e.what();
-        const std::string store_prefix = scene_dir.string() + "/";
-        for (size_t at; (at = what.find(store_prefix)) != std::string::npos;)
-            what.erase(at, store_prefix.size());
+        const std::string what = with_bundle_paths(e.what(), scene_dir.string());
         // In an animation, the failing frame and its overrides come first.
         std::string frame_prefix;
         if (loading_frame >= 0 && request.frames_size() > 1) {

@@ -16,6 +16,7 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
+#include "service/bundle_paths.h"
 #include "service/request_options.h"
 #include "service/rpc.h"
 
@@ -251,7 +252,7 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     // Assets and scene.
     const Scene* scene = nullptr;
     RenderSettings settings;
-    std::string job_prefix;  // the job's folder in this worker's cache, with a trailing '/'
+    std::string job_folder;  // the job's folder in this worker's cache
     try {
         std::filesystem::path scene_file = cache_.prepare_job(
             lease.job_id(), lease.bundle(),
@@ -263,7 +264,7 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             (void)part;
             job_dir = job_dir.parent_path();
         }
-        job_prefix = job_dir.string() + "/";
+        job_folder = job_dir.string();
         scene = &scene_for(lease, scene_file);
         // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
@@ -273,11 +274,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     } catch (const std::exception& e) {
         // Files named as in the client's bundle (as the server's submit errors do), not by
         // this worker's cache folder, which the job's owner cannot see.
-        std::string what = e.what();
-        if (!job_prefix.empty())
-            for (size_t at; (at = what.find(job_prefix)) != std::string::npos;)
-                what.erase(at, job_prefix.size());
-        return fail(what);
+        return fail(job_folder.empty() ? std::string(e.what())
+                                       : with_bundle_paths(e.what(), job_folder));
     }
 
     // Render in a thread, one iteration per call (the sum equals one call over the range, and
