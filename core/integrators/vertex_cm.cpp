@@ -771,9 +771,8 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     // The segment's first piece ends at the first surface, null or not: J1 samples past it
     // contribute nothing (the technique's density is over the whole half-line, so that every
     // other technique can evaluate it without tracing).
-    SurfaceInteraction si;
     ++stats.rays;
-    const float first_piece = scene_.intersect(ray, si) ? si.t : kInfinity;
+    const float first_piece = scene_.closest_hit_distance(ray);
     const Vec3 wo = -ray.direction;
     for (uint32_t i = first; i < end; ++i) {
         const LightVertex& lv = light_vertices_[i];
