@@ -42,4 +42,35 @@ inline std::string scaled_box_scene() {
 </scene>)";
 }
 
+// A medium furnace: a closed sphere of radius 1 (normals inward, `medium_xml`'s medium
+// `medium_id` inside) whose diffuse wall of `wall_reflectance` emits `wall_radiance`, seen
+// from its centre at 16 x 16 (volpt_test, volume_emission_test).
+inline std::string medium_sphere_furnace(const std::string& medium_xml,
+                                         const std::string& medium_id,
+                                         const std::string& wall_reflectance,
+                                         const std::string& wall_radiance) {
+    return R"(<scene version="3.0.0">
+  )" + medium_xml +
+           R"(
+  <sensor type="perspective">
+    <float name="fov" value="70"/>
+    <transform name="to_world"><lookat origin="0, 0, 0" target="0.3, 0.2, 1" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
+    <ref id=")" +
+           medium_id +
+           R"("/>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="1"/>
+    <boolean name="flip_normals" value="true"/>
+    <bsdf type="diffuse"><rgb name="reflectance" value=")" +
+           wall_reflectance + R"("/></bsdf>
+    <emitter type="area"><rgb name="radiance" value=")" +
+           wall_radiance + R"("/></emitter>
+    <ref name="exterior" id=")" +
+           medium_id + R"("/>
+  </shape>
+</scene>)";
+}
+
 }  // namespace render::testing

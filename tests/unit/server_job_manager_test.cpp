@@ -78,6 +78,18 @@ struct ManagerTest : ::testing::Test {
         return reply;
     }
 
+    // Worker `worker` reports in a heartbeat that it could not render `lease` (error `error`).
+    static void report_failed_lease(JobManager& m, const std::string& worker,
+                                    const v1::LeaseReply& lease, const std::string& error) {
+        v1::HeartbeatRequest hb;
+        hb.set_worker_id(worker);
+        v1::LeaseFailure* f = hb.add_failed_leases();
+        f->set_lease_id(lease.lease().lease_id());
+        f->set_error(error);
+        v1::HeartbeatReply reply;
+        EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
+    }
+
     bool render_and_report(JobManager& m, const v1::Lease& lease) {
         auto scene = render::load_scene_from_string(kScene, ".");
         render::RenderSettings s;
@@ -314,15 +326,7 @@ TEST_F(ManagerTest, LeasesFailedOnTwoWorkersFailTheJob) {
     ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
     auto lease_for = [&](const std::string& worker) { return ManagerTest::lease_for(m, worker); };
     auto fail = [&](const std::string& worker, const v1::LeaseReply& lease,
-                    const std::string& error) {
-        v1::HeartbeatRequest hb;
-        hb.set_worker_id(worker);
-        v1::LeaseFailure* f = hb.add_failed_leases();
-        f->set_lease_id(lease.lease().lease_id());
-        f->set_error(error);
-        v1::HeartbeatReply reply;
-        EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
-    };
+                    const std::string& error) { report_failed_lease(m, worker, lease, error); };
     auto state = [&] {
         EXPECT_TRUE(m.get(job.id(), &job).ok());
         return job.state();
@@ -390,13 +394,7 @@ TEST_F(ManagerTest, LeasesLostOnThreeWorkersFailTheJob) {
     // A third: a worker reporting a failure counts with the lost ones.
     const v1::LeaseReply last = lease_for("w-5");
     ASSERT_TRUE(last.granted());
-    v1::HeartbeatRequest hb;
-    hb.set_worker_id("w-5");
-    v1::LeaseFailure* f = hb.add_failed_leases();
-    f->set_lease_id(last.lease().lease_id());
-    f->set_error("renderer: out of memory");
-    v1::HeartbeatReply reply;
-    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    report_failed_lease(m, "w-5", last, "renderer: out of memory");
     EXPECT_EQ(state(), v1::JOB_STATE_FAILED);
     EXPECT_NE(job.error().find("failed on 3 workers (2 lost the lease"), std::string::npos)
         << job.error();
@@ -412,13 +410,7 @@ TEST_F(ManagerTest, ALeaseFailedOnTheOnlyWorkerFailsTheJob) {
     lr.set_worker_id("w-1");
     v1::LeaseReply a;
     ASSERT_TRUE(m.lease(lr, &a).ok());
-    v1::HeartbeatRequest hb;
-    hb.set_worker_id("w-1");
-    v1::LeaseFailure* f = hb.add_failed_leases();
-    f->set_lease_id(a.lease().lease_id());
-    f->set_error("scene error: scene.xml:3: cannot load");
-    v1::HeartbeatReply reply;
-    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    report_failed_lease(m, "w-1", a, "scene error: scene.xml:3: cannot load");
     ASSERT_TRUE(m.get(job.id(), &job).ok());
     EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
     EXPECT_NE(job.error().find("scene.xml:3"), std::string::npos) << job.error();

@@ -13,6 +13,7 @@
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "tests/support/pixel_statistics.h"
+#include "tests/support/test_scenes.h"
 
 namespace render {
 namespace {
@@ -39,28 +40,12 @@ IterationResult render(const std::string& xml, const std::string& algorithm, uin
 // so L = 1 everywhere) filled with a medium of albedo 1: scattering moves light around
 // without removing any, so L stays 1.
 std::string medium_furnace(const std::string& sigma_t, const std::string& phase) {
-    return R"(<scene version="3.0.0">
-  <medium type="homogeneous" id="fog">
-    <rgb name="sigma_t" value=")" +
-           sigma_t + R"("/>
+    return testing::medium_sphere_furnace(R"(<medium type="homogeneous" id="fog">
+    <rgb name="sigma_t" value=")" + sigma_t + R"("/>
     <float name="albedo" value="1"/>
-    )" + phase +
-           R"(
-  </medium>
-  <sensor type="perspective">
-    <float name="fov" value="70"/>
-    <transform name="to_world"><lookat origin="0, 0, 0" target="0.3, 0.2, 1" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
-    <ref id="fog"/>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="1"/>
-    <boolean name="flip_normals" value="true"/>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
-    <emitter type="area"><rgb name="radiance" value="0.5"/></emitter>
-    <ref name="exterior" id="fog"/>
-  </shape>
-</scene>)";
+    )" + phase + R"(
+  </medium>)",
+                                          "fog", "0.5", "0.5");
 }
 
 struct FurnaceCase {

@@ -24,6 +24,7 @@
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "tests/support/pixel_statistics.h"
+#include "tests/support/test_scenes.h"
 
 namespace render {
 namespace {
@@ -190,23 +191,8 @@ TEST(VolumeEmission, ScatteringSphereAtDepthOneMatchesTheClosedForm) {
 // combined by MIS).
 std::string closed_furnace(bool grid, const std::string& albedo,
                            const std::string& sigma_t_file = "sigma_t.vol") {
-    return R"(<scene version="3.0.0">
-  )" + medium_xml(grid, albedo, sigma_t_file) +
-           R"(
-  <sensor type="perspective">
-    <float name="fov" value="70"/>
-    <transform name="to_world"><lookat origin="0, 0, 0" target="0.3, 0.2, 1" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
-    <ref id="glow"/>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="1"/>
-    <boolean name="flip_normals" value="true"/>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
-    <emitter type="area"><rgb name="radiance" value="1, 2, 0.5"/></emitter>
-    <ref name="exterior" id="glow"/>
-  </shape>
-</scene>)";
+    return testing::medium_sphere_furnace(medium_xml(grid, albedo, sigma_t_file), "glow", "0",
+                                          "1, 2, 0.5");
 }
 
 struct FurnaceCase {
