@@ -14,6 +14,16 @@
 
 namespace render {
 
+// Merges in media come in two kinds (UPBP, Krivanek et al. 2014; ALGORITHMS-NEXT.md 4.3):
+// photon points merged with a distance-sampled eye vertex (P-P3D, eta = 4/3 pi r^3 N) and
+// photon points gathered along the whole camera segment, the "long query beam" (P-B2D, the beam
+// radiance estimate). P-B2D does not sample the eye vertex's distance, so its density at a
+// medium vertex x is the point density's with the camera side's distance density p_t(x)
+// replaced by pi r_2^2 N: its merge factor is mis(eta_2D / p_t(x)), a per-vertex quantity.
+// The eye subpath knows p_t of its own vertices when it reaches them (query_beam_factor); a
+// light subpath learns it for vertex x_i only when it reaches x_{i+1} (it is the reverse
+// density of that segment), so the term is carried and added by add_query_beam_term.
+//
 // dVM is kept without the merging normalisation of the vertex it belongs to (it holds the
 // report's dVM times eta_VCM of the subpath's current end vertex): with media, merges happen at
 // surfaces (eta = pi r^2 N) and in volumes (eta = 4/3 pi r^3 N, photon points), so the end
@@ -40,7 +50,8 @@ struct DirectTechnique {
     float cos_here = 0;   // at the receiver (1 in a medium)
     float cos_light = 0;  // at the light
     bool delta_light = false;
-    bool eye_medium = false;  // the receiver is a medium vertex
+    bool eye_medium = false;   // the receiver is a medium vertex
+    float eye_query_beam = 0;  // the receiver's VcmMis::query_beam_factor (0: none)
     // Through media: the probability of passing every medium toward the light, and the
     // distance density of reaching the receiver from the light (per unit length at a medium
     // receiver, the probability of passing every medium at a surface).
@@ -59,9 +70,14 @@ struct ConnectionTechnique {
     float eye_reverse_w = 0;
     bool light_medium = false;
     bool eye_medium = false;
-    // Joint (J1) connections (bpt --joint-connections on, docs/media.md): the density of the J1 technique of
-    // a junction over that of the plain connection of the same junction (0 where there is no
-    // J1 technique). light_joint_ratio: the junction one step toward the light (its eye-side
+    // P-B2D at either vertex: the eye vertex's own VcmMis::query_beam_factor, and for the light
+    // vertex (the connection segment as the query) VcmMis::query_beam_term of the eye vertex's
+    // density of it without the distance density. 0: no P-B2D there.
+    float eye_query_beam = 0;
+    float light_query_beam = 0;
+    // Joint (J1) connections (bpt --joint-connections on, docs/media.md): the density of the J1
+    // technique of a junction over that of the plain connection of the same junction (0 where there
+    // is no J1 technique). light_joint_ratio: the junction one step toward the light (its eye-side
     // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.
     float light_joint_ratio = 0;
     float joint_ratio = 0;
@@ -74,6 +90,9 @@ struct CameraTechnique {
     // The vertex's density back along the light subpath given the direction to the camera.
     float light_reverse_w = 0;
     bool light_medium = false;
+    // P-B2D at the vertex with the camera ray as the query: VcmMis::query_beam_term of the
+    // camera's density of the vertex without the distance density, over N_light.
+    float light_query_beam = 0;
     // J1 of the junction whose eye-side vertex is the light vertex, sampled from the camera
     // (ConnectionTechnique::light_joint_ratio).
     float light_joint_ratio = 0;
@@ -86,6 +105,17 @@ struct MergeTechnique {
     float eye_forward_w = 0;
     float eye_reverse_w = 0;
     bool medium = false;  // both vertices are in a medium (otherwise both at surfaces)
+    // A point merge in a medium: the eye vertex's VcmMis::query_beam_factor (P-B2D at the same
+    // vertex), 0 without query beams.
+    float query_beam = 0;
+};
+
+// Which techniques a VcmMis combines, by their merging ratios (0: the technique is off).
+struct MisTechniques {
+    bool connections = true;    // every connection technique (s, t)
+    double surface_eta = 0;     // merging at surfaces, pi r^2 N_light
+    double point_eta = 0;       // photon points in media (P-P3D), 4/3 pi r^3 N_light
+    double query_beam_eta = 0;  // photon points along camera segments (P-B2D), pi r_2^2 N_light
 };
 
 class VcmMis {
@@ -96,15 +126,28 @@ class VcmMis {
     // light_path_count = N_light, the number of light subpaths per iteration.
     VcmMis(int power, bool use_vc, bool use_vm, double eta_vcm, double light_path_count,
            double eta_vcm_volume = 0)
-        : power_(power), use_vc_(use_vc), light_path_count_(float(light_path_count)) {
-        if (!(eta_vcm_volume > 0)) eta_vcm_volume = eta_vcm;
+        : VcmMis(power,
+                 MisTechniques{
+                     .connections = use_vc,
+                     .surface_eta = use_vm ? eta_vcm : 0.0,
+                     .point_eta = use_vm ? (eta_vcm_volume > 0 ? eta_vcm_volume : eta_vcm) : 0.0},
+                 light_path_count) {}
+
+    VcmMis(int power, const MisTechniques& techniques, double light_path_count)
+        : power_(power),
+          use_vc_(techniques.connections),
+          light_path_count_(float(light_path_count)) {
         // Clamped so that an extreme radius (at the floor of the schedule) cannot turn the
         // factors into infinities and the weights into NaN.
-        const double etas[2] = {eta_vcm, eta_vcm_volume};
+        const double etas[2] = {techniques.surface_eta, techniques.point_eta};
         for (int m = 0; m < 2; ++m) {
-            vm_weight_factor_[m] = use_vm ? clamp_factor(mis_double(etas[m])) : 0.0f;
-            inverse_eta_[m] = clamp_factor(mis_double(1.0 / etas[m]));
-            vc_weight_factor_[m] = use_vc ? inverse_eta_[m] : 0.0f;
+            vm_weight_factor_[m] = etas[m] > 0 ? clamp_factor(mis_double(etas[m])) : 0.0f;
+            inverse_eta_[m] = etas[m] > 0 ? clamp_factor(mis_double(1.0 / etas[m])) : 0.0f;
+            vc_weight_factor_[m] = use_vc_ ? inverse_eta_[m] : 0.0f;
+        }
+        if (techniques.query_beam_eta > 0) {
+            query_beam_eta_mis_ = mis_double(techniques.query_beam_eta);
+            inverse_query_beam_ = clamp_factor(1.0 / query_beam_eta_mis_);
         }
     }
 
@@ -153,9 +196,10 @@ class VcmMis {
     // (1 in a medium), forward density forward_w and reverse density reverse_w. At a specular
     // vertex the two (then discrete lobe probabilities) are equal and cancel, and no technique
     // ends there, so dVCM becomes 0. `medium`: the vertex is in a medium (merging there uses
-    // photon points).
+    // photon points). query_beam: the vertex's own query_beam_factor (eye subpaths; light
+    // subpaths add theirs later, add_query_beam_term).
     void scatter(MisQuantities& q, float cos_out, float forward_w, float reverse_w, bool specular,
-                 bool medium = false) const {
+                 bool medium = false, float query_beam = 0) const {
         if (specular) {
             q.dVCM = 0;
             q.dVC *= mis(cos_out);
@@ -163,10 +207,44 @@ class VcmMis {
             return;
         }
         const float g = mis(cos_out / forward_w);
-        const float vm = vm_weight_factor_[medium];
+        const float vm = vm_weight_factor_[medium] + query_beam;
         q.dVC = g * (q.dVC * mis(reverse_w) + q.dVCM + vm);
         q.dVM = g * (q.dVM * mis(reverse_w) + (use_vc_ ? q.dVCM : 0.0f) + vm);
         q.dVCM = mis(1.0f / forward_w);
+    }
+
+    // P-B2D (query beams). Whether the technique is on.
+    bool uses_query_beams() const { return query_beam_eta_mis_ > 0; }
+    // The merge factor of P-B2D at a medium vertex whose camera-side distance density (per unit
+    // length, the whole segment's as SegmentDensities gives it) is camera_distance_l:
+    // mis(eta_2D / camera_distance_l); 0 without query beams.
+    float query_beam_factor(float camera_distance_l) const {
+        if (!uses_query_beams()) return 0.0f;
+        return clamp_factor(query_beam_eta_mis_ / mis_double(camera_distance_l));
+    }
+    // The P-B2D term of a vertex as seen from a technique that samples it from the camera side
+    // with density p (the distance density already left out of p): mis(eta_2D p). Formed
+    // here so that the distance density is never divided out after being multiplied in.
+    float query_beam_term(float pdf_without_distance) const {
+        if (!uses_query_beams()) return 0.0f;
+        return clamp_factor(query_beam_eta_mis_ * mis_double(pdf_without_distance));
+    }
+    // Light subpaths: at a medium vertex, the factor g that scatter() applies, kept so that the
+    // vertex's P-B2D term can be added at the next arrival (0 without query beams).
+    float carried_query_beam_term(float cos_out, float forward_w, bool specular) const {
+        if (!uses_query_beams() || specular || !(forward_w > 0)) return 0.0f;
+        return mis(cos_out / forward_w);
+    }
+    // After arrive(): the P-B2D term of the vertex the segment started at. arrive() multiplied
+    // its terms by mis(p_t), p_t being the camera side's distance density of that vertex, which
+    // is exactly what the factor mis(eta_2D / p_t) divides out.
+    void add_query_beam_term(MisQuantities& q, float carried, float cos_in,
+                             float forward_distance) const {
+        if (!(carried > 0)) return;
+        const float term =
+            clamp_factor(carried * query_beam_eta_mis_ / mis_double(cos_in * forward_distance));
+        q.dVC += term;
+        q.dVM += term;
     }
 
     // Joint (J1) connections. A J1 technique samples the eye-side vertex x_j of junction j (a
@@ -206,12 +284,12 @@ class VcmMis {
         const float w_light =
             t.delta_light ? 0.0f
                           : mis(t.bsdf_forward_w * t.pass_to_light_probability / t.light_pdf_w);
-        const float w_camera =
-            t.cos_light > 0
-                ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
-                      (t.direct_pdf_w * t.cos_light)) *
-                      (vm_weight_factor_[t.eye_medium] + eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w))
-                : 0.0f;
+        const float w_camera = t.cos_light > 0
+                                   ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
+                                         (t.direct_pdf_w * t.cos_light)) *
+                                         (vm_weight_factor_[t.eye_medium] + t.eye_query_beam +
+                                          eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w))
+                                   : 0.0f;
         return 1.0f / (w_light + 1.0f + w_camera);
     }
 
@@ -220,9 +298,11 @@ class VcmMis {
                             const ConnectionTechnique& t) const {
         const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] +
                                                   light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
-                                                  light.dVC * mis(t.light_reverse_w));
-        const float w_camera = mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + eye.dVCM +
-                                                     eye.dVC * mis(t.eye_reverse_w));
+                                                  light.dVC * mis(t.light_reverse_w)) +
+                              t.light_query_beam;
+        const float w_camera =
+            mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + t.eye_query_beam + eye.dVCM +
+                                  eye.dVC * mis(t.eye_reverse_w));
         return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
     }
 
@@ -234,10 +314,11 @@ class VcmMis {
 
     // Eq. (46): a light vertex connected to the camera (CameraTechnique).
     float weight_camera(const MisQuantities& light, const CameraTechnique& t) const {
-        const float w_light =
-            mis(t.camera_pdf_a / light_path_count_) *
-            (vm_weight_factor_[t.light_medium] + light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
-             light.dVC * mis(t.light_reverse_w));
+        const float w_light = mis(t.camera_pdf_a / light_path_count_) *
+                                  (vm_weight_factor_[t.light_medium] +
+                                   light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
+                                   light.dVC * mis(t.light_reverse_w)) +
+                              t.light_query_beam;
         return 1.0f / (w_light + 1.0f);
     }
 
@@ -247,7 +328,24 @@ class VcmMis {
         const float vc = vc_weight_factor_[t.medium], inverse_eta = inverse_eta_[t.medium];
         const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(t.eye_forward_w);
         const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(t.eye_reverse_w);
-        return 1.0f / (w_light + 1.0f + w_camera);
+        return 1.0f / (w_light + 1.0f + t.query_beam * inverse_eta + w_camera);
+    }
+
+    // P-B2D: a photon (light subpath `light`) within r_2 of a camera segment, gathered at its
+    // projection on the segment. eye_at_query: the eye subpath's quantities as if it had
+    // arrived at the projection, from arrive() with forward_distance = 1; camera_distance_l:
+    // that distance density, applied here (multiplying the other side instead of dividing this
+    // one, so that a density that underflows gives the query beam the path, not a NaN).
+    // t.eye_*_w: the phase function at the photon with the query's direction as the eye's.
+    float weight_query_beam(const MisQuantities& light, const MisQuantities& eye_at_query,
+                            float camera_distance_l, const MergeTechnique& t) const {
+        const float connections = use_vc_ ? 1.0f : 0.0f;
+        const float light_side =
+            vm_weight_factor_[1] + light.dVCM * connections + light.dVM * mis(t.eye_forward_w);
+        const float camera_side =
+            eye_at_query.dVCM * connections + eye_at_query.dVM * mis(t.eye_reverse_w);
+        return 1.0f /
+               (1.0f + (mis(camera_distance_l) * light_side + camera_side) * inverse_query_beam_);
     }
 
   private:
@@ -259,6 +357,9 @@ class VcmMis {
     float light_path_count_;
     // Index 0: surface vertices; 1: medium vertices.
     float vm_weight_factor_[2] = {0, 0}, vc_weight_factor_[2] = {0, 0}, inverse_eta_[2] = {0, 0};
+    // P-B2D: mis(eta_2D) (0: off) and its inverse.
+    double query_beam_eta_mis_ = 0;
+    float inverse_query_beam_ = 0;
 };
 
 }  // namespace render

@@ -82,20 +82,31 @@ struct LightEnd {
     float cos_light = 1;
 };
 
-enum class TechniqueKind { Emission, Direct, Connection, Camera, Merge, JointConnection };
+enum class TechniqueKind {
+    Emission,
+    Direct,
+    Connection,
+    Camera,
+    Merge,
+    JointConnection,
+    QueryBeam
+};
 struct Technique {
     TechniqueKind kind;
     // Connection: light vertex `vertex` to eye vertex `vertex + 1`; Merge: the vertex merged at;
     // JointConnection: as Connection, with the eye vertex (in the medium) sampled by half-line
-    // equi-angular sampling toward the light vertex instead of by distance sampling (J1).
+    // equi-angular sampling toward the light vertex instead of by distance sampling (J1);
+    // QueryBeam: the medium vertex `vertex` is a photon gathered along the camera segment
+    // that reaches it (P-B2D, the long query beam: the eye side samples no distance there).
     size_t vertex = 0;
 };
 
 // The recursive quantities of both subpaths along the path, as the integrator holds them.
 struct SubpathStates {
-    std::vector<MisQuantities> light;  // after arriving at each vertex
-    std::vector<MisQuantities> eye;    // after arriving at each vertex
-    MisQuantities eye_at_light;        // after hitting the light or leaving the scene
+    std::vector<MisQuantities> light;       // after arriving at each vertex
+    std::vector<MisQuantities> eye;         // after arriving at each vertex
+    std::vector<MisQuantities> eye_before;  // before arriving at each vertex (query beams)
+    MisQuantities eye_at_light;             // after hitting the light or leaving the scene
 };
 
 class MisSumTest : public ::testing::Test {
@@ -326,6 +337,15 @@ class MisSumTest : public ::testing::Test {
         return joint_pdf(from, eye_side, eye_side - 1) / segment(from, eye_side).toward_end;
     }
 
+    // --- query beams (P-B2D) ----------------------------------------------------------------
+
+    // The eye side's P-B2D factor of vertex i (a medium vertex): eta_2D over the distance
+    // density with which the eye's segment reaches it.
+    float eye_query_beam(const VcmMis& mis, size_t i) const {
+        if (!vertices_[i].in_medium()) return 0.0f;
+        return mis.query_beam_factor(segment(int(i) + 1, int(i)).toward_end);
+    }
+
     // --- the integrator's recursion ---------------------------------------------------------
 
     SubpathStates trace_states(const VcmMis& mis) const {
@@ -333,10 +353,12 @@ class MisSumTest : public ::testing::Test {
         SubpathStates st;
         st.light.resize(m);
         st.eye.resize(m);
+        st.eye_before.resize(m);
         // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
         MisQuantities q =
             mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
-        float carried = 0;  // J1: the previous vertex's connection term (vertex_cm.cpp)
+        float carried = 0;       // J1: the previous vertex's connection term (vertex_cm.cpp)
+        float carried_beam = 0;  // P-B2D: the previous vertex's scatter factor
         for (size_t i = 0; i < m; ++i) {
             const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_light(i);
@@ -347,11 +369,15 @@ class MisSumTest : public ::testing::Test {
             if (i >= 1 && has_joint(int(i) - 1))
                 mis.add_joint_term(q, carried, joint_pdf(int(i), int(i) - 1, int(i) - 2), v.cos(wo),
                                    s.toward_end);
+            mis.add_query_beam_term(q, carried_beam, v.cos(wo), s.toward_end);
             st.light[i] = q;
             if (i + 1 == m) break;
             const Vec3 wi = toward_eye(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Importance, wo, wi);
             carried = mis.carried_connection_term(q, v.cos(wi), pdf_w.forward, v.specular);
+            carried_beam = v.in_medium()
+                               ? mis.carried_query_beam_term(v.cos(wi), pdf_w.forward, v.specular)
+                               : 0.0f;
             mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
         }
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
@@ -361,13 +387,15 @@ class MisSumTest : public ::testing::Test {
             const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_eye(i);
             const SegmentDensities s = segment(int(i) + 1, int(i));
+            st.eye_before[i] = q;
             mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
             // The junction toward the camera (eye-side vertex i + 1, sampled from i + 2).
             mis.include_joint_junction(q, joint_ratio(int(i) + 1, int(i) + 2));
             st.eye[i] = q;
             const Vec3 wi = toward_light(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Radiance, wo, wi);
-            mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
+            mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium(),
+                        eye_query_beam(mis, i));
         }
         // The eye subpath hits a finite light, or leaves the scene toward an infinite one.
         const SegmentDensities s = segment(0, kLightEnd);
@@ -381,7 +409,7 @@ class MisSumTest : public ::testing::Test {
     }
 
     // Every technique that can sample the current path with the enabled families.
-    std::vector<Technique> techniques(bool use_vc, bool use_vm) const {
+    std::vector<Technique> techniques(bool use_vc, bool use_vm, bool query_beams = false) const {
         const size_t m = vertices_.size();
         std::vector<Technique> list;
         if (use_vc && !end_.delta) list.push_back({TechniqueKind::Emission});
@@ -395,6 +423,8 @@ class MisSumTest : public ::testing::Test {
                 list.push_back({TechniqueKind::JointConnection, a});
         for (size_t i = 0; use_vm && i < m; ++i)
             if (!vertices_[i].specular) list.push_back({TechniqueKind::Merge, i});
+        for (size_t i = 0; query_beams && i < m; ++i)
+            if (vertices_[i].in_medium()) list.push_back({TechniqueKind::QueryBeam, i});
         return list;
     }
 
@@ -418,6 +448,7 @@ class MisSumTest : public ::testing::Test {
                                                      .cos_light = end_.cos_light,
                                                      .delta_light = end_.delta,
                                                      .eye_medium = v.in_medium(),
+                                                     .eye_query_beam = eye_query_beam(mis, 0),
                                                      .pass_to_light_probability = l.toward_end,
                                                      .distance_from_light = l.toward_start});
             }
@@ -433,16 +464,22 @@ class MisSumTest : public ::testing::Test {
                 const SegmentDensities l = segment(int(b), int(a));  // traced from the eye
                 const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.toward_end / dist2;
                 const float light_pdf_a = light_pdf_w.forward * v.cos(d) * l.toward_start / dist2;
-                const ConnectionTechnique c{.eye_pdf_a = eye_pdf_a,
-                                            .light_pdf_a = light_pdf_a,
-                                            .light_reverse_w = light_pdf_w.reverse,
-                                            .eye_reverse_w = eye_pdf_w.reverse,
-                                            .light_medium = w.in_medium(),
-                                            .eye_medium = v.in_medium(),
-                                            // The light vertex sampled from the eye vertex; the eye
-                                            // vertex from its successor (the camera for the last).
-                                            .light_joint_ratio = joint_ratio(int(a), int(b)),
-                                            .joint_ratio = joint_ratio(int(b), int(b) + 1)};
+                const ConnectionTechnique c{
+                    .eye_pdf_a = eye_pdf_a,
+                    .light_pdf_a = light_pdf_a,
+                    .light_reverse_w = light_pdf_w.reverse,
+                    .eye_reverse_w = eye_pdf_w.reverse,
+                    .light_medium = w.in_medium(),
+                    .eye_medium = v.in_medium(),
+                    .eye_query_beam = eye_query_beam(mis, b),
+                    // P-B2D at the light vertex: the eye vertex's density
+                    // of it without the distance density.
+                    .light_query_beam =
+                        w.in_medium() ? mis.query_beam_term(eye_pdf_w.forward / dist2) : 0.0f,
+                    // The light vertex sampled from the eye vertex; the eye
+                    // vertex from its successor (the camera for the last).
+                    .light_joint_ratio = joint_ratio(int(a), int(b)),
+                    .joint_ratio = joint_ratio(int(b), int(b) + 1)};
                 return t.kind == TechniqueKind::Connection
                            ? mis.weight_connection(st.light[a], st.eye[b], c)
                            : mis.weight_joint_connection(st.light[a], st.eye[b], c);
@@ -460,9 +497,14 @@ class MisSumTest : public ::testing::Test {
                 const float joint = has_joint(int(i))
                                         ? joint_pdf(int(m), int(i), int(i) - 1) / l.toward_start
                                         : 0.0f;
+                const float beam =
+                    v.in_medium()
+                        ? mis.query_beam_term(camera_pdf_w(-d) / dist2 / float(kLightPaths))
+                        : 0.0f;
                 return mis.weight_camera(st.light[i], {.camera_pdf_a = camera_pdf_a,
                                                        .light_reverse_w = pdf_w.reverse,
                                                        .light_medium = v.in_medium(),
+                                                       .light_query_beam = beam,
                                                        .light_joint_ratio = joint});
             }
             case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
@@ -472,7 +514,22 @@ class MisSumTest : public ::testing::Test {
                 return mis.weight_merge(st.light[i], st.eye[i],
                                         {.eye_forward_w = pdf_w.forward,
                                          .eye_reverse_w = pdf_w.reverse,
-                                         .medium = vertices_[i].in_medium()});
+                                         .medium = vertices_[i].in_medium(),
+                                         .query_beam = eye_query_beam(mis, i)});
+            }
+            case TechniqueKind::QueryBeam: {  // vertex_cm.cpp, query_beams
+                // The eye subpath as if it had arrived at the photon's projection on the query
+                // (here the photon itself), with the distance density left to the weight.
+                const size_t i = t.vertex;
+                const SegmentDensities s = segment(int(i) + 1, int(i));
+                MisQuantities eye = st.eye_before[i];
+                mis.arrive(eye, distance2_to_eye_side(i), true, 1.0f, 1.0f, s.toward_start);
+                const BsdfPdf pdf_w =
+                    pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
+                return mis.weight_query_beam(st.light[i], eye, s.toward_end,
+                                             {.eye_forward_w = pdf_w.forward,
+                                              .eye_reverse_w = pdf_w.reverse,
+                                              .medium = true});
             }
         }
         return 0;
@@ -497,7 +554,8 @@ class MisSumTest : public ::testing::Test {
     // technique k samples the path (per unit area, or volume at medium vertices; the light end
     // per unit solid angle for infinite lights).
     std::vector<double> reference_weights(const std::vector<Technique>& list, int power,
-                                          double eta_surface, double eta_volume) const {
+                                          double eta_surface, double eta_volume,
+                                          double eta_beam = 0) const {
         const size_t m = vertices_.size();
         // light_fwd[i], eye_fwd[i]: the light (eye) subpath's density of vertex i given the
         // vertices before it: direction, cosine at i, distance density at i, squared distance.
@@ -562,6 +620,10 @@ class MisSumTest : public ::testing::Test {
                     p.push_back(eta * light_prefix(t.vertex + 1) * eye_suffix(t.vertex));
                     break;
                 }
+                case TechniqueKind::QueryBeam:  // the merge without the eye's distance sample
+                    p.push_back(eta_beam * light_prefix(t.vertex + 1) * eye_suffix(t.vertex) /
+                                segment(int(t.vertex) + 1, int(t.vertex)).toward_end);
+                    break;
             }
         }
         double sum = 0;
@@ -572,15 +634,23 @@ class MisSumTest : public ::testing::Test {
 
     // Checks both properties for one family (with the listed techniques' weights).
     void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
-                      const char* name, bool joint = false) {
+                      const char* name, bool joint = false, double eta_beam = 0) {
         joint_ = joint;
-        const std::vector<Technique> list = techniques(use_vc, use_vm);
+        const std::vector<Technique> list = techniques(use_vc, use_vm, eta_beam > 0);
         if (list.empty()) return;
-        const VcmMis mis(power, use_vc, use_vm, eta_surface, kLightPaths, eta_volume);
+        const VcmMis mis(power,
+                         MisTechniques{.connections = use_vc,
+                                       .surface_eta = use_vm ? eta_surface : 0.0,
+                                       .point_eta = use_vm ? eta_volume : 0.0,
+                                       .query_beam_eta = eta_beam},
+                         kLightPaths);
         const std::vector<double> w = weights(mis, list);
         const std::vector<double> reference =
-            reference_weights(list, power, eta_surface, eta_volume);
-        for (const Technique& t : list) joint_checked_ += t.kind == TechniqueKind::JointConnection;
+            reference_weights(list, power, eta_surface, eta_volume, eta_beam);
+        for (const Technique& t : list) {
+            joint_checked_ += t.kind == TechniqueKind::JointConnection;
+            query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
+        }
         double sum = 0;
         for (double x : w) sum += x;
         // float arithmetic over a handful of terms: 1e-4 relative.
@@ -607,6 +677,7 @@ class MisSumTest : public ::testing::Test {
     const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
     bool joint_ = false;           // the J1 techniques are enabled (bpt --joint-connections on)
     int joint_checked_ = 0;        // J1 weights checked so far
+    int query_beams_checked_ = 0;  // P-B2D weights checked so far
     float fog_exit_ = 0;           // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
@@ -696,6 +767,55 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(checked, 500);
     EXPECT_GT(with_medium_vertex, 400);
     EXPECT_GT(joint_checked_, 400);
+}
+
+// Query beams (P-B2D, the long camera query of UPBP) beside connections, surface merges and
+// photon points: the merge factor of a medium vertex is then per vertex (it depends on the
+// camera side's distance density there), added at the next arrival on light subpaths. Both
+// checks as above: the sum, and each weight against the densities written out.
+TEST_F(MisSumTest, WeightsWithQueryBeamsSumToOneInAMedium) {
+    using M = Material;
+    const std::vector<std::vector<Material>> paths = {
+        {M::Medium},
+        {M::Medium, M::Medium},
+        {M::Medium, M::Diffuse},
+        {M::Diffuse, M::Medium},
+        {M::Glossy, M::Medium, M::Diffuse},
+        {M::Medium, M::Mirror, M::Medium},
+        {M::Mirror, M::Medium, M::Glossy},
+        {M::Medium, M::Medium, M::Medium},
+        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+    };
+    Rng rng(StreamKey{2026, 0, 1, 0});
+    int checked = 0;
+    for (const auto& materials : paths)
+        for (LightKind kind : kAllLights)
+            for (int trial = 0; trial < 10; ++trial) {
+                if (!build_path(rng, materials, kind, true)) continue;
+                for (double radius : {0.05, 0.15})
+                    for (int power : {1, 2}) {
+                        const double eta_surface = kPi * radius * radius * kLightPaths;
+                        const double eta_volume =
+                            4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
+                        // The beam radius differs from the point radius, as UPBP's schedules do.
+                        const double eta_beam = kPi * 0.5 * radius * 0.5 * radius * kLightPaths;
+                        SCOPED_TRACE(::testing::Message()
+                                     << "fog path of " << materials.size()
+                                     << " vertices, light kind " << int(kind) << ", trial " << trial
+                                     << ", radius " << radius << ", power " << power);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT+PB2D", false,
+                                     eta_beam);
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM+PB2D", false,
+                                     eta_beam);
+                        check_family(power, false, true, eta_surface, eta_volume, "BPM+PB2D", false,
+                                     eta_beam);
+                        check_family(power, false, false, eta_surface, eta_volume, "PB2D", false,
+                                     eta_beam);
+                        ++checked;
+                    }
+            }
+    EXPECT_GT(checked, 250);
+    EXPECT_GT(query_beams_checked_, 1500);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
