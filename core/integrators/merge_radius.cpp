@@ -14,4 +14,9 @@ double merge_radius(double r1, double alpha, uint64_t iteration) {
     return std::max(r1 * std::pow(i, 0.5 * (alpha - 1.0)), min_merge_radius());
 }
 
+double merge_radius_in(double r1, double alpha, uint64_t iteration, int dimension) {
+    double i = double(std::max<uint64_t>(iteration, 1));
+    return std::max(r1 * std::pow(i, (alpha - 1.0) / double(dimension)), min_merge_radius());
+}
+
 }  // namespace render

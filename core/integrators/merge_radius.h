@@ -13,6 +13,11 @@ namespace render {
 // The result never falls below min_merge_radius(), so 1 / (pi r^2 N) stays finite in float.
 double merge_radius(double r1, double alpha, uint64_t iteration);
 
+// The same for a kernel of the given dimension (UPBP's volume estimators): r_i = r1 *
+// i^((alpha - 1) / dimension), so that the kernel's support shrinks as i^(alpha - 1) whatever
+// its dimension (3: photon points in a ball, 2: a disc around a query beam).
+double merge_radius_in(double r1, double alpha, uint64_t iteration, int dimension);
+
 // Floor of the schedule, 1e-18: pi r^2 stays above float's smallest normal number (1e-38), so
 // the merging normalisation 1 / (pi r^2 N) is finite for any light-path count N >= 1.
 double min_merge_radius();

@@ -19,11 +19,13 @@
 #include "core/integrators/medium_segment.h"
 #include "core/integrators/merge_radius.h"
 #include "core/integrators/pixel_loop.h"
+#include "core/integrators/points_along_ray.h"
 #include "core/integrators/vcm_mis.h"
 #include "core/integrators/vpl_distribution.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
+#include "core/media/medium_interface.h"
 #include "core/sampling/half_line_equiangular.h"
 
 namespace render {
@@ -67,6 +69,9 @@ struct SubpathState {
     float origin_joint_pdf = 0;
     bool origin_in_medium = false;
     float carried_connection = 0;
+    // Light subpaths with query beams: the factor of the P-B2D term of the vertex the next
+    // segment starts at, added at the next arrival (vcm_mis.h, add_query_beam_term).
+    float carried_query_beam = 0;
 };
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
@@ -84,6 +89,9 @@ struct Vertex {
     // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
     Vec3 previous;
     float joint_distance_pdf = 0;
+    // Eye subpaths with query beams (P-B2D): this medium vertex's merge factor of that
+    // technique, VcmMis::query_beam_factor of the distance density that reached it.
+    float query_beam = 0;
 
     bool in_medium() const { return phase != nullptr; }
     bool has_non_delta() const { return phase || bsdf->bsdf().has_non_delta(); }
@@ -179,6 +187,9 @@ struct IterationStorage {
     std::vector<Vec3> surface_positions, medium_positions;
     std::vector<uint32_t> surface_index, medium_index;
     HashGrid surface_grid, medium_grid;
+    // Query beams: the medium light vertices as balls of the beam radius (made on first use:
+    // it owns an Embree device).
+    std::unique_ptr<PointsAlongRay> beam_lookup;
 };
 
 namespace {
@@ -199,7 +210,8 @@ class Iteration {
           ic_(config.mode == BidirectionalMode::Ic),
           ic_connections_(config.mode == BidirectionalMode::Bpt && config.ic_connections),
           many_lights_(vpl_ || ic_),
-          use_vc_(config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm),
+          use_vc_(config.mode == BidirectionalMode::Bpt ||
+                  (config.mode == BidirectionalMode::Vcm && config.vertex_connections)),
           use_vm_(config.mode == BidirectionalMode::Ppm || config.mode == BidirectionalMode::Bpm ||
                   config.mode == BidirectionalMode::Vcm),
           max_length_(config.max_depth < 0 ? INT_MAX / 4 : config.max_depth),
@@ -207,16 +219,41 @@ class Iteration {
           light_path_count_(config.light_path_count > 0 ? config.light_path_count : pixel_count_),
           radius_(merge_radius(config.radius_factor * scene.bounding_sphere().radius, config.alpha,
                                key.iteration)),
+          // UPBP's volume estimators have their own schedule, reduced as their kernels'
+          // dimensions ask (3 for photon points, 2 for query beams); without one, photon points
+          // merge with the surfaces' radius.
+          volume_radius_(
+              config.volume_radius_factor > 0
+                  ? merge_radius_in(config.volume_radius_factor * scene.bounding_sphere().radius,
+                                    config.volume_alpha, key.iteration, 3)
+                  : radius_),
+          beam_radius_(
+              merge_radius_in((config.volume_radius_factor > 0 ? config.volume_radius_factor
+                                                               : config.radius_factor) *
+                                  scene.bounding_sphere().radius,
+                              config.volume_radius_factor > 0 ? config.volume_alpha : config.alpha,
+                              key.iteration, 2)),
           // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
           // densities of the same path.
           eta_vcm_(kPi * radius_ * radius_ * double(light_path_count_)),
           // Photon points in media: the kernel is a ball, eta = 4/3 pi r^3 N_light.
-          eta_vcm_volume_(4.0 / 3.0 * kPi * radius_ * radius_ * radius_ *
+          eta_vcm_volume_(4.0 / 3.0 * kPi * volume_radius_ * volume_radius_ * volume_radius_ *
                           double(light_path_count_)),
+          // Query beams: the kernel is a disc around the camera segment, eta = pi r^2 N_light.
+          eta_beam_(kPi * beam_radius_ * beam_radius_ * double(light_path_count_)),
           vm_normalization_(float(1.0 / eta_vcm_)),
           vm_normalization_volume_(float(1.0 / eta_vcm_volume_)),
-          mis_(config.mis_power, use_vc_, use_vm_, eta_vcm_, double(light_path_count_),
-               eta_vcm_volume_),
+          beam_normalization_(float(1.0 / eta_beam_)),
+          merge_surfaces_(use_vm_ && config.surface_merging),
+          merge_points_(use_vm_ && config.photon_points),
+          query_beams_(config.mode == BidirectionalMode::Vcm && config.query_beams &&
+                       scene.has_media()),
+          mis_(config.mis_power,
+               MisTechniques{.connections = use_vc_,
+                             .surface_eta = merge_surfaces_ ? eta_vcm_ : 0.0,
+                             .point_eta = merge_points_ ? eta_vcm_volume_ : 0.0,
+                             .query_beam_eta = query_beams_ ? eta_beam_ : 0.0},
+               double(light_path_count_)),
           vpl_clamp2_(vpl_clamp_squared(config, scene, key.iteration)),
           vpl_scale_(float(1.0 / double(light_path_count_))),
           ic_light_path_count_(ic_connections_
@@ -311,6 +348,10 @@ class Iteration {
                                                     const MisQuantities& eye_mis, Rng& rng,
                                                     RenderStats& stats, bool joint = false) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
+    // Query beams (P-B2D): the photon points within the beam radius of the eye segment about
+    // to be traced along `ray`, over every piece in a medium up to the first surface that is
+    // not a null boundary (the long query), each gathered at its projection on the segment.
+    Rgb query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
     // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
@@ -360,8 +401,12 @@ class Iteration {
     int max_length_;
     uint64_t pixel_count_, light_path_count_;
     double radius_;
-    double eta_vcm_, eta_vcm_volume_;
-    float vm_normalization_, vm_normalization_volume_;
+    double volume_radius_;  // photon points (P-P3D)
+    double beam_radius_;    // query beams (P-B2D)
+    double eta_vcm_, eta_vcm_volume_, eta_beam_;
+    float vm_normalization_, vm_normalization_volume_, beam_normalization_;
+    // Which merges are on (ppm, bpm, vcm: surfaces and photon points; upbp: as configured).
+    bool merge_surfaces_, merge_points_, query_beams_;
     VcmMis mis_;
     float vpl_clamp2_;  // squared distance clamp of VPL connections (0: none)
     float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
@@ -417,6 +462,8 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     if (seg.end == SegmentEnd::Medium) {
         v.phase = &seg.medium->phase();
         if (seg.one_piece) v.joint_distance_pdf = seg.densities.toward_end;
+        if (mode == TransportMode::Radiance)
+            v.query_beam = mis_.query_beam_factor(seg.densities.toward_end);
     } else {
         v.n = seg.si.geometric_normal;
         v.shape = seg.si.shape;
@@ -436,6 +483,11 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         mis_.add_joint_term(state.mis, state.carried_connection,
                             joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in,
                             seg.densities.toward_end);
+    // Light subpaths: the P-B2D term of the vertex this segment left (the segment from here is
+    // the query that covers it).
+    if (mode == TransportMode::Importance)
+        mis_.add_query_beam_term(state.mis, state.carried_query_beam, cos_in,
+                                 seg.densities.toward_end);
     return v;
 }
 
@@ -565,7 +617,11 @@ void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats
             (medium ? medium_index_ : surface_index_).push_back(i);
         }
         surface_grid_.build(surface_positions_, radius_);
-        medium_grid_.build(medium_positions_, radius_);
+        medium_grid_.build(medium_positions_, volume_radius_);
+    }
+    if (query_beams_) {
+        if (!storage_.beam_lookup) storage_.beam_lookup = std::make_unique<PointsAlongRay>();
+        storage_.beam_lookup->build(medium_positions_, float(beam_radius_));
     }
 }
 
@@ -582,9 +638,11 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     if (joint_)
         state.carried_connection =
             mis_.carried_connection_term(state.mis, cos_out, bs->pdf_w.forward, bs->delta);
+    state.carried_query_beam =
+        v.in_medium() ? mis_.carried_query_beam_term(cos_out, bs->pdf_w.forward, bs->delta) : 0.0f;
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
-    mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta,
-                 v.in_medium());
+    mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta, v.in_medium(),
+                 v.query_beam);
     state.origin = v.p;
     state.origin_previous = v.previous;
     state.origin_joint_pdf = v.joint_distance_pdf;
@@ -625,11 +683,17 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
         l.densities.toward_start > 0)
         light_joint_ratio =
             joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
+    // P-B2D at this vertex with the camera ray as the query.
+    const float light_query_beam =
+        v.in_medium()
+            ? mis_.query_beam_term(camera_pdf_w * v.cos(d) / dist2 / float(light_path_count_))
+            : 0.0f;
     const float weight =
         light_trace_only_ ? 1.0f
                           : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
                                                            .light_reverse_w = pdf_w.reverse,
                                                            .light_medium = v.in_medium(),
+                                                           .light_query_beam = light_query_beam,
                                                            .light_joint_ratio = light_joint_ratio});
     const Rgb contribution =
         state.throughput * f *
@@ -683,6 +747,7 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
                                              .cos_light = ls.cos_at_light,
                                              .delta_light = dl.light->is_delta(),
                                              .eye_medium = v.in_medium(),
+                                             .eye_query_beam = v.query_beam,
                                              .pass_to_light_probability = l.densities.toward_end,
                                              .distance_from_light = l.densities.toward_start});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
@@ -731,14 +796,19 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
     }
     // Eqs. (40) and (41).
-    const ConnectionTechnique technique{.eye_pdf_a = eye_pdf_a,
-                                        .light_pdf_a = light_pdf_a,
-                                        .light_reverse_w = light_pdf_w.reverse,
-                                        .eye_reverse_w = eye_pdf_w.reverse,
-                                        .light_medium = w.in_medium(),
-                                        .eye_medium = v.in_medium(),
-                                        .light_joint_ratio = light_joint_ratio,
-                                        .joint_ratio = joint_ratio};
+    const ConnectionTechnique technique{
+        .eye_pdf_a = eye_pdf_a,
+        .light_pdf_a = light_pdf_a,
+        .light_reverse_w = light_pdf_w.reverse,
+        .eye_reverse_w = eye_pdf_w.reverse,
+        .light_medium = w.in_medium(),
+        .eye_medium = v.in_medium(),
+        .eye_query_beam = v.query_beam,
+        // P-B2D at the light vertex, the connection as the query.
+        .light_query_beam =
+            w.in_medium() ? mis_.query_beam_term(eye_pdf_w.forward * w.cos(d) / dist2) : 0.0f,
+        .light_joint_ratio = light_joint_ratio,
+        .joint_ratio = joint_ratio};
     const float weight = joint ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
                                : mis_.weight_connection(lv.mis, eye_mis, technique);
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
@@ -1094,9 +1164,11 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         float weight = 1.0f;
         if (!ppm_) {
             // Eqs. (38) and (39).
-            weight = mis_.weight_merge(
-                lv.mis, state.mis,
-                {.eye_forward_w = pdf_w.forward, .eye_reverse_w = pdf_w.reverse, .medium = medium});
+            weight = mis_.weight_merge(lv.mis, state.mis,
+                                       {.eye_forward_w = pdf_w.forward,
+                                        .eye_reverse_w = pdf_w.reverse,
+                                        .medium = medium,
+                                        .query_beam = v.query_beam});
         }
         Rgb photon = lv.throughput;
         if (medium) {
@@ -1108,6 +1180,63 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         sum += f * photon * weight;
     });
     return sum * (medium ? vm_normalization_volume_ : vm_normalization_);
+}
+
+Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
+                           RenderStats& stats) const {
+    Rgb sum(0.0f);
+    if (medium_positions_.empty()) return sum;
+    const PointsAlongRay& lookup = *storage_.beam_lookup;
+    // Walks the pieces as sample_segment does, without sampling a distance: the densities and
+    // the transmittance of the pieces before the current one.
+    SegmentDensityBuilder before(state.in_medium);
+    Rgb transmittance(1.0f);
+    const Medium* medium = state.medium;
+    Ray piece = ray;
+    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
+        SurfaceInteraction si;
+        ++stats.rays;
+        const bool hit = scene_.intersect(piece, si);
+        const float t_end = hit ? si.t : kInfinity;
+        if (medium) {
+            Ray query = piece;
+            query.t_max = t_end;
+            lookup.for_each_near(query, [&](uint32_t i, float t, float) {
+                const LightVertex& lv = light_vertices_[medium_index_[i]];
+                if (lv.vertex.medium != medium) return;  // a photon of another medium
+                if (lv.path_length + state.path_length > max_length_) return;
+                const Vec3 x = piece.at(t);
+                const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
+                if (!(p > 0)) return;
+                // The eye subpath as if it had scattered at x (the query's distance density
+                // goes to the weight: vcm_mis.h, weight_query_beam).
+                SegmentDensityBuilder densities = before;
+                densities.add_piece(medium, piece, t);
+                const SegmentDensities d = densities.finish(true);
+                MisQuantities eye = state.mis;
+                mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
+                const float weight = mis_.weight_query_beam(
+                    lv.mis, eye, d.toward_end,
+                    {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+                // sigma_s at x scatters the eye's light; the photon's throughput carries its
+                // own vertex's sigma_s (its distance sampling), divided out.
+                const Rgb sigma_query = medium->sigma_s(x);
+                const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
+                Rgb photon = lv.throughput;
+                for (int c = 0; c < 3; ++c)
+                    photon[c] =
+                        sigma_photon[c] > 0 ? photon[c] * sigma_query[c] / sigma_photon[c] : 0.0f;
+                const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
+                sum += tr * photon * (p * weight);
+            });
+            transmittance *= medium->transmittance(piece, t_end, rng);
+        }
+        if (!hit || !si.bsdf->is_null() || transmittance.is_black()) break;
+        before.add_piece(medium, piece, si.t);
+        medium = medium_after_transmission(si, piece.direction);
+        piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
+    }
+    return sum * beam_normalization_;
 }
 
 Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
@@ -1140,6 +1269,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         if (joint_ && state.path_length < max_length_)
             joint_connections(ray, state, light_first, light_end, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
+        if (query_beams_ && state.path_length < max_length_)
+            add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
@@ -1214,7 +1345,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                             connect_vertices(lv, *v, wo, state.mis, rng, stats));
                 }
             }
-            if (use_vm_) {
+            if (v->in_medium() ? merge_points_ : merge_surfaces_) {
                 add(Technique::Merging, 0, state.throughput * merge(*v, wo, state));
             }
         }

@@ -82,6 +82,16 @@ struct BidirectionalConfig {
     // vertex sampled by half-line equi-angular sampling toward it, an extra technique in the
     // MIS (Georgiev et al. 2013, the "vertex-segment" connection; docs/media.md).
     bool joint_connections = false;
+    // Vcm as UPBP's combination (algorithm upbp; Krivanek et al. 2014, docs/media.md): which
+    // merges join the connections (surfaces, photon points P-P3D, query beams P-B2D: photon
+    // points gathered along whole camera segments in media), and the volume estimators' own
+    // radius schedule (a fraction of the scene's bounding-sphere radius; 0: the surfaces').
+    bool vertex_connections = true;  // off: merges only (bpm with query beams)
+    bool surface_merging = true;
+    bool photon_points = true;
+    bool query_beams = false;
+    double volume_radius_factor = 0;
+    double volume_alpha = 1;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

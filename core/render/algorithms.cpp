@@ -112,6 +112,27 @@ const std::vector<Algorithm>& table() {
          .support = {.homogeneous_media = true},
          .options = kMerging,
          .create = make_bidirectional<BidirectionalMode::Vcm>},
+        {.name = "upbp",
+         .description = "unified points, beams and paths (homogeneous media): vcm's connections "
+                        "and merges with query beams, photon points gathered along whole camera "
+                        "segments in media (photon beams not yet)",
+         .support = {.homogeneous_media = true},
+         .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
+                     "vertex_connections", "surface_merging", "photon_points", "query_beams",
+                     "volume_radius_factor", "volume_alpha"},
+         // Query beams beside connections only, and as the only estimator in media.
+         .variants = {{{"surface_merging", "off"}, {"photon_points", "off"}},
+                      {{"vertex_connections", "off"}, {"photon_points", "off"}}},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
+             config.vertex_connections = s.vertex_connections;
+             config.surface_merging = s.surface_merging;
+             config.photon_points = s.photon_points;
+             config.query_beams = s.query_beams;
+             config.volume_radius_factor = s.volume_radius_factor;
+             config.volume_alpha = s.volume_alpha;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "vpl",
          .aliases = {"instant_radiosity"},
          .description = "many-light rendering: virtual point lights from light paths (surfaces "

@@ -37,6 +37,15 @@ struct RenderSettings {
     // bpt: joint (J1, vertex-segment) connections from eye segments in homogeneous media, one
     // more technique in the MIS (docs/media.md, "Joint connections in bpt").
     bool joint_connections = false;
+    // upbp: whether connections are made, which merges join them (surfaces, photon points P-P3D,
+    // query beams P-B2D) and the volume estimators' radius schedule (0: the surfaces' radius_factor
+    // and alpha; docs/media.md, "Points, beams and paths").
+    bool vertex_connections = true;
+    bool surface_merging = true;
+    bool photon_points = true;
+    bool query_beams = true;
+    double volume_radius_factor = 0;
+    double volume_alpha = 1;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

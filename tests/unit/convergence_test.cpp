@@ -216,6 +216,54 @@ TEST(Convergence, JointSamplingMatchesVolptWithoutItOnIsosph) {
                        "volpt jis off");
 }
 
+// upbp's query beams (P-B2D, docs/media.md "Points, beams and paths"): photon points gathered
+// along whole camera segments in media, combined by MIS with connections, surface merges and
+// photon points through per-vertex merge factors (vcm_mis.h). With every estimator, and with
+// query beams as the only merge beside the connections, and with query beams as the only
+// estimator in the medium (no connections, no photon points), upbp must converge to volpt on both
+// SmallUPBP boxes: isosph (the camera ray enters the medium through a null boundary, so the
+// long query spans two pieces) and glasssph (dense chromatic medium behind glass, every light
+// path enters through a specular interface); and to bpt on the fog box with paths of up to 6
+// segments (camera and point light inside the medium). Tolerance: the file's k = 5 combined
+// standard errors; the kernel's bias at r = 1 % of the scene radius is far below it at the
+// block level.
+TEST(Convergence, QueryBeamsMatchVolptOnTheSmallUpbpBoxes) {
+    for (const char* file : {"smallupbp/isosph.xml", "smallupbp/glasssph.xml"}) {
+        auto scene = shipped(file);
+        const BlockEstimate reference = render_blocks(*scene, "volpt", 8);
+        expect_same_blocks(reference, render_blocks(*scene, "upbp", 8),
+                           std::string("upbp on ") + file, "volpt");
+        expect_same_blocks(reference,
+                           render_blocks(*scene, "upbp", 8,
+                                         {{"surface_merging", "off"}, {"photon_points", "off"}}),
+                           std::string("upbp (connections + query beams) on ") + file, "volpt");
+        // Query beams as the only estimator in the medium (surfaces merged as photons).
+        expect_same_blocks(reference,
+                           render_blocks(*scene, "upbp", 16,
+                                         {{"vertex_connections", "off"}, {"photon_points", "off"}}),
+                           std::string("upbp (query beams and surface merges only) on ") + file,
+                           "volpt");
+    }
+}
+
+TEST(Convergence, QueryBeamsMatchBptOnTheFogBox) {
+    auto scene = fog_box("0");
+    const BlockEstimate reference = render_blocks(*scene, "bpt", 4, {{"max_depth", "6"}});
+    expect_same_blocks(reference, render_blocks(*scene, "upbp", 4, {{"max_depth", "6"}}),
+                       "upbp, max_depth 6", "bpt");
+    expect_same_blocks(
+        reference,
+        render_blocks(*scene, "upbp", 4,
+                      {{"max_depth", "6"}, {"surface_merging", "off"}, {"photon_points", "off"}}),
+        "upbp (connections + query beams), max_depth 6", "bpt");
+    expect_same_blocks(
+        reference,
+        render_blocks(
+            *scene, "upbp", 4,
+            {{"max_depth", "6"}, {"vertex_connections", "off"}, {"photon_points", "off"}}),
+        "upbp (query beams only), max_depth 6", "bpt");
+}
+
 // bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt") add one technique
 // per junction whose eye-side vertex is in a medium; with them on, bpt must converge to bpt
 // without them. The fog box with max_depth 3 holds the double-scattering paths, where the J1
