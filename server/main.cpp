@@ -51,7 +51,7 @@ struct Options {
     std::string http;               // HOST:PORT for the dashboard, /api/ and /metrics
     std::string tls_cert, tls_key;  // PEM files; both empty: plaintext
     bool insecure = false;          // a token over plaintext (loopback only)
-    std::string health;             // HOST:PORT for grpc.health.v1 alone, in plaintext
+    std::string health;             // HOST:PORT for grpc.health.v1 (no render API), plaintext
     ServerOptions server;
     bool help = false;
 };
@@ -112,8 +112,9 @@ ArgumentParser make_parser(Options& o) {
            "without TLS is refused otherwise)",
            [&] { o.insecure = true; });
     p.value({"--health-listen"}, "HOST:PORT",
-            "also serve the gRPC health service (grpc.health.v1) alone, in plaintext, at "
-            "HOST:PORT: for probes that cannot speak TLS, e.g. Kubernetes' gRPC probes",
+            "also serve the gRPC health service (grpc.health.v1), without the render API, in "
+            "plaintext at HOST:PORT: for probes that cannot speak TLS, e.g. Kubernetes' gRPC "
+            "probes",
             [&](const std::string& v) { o.health = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
@@ -251,7 +252,8 @@ int main(int argc, char** argv) {
         Log("error", "listen_failed").kv("address", options.listen);
         return 1;
     }
-    // The health service alone, in plaintext, for probes that cannot speak TLS.
+    // The health service without the render API, in plaintext, for probes that cannot speak
+    // TLS (server reflection comes along: the reflection library adds it to every server).
     std::unique_ptr<grpc::Server> health_server;
     std::string health_line;
     if (!options.health.empty()) {

@@ -11,7 +11,8 @@ A CA and a server certificate for 127.0.0.1 are made with `openssl` in a tempora
     or without --insecure, and on loopback without --insecure; --insecure contradicts TLS;
     --http off loopback with a token is refused; a client or worker refuses to send a token in
     clear to a non-loopback address; unreadable certificate files are named;
-  * --health-listen serves the health service alone, in plaintext, beside the TLS port.
+  * --health-listen serves the health service, not the render API, in plaintext beside the
+    TLS port.
 """
 
 import os
@@ -198,12 +199,21 @@ class Tls(cluster.ClusterTestCase):
             health = P["hrpc"].HealthStub(channel)
             reply = health.Check(P["hpb"].HealthCheckRequest(service=""), timeout=10)
             self.assertEqual(reply.status, P["hpb"].HealthCheckResponse.SERVING)
-            # Nothing but the health service is there.
+            # The render API is not there.
             jobs = P["rpc"].JobServiceStub(channel)
             self.assertStatus(grpc.StatusCode.UNIMPLEMENTED, jobs.ListJobs,
                               P["pb"].ListJobsRequest(),
                               metadata=[("authorization", f"Bearer {TOKEN}")], timeout=10,
                               what="the render API on the health port")
+            # Server reflection (every gRPC server of the process gets it) lists the health
+            # service there, and nothing of the render API.
+            reflection = channel.stream_stream(
+                "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+                request_serializer=lambda b: b, response_deserializer=lambda b: b)
+            list_services = b"\x3a\x01*"  # ServerReflectionRequest{list_services: "*"}
+            listed = b"".join(reflection(iter([list_services]), timeout=10))
+            self.assertIn(b"grpc.health.v1.Health", listed)
+            self.assertNotIn(b"render.v1", listed)
         finally:
             channel.close()
 
