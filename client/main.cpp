@@ -1,6 +1,6 @@
 // `client`: the command line of the render service.
 //
-//   client [--server HOST:PORT] [--token T] COMMAND ...
+//   client [--server HOST:PORT] [--token T] [--tls-ca FILE [--tls-server-name NAME]] COMMAND ...
 //   (see kUsage)
 
 #include <unistd.h>
@@ -51,10 +51,24 @@ struct SubmitOptions {
 
 render::ArgumentParser submit_parser(SubmitOptions& o);
 
+// Whether the channel is TLS: --tls-ca or env RENDER_TLS_CA.
+bool tls_used(const std::string& tls_ca_flag) {
+    return !flag_or_env(tls_ca_flag, "RENDER_TLS_CA").empty();
+}
+
+// A hint for a server that cannot be reached: a TLS mismatch shows up as UNAVAILABLE.
+std::string connection_hint(const grpc::Status& status, bool tls) {
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return "";
+    return tls ? "\nclient: with --tls-ca the server must serve TLS (--tls-cert/--tls-key) with a "
+                 "certificate signed by that CA for the host of --server (or for "
+                 "--tls-server-name)"
+               : "\nclient: if the server serves TLS (--tls-cert/--tls-key), give --tls-ca FILE";
+}
+
 std::string usage() {
     SubmitOptions unused;
     return R"(usage:
-  client [--server HOST:PORT] [--token T] COMMAND ...
+  client [--server HOST:PORT] [--token T] [--tls-ca FILE] COMMAND ...
 
 commands:
   submit SCENE.xml [options]   pack the scene and the files it references, upload what the
@@ -75,6 +89,11 @@ commands:
 global options:
   --server HOST:PORT           default: env RENDER_SERVER, else 127.0.0.1:50051
   --token T                    bearer token (default: env RENDER_TOKEN)
+  --tls-ca FILE                connect with TLS, trusting the CA certificate(s) in FILE
+                               (PEM; default: env RENDER_TLS_CA); without it the connection
+                               is plaintext and a token is only sent to a loopback address
+  --tls-server-name NAME       the name the server's certificate must carry, when it is not
+                               the host of --server (default: env RENDER_TLS_SERVER_NAME)
 
 submit options (the render options are those of `render`, with the same meaning):
 )" + submit_parser(unused).help() +
@@ -579,7 +598,7 @@ int bundle_command(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::string server, token;
+    std::string server, token, tls_ca, tls_server_name;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) server = env;
     std::vector<std::string> rest;
     // Global options come before the command; everything from the command on is its own.
@@ -590,9 +609,14 @@ int main(int argc, char** argv) {
             std::cout << usage();
             return 0;
         }
-        if (a != "--server" && a != "--token") usage_error("unknown option " + a);
+        std::string* value = a == "--server"            ? &server
+                             : a == "--token"           ? &token
+                             : a == "--tls-ca"          ? &tls_ca
+                             : a == "--tls-server-name" ? &tls_server_name
+                                                        : nullptr;
+        if (!value) usage_error("unknown option " + a);
         if (first + 1 >= argc) usage_error(a + " needs a value");
-        (a == "--server" ? server : token) = argv[++first];
+        *value = argv[++first];
     }
     rest.assign(argv + first, argv + argc);
     if (rest.empty()) usage_error("no command given");
@@ -611,7 +635,19 @@ int main(int argc, char** argv) {
         Connection c;
         c.address = server;
         c.token = token_or_env(token);
-        c.stub = v1::JobService::NewStub(make_channel(server));
+        ClientTls tls;
+        try {
+            tls = client_tls_from(tls_ca, tls_server_name);
+        } catch (const std::runtime_error& e) {
+            std::fprintf(stderr, "client: %s\n", e.what());
+            return 2;
+        }
+        if (const std::string problem = check_client_transport(server, tls.tls, !c.token.empty());
+            !problem.empty()) {
+            std::fprintf(stderr, "client: %s\n", problem.c_str());
+            return 2;
+        }
+        c.stub = v1::JobService::NewStub(make_channel(server, tls));
         auto job_arg = [&](const char* cmd) -> std::string {
             if (args.empty() || args[0].empty() || args[0][0] == '-')
                 usage_error(std::string(cmd) + ": no job id given");
@@ -647,7 +683,8 @@ int main(int argc, char** argv) {
     } catch (const render::UsageError& e) {
         usage_error(e.what());
     } catch (const RpcFailure& e) {
-        std::fprintf(stderr, "client: %s (server %s)\n", e.what(), server.c_str());
+        std::fprintf(stderr, "client: %s (server %s)%s\n", e.what(), server.c_str(),
+                     connection_hint(e.status, tls_used(tls_ca)).c_str());
         return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "client: error: %s\n", e.what());

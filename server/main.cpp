@@ -2,13 +2,16 @@
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
 //          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--metrics HOST:PORT]
-//          [--http HOST:PORT]
+//          [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
+//          [--health-listen HOST:PORT]
 //
-// The token may also come from the environment variable RENDER_TOKEN. With PORT 0 the kernel
-// picks a port; once listening the server prints `listening on HOST:PORT` on stdout, then
-// `metrics on HOST:PORT` and `http on HOST:PORT` for the HTTP listeners asked for (/metrics;
-// the dashboard, /api/ and /metrics). Structured log lines go to stderr. SIGTERM/SIGINT: stop
-// accepting, checkpoint, exit 0.
+// The token may also come from the environment variable RENDER_TOKEN, the TLS files from
+// RENDER_TLS_CERT and RENDER_TLS_KEY. A token without TLS needs --insecure on a loopback
+// address (service/transport_security.h). With PORT 0 the kernel picks a port; once listening
+// the server prints `listening on HOST:PORT` on stdout, then `metrics on HOST:PORT`,
+// `http on HOST:PORT` and `health on HOST:PORT` for the extra listeners asked for (/metrics;
+// the dashboard, /api/ and /metrics; the plaintext health service). Structured log lines go
+// to stderr. SIGTERM/SIGINT: stop accepting, checkpoint, exit 0.
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
@@ -34,6 +37,7 @@
 #include "server/job_manager.h"
 #include "server/job_service.h"
 #include "server/worker_service.h"
+#include "service/transport_security.h"
 
 namespace {
 
@@ -43,8 +47,11 @@ using namespace render::server;
 struct Options {
     std::string listen;
     std::string token;
-    std::string metrics;  // HOST:PORT for /metrics alone
-    std::string http;     // HOST:PORT for the dashboard, /api/ and /metrics
+    std::string metrics;            // HOST:PORT for /metrics alone
+    std::string http;               // HOST:PORT for the dashboard, /api/ and /metrics
+    std::string tls_cert, tls_key;  // PEM files; both empty: plaintext
+    bool insecure = false;          // a token over plaintext (loopback only)
+    std::string health;             // HOST:PORT for grpc.health.v1 (no render API), plaintext
     ServerOptions server;
     bool help = false;
 };
@@ -93,6 +100,22 @@ ArgumentParser make_parser(Options& o) {
     p.value({"--http"}, "HOST:PORT",
             "serve the web dashboard, its JSON API under /api/ and /metrics (port 0: any)",
             [&](const std::string& v) { o.http = v; });
+    p.value({"--tls-cert"}, "FILE",
+            "serve TLS with this certificate (PEM, the server's first, then any intermediates; "
+            "default: env RENDER_TLS_CERT); needs --tls-key",
+            [&](const std::string& v) { o.tls_cert = v; });
+    p.value({"--tls-key"}, "FILE",
+            "the private key of --tls-cert (PEM; default: env RENDER_TLS_KEY)",
+            [&](const std::string& v) { o.tls_key = v; });
+    p.flag({"--insecure"},
+           "accept the token over plaintext; only on a loopback --listen address (a token "
+           "without TLS is refused otherwise)",
+           [&] { o.insecure = true; });
+    p.value({"--health-listen"}, "HOST:PORT",
+            "also serve the gRPC health service (grpc.health.v1), without the render API, in "
+            "plaintext at HOST:PORT: for probes that cannot speak TLS, e.g. Kubernetes' gRPC "
+            "probes",
+            [&](const std::string& v) { o.health = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
 }
@@ -128,6 +151,21 @@ Options parse(int argc, char** argv) {
     for (const auto& [flag, value] : {std::pair{"--metrics", &o.metrics}, {"--http", &o.http}})
         if (!value->empty() && !split_address(*value))
             usage_error(std::string(flag) + " expects HOST:PORT, got " + *value);
+    if (!o.health.empty() && o.health.rfind(':') == std::string::npos)
+        usage_error("--health-listen expects HOST:PORT, got " + o.health);
+    o.tls_cert = service::flag_or_env(o.tls_cert, "RENDER_TLS_CERT");
+    o.tls_key = service::flag_or_env(o.tls_key, "RENDER_TLS_KEY");
+    if (o.tls_cert.empty() != o.tls_key.empty())
+        usage_error(o.tls_cert.empty() ? "--tls-key needs --tls-cert FILE (env RENDER_TLS_CERT)"
+                                       : "--tls-cert needs --tls-key FILE (env RENDER_TLS_KEY)");
+    const bool tls = !o.tls_cert.empty();
+    for (const std::string& problem :
+         {service::check_server_transport(o.listen, tls, !o.token.empty(), o.insecure),
+          service::check_http_transport(o.http, !o.token.empty())})
+        if (!problem.empty()) {
+            std::cerr << "server: " << problem << "\n";
+            std::exit(2);
+        }
     return o;
 }
 
@@ -181,18 +219,58 @@ int main(int argc, char** argv) {
     JobServiceImpl job_service(*manager, auth, stopping);
     WorkerServiceImpl worker_service(*manager, auth);
 
+    std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
+    const bool tls = !options.tls_cert.empty();
+    if (tls) {
+        grpc::SslServerCredentialsOptions ssl;
+        try {
+            ssl.pem_key_cert_pairs.push_back(
+                {service::read_pem_file("--tls-key", options.tls_key, "PRIVATE KEY"),
+                 service::read_pem_file("--tls-cert", options.tls_cert, "CERTIFICATE")});
+        } catch (const std::exception& e) {
+            std::cerr << "server: " << e.what() << "\n";
+            Log("error", "tls_files_unreadable").kv("error", e.what());
+            return 2;  // a configuration error: restarting does not help
+        }
+        credentials = grpc::SslServerCredentials(ssl);
+    }
+
     grpc::EnableDefaultHealthCheckService(true);
     grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     int port = 0;
-    builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &port);
+    builder.AddListeningPort(options.listen, credentials, &port);
     builder.RegisterService(&job_service);
     builder.RegisterService(&worker_service);
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) {
-        std::cerr << "server: cannot listen on " << options.listen << "\n";
+        std::cerr << "server: cannot listen on " << options.listen
+                  << (tls ? " (with TLS: does --tls-key " + options.tls_key +
+                                " belong to --tls-cert " + options.tls_cert + "?)"
+                          : std::string())
+                  << "\n";
         Log("error", "listen_failed").kv("address", options.listen);
         return 1;
+    }
+    // The health service without the render API, in plaintext, for probes that cannot speak
+    // TLS (server reflection comes along: the reflection library adds it to every server).
+    std::unique_ptr<grpc::Server> health_server;
+    std::string health_line;
+    if (!options.health.empty()) {
+        grpc::ServerBuilder health_builder;
+        int health_port = 0;
+        health_builder.AddListeningPort(options.health, grpc::InsecureServerCredentials(),
+                                        &health_port);
+        health_server = health_builder.BuildAndStart();
+        if (!health_server || health_port == 0) {
+            std::cerr << "server: cannot listen on " << options.health << " (--health-listen)\n";
+            Log("error", "listen_failed").kv("address", options.health);
+            server->Shutdown();
+            return 1;
+        }
+        health_line = "health on " +
+                      shown_host(options.health.substr(0, options.health.rfind(':'))) + ":" +
+                      std::to_string(health_port) + "\n";
     }
     const std::string host = shown_host(options.listen.substr(0, options.listen.rfind(':')));
     // The HTTP listeners are bound before anything is printed, so that the lines come together.
@@ -208,6 +286,7 @@ int main(int argc, char** argv) {
             std::cerr << "server: cannot listen on " << address << " (--" << name << ")\n";
             Log("error", "listen_failed").kv("address", address);
             server->Shutdown();
+            if (health_server) health_server->Shutdown();
             return 1;
         }
         http_lines +=
@@ -217,14 +296,23 @@ int main(int argc, char** argv) {
             .kv("address", shown_host(http_host) + ":" + std::to_string(bound));
         http_servers.emplace_back(name, std::move(http));
     }
-    std::printf("listening on %s:%d\n%s", host.c_str(), port, http_lines.c_str());
+    std::printf("listening on %s:%d\n%s%s", host.c_str(), port, http_lines.c_str(),
+                health_line.c_str());
     std::fflush(stdout);
     Log("info", "listening")
         .kv("address", host + ":" + std::to_string(port))
         .kv("store", options.server.store.string())
         .kv("auth", auth.enabled() ? "token" : "none")
+        .kv("transport", tls ? "tls" : "plaintext")
         .kv("lease_timeout", options.server.lease_timeout_seconds)
         .kv("heartbeat", options.server.heartbeat_seconds);
+
+    if (!tls && !service::is_loopback_address(options.listen))
+        Log("warn", "plaintext_listener")
+            .kv("address", options.listen)
+            .kv("hint",
+                "calls and images travel unencrypted and anyone who reaches the address may "
+                "use the API; give --tls-cert/--tls-key and a token");
 
     std::atomic<bool> ticker_stop{false};
     std::thread ticker([&] {
@@ -243,6 +331,7 @@ int main(int argc, char** argv) {
     Log("info", "shutting_down").kv("signal", sig == SIGTERM ? "SIGTERM" : "SIGINT");
     stopping = true;
     for (auto& [name, http] : http_servers) http->stop();
+    if (health_server) health_server->Shutdown();
     server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
     ticker_stop = true;
     ticker.join();

@@ -11,19 +11,24 @@
 #include <memory>
 #include <string>
 
+#include "service/transport_security.h"
+
 namespace render::service {
 
 // Largest payload of one streamed chunk (assets, report values, results).
 constexpr size_t kMaxChunkBytes = size_t(1) << 20;
 
-inline std::shared_ptr<grpc::Channel> make_channel(const std::string& address) {
+// A channel to `address`: plaintext, or TLS with `tls` (service/transport_security.h).
+inline std::shared_ptr<grpc::Channel> make_channel(const std::string& address,
+                                                   const ClientTls& tls = {}) {
     grpc::ChannelArguments args;
     // gRPC's own reconnect backoff grows to 2 minutes by default; a restarted server should be
     // found again within seconds.
     args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
     args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 200);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
-    return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+    if (tls.tls && !tls.server_name.empty()) args.SetSslTargetNameOverride(tls.server_name);
+    return grpc::CreateCustomChannel(address, channel_credentials(tls), args);
 }
 
 // Sets the bearer token (if any) and a deadline (if timeout_seconds > 0) on a call.

@@ -1,6 +1,7 @@
 // `worker`: leases ranges of iterations from a render server, renders them, reports the sums.
 //
 //   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR]
+//          [--tls-ca FILE [--tls-server-name NAME]]
 
 #include <csignal>
 #include <cstdlib>
@@ -20,7 +21,11 @@ namespace {
 using namespace render;
 using namespace render::service;
 
-ArgumentParser make_parser(WorkerOptions& o, std::string& token, bool& help) {
+struct TlsFlags {
+    std::string ca, server_name;
+};
+
+ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, bool& help) {
     ArgumentParser p;
     p.value({"--server"}, "HOST:PORT",
             "the render server (default: env RENDER_SERVER, else 127.0.0.1:50051)",
@@ -36,6 +41,15 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, bool& help) {
             "asset cache (default: $XDG_CACHE_HOME/render-worker, else ~/.cache/render-worker, "
             "else /tmp/render-worker-$UID)",
             [&](const std::string& v) { o.cache_dir = v; });
+    p.value({"--tls-ca"}, "FILE",
+            "connect with TLS, trusting the CA certificate(s) in FILE (PEM; default: env "
+            "RENDER_TLS_CA). Without it the connection is plaintext, and a token is only sent "
+            "to a loopback address",
+            [&](const std::string& v) { tls.ca = v; });
+    p.value({"--tls-server-name"}, "NAME",
+            "the name the server's certificate must carry, when it is not the host of --server "
+            "(default: env RENDER_TLS_SERVER_NAME)",
+            [&](const std::string& v) { tls.server_name = v; });
     p.flag({"--help", "-h"}, "this text", [&] { help = true; });
     return p;
 }
@@ -43,9 +57,10 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, bool& help) {
 std::string usage() {
     WorkerOptions unused_options;
     std::string unused_token;
+    TlsFlags unused_tls;
     bool unused_help = false;
     return "usage:\n  worker --server HOST:PORT [options]\n\noptions:\n" +
-           make_parser(unused_options, unused_token, unused_help).help() +
+           make_parser(unused_options, unused_token, unused_tls, unused_help).help() +
            "\nLogs are key=value lines on stderr. SIGTERM/SIGINT: finish the current range, "
            "report it and\nexit 0; a second signal gives the range up at once.\n";
 }
@@ -73,9 +88,10 @@ int main(int argc, char** argv) {
     WorkerOptions options;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) options.server = env;
     std::string token;
+    TlsFlags tls;
     bool help = false;
     try {
-        make_parser(options, token, help).parse(argc, argv);
+        make_parser(options, token, tls, help).parse(argc, argv);
     } catch (const UsageError& e) {
         usage_error(e.what());
     }
@@ -85,6 +101,18 @@ int main(int argc, char** argv) {
     }
     if (options.server.empty()) options.server = "127.0.0.1:50051";
     options.token = token_or_env(token);
+    try {
+        options.tls = client_tls_from(tls.ca, tls.server_name);
+    } catch (const std::exception& e) {
+        std::cerr << "worker: " << e.what() << "\n";
+        return 2;
+    }
+    if (const std::string problem =
+            check_client_transport(options.server, options.tls.tls, !options.token.empty());
+        !problem.empty()) {
+        std::cerr << "worker: " << problem << "\n";
+        return 2;
+    }
     if (options.cache_dir.empty()) options.cache_dir = default_cache();
 
     struct sigaction action {};

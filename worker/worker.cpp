@@ -76,7 +76,7 @@ struct RangeResult {
 
 Worker::Worker(WorkerOptions options)
     : options_(std::move(options)),
-      channel_(make_channel(options_.server)),
+      channel_(make_channel(options_.server, options_.tls)),
       stub_(v1::WorkerService::NewStub(channel_)),
       cache_(options_.cache_dir) {}
 

@@ -11,6 +11,7 @@
 
 #include "core/scene/scene.h"
 #include "render.grpc.pb.h"
+#include "service/transport_security.h"
 #include "worker/asset_cache.h"
 
 namespace render::service {
@@ -19,6 +20,7 @@ struct WorkerOptions {
     std::string server;  // HOST:PORT
     int threads = 0;     // 0 = all cores
     std::string token;
+    ClientTls tls;  // plaintext unless tls.tls
     std::filesystem::path cache_dir;
 };
 

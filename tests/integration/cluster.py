@@ -38,6 +38,11 @@ BIN_DIR = os.path.join(SOURCE_DIR, "build", "bin")
 CHUNK = 1 << 20  # bulk data moves in chunks of at most 1 MiB (proto/render.proto)
 LOCALHOST = "127.0.0.1"
 
+# The programs read TLS settings from these variables; a test's processes get them only when
+# the test asks (Cluster(tls=...)), never from the environment that runs the tests.
+for _name in ("RENDER_TLS_CA", "RENDER_TLS_SERVER_NAME", "RENDER_TLS_CERT", "RENDER_TLS_KEY"):
+    os.environ.pop(_name, None)
+
 # A minimal copy of grpc/health/v1/health.proto (the standard health service); compiled at test
 # time together with render.proto so that no Python package beyond python3-grpcio is needed.
 HEALTH_PROTO = """
@@ -267,16 +272,27 @@ def _drain(proc):
 # The API through the generated stubs
 
 
+def make_channel(address, ca=None, server_name=None):
+    """A plaintext channel, or with `ca` (a PEM file) a TLS channel trusting that CA;
+    `server_name` overrides the name the server's certificate is checked for."""
+    if not ca:
+        return grpc.insecure_channel(address)
+    with open(ca, "rb") as f:
+        credentials = grpc.ssl_channel_credentials(root_certificates=f.read())
+    options = [("grpc.ssl_target_name_override", server_name)] if server_name else []
+    return grpc.secure_channel(address, credentials, options=options)
+
+
 class Api:
     """The server's JobService, WorkerService and health service over one channel, with the
-    bearer token (if any) on every call and a default deadline."""
+    bearer token (if any) on every call and a default deadline; TLS with `ca` (a PEM file)."""
 
-    def __init__(self, address, token=None, timeout=30):
+    def __init__(self, address, token=None, timeout=30, ca=None, server_name=None):
         s = stubs()
         self.address = address
         self.token = token
         self.timeout = timeout
-        self.channel = grpc.insecure_channel(address)
+        self.channel = make_channel(address, ca, server_name)
         self.jobs = s["rpc"].JobServiceStub(self.channel)
         self.workers = s["rpc"].WorkerServiceStub(self.channel)
         self.health = s["hrpc"].HealthStub(self.channel)
@@ -510,10 +526,53 @@ def cornell_box():
 # The cluster
 
 
-class Cluster:
-    """One server and its workers, with a temporary store, caches and logs."""
+class TlsFiles:
+    """PEM files of a test CA and a server certificate it signed (make_tls_files)."""
 
-    def __init__(self, token=None, lease_timeout=None, heartbeat=None, server_args=()):
+    def __init__(self, ca, cert, key):
+        self.ca, self.cert, self.key = ca, cert, key
+
+
+def openssl():
+    """The openssl program, or None."""
+    return shutil.which("openssl")
+
+
+def _openssl(*args, cwd):
+    r = subprocess.run([openssl(), *args], cwd=cwd, capture_output=True, text=True,
+                       timeout=60, stdin=subprocess.DEVNULL)
+    if r.returncode != 0:
+        raise RuntimeError(f"openssl {' '.join(args)} failed: {r.stderr}")
+
+
+def make_tls_files(folder, name="ca", hosts=("127.0.0.1", "localhost")):
+    """Makes, with the openssl program, a CA (`name`.crt) and a server certificate and key
+    (`name`-server.crt/.key) it signed for `hosts` (IP addresses and DNS names, as
+    subjectAltName) in `folder`; returns their TlsFiles. Valid for 2 days."""
+    os.makedirs(folder, exist_ok=True)
+    ca, ca_key = f"{name}.crt", f"{name}.key"
+    cert, key, csr = f"{name}-server.crt", f"{name}-server.key", f"{name}-server.csr"
+    ext = f"{name}-server.ext"
+    _openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", ca_key, "-out", ca,
+             "-days", "2", "-subj", f"/CN=render test CA {name}", cwd=folder)
+    _openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", key, "-out", csr, "-subj",
+             "/CN=render-server", cwd=folder)
+    alt = ",".join((f"IP:{h}" if re.fullmatch(r"[0-9.]+|[0-9a-fA-F:]+", h) else f"DNS:{h}")
+                   for h in hosts)
+    with open(os.path.join(folder, ext), "w") as f:
+        f.write(f"subjectAltName={alt}\n")
+    _openssl("x509", "-req", "-in", csr, "-CA", ca, "-CAkey", ca_key, "-CAcreateserial",
+             "-out", cert, "-days", "2", "-extfile", ext, cwd=folder)
+    return TlsFiles(*(os.path.join(folder, f) for f in (ca, cert, key)))
+
+
+class Cluster:
+    """One server and its workers, with a temporary store, caches and logs. With `tls` (a
+    TlsFiles) the server serves TLS and the workers and `api` trust its CA; without it a
+    server with a token gets --insecure (plaintext on 127.0.0.1)."""
+
+    def __init__(self, token=None, lease_timeout=None, heartbeat=None, server_args=(),
+                 tls=None):
         self.dir = tempfile.mkdtemp(prefix="render-it-")
         self.store = os.path.join(self.dir, "store")
         os.makedirs(self.store)
@@ -521,6 +580,7 @@ class Cluster:
         self.lease_timeout = lease_timeout
         self.heartbeat = heartbeat
         self.server_args = list(server_args)
+        self.tls = tls
         self.server = None
         self.port = None
         self.address = None
@@ -538,6 +598,10 @@ class Cluster:
         args = [binary("server"), "--listen", f"{LOCALHOST}:{port}", "--store", self.store]
         if self.token:
             args += ["--token", self.token]
+        if self.tls:
+            args += ["--tls-cert", self.tls.cert, "--tls-key", self.tls.key]
+        elif self.token:
+            args += ["--insecure"]
         if self.lease_timeout is not None:
             args += ["--lease-timeout", str(self.lease_timeout)]
         if self.heartbeat is not None:
@@ -552,11 +616,13 @@ class Cluster:
             proc.kill()
             raise RuntimeError(f"server did not print 'listening on 127.0.0.1:PORT' within "
                                f"{timeout} s (got {line!r}):\n{proc.log_tail()}")
-        # `metrics on HOST:PORT` / `http on HOST:PORT` follow for --metrics / --http.
+        # `metrics on HOST:PORT` / `http on HOST:PORT` / `health on HOST:PORT` follow for
+        # --metrics / --http / --health-listen.
         self.http_addresses = {}
-        for _ in range(sum(1 for a in args if a in ("--metrics", "--http"))):
+        for _ in range(sum(1 for a in args if a in ("--metrics", "--http", "--health-listen"))):
             extra = read_line_with_timeout(proc, timeout)
-            m2 = re.fullmatch(r"(metrics|http) on (127\.0\.0\.1:\d+)", (extra or "").strip())
+            m2 = re.fullmatch(r"(metrics|http|health) on (127\.0\.0\.1:\d+)",
+                              (extra or "").strip())
             if not m2:
                 proc.kill()
                 raise RuntimeError(f"server did not print its HTTP address (got {extra!r}):\n"
@@ -572,7 +638,7 @@ class Cluster:
         self.address = f"{LOCALHOST}:{self.port}"
         if self.api:
             self.api.close()
-        self.api = Api(self.address, self.token)
+        self.api = Api(self.address, self.token, ca=self.tls.ca if self.tls else None)
         self.api.wait_ready(timeout=15)
         return self.port
 
@@ -593,6 +659,8 @@ class Cluster:
         token = self.token if token is None else token
         if token:
             args += ["--token", token]
+        if self.tls:
+            args += ["--tls-ca", self.tls.ca]
         args += list(extra)
         proc = Proc(f"worker#{n}", args, os.path.join(self.dir, f"worker-{n}.log"),
                     env={**os.environ, **env} if env else None)
