@@ -10,6 +10,7 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/rough_plastic.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 
@@ -25,6 +26,7 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"roughdielectric", &RoughDielectricBsdf::create},
     {"thindielectric", &ThinDielectricBsdf::create},
     {"plastic", &PlasticBsdf::create},
+    {"roughplastic", &RoughPlasticBsdf::create},
     {"phong", &PhongBsdf::create},
     {"null", &NullBsdf::create},
 };

@@ -18,6 +18,7 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/rough_plastic.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 #include "core/textures/texture_factory.h"
@@ -65,6 +66,14 @@ std::shared_ptr<const Bsdf> rough_conductor(MicrofacetType type, float alpha_u, 
 std::shared_ptr<const Bsdf> rough_dielectric(MicrofacetType type, float alpha) {
     return std::make_shared<RoughDielectricBsdf>(MicrofacetDistribution(type, alpha, alpha), 1.5f,
                                                  Rgb(1.0f), Rgb(1.0f));
+}
+
+std::shared_ptr<const Bsdf> rough_plastic(MicrofacetType type, float alpha, const Rgb& kd,
+                                          const Rgb& ks, bool nonlinear = false,
+                                          bool visible = true) {
+    auto coating =
+        std::make_shared<RoughCoating>(MicrofacetDistribution(type, alpha, alpha, visible), 1.49f);
+    return std::make_shared<RoughPlasticBsdf>(coating, kd, ks, nonlinear);
 }
 
 // A material of `type` whose parameter `param` is a checkerboard of c0 and c1 (plus `extra`
@@ -143,6 +152,24 @@ std::vector<ChiSquareCase> all_cases() {
          [] { return std::make_shared<PlasticBsdf>(Rgb(0.8f, 0.4f, 0.1f), Rgb(0.3f), 1.7f, true); },
          0.3f});
 
+    // Rough plastic: a glossy and a diffuse lobe picked by the coating's transmittance.
+    for (MicrofacetType type : {MicrofacetType::Beckmann, MicrofacetType::GGX})
+        for (float alpha : {0.1f, 0.4f})
+            for (float c : angles)
+                cases.push_back({std::string("roughplastic_") + to_string(type) + "_a" +
+                                     cos_name(alpha) + "_" + cos_name(c),
+                                 [=] { return rough_plastic(type, alpha, Rgb(0.5f), Rgb(1.0f)); },
+                                 c, TransportMode::Radiance, alpha < 0.2f});
+    cases.push_back({"roughplastic_ggx_all_normals_nonlinear_importance",
+                     [] {
+                         return rough_plastic(MicrofacetType::GGX, 0.2f, Rgb(0.9f, 0.3f, 0.1f),
+                                              Rgb(0.6f), true, false);
+                     },
+                     0.6f, TransportMode::Importance});
+    cases.push_back(
+        {"roughplastic_specular_only",
+         [] { return rough_plastic(MicrofacetType::Beckmann, 0.3f, Rgb(0.0f), Rgb(1.0f)); }, 0.5f});
+
     for (float exponent : {1.0f, 10.0f, 90.0f})
         for (float c : angles)
             cases.push_back(
@@ -166,6 +193,12 @@ std::vector<ChiSquareCase> all_cases() {
          0.4f});
     cases.push_back({"textured_plastic_diffuse_reflectance",
                      [] { return textured("plastic", "diffuse_reflectance", 0.1f, 0.8f); }, 0.5f});
+    cases.push_back({"textured_roughplastic_diffuse_reflectance",
+                     [] {
+                         return textured("roughplastic", "diffuse_reflectance", 0.05f, 0.9f,
+                                         {{"distribution", "ggx"}});
+                     },
+                     0.5f});
     cases.push_back({"textured_roughdielectric_alpha_inside",
                      [] { return textured("roughdielectric", "alpha", 0.05f, 0.4f); }, -0.5f,
                      TransportMode::Importance});
