@@ -410,7 +410,23 @@ TEST_F(PbrtTest, MaterialsMapToOurBsdfs) {
     const Rgb f = f_normal(*scene);
     EXPECT_GT(f.g, 0.0f);
     EXPECT_LT(f.g, 0.5 / kPi);
-    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("plastic"), std::string::npos);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("twosided(plastic("), std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
+    // A rough coating -> roughplastic with pbrt's GGX and alpha = sqrt(roughness).
+    scene = load_world(
+        "Material \"coateddiffuse\" \"rgb reflectance\" [0.5 0.5 0.5] \"float roughness\" 0.09 "
+        "\"float eta\" 1.6\n" +
+        tri);
+    EXPECT_EQ(scene->shapes()[0]->bsdf->to_string(),
+              "twosided(roughplastic(ggx, alpha 0.3, diffuse_reflectance [0.5, 0.5, 0.5], "
+              "specular_reflectance [1, 1, 1], eta 1.6, nonlinear))");
+    scene = load_world(
+        "Material \"coateddiffuse\" \"float uroughness\" 0.1 \"float vroughness\" 0.3 "
+        "\"bool remaproughness\" false\n" +
+        tri);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("roughplastic(ggx, alpha 0.2,"),
+              std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
     // Named materials and mix with amount 0 or 1.
     scene = load_world(
         "MakeNamedMaterial \"a\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.1 0.1]\n"

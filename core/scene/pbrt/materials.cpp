@@ -166,17 +166,27 @@ std::shared_ptr<const Bsdf> dielectric(const ParamList& params, const SourceLoca
 
 std::shared_ptr<const Bsdf> coated_diffuse(const ParamList& params, const SourceLocation& at,
                                            const TextureTable& textures) {
-    Properties props("bsdf", "plastic", at);
+    // A smooth coating is Mitsuba's `plastic`, a rough one `roughplastic` with pbrt's
+    // Trowbridge-Reitz (GGX) distribution; both isotropic.
+    const Alphas a = read_roughness(params, 0.0);
+    Properties props("bsdf", a.smooth() ? "plastic" : "roughplastic", at);
     if (!put_color(params, "reflectance", props, "diffuse_reflectance", textures))
         props.set("diffuse_reflectance", Rgb(0.5f), at);
     props.set("int_ior", read_eta(params, 1.5), at);
     props.set("ext_ior", 1.0f, at);
     props.set("nonlinear", true, at);
-    const Alphas a = read_roughness(params, 0.0);
-    if (!a.smooth())
-        warn(params.where, params.context() + ": a rough coating (alpha " + std::to_string(a.u) +
-                               ", " + std::to_string(a.v) +
-                               ") is rendered as a smooth plastic coating (no rough plastic yet)");
+    if (!a.smooth()) {
+        double alpha = a.u;
+        if (a.u != a.v) {
+            alpha = 0.5 * (a.u + a.v);
+            warn(params.where, params.context() + ": an anisotropic coating (alpha " +
+                                   std::to_string(a.u) + ", " + std::to_string(a.v) +
+                                   ") is rendered isotropic with their mean " +
+                                   std::to_string(alpha));
+        }
+        props.set("distribution", std::string("ggx"), at);
+        props.set("alpha", float(alpha), at);
+    }
     // pbrt's stochastic layer evaluation: no effect on the mean of our analytic plastic.
     params.get_float("thickness", 0.01);
     params.get_int("maxdepth", 10);
