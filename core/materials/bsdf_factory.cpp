@@ -2,6 +2,7 @@
 
 #include "core/base/plugin_table.h"
 
+#include "core/materials/blend.h"
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
@@ -29,6 +30,8 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"roughplastic", &RoughPlasticBsdf::create},
     {"phong", &PhongBsdf::create},
     {"null", &NullBsdf::create},
+    {"blendbsdf", &BlendBsdf::create},
+    {"mask", &BlendBsdf::create_mask},
 };
 
 }  // namespace

@@ -11,9 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "core/materials/blend.h"
 #include "core/materials/bsdf_factory.h"
+#include "core/materials/conductor.h"
 #include "core/materials/diffuse.h"
 #include "core/materials/microfacet.h"
+#include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
@@ -94,6 +97,22 @@ std::shared_ptr<const Bsdf> textured(
     return material->at(Vec2(0.75f, 0.25f));
 }
 
+// A blendbsdf of a diffuse and a rough conductor whose weight is a checkerboard of w0 and
+// w1, resolved at uv (0.75, 0.25) (a color1 square) as the scene resolves it at a hit.
+std::shared_ptr<const Bsdf> textured_blend(float w0, float w1) {
+    const SourceLocation at{"chi_square", 1};
+    Properties checker("texture", "checkerboard", at);
+    checker.set("color0", w0, at);
+    checker.set("color1", w1, at);
+    Properties props("bsdf", "blendbsdf", at);
+    props.set("weight", make_texture(checker), at);
+    props.nested_bsdfs.push_back(std::make_shared<DiffuseBsdf>(Rgb(0.5f)));
+    props.nested_bsdfs.push_back(rough_conductor(MicrofacetType::Beckmann, 0.3f, 0.3f));
+    const std::shared_ptr<const Bsdf> material = make_bsdf(props);
+    props.check_all_used();
+    return material->at(Vec2(0.75f, 0.25f));
+}
+
 std::string cos_name(float c) {
     std::string s = std::to_string(c);
     for (char& ch : s)
@@ -169,6 +188,39 @@ std::vector<ChiSquareCase> all_cases() {
     cases.push_back(
         {"roughplastic_specular_only",
          [] { return rough_plastic(MicrofacetType::Beckmann, 0.3f, Rgb(0.0f), Rgb(1.0f)); }, 0.5f});
+
+    // Blends: the mixture of the children's densities, picked by weight.
+    for (float c : angles)
+        cases.push_back({"blend_diffuse_roughconductor_" + cos_name(c),
+                         [] {
+                             return std::make_shared<BlendBsdf>(
+                                 std::make_shared<DiffuseBsdf>(Rgb(0.5f)),
+                                 rough_conductor(MicrofacetType::GGX, 0.2f, 0.2f), 0.35f);
+                         },
+                         c});
+    for (float c : {0.6f, -0.6f})
+        cases.push_back({"blend_roughplastic_roughdielectric_" + cos_name(c),
+                         [] {
+                             return std::make_shared<BlendBsdf>(
+                                 rough_plastic(MicrofacetType::GGX, 0.3f, Rgb(0.4f), Rgb(1.0f)),
+                                 rough_dielectric(MicrofacetType::Beckmann, 0.3f), 0.6f);
+                         },
+                         c});
+    cases.push_back({"blend_mirror_phong",
+                     [] {
+                         return std::make_shared<BlendBsdf>(
+                             std::make_shared<ConductorBsdf>(std::nullopt, Rgb(1.0f)),
+                             std::make_shared<PhongBsdf>(Rgb(0.3f), Rgb(0.5f), 10.0f), 0.5f);
+                     },
+                     0.5f});
+    cases.push_back({"mask_diffuse",
+                     [] {
+                         return std::make_shared<BlendBsdf>(
+                             std::make_shared<NullBsdf>(), std::make_shared<DiffuseBsdf>(Rgb(0.5f)),
+                             0.7f, true);
+                     },
+                     0.5f});
+    cases.push_back({"textured_blendbsdf_weight", [] { return textured_blend(0.1f, 0.8f); }, 0.5f});
 
     for (float exponent : {1.0f, 10.0f, 90.0f})
         for (float c : angles)

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/materials/blend.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
@@ -18,6 +19,7 @@
 #include "core/materials/fresnel.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
+#include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
@@ -108,6 +110,19 @@ std::vector<NamedBsdf> all_bsdfs() {
          rough_plastic(MicrofacetType::GGX, 0.4f, Rgb(0.9f, 0.5f, 0.1f), Rgb(0.4f), true)},
         {"roughplastic_white_smooth",
          rough_plastic(MicrofacetType::GGX, 0.01f, Rgb(1.0f), Rgb(1.0f), false)},
+        {"blend_diffuse_roughconductor",
+         std::make_shared<BlendBsdf>(diffuse,
+                                     rough_conductor(MicrofacetType::GGX, 0.2f, 0.2f, true), 0.3f)},
+        {"blend_mirror_diffuse",
+         std::make_shared<BlendBsdf>(std::make_shared<ConductorBsdf>(std::nullopt, Rgb(1.0f)),
+                                     diffuse, 0.6f)},
+        {"blend_roughplastic_roughdielectric",
+         std::make_shared<BlendBsdf>(
+             rough_plastic(MicrofacetType::Beckmann, 0.2f, Rgb(0.5f), Rgb(1.0f), false),
+             rough_dielectric(MicrofacetType::GGX, 0.3f, true), 0.4f),
+         true},
+        {"mask_diffuse",
+         std::make_shared<BlendBsdf>(std::make_shared<NullBsdf>(), diffuse, 0.35f, true)},
         {"phong_cornell_floor", phong},
         {"phong_n1", std::make_shared<PhongBsdf>(Rgb(0.3f), Rgb(0.6f), 1.0f)},
     };
@@ -590,6 +605,74 @@ TEST(RoughPlastic, WhiteFurnace) {
         }
 }
 
+TEST(Blend, MixesValuesAndDensitiesAndPicksChildrenByWeight) {
+    const auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.8f, 0.5f, 0.2f));
+    const auto glossy = std::make_shared<RoughConductorBsdf>(
+        MicrofacetDistribution(MicrofacetType::GGX, 0.3f, 0.3f), kCopper, Rgb(1.0f));
+    const BlendBsdf blend(diffuse, glossy, 0.3f);
+    Rng rng(StreamKey{51, 0, 1, 0});
+    for (int i = 0; i < 1000; ++i) {
+        const Vec3 wo = warp::square_to_uniform_sphere(rng.next_2d());
+        const Vec3 wi = warp::square_to_uniform_sphere(rng.next_2d());
+        EXPECT_TRUE(
+            close(blend.f(wo, wi, kRadiance),
+                  diffuse->f(wo, wi, kRadiance) * 0.7f + glossy->f(wo, wi, kRadiance) * 0.3f, 1e-6,
+                  1e-9));
+        EXPECT_NEAR(blend.pdf_w(wo, wi).forward,
+                    0.7f * diffuse->pdf_w(wo, wi).forward + 0.3f * glossy->pdf_w(wo, wi).forward,
+                    1e-5f * (1 + blend.pdf_w(wo, wi).forward));
+    }
+    // A mirror and a diffuse BSDF: the mirror's delta samples come with probability 1 - w, with
+    // the mirror's own weight and that selection probability as their discrete density.
+    const BlendBsdf mirror_or_diffuse(std::make_shared<ConductorBsdf>(std::nullopt, Rgb(0.9f)),
+                                      diffuse, 0.3f);
+    constexpr int n = 40000;
+    int mirrored = 0;
+    for (int i = 0; i < n; ++i) {
+        const float u_lobe = rng.next_1d();
+        std::optional<BsdfSample> s =
+            mirror_or_diffuse.sample(direction(0.6f), u_lobe, rng.next_2d(), kRadiance);
+        ASSERT_TRUE(s);
+        if (!s->delta) continue;
+        ++mirrored;
+        EXPECT_EQ(s->weight, Rgb(0.9f));
+        EXPECT_FLOAT_EQ(s->pdf_w.forward, 0.7f);
+    }
+    EXPECT_NEAR(double(mirrored) / n, 0.7, 4 * std::sqrt(0.7 * 0.3 / n));
+}
+
+TEST(Blend, MaskPassesThroughWithOneMinusOpacity) {
+    const auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.5f));
+    const BlendBsdf leaf(std::make_shared<NullBsdf>(), diffuse, 0.25f, true);
+    EXPECT_EQ(leaf.lobes(), uint32_t(kLobeNull | kLobeDiffuseReflection));
+    EXPECT_FALSE(leaf.is_null());
+    const Vec3 wo = direction(0.4f), wi = direction(0.8f, 2.0f);
+    EXPECT_TRUE(close(leaf.f(wo, wi, kRadiance), Rgb(0.25f * 0.5f * kInvPi), 1e-6));
+    Rng rng(StreamKey{52, 0, 1, 0});
+    constexpr int n = 40000;
+    int passed = 0;
+    for (int i = 0; i < n; ++i) {
+        const float u_lobe = rng.next_1d();
+        std::optional<BsdfSample> s = leaf.sample(wo, u_lobe, rng.next_2d(), kImportance);
+        ASSERT_TRUE(s);
+        if (s->lobe != kLobeNull) continue;
+        ++passed;
+        EXPECT_EQ(s->wi, -wo);
+        EXPECT_EQ(s->weight, Rgb(1.0f));
+        EXPECT_TRUE(s->delta);
+        EXPECT_FLOAT_EQ(s->pdf_w.forward, 0.75f);
+    }
+    EXPECT_NEAR(double(passed) / n, 0.75, 4 * std::sqrt(0.75 * 0.25 / n));
+    // Fully opaque and fully open masks are the nested BSDF and the null BSDF.
+    const BlendBsdf opaque(std::make_shared<NullBsdf>(), diffuse, 1.0f, true);
+    const BlendBsdf open(std::make_shared<NullBsdf>(), diffuse, 0.0f, true);
+    for (float u_lobe : {0.0f, 0.5f, 0.999f}) {
+        EXPECT_EQ(opaque.sample(wo, u_lobe, Vec2(0.3f, 0.6f), kRadiance)->lobe,
+                  kLobeDiffuseReflection);
+        EXPECT_EQ(open.sample(wo, u_lobe, Vec2(0.3f, 0.6f), kRadiance)->lobe, kLobeNull);
+    }
+}
+
 TEST(Bsdf, PhongSpecularAlbedo) {
     // At normal incidence the normalised lobe integrates cos to exactly 1: albedo = ks for every
     // exponent. At oblique incidence the albedo lies in [ks cos(theta_o), ks]; it equals
@@ -670,7 +753,7 @@ TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
     EXPECT_EQ(error_of(bsdf_props("velvet")),
               "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
               "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, "
-              "roughplastic, phong, null)");
+              "roughplastic, phong, null, blendbsdf, mask)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {
@@ -723,6 +806,21 @@ TEST(BsdfFactory, ReadsEveryDocumentedParameter) {
               "roughplastic(ggx, alpha 0.2, diffuse_reflectance [0.1, 0.2, 0.3], "
               "specular_reflectance [0.5, 0.5, 0.5], eta 1.2003, nonlinear)");
     EXPECT_NO_THROW(rough_plastic.check_all_used());
+
+    Properties blend = bsdf_props("blendbsdf");
+    blend.set("weight", 0.25f, kParamLine);
+    blend.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    blend.nested_bsdfs.push_back(make_bsdf(bsdf_props("conductor")));
+    EXPECT_EQ(make_bsdf(blend)->to_string(),
+              "blendbsdf(weight 0.25, diffuse(reflectance [0.5, 0.5, 0.5]), conductor(no fresnel, "
+              "specular_reflectance [1, 1, 1]))");
+    EXPECT_NO_THROW(blend.check_all_used());
+    Properties mask = bsdf_props("mask");
+    mask.set("opacity", 1.5f, kParamLine);  // clamped to [0, 1], as Mitsuba
+    mask.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    EXPECT_EQ(make_bsdf(mask)->to_string(),
+              "mask(opacity 1, diffuse(reflectance [0.5, 0.5, 0.5]))");
+    EXPECT_NO_THROW(mask.check_all_used());
 
     Properties phong = bsdf_props("phong");
     phong.set("diffuse_reflectance", 0.1f, kParamLine);
@@ -792,6 +890,13 @@ TEST(BsdfFactory, RejectsBadValuesNamingTheField) {
     invisible.set("int_ior", 1.2f, kParamLine);
     invisible.set("ext_ior", 1.2f, kParamLine);
     EXPECT_NE(error_of(invisible).find("parameter \"int_ior\": equals ext_ior"), std::string::npos);
+
+    EXPECT_EQ(error_of(bsdf_props("blendbsdf")),
+              "scene.xml:10: bsdf \"blendbsdf\" needs two nested bsdfs, got 0");
+    Properties two_masked = bsdf_props("mask");
+    two_masked.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    two_masked.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    EXPECT_EQ(error_of(two_masked), "scene.xml:10: bsdf \"mask\" needs one nested bsdf, got 2");
 
     EXPECT_NE(error_of(bsdf_props("twosided")).find("scene.xml:10: bsdf \"twosided\" needs one"),
               std::string::npos);

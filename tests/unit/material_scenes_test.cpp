@@ -113,11 +113,38 @@ std::vector<FurnaceCase> furnace_cases() {
          // so the white base returns T X / (1 - Ri) = 0.47 and the coating 0.02 (0.49 seen
          // head-on; docs/scene-format.md, "Rough plastic").
          0.45},
+        {"blendbsdf_white_diffuse_and_roughplastic",
+         R"(<bsdf type="blendbsdf"><float name="weight" value="0.4"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
+            <bsdf type="roughplastic"><rgb name="diffuse_reflectance" value="1"/></bsdf></bsdf>)",
+         0.98},
     };
 }
 
 INSTANTIATE_TEST_SUITE_P(Materials, MaterialFurnace, ::testing::ValuesIn(furnace_cases()),
                          [](const auto& info) { return info.param.name; });
+
+// A mask of opacity 1/2 over a white one-sided diffuse sphere, under the unit environment:
+// a camera ray reflects off the front (1/2 x albedo 1) or passes through (1/2) to the back,
+// which from inside is black (1/2 x 0) or passes again (1/2 x 1): 3/4 exactly, with every
+// algorithm (pass-throughs are delta transmissions; connections see the mask as a surface).
+class MaskedSphere : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(MaskedSphere, IsThreeQuarters) {
+    auto scene = load_scene_from_string(
+        furnace_scene(R"(<bsdf type="mask"><float name="opacity" value="0.5"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf></bsdf>)"),
+        ".");
+    RenderSettings settings = testing::algorithm_settings(GetParam());
+    settings.seed = 7;
+    const IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 129});
+    ASSERT_EQ(r.stats.non_finite, 0u);
+    const BlockMean center = block(r, 16, 5, 5, 6, 1);
+    EXPECT_NEAR(center.mean, 0.75, 4 * center.standard_error + 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(Algorithms, MaskedSphere, ::testing::Values("pt", "lt", "bpt", "vcm"),
+                         [](const auto& info) { return info.param; });
 
 }  // namespace
 }  // namespace render
