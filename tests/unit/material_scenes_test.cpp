@@ -126,7 +126,7 @@ INSTANTIATE_TEST_SUITE_P(Materials, MaterialFurnace, ::testing::ValuesIn(furnace
 
 // A mask of opacity 1/2 over a white one-sided diffuse sphere, under the unit environment:
 // a camera ray reflects off the front (1/2 x albedo 1) or passes through (1/2) to the back,
-// which from inside is black (1/2 x 0) or passes again (1/2 x 1): 3/4 exactly, with every
+// which from inside is black (1/2 x 0) or passes again (1/2 x 1): 3/4 exactly, with these
 // algorithm (pass-throughs are delta transmissions; connections see the mask as a surface).
 class MaskedSphere : public ::testing::TestWithParam<std::string> {};
 
@@ -143,7 +143,7 @@ TEST_P(MaskedSphere, IsThreeQuarters) {
     EXPECT_NEAR(center.mean, 0.75, 4 * center.standard_error + 0.01);
 }
 
-INSTANTIATE_TEST_SUITE_P(Algorithms, MaskedSphere, ::testing::Values("pt", "lt", "bpt", "vcm"),
+INSTANTIATE_TEST_SUITE_P(Algorithms, MaskedSphere, ::testing::Values("pt", "volpt", "lt", "bpt", "vcm"),
                          [](const auto& info) { return info.param; });
 
 }  // namespace
