@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 #include "core/materials/bsdf_params.h"
@@ -44,30 +47,51 @@ Quadrature gauss_legendre_unit(int n) {
 }
 
 // Integral over the visible normals m of a direction with cosine `cos_theta` of
-// value(w, m) (the direction w is in the x-z plane). The normals are drawn from D(m) cos(m)
-// (closed form for both distributions) on a Gauss-Legendre grid and weighted by the ratio
-// of the visible-normal density G1(w, m) max(0, w.m) D(m) / cos_theta to D(m) cos(m).
+// value(w, m) (the direction w is in the x-z plane), on a Gauss-Legendre grid of the unit
+// square mapped to normals. GGX: through its visible-normal sampler (Heitz 2018, closed form
+// and smooth), each node weighted 1. Beckmann (whose visible-normal sampler is an iterative
+// inversion): through the closed-form sampler of D(m) cos(m), each node weighted by the
+// ratio of the visible-normal density G1(w, m) max(0, w.m) D(m) / cos_theta to D(m) cos(m).
 template <class Value>
 double integrate_visible_normals(const MicrofacetDistribution& distribution, float cos_theta, int n,
                                  const Value& value) {
     const float mu = std::clamp(cos_theta, 1e-6f, 1.0f);
     const Vec3 w(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
-    const MicrofacetDistribution all_normals(distribution.type(), distribution.alpha_u(),
-                                             distribution.alpha_v(), false);
+    const bool visible = distribution.type() == MicrofacetType::GGX;
+    const MicrofacetDistribution sampler(distribution.type(), distribution.alpha_u(),
+                                         distribution.alpha_v(), visible);
     const Quadrature q = gauss_legendre_unit(n);
     double sum = 0;
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             const Vec3 m =
-                all_normals.sample(w, Vec2(float(q.nodes[size_t(i)]), float(q.nodes[size_t(j)])));
+                sampler.sample(w, Vec2(float(q.nodes[size_t(i)]), float(q.nodes[size_t(j)])));
             const float w_m = dot(w, m);
             if (!(w_m > 0) || !(m.z > 0)) continue;
-            const double visible_ratio = distribution.G1(w, m) * double(w_m) / (double(mu) * m.z);
+            const double visible_ratio =
+                visible ? 1.0 : distribution.G1(w, m) * double(w_m) / (double(mu) * m.z);
             const double v = value(w, m);
             if (std::isfinite(visible_ratio) && std::isfinite(v))
                 sum += q.weights[size_t(i)] * q.weights[size_t(j)] * visible_ratio * v;
         }
     return sum;
+}
+
+// The coating of (distribution, alpha, eta), built once while any material uses it: building
+// one integrates its tables (about 0.1 s), and scenes often share a roughness between
+// materials of different colours.
+std::shared_ptr<const RoughCoating> shared_coating(const MicrofacetDistribution& distribution,
+                                                   float eta) {
+    using Key = std::tuple<int, float, bool, float>;
+    static std::mutex mutex;
+    static std::map<Key, std::weak_ptr<const RoughCoating>> coatings;
+    const Key key{int(distribution.type()), distribution.alpha_u(), distribution.sample_visible(),
+                  eta};
+    std::lock_guard<std::mutex> lock(mutex);
+    if (std::shared_ptr<const RoughCoating> existing = coatings[key].lock()) return existing;
+    auto coating = std::make_shared<const RoughCoating>(distribution, eta);
+    coatings[key] = coating;
+    return coating;
 }
 
 }  // namespace
@@ -151,7 +175,7 @@ std::shared_ptr<const Bsdf> RoughPlasticBsdf::create(const Properties& props) {
     const RgbParam kd = read_reflectance_param(props, "diffuse_reflectance", Rgb(0.5f));
     const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
     const bool nonlinear = props.get_bool("nonlinear", false);
-    auto coating = std::make_shared<const RoughCoating>(params.mean(), eta);
+    std::shared_ptr<const RoughCoating> coating = shared_coating(params.mean(), eta);
     return plain_or_textured(
         kd.varies() || ks.varies(), [coating, kd, ks, nonlinear](const Vec2* uv) {
             return std::make_shared<RoughPlasticBsdf>(coating, kd.at(uv), ks.at(uv), nonlinear);
