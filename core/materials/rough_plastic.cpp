@@ -77,18 +77,21 @@ double integrate_visible_normals(const MicrofacetDistribution& distribution, flo
     return sum;
 }
 
-// The coating of (distribution, alpha, eta), built once while any material uses it: building
-// one integrates its tables (about 0.1 s), and scenes often share a roughness between
-// materials of different colours.
+// The coating of (distribution, alpha, eta), built once per process: building one integrates
+// its tables (about 0.1 s), and scenes often share a roughness between materials, and are
+// loaded again (a worker per job, the parser's fuzz tests). A coating is 64 floats; the
+// table is emptied when it reaches kMaxCoatings different ones.
 std::shared_ptr<const RoughCoating> shared_coating(const MicrofacetDistribution& distribution,
                                                    float eta) {
     using Key = std::tuple<int, float, bool, float>;
+    constexpr size_t kMaxCoatings = 1024;
     static std::mutex mutex;
-    static std::map<Key, std::weak_ptr<const RoughCoating>> coatings;
+    static std::map<Key, std::shared_ptr<const RoughCoating>> coatings;
     const Key key{int(distribution.type()), distribution.alpha_u(), distribution.sample_visible(),
                   eta};
     std::lock_guard<std::mutex> lock(mutex);
-    if (std::shared_ptr<const RoughCoating> existing = coatings[key].lock()) return existing;
+    if (auto it = coatings.find(key); it != coatings.end()) return it->second;
+    if (coatings.size() >= kMaxCoatings) coatings.clear();
     auto coating = std::make_shared<const RoughCoating>(distribution, eta);
     coatings[key] = coating;
     return coating;
