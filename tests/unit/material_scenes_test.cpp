@@ -143,7 +143,8 @@ TEST_P(MaskedSphere, IsThreeQuarters) {
     EXPECT_NEAR(center.mean, 0.75, 4 * center.standard_error + 0.01);
 }
 
-INSTANTIATE_TEST_SUITE_P(Algorithms, MaskedSphere, ::testing::Values("pt", "volpt", "lt", "bpt", "vcm"),
+INSTANTIATE_TEST_SUITE_P(Algorithms, MaskedSphere,
+                         ::testing::Values("pt", "volpt", "lt", "bpt", "vcm"),
                          [](const auto& info) { return info.param; });
 
 }  // namespace
