@@ -2,6 +2,7 @@
 
 #include "core/base/plugin_table.h"
 
+#include "core/materials/blend.h"
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
@@ -10,6 +11,7 @@
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/rough_plastic.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 
@@ -25,8 +27,11 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"roughdielectric", &RoughDielectricBsdf::create},
     {"thindielectric", &ThinDielectricBsdf::create},
     {"plastic", &PlasticBsdf::create},
+    {"roughplastic", &RoughPlasticBsdf::create},
     {"phong", &PhongBsdf::create},
     {"null", &NullBsdf::create},
+    {"blendbsdf", &BlendBsdf::create},
+    {"mask", &BlendBsdf::create_mask},
 };
 
 }  // namespace

@@ -11,13 +11,17 @@
 #include <string>
 #include <vector>
 
+#include "core/materials/blend.h"
 #include "core/materials/bsdf_factory.h"
+#include "core/materials/conductor.h"
 #include "core/materials/diffuse.h"
 #include "core/materials/microfacet.h"
+#include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/rough_plastic.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 #include "core/textures/texture_factory.h"
@@ -67,6 +71,14 @@ std::shared_ptr<const Bsdf> rough_dielectric(MicrofacetType type, float alpha) {
                                                  Rgb(1.0f), Rgb(1.0f));
 }
 
+std::shared_ptr<const Bsdf> rough_plastic(MicrofacetType type, float alpha, const Rgb& kd,
+                                          const Rgb& ks, bool nonlinear = false,
+                                          bool visible = true) {
+    auto coating =
+        std::make_shared<RoughCoating>(MicrofacetDistribution(type, alpha, alpha, visible), 1.49f);
+    return std::make_shared<RoughPlasticBsdf>(coating, kd, ks, nonlinear);
+}
+
 // A material of `type` whose parameter `param` is a checkerboard of c0 and c1 (plus `extra`
 // string parameters), resolved at uv (0.75, 0.25), in a color1 square, as the scene resolves a
 // textured material at a hit.
@@ -80,6 +92,22 @@ std::shared_ptr<const Bsdf> textured(
     Properties props("bsdf", type, at);
     props.set(param, make_texture(checker), at);
     for (const auto& [name, value] : extra) props.set(name, value, at);
+    const std::shared_ptr<const Bsdf> material = make_bsdf(props);
+    props.check_all_used();
+    return material->at(Vec2(0.75f, 0.25f));
+}
+
+// A blendbsdf of a diffuse and a rough conductor whose weight is a checkerboard of w0 and
+// w1, resolved at uv (0.75, 0.25) (a color1 square) as the scene resolves it at a hit.
+std::shared_ptr<const Bsdf> textured_blend(float w0, float w1) {
+    const SourceLocation at{"chi_square", 1};
+    Properties checker("texture", "checkerboard", at);
+    checker.set("color0", w0, at);
+    checker.set("color1", w1, at);
+    Properties props("bsdf", "blendbsdf", at);
+    props.set("weight", make_texture(checker), at);
+    props.nested_bsdfs.push_back(std::make_shared<DiffuseBsdf>(Rgb(0.5f)));
+    props.nested_bsdfs.push_back(rough_conductor(MicrofacetType::Beckmann, 0.3f, 0.3f));
     const std::shared_ptr<const Bsdf> material = make_bsdf(props);
     props.check_all_used();
     return material->at(Vec2(0.75f, 0.25f));
@@ -143,6 +171,57 @@ std::vector<ChiSquareCase> all_cases() {
          [] { return std::make_shared<PlasticBsdf>(Rgb(0.8f, 0.4f, 0.1f), Rgb(0.3f), 1.7f, true); },
          0.3f});
 
+    // Rough plastic: a glossy and a diffuse lobe picked by the coating's transmittance.
+    for (MicrofacetType type : {MicrofacetType::Beckmann, MicrofacetType::GGX})
+        for (float alpha : {0.1f, 0.4f})
+            for (float c : angles)
+                cases.push_back({std::string("roughplastic_") + to_string(type) + "_a" +
+                                     cos_name(alpha) + "_" + cos_name(c),
+                                 [=] { return rough_plastic(type, alpha, Rgb(0.5f), Rgb(1.0f)); },
+                                 c, TransportMode::Radiance, alpha < 0.2f});
+    cases.push_back({"roughplastic_ggx_all_normals_nonlinear_importance",
+                     [] {
+                         return rough_plastic(MicrofacetType::GGX, 0.2f, Rgb(0.9f, 0.3f, 0.1f),
+                                              Rgb(0.6f), true, false);
+                     },
+                     0.6f, TransportMode::Importance});
+    cases.push_back(
+        {"roughplastic_specular_only",
+         [] { return rough_plastic(MicrofacetType::Beckmann, 0.3f, Rgb(0.0f), Rgb(1.0f)); }, 0.5f});
+
+    // Blends: the mixture of the children's densities, picked by weight.
+    for (float c : angles)
+        cases.push_back({"blend_diffuse_roughconductor_" + cos_name(c),
+                         [] {
+                             return std::make_shared<BlendBsdf>(
+                                 std::make_shared<DiffuseBsdf>(Rgb(0.5f)),
+                                 rough_conductor(MicrofacetType::GGX, 0.2f, 0.2f), 0.35f);
+                         },
+                         c});
+    for (float c : {0.6f, -0.6f})
+        cases.push_back({"blend_roughplastic_roughdielectric_" + cos_name(c),
+                         [] {
+                             return std::make_shared<BlendBsdf>(
+                                 rough_plastic(MicrofacetType::GGX, 0.3f, Rgb(0.4f), Rgb(1.0f)),
+                                 rough_dielectric(MicrofacetType::Beckmann, 0.3f), 0.6f);
+                         },
+                         c});
+    cases.push_back({"blend_mirror_phong",
+                     [] {
+                         return std::make_shared<BlendBsdf>(
+                             std::make_shared<ConductorBsdf>(std::nullopt, Rgb(1.0f)),
+                             std::make_shared<PhongBsdf>(Rgb(0.3f), Rgb(0.5f), 10.0f), 0.5f);
+                     },
+                     0.5f});
+    cases.push_back({"mask_diffuse",
+                     [] {
+                         return std::make_shared<BlendBsdf>(
+                             std::make_shared<NullBsdf>(), std::make_shared<DiffuseBsdf>(Rgb(0.5f)),
+                             0.7f, true);
+                     },
+                     0.5f});
+    cases.push_back({"textured_blendbsdf_weight", [] { return textured_blend(0.1f, 0.8f); }, 0.5f});
+
     for (float exponent : {1.0f, 10.0f, 90.0f})
         for (float c : angles)
             cases.push_back(
@@ -166,6 +245,12 @@ std::vector<ChiSquareCase> all_cases() {
          0.4f});
     cases.push_back({"textured_plastic_diffuse_reflectance",
                      [] { return textured("plastic", "diffuse_reflectance", 0.1f, 0.8f); }, 0.5f});
+    cases.push_back({"textured_roughplastic_diffuse_reflectance",
+                     [] {
+                         return textured("roughplastic", "diffuse_reflectance", 0.05f, 0.9f,
+                                         {{"distribution", "ggx"}});
+                     },
+                     0.5f});
     cases.push_back({"textured_roughdielectric_alpha_inside",
                      [] { return textured("roughdielectric", "alpha", 0.05f, 0.4f); }, -0.5f,
                      TransportMode::Importance});

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/materials/blend.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
@@ -18,10 +19,12 @@
 #include "core/materials/fresnel.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
+#include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
 #include "core/materials/rough_conductor.h"
 #include "core/materials/rough_dielectric.h"
+#include "core/materials/rough_plastic.h"
 #include "core/materials/thin_dielectric.h"
 #include "core/materials/twosided.h"
 #include "core/sampling/rng.h"
@@ -69,6 +72,12 @@ std::vector<NamedBsdf> all_bsdfs() {
         return std::make_shared<RoughDielectricBsdf>(
             MicrofacetDistribution(type, alpha, alpha, visible), 1.5f, Rgb(1.0f), Rgb(1.0f));
     };
+    auto rough_plastic = [](MicrofacetType type, float alpha, const Rgb& kd, const Rgb& ks,
+                            bool nonlinear) {
+        auto coating =
+            std::make_shared<RoughCoating>(MicrofacetDistribution(type, alpha, alpha), 1.49f);
+        return std::make_shared<RoughPlasticBsdf>(coating, kd, ks, nonlinear);
+    };
     auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.2f, 0.5f, 0.8f));
     auto phong = std::make_shared<PhongBsdf>(Rgb(0.1f), Rgb(0.7f), 90.0f);
     return {
@@ -95,6 +104,25 @@ std::vector<NamedBsdf> all_bsdfs() {
         {"plastic", std::make_shared<PlasticBsdf>(Rgb(0.5f), Rgb(1.0f), 1.49f, false)},
         {"plastic_nonlinear",
          std::make_shared<PlasticBsdf>(Rgb(0.9f, 0.5f, 0.1f), Rgb(0.4f), 1.7f, true)},
+        {"roughplastic_beckmann",
+         rough_plastic(MicrofacetType::Beckmann, 0.1f, Rgb(0.5f), Rgb(1.0f), false)},
+        {"roughplastic_ggx_nonlinear",
+         rough_plastic(MicrofacetType::GGX, 0.4f, Rgb(0.9f, 0.5f, 0.1f), Rgb(0.4f), true)},
+        {"roughplastic_white_smooth",
+         rough_plastic(MicrofacetType::GGX, 0.01f, Rgb(1.0f), Rgb(1.0f), false)},
+        {"blend_diffuse_roughconductor",
+         std::make_shared<BlendBsdf>(diffuse,
+                                     rough_conductor(MicrofacetType::GGX, 0.2f, 0.2f, true), 0.3f)},
+        {"blend_mirror_diffuse",
+         std::make_shared<BlendBsdf>(std::make_shared<ConductorBsdf>(std::nullopt, Rgb(1.0f)),
+                                     diffuse, 0.6f)},
+        {"blend_roughplastic_roughdielectric",
+         std::make_shared<BlendBsdf>(
+             rough_plastic(MicrofacetType::Beckmann, 0.2f, Rgb(0.5f), Rgb(1.0f), false),
+             rough_dielectric(MicrofacetType::GGX, 0.3f, true), 0.4f),
+         true},
+        {"mask_diffuse",
+         std::make_shared<BlendBsdf>(std::make_shared<NullBsdf>(), diffuse, 0.35f, true)},
         {"phong_cornell_floor", phong},
         {"phong_n1", std::make_shared<PhongBsdf>(Rgb(0.3f), Rgb(0.6f), 1.0f)},
     };
@@ -486,6 +514,165 @@ TEST(Bsdf, WhitePlasticConservesEnergyExactly) {
     }
 }
 
+TEST(RoughPlastic, InterfaceAlbedosApproachTheSmoothFresnelTerms) {
+    // A nearly smooth coating transmits 1 - F(cos) and reflects, hemispherically from inside,
+    // the diffuse Fresnel reflectance Fdr(1 / eta) that `plastic` uses.
+    for (MicrofacetType type : {MicrofacetType::Beckmann, MicrofacetType::GGX}) {
+        SCOPED_TRACE(to_string(type));
+        const MicrofacetDistribution smooth(type, 1e-3f, 1e-3f);
+        for (float c : {0.95f, 0.6f, 0.3f, 0.1f}) {
+            EXPECT_NEAR(rough_interface_transmittance(smooth, c, 1.5f),
+                        1 - fresnel_dielectric(c, 1.5f).reflectance, 2e-3)
+                << c;
+            // From inside (relative IOR 1/1.5): total internal reflection below cos 0.745.
+            EXPECT_NEAR(rough_interface_reflectance(smooth, c, 1 / 1.5f),
+                        fresnel_dielectric(c, 1 / 1.5f).reflectance, 2e-3)
+                << c;
+        }
+        const RoughCoating coating(smooth, 1.5f);
+        EXPECT_NEAR(coating.internal_reflectance(), fresnel_diffuse_reflectance(1 / 1.5f), 2e-3);
+        EXPECT_NEAR(coating.transmittance(0.5f), 1 - fresnel_dielectric(0.5f, 1.5f).reflectance,
+                    2e-3);
+    }
+}
+
+TEST(RoughPlastic, InterfaceAlbedosMatchTheRoughDielectricSampler) {
+    // The tabulated albedos are integrals of the roughdielectric lobes: estimate the same
+    // fractions from that BSDF's own sampler (Importance mode, where weights carry no radiance
+    // scaling) and compare. Tolerance: 4 standard errors plus 2e-3 for the quadrature.
+    constexpr int n = 200000;
+    for (MicrofacetType type : {MicrofacetType::Beckmann, MicrofacetType::GGX})
+        for (float alpha : {0.1f, 0.5f}) {
+            SCOPED_TRACE(std::string(to_string(type)) + " alpha " + std::to_string(alpha));
+            const MicrofacetDistribution distribution(type, alpha, alpha);
+            const RoughDielectricBsdf interface(distribution, 1.5f, Rgb(1.0f), Rgb(1.0f));
+            for (float c : {0.9f, 0.4f, 0.15f, -0.9f, -0.4f}) {
+                const Vec3 wo = direction(c);
+                Rng rng(StreamKey{41, 0, 1, uint64_t(100 * (c + 2))});
+                testing::MeanAccumulator reflected, transmitted;
+                for (int i = 0; i < n; ++i) {
+                    const float u_lobe = rng.next_1d();
+                    std::optional<BsdfSample> s =
+                        interface.sample(wo, u_lobe, rng.next_2d(), kImportance);
+                    const bool same_side = s && s->wi.z * wo.z > 0;
+                    reflected.add(s && same_side ? s->weight.g : 0.0);
+                    transmitted.add(s && !same_side ? s->weight.g : 0.0);
+                }
+                const float eta = c > 0 ? 1.5f : 1 / 1.5f;
+                EXPECT_NEAR(rough_interface_reflectance(distribution, std::abs(c), eta),
+                            reflected.mean(), 4 * reflected.standard_error() + 2e-3)
+                    << c;
+                EXPECT_NEAR(rough_interface_transmittance(distribution, std::abs(c), eta),
+                            transmitted.mean(), 4 * transmitted.standard_error() + 2e-3)
+                    << c;
+            }
+        }
+}
+
+TEST(RoughPlastic, DiffusePartApproachesSmoothPlastic) {
+    // Away from the highlight, a nearly smooth rough plastic is the smooth plastic.
+    for (bool nonlinear : {false, true}) {
+        const Rgb kd(0.8f, 0.4f, 0.1f);
+        const PlasticBsdf smooth(kd, Rgb(1.0f), 1.49f, nonlinear);
+        const RoughPlasticBsdf rough(
+            std::make_shared<RoughCoating>(
+                MicrofacetDistribution(MicrofacetType::Beckmann, 1e-3f, 1e-3f), 1.49f),
+            kd, Rgb(1.0f), nonlinear);
+        for (auto [co, ci] : {std::pair{0.9f, 0.3f}, std::pair{0.5f, 0.7f}, std::pair{0.2f, 0.95f}})
+            EXPECT_TRUE(close(rough.f(direction(co, 0.3f), direction(ci, 2.0f), kRadiance),
+                              smooth.f(direction(co, 0.3f), direction(ci, 2.0f), kRadiance), 1e-2))
+                << co << " " << ci << " nonlinear " << nonlinear;
+    }
+}
+
+TEST(RoughPlastic, WhiteFurnace) {
+    // kd = ks = 1, linear: the coating reflects R(cos) and lets T(cos) into the base, all of
+    // which comes out again but for the light the interface loses to masking, so the albedo
+    // is at most 1 (tolerance 4 standard errors), and close to 1 for a nearly smooth coating.
+    for (MicrofacetType type : {MicrofacetType::Beckmann, MicrofacetType::GGX})
+        for (float alpha : {0.01f, 0.1f, 0.4f}) {
+            const RoughPlasticBsdf white(
+                std::make_shared<RoughCoating>(MicrofacetDistribution(type, alpha, alpha), 1.5f),
+                Rgb(1.0f), Rgb(1.0f), false);
+            for (float c : {0.95f, 0.5f, 0.1f}) {
+                SCOPED_TRACE(white.to_string() + " cos " + std::to_string(c));
+                const Albedo albedo = estimate_albedo(white, direction(c), kRadiance, 400000, 22);
+                EXPECT_LE(albedo.mean.g, 1.0f + 4.0f * albedo.standard_error.g);
+                if (alpha == 0.01f && c > 0.2f) {
+                    EXPECT_GT(albedo.mean.g, 0.98f);
+                }
+            }
+        }
+}
+
+TEST(Blend, MixesValuesAndDensitiesAndPicksChildrenByWeight) {
+    const auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.8f, 0.5f, 0.2f));
+    const auto glossy = std::make_shared<RoughConductorBsdf>(
+        MicrofacetDistribution(MicrofacetType::GGX, 0.3f, 0.3f), kCopper, Rgb(1.0f));
+    const BlendBsdf blend(diffuse, glossy, 0.3f);
+    Rng rng(StreamKey{51, 0, 1, 0});
+    for (int i = 0; i < 1000; ++i) {
+        const Vec3 wo = warp::square_to_uniform_sphere(rng.next_2d());
+        const Vec3 wi = warp::square_to_uniform_sphere(rng.next_2d());
+        EXPECT_TRUE(
+            close(blend.f(wo, wi, kRadiance),
+                  diffuse->f(wo, wi, kRadiance) * 0.7f + glossy->f(wo, wi, kRadiance) * 0.3f, 1e-6,
+                  1e-9));
+        EXPECT_NEAR(blend.pdf_w(wo, wi).forward,
+                    0.7f * diffuse->pdf_w(wo, wi).forward + 0.3f * glossy->pdf_w(wo, wi).forward,
+                    1e-5f * (1 + blend.pdf_w(wo, wi).forward));
+    }
+    // A mirror and a diffuse BSDF: the mirror's delta samples come with probability 1 - w, with
+    // the mirror's own weight and that selection probability as their discrete density.
+    const BlendBsdf mirror_or_diffuse(std::make_shared<ConductorBsdf>(std::nullopt, Rgb(0.9f)),
+                                      diffuse, 0.3f);
+    constexpr int n = 40000;
+    int mirrored = 0;
+    for (int i = 0; i < n; ++i) {
+        const float u_lobe = rng.next_1d();
+        std::optional<BsdfSample> s =
+            mirror_or_diffuse.sample(direction(0.6f), u_lobe, rng.next_2d(), kRadiance);
+        ASSERT_TRUE(s);
+        if (!s->delta) continue;
+        ++mirrored;
+        EXPECT_EQ(s->weight, Rgb(0.9f));
+        EXPECT_FLOAT_EQ(s->pdf_w.forward, 0.7f);
+    }
+    EXPECT_NEAR(double(mirrored) / n, 0.7, 4 * std::sqrt(0.7 * 0.3 / n));
+}
+
+TEST(Blend, MaskPassesThroughWithOneMinusOpacity) {
+    const auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.5f));
+    const BlendBsdf leaf(std::make_shared<NullBsdf>(), diffuse, 0.25f, true);
+    EXPECT_EQ(leaf.lobes(), uint32_t(kLobeNull | kLobeDiffuseReflection));
+    EXPECT_FALSE(leaf.is_null());
+    const Vec3 wo = direction(0.4f), wi = direction(0.8f, 2.0f);
+    EXPECT_TRUE(close(leaf.f(wo, wi, kRadiance), Rgb(0.25f * 0.5f * kInvPi), 1e-6));
+    Rng rng(StreamKey{52, 0, 1, 0});
+    constexpr int n = 40000;
+    int passed = 0;
+    for (int i = 0; i < n; ++i) {
+        const float u_lobe = rng.next_1d();
+        std::optional<BsdfSample> s = leaf.sample(wo, u_lobe, rng.next_2d(), kImportance);
+        ASSERT_TRUE(s);
+        if (s->lobe != kLobeNull) continue;
+        ++passed;
+        EXPECT_EQ(s->wi, -wo);
+        EXPECT_EQ(s->weight, Rgb(1.0f));
+        EXPECT_TRUE(s->delta);
+        EXPECT_FLOAT_EQ(s->pdf_w.forward, 0.75f);
+    }
+    EXPECT_NEAR(double(passed) / n, 0.75, 4 * std::sqrt(0.75 * 0.25 / n));
+    // Fully opaque and fully open masks are the nested BSDF and the null BSDF.
+    const BlendBsdf opaque(std::make_shared<NullBsdf>(), diffuse, 1.0f, true);
+    const BlendBsdf open(std::make_shared<NullBsdf>(), diffuse, 0.0f, true);
+    for (float u_lobe : {0.0f, 0.5f, 0.999f}) {
+        EXPECT_EQ(opaque.sample(wo, u_lobe, Vec2(0.3f, 0.6f), kRadiance)->lobe,
+                  kLobeDiffuseReflection);
+        EXPECT_EQ(open.sample(wo, u_lobe, Vec2(0.3f, 0.6f), kRadiance)->lobe, kLobeNull);
+    }
+}
+
 TEST(Bsdf, PhongSpecularAlbedo) {
     // At normal incidence the normalised lobe integrates cos to exactly 1: albedo = ks for every
     // exponent. At oblique incidence the albedo lies in [ks cos(theta_o), ks]; it equals
@@ -563,16 +750,16 @@ std::string error_of(const Properties& props) {
 }
 
 TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
-    EXPECT_EQ(
-        error_of(bsdf_props("velvet")),
-        "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
-        "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, phong, "
-        "null)");
+    EXPECT_EQ(error_of(bsdf_props("velvet")),
+              "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
+              "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, "
+              "roughplastic, phong, null, blendbsdf, mask)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {
-    for (const char* type : {"diffuse", "conductor", "roughconductor", "dielectric",
-                             "roughdielectric", "thindielectric", "plastic", "phong"}) {
+    for (const char* type :
+         {"diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric",
+          "thindielectric", "plastic", "roughplastic", "phong"}) {
         Properties props = bsdf_props(type);
         std::shared_ptr<const Bsdf> bsdf = make_bsdf(props);
         ASSERT_TRUE(bsdf) << type;
@@ -605,6 +792,35 @@ TEST(BsdfFactory, ReadsEveryDocumentedParameter) {
     plastic.set("nonlinear", true, kParamLine);
     make_bsdf(plastic);
     EXPECT_NO_THROW(plastic.check_all_used());
+
+    Properties rough_plastic = bsdf_props("roughplastic");
+    rough_plastic.set("distribution", std::string("ggx"), kParamLine);
+    rough_plastic.set("alpha", 0.2f, kParamLine);
+    rough_plastic.set("sample_visible", false, kParamLine);
+    rough_plastic.set("diffuse_reflectance", Rgb(0.1f, 0.2f, 0.3f), kParamLine);
+    rough_plastic.set("specular_reflectance", 0.5f, kParamLine);
+    rough_plastic.set("int_ior", 1.6f, kParamLine);
+    rough_plastic.set("ext_ior", std::string("water"), kParamLine);
+    rough_plastic.set("nonlinear", true, kParamLine);
+    EXPECT_EQ(make_bsdf(rough_plastic)->to_string(),
+              "roughplastic(ggx, alpha 0.2, diffuse_reflectance [0.1, 0.2, 0.3], "
+              "specular_reflectance [0.5, 0.5, 0.5], eta 1.2003, nonlinear)");
+    EXPECT_NO_THROW(rough_plastic.check_all_used());
+
+    Properties blend = bsdf_props("blendbsdf");
+    blend.set("weight", 0.25f, kParamLine);
+    blend.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    blend.nested_bsdfs.push_back(make_bsdf(bsdf_props("conductor")));
+    EXPECT_EQ(make_bsdf(blend)->to_string(),
+              "blendbsdf(weight 0.25, diffuse(reflectance [0.5, 0.5, 0.5]), conductor(no fresnel, "
+              "specular_reflectance [1, 1, 1]))");
+    EXPECT_NO_THROW(blend.check_all_used());
+    Properties mask = bsdf_props("mask");
+    mask.set("opacity", 1.5f, kParamLine);  // clamped to [0, 1], as Mitsuba
+    mask.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    EXPECT_EQ(make_bsdf(mask)->to_string(),
+              "mask(opacity 1, diffuse(reflectance [0.5, 0.5, 0.5]))");
+    EXPECT_NO_THROW(mask.check_all_used());
 
     Properties phong = bsdf_props("phong");
     phong.set("diffuse_reflectance", 0.1f, kParamLine);
@@ -663,6 +879,24 @@ TEST(BsdfFactory, RejectsBadValuesNamingTheField) {
     matched.set("int_ior", 1.3f, kParamLine);
     matched.set("ext_ior", 1.3f, kParamLine);
     EXPECT_NE(error_of(matched).find("parameter \"int_ior\""), std::string::npos);
+
+    Properties anisotropic = bsdf_props("roughplastic");
+    anisotropic.set("alpha_u", 0.1f, kParamLine);
+    anisotropic.set("alpha_v", 0.2f, kParamLine);
+    EXPECT_EQ(error_of(anisotropic),
+              "scene.xml:12: bsdf \"roughplastic\", parameter \"alpha_u\": roughplastic is "
+              "isotropic (as in Mitsuba 3): give alpha");
+    Properties invisible = bsdf_props("roughplastic");
+    invisible.set("int_ior", 1.2f, kParamLine);
+    invisible.set("ext_ior", 1.2f, kParamLine);
+    EXPECT_NE(error_of(invisible).find("parameter \"int_ior\": equals ext_ior"), std::string::npos);
+
+    EXPECT_EQ(error_of(bsdf_props("blendbsdf")),
+              "scene.xml:10: bsdf \"blendbsdf\" needs two nested bsdfs, got 0");
+    Properties two_masked = bsdf_props("mask");
+    two_masked.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    two_masked.nested_bsdfs.push_back(make_bsdf(bsdf_props("diffuse")));
+    EXPECT_EQ(error_of(two_masked), "scene.xml:10: bsdf \"mask\" needs one nested bsdf, got 2");
 
     EXPECT_NE(error_of(bsdf_props("twosided")).find("scene.xml:10: bsdf \"twosided\" needs one"),
               std::string::npos);

@@ -373,7 +373,7 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
         {"<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"1, 2\"/></bsdf>",
          "rgb \"reflectance\": value needs 1 or 3 numbers"},
         {"<bsdf type=\"diffuse\"><spectrum name=\"reflectance\" value=\"400:0.1\"/></bsdf>",
-         "spectrum \"reflectance\": wavelength:value spectra are not supported yet"},
+         "spectrum \"reflectance\": a wavelength:value spectrum needs at least two pairs"},
         // negative radius, bad sphere transform
         {"<shape type=\"sphere\">\n<float name=\"radius\" value=\"-1\"/></shape>",
          "<string>:4: shape \"sphere\", parameter \"radius\": the radius must be positive"},

@@ -410,7 +410,23 @@ TEST_F(PbrtTest, MaterialsMapToOurBsdfs) {
     const Rgb f = f_normal(*scene);
     EXPECT_GT(f.g, 0.0f);
     EXPECT_LT(f.g, 0.5 / kPi);
-    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("plastic"), std::string::npos);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("twosided(plastic("), std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
+    // A rough coating -> roughplastic with pbrt's GGX and alpha = sqrt(roughness).
+    scene = load_world(
+        "Material \"coateddiffuse\" \"rgb reflectance\" [0.5 0.5 0.5] \"float roughness\" 0.09 "
+        "\"float eta\" 1.6\n" +
+        tri);
+    EXPECT_EQ(scene->shapes()[0]->bsdf->to_string(),
+              "twosided(roughplastic(ggx, alpha 0.3, diffuse_reflectance [0.5, 0.5, 0.5], "
+              "specular_reflectance [1, 1, 1], eta 1.6, nonlinear))");
+    scene = load_world(
+        "Material \"coateddiffuse\" \"float uroughness\" 0.1 \"float vroughness\" 0.3 "
+        "\"bool remaproughness\" false\n" +
+        tri);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("roughplastic(ggx, alpha 0.2,"),
+              std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
     // Named materials and mix with amount 0 or 1.
     scene = load_world(
         "MakeNamedMaterial \"a\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.1 0.1]\n"
@@ -419,6 +435,26 @@ TEST_F(PbrtTest, MaterialsMapToOurBsdfs) {
         "\"float amount\" 1\nNamedMaterial \"m\"\n" +
         tri);
     EXPECT_NEAR(f_normal(*scene).g, 0.3 / kPi, 1e-6);
+    // A fractional amount blends them (pbrt picks "b" with probability amount).
+    scene = load_world(
+        "MakeNamedMaterial \"a\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.1 0.1]\n"
+        "MakeNamedMaterial \"b\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.3 0.3 0.3]\n"
+        "MakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"a\" \"b\"] "
+        "\"float amount\" 0.25\nNamedMaterial \"m\"\n" +
+        tri);
+    EXPECT_NEAR(f_normal(*scene).g, (0.75 * 0.1 + 0.25 * 0.3) / kPi, 1e-6);
+    EXPECT_EQ(scene->shapes()[0]->bsdf->to_string().rfind("blendbsdf(weight 0.25, ", 0), 0u)
+        << scene->shapes()[0]->bsdf->to_string();
+    // ... also with a float texture as the amount.
+    scene = load_world(
+        "MakeNamedMaterial \"a\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.1 0.1]\n"
+        "MakeNamedMaterial \"b\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.3 0.3 0.3]\n"
+        "Texture \"t\" \"float\" \"constant\" \"float value\" 0.5\n"
+        "MakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"a\" \"b\"] "
+        "\"texture amount\" \"t\"\nNamedMaterial \"m\"\n" +
+        tri);
+    EXPECT_NE(scene->shapes()[0]->bsdf->to_string().find("blendbsdf"), std::string::npos)
+        << scene->shapes()[0]->bsdf->to_string();
 }
 
 TEST_F(PbrtTest, MaterialErrorsNameTheParameter) {
@@ -436,7 +472,7 @@ TEST_F(PbrtTest, MaterialErrorsNameTheParameter) {
     EXPECT_NE(
         world_error(
             "MakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"a\" \"b\"]\n")
-            .find("blending two materials is not supported yet"),
+            .find("MakeNamedMaterial \"m\": \"materials\": unknown named material \"a\""),
         std::string::npos);
     EXPECT_NE(world_error("NamedMaterial \"nope\"\n").find("unknown material \"nope\""),
               std::string::npos);

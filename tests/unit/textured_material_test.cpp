@@ -173,6 +173,26 @@ TEST(TexturedMaterial, RoughnessAndSpecularReflectanceTakeTextures) {
               hit(*conductor, 0.5f, -0.5f).bsdf->to_string());
 }
 
+std::string load_error(const std::string& body);
+
+TEST(TexturedMaterial, RoughPlasticTakesTexturedReflectancesNotAlpha) {
+    auto scene = plane_with(R"(<bsdf type="roughplastic">
+        <texture type="checkerboard" name="diffuse_reflectance"/>
+        <texture type="checkerboard" name="specular_reflectance">
+          <float name="color0" value="0.9"/><float name="color1" value="0.3"/></texture>
+        </bsdf>)");
+    EXPECT_TRUE(scene->shapes()[0]->bsdf->varies());
+    EXPECT_CONTAINS(hit(*scene, 0.5f, 0.5f).bsdf->to_string(),
+                    "diffuse_reflectance [0.4, 0.4, 0.4], specular_reflectance [0.9, 0.9, 0.9]");
+    EXPECT_CONTAINS(hit(*scene, 0.5f, -0.5f).bsdf->to_string(),
+                    "diffuse_reflectance [0.2, 0.2, 0.2], specular_reflectance [0.3, 0.3, 0.3]");
+    // Mitsuba 3's roughplastic takes a float alpha only (its tables depend on it).
+    EXPECT_CONTAINS(load_error("<bsdf type=\"roughplastic\">\n<texture type=\"checkerboard\" "
+                               "name=\"alpha\"/></bsdf>"),
+                    "<string>:4: bsdf \"roughplastic\", parameter \"alpha\": roughplastic "
+                    "takes a float alpha, not a texture (as in Mitsuba 3)");
+}
+
 TEST(TexturedMaterial, TwoSidedResolvesItsTexturedSide) {
     auto scene = plane_with(std::string("<bsdf type=\"twosided\"><bsdf type=\"diffuse\">") +
                             kChecker + "</bsdf></bsdf>");

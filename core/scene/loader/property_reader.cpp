@@ -1,6 +1,11 @@
 #include "core/scene/loader/property_reader.h"
 
+#include <cctype>
 #include <cmath>
+#include <iostream>
+#include <sstream>
+
+#include "core/image/spectrum.h"
 
 #include "core/scene/loader/values.h"
 
@@ -111,6 +116,81 @@ bool is_finite_transform(const Transform& t) {
     return true;
 }
 
+// Mitsuba's unbounded spectra (src/core/xml.cpp, is_unbounded_spectrum): not clamped to 1,
+// and never an emission.
+bool is_unbounded_spectrum(const std::string& name) {
+    return name == "eta" || name == "k" || name == "int_ior" || name == "ext_ior" ||
+           name == "sigma_t";
+}
+
+// <spectrum name="n" value="v"/> or value="w1:v1, w2:v2, ...", converted as Mitsuba 3's RGB
+// variants do (docs/scene-format.md, "Spectra"): a single value is grey, but directly inside an
+// <emitter> it is v times the sRGB colour of XYZ (1, 1, 1); a list is integrated against the
+// CIE 1931 curves (weighted by D65 unless emitted) and converted to linear sRGB.
+void read_spectrum(const XmlElement& e, const std::string& name, const std::string& field,
+                   Properties& props) {
+    const SourceLocation where = e.where();
+    if (e.has("filename"))
+        throw SceneError(where, field +
+                                    ": spectrum files (filename) are not supported yet; give "
+                                    "the wavelength:value pairs in value=\"...\"");
+    e.check_attributes({"name", "value"});
+    const std::string value = e.required("value");
+    const bool emitted = props.plugin_class() == "emitter" && !is_unbounded_spectrum(name);
+    if (value.find(':') == std::string::npos) {
+        std::vector<double> v = parse_number_list(value, where, field);
+        if (v.size() != 1)
+            throw SceneError(where, field +
+                                        ": a spectrum is one number or wavelength:value pairs "
+                                        "(\"400:0.1, 700:0.5\"); use <rgb> for colours");
+        if (emitted)
+            props.set(name, xyz_to_linear_srgb(1, 1, 1) * float(v[0]), where);
+        else
+            props.set(name, float(v[0]), where);
+        return;
+    }
+    std::vector<double> wavelengths, values;
+    std::string token;
+    auto add_pair = [&]() {
+        if (token.empty()) return;
+        const size_t colon = token.find(':');
+        if (colon == std::string::npos || token.find(':', colon + 1) != std::string::npos)
+            throw SceneError(where, field + ": \"" + token +
+                                        "\" is not a wavelength:value pair (a spectrum is one "
+                                        "number or pairs \"400:0.1, 700:0.5\")");
+        const double w =
+            parse_number(std::string_view(token).substr(0, colon), where, field + " wavelength");
+        const double v =
+            parse_number(std::string_view(token).substr(colon + 1), where, field + " value");
+        if (!wavelengths.empty() && !(w > wavelengths.back()))
+            throw SceneError(where, field + ": wavelengths must increase (" + std::to_string(w) +
+                                        " after " + std::to_string(wavelengths.back()) + ")");
+        wavelengths.push_back(w);
+        values.push_back(v);
+        token.clear();
+    };
+    for (char c : value) {
+        if (c == ',' || std::isspace(static_cast<unsigned char>(c)))
+            add_pair();
+        else
+            token += c;
+    }
+    add_pair();
+    if (wavelengths.size() < 2)
+        throw SceneError(where, field + ": a wavelength:value spectrum needs at least two pairs");
+    const SpectrumToRgb rgb = spectrum_to_linear_srgb(wavelengths, values, !emitted,
+                                                      !emitted && !is_unbounded_spectrum(name));
+    if (rgb.clamped) {
+        std::ostringstream message;
+        message << "warning: " << where.to_string() << ": " << field
+                << ": the spectrum's colour is outside the "
+                << (emitted || is_unbounded_spectrum(name) ? "non-negative" : "[0, 1]")
+                << " range of linear sRGB and was clamped to " << rgb.rgb << " (as Mitsuba does)\n";
+        std::cerr << message.str();
+    }
+    props.set(name, rgb.rgb, where);
+}
+
 }  // namespace
 
 bool is_property_tag(std::string_view tag) {
@@ -158,18 +238,7 @@ void read_property(const XmlElement& e, Properties& props) {
                 where, field + ": value needs 1 or 3 numbers, got " + std::to_string(v.size()));
         props.set(name, Rgb(float(v[0]), float(v[1]), float(v[2])), where);
     } else if (tag == "spectrum") {
-        e.check_attributes({"name", "value"});
-        std::string value = e.required("value");
-        if (value.find(':') != std::string::npos)
-            throw SceneError(where, field +
-                                        ": wavelength:value spectra are not supported yet "
-                                        "(use a single number or <rgb>)");
-        std::vector<double> v = parse_number_list(value, where, field);
-        if (v.size() != 1)
-            throw SceneError(where, field +
-                                        ": a spectrum must be a single number (grey); use "
-                                        "<rgb> for colours");
-        props.set(name, float(v[0]), where);
+        read_spectrum(e, name, field, props);
     } else if (tag == "point" || tag == "vector") {
         e.check_attributes({"name", "value", "x", "y", "z"});
         props.set(name, read_xyz(e, field, 0.0f), where);

@@ -166,17 +166,27 @@ std::shared_ptr<const Bsdf> dielectric(const ParamList& params, const SourceLoca
 
 std::shared_ptr<const Bsdf> coated_diffuse(const ParamList& params, const SourceLocation& at,
                                            const TextureTable& textures) {
-    Properties props("bsdf", "plastic", at);
+    // A smooth coating is Mitsuba's `plastic`, a rough one `roughplastic` with pbrt's
+    // Trowbridge-Reitz (GGX) distribution; both isotropic.
+    const Alphas a = read_roughness(params, 0.0);
+    Properties props("bsdf", a.smooth() ? "plastic" : "roughplastic", at);
     if (!put_color(params, "reflectance", props, "diffuse_reflectance", textures))
         props.set("diffuse_reflectance", Rgb(0.5f), at);
     props.set("int_ior", read_eta(params, 1.5), at);
     props.set("ext_ior", 1.0f, at);
     props.set("nonlinear", true, at);
-    const Alphas a = read_roughness(params, 0.0);
-    if (!a.smooth())
-        warn(params.where, params.context() + ": a rough coating (alpha " + std::to_string(a.u) +
-                               ", " + std::to_string(a.v) +
-                               ") is rendered as a smooth plastic coating (no rough plastic yet)");
+    if (!a.smooth()) {
+        double alpha = a.u;
+        if (a.u != a.v) {
+            alpha = 0.5 * (a.u + a.v);
+            warn(params.where, params.context() + ": an anisotropic coating (alpha " +
+                                   std::to_string(a.u) + ", " + std::to_string(a.v) +
+                                   ") is rendered isotropic with their mean " +
+                                   std::to_string(alpha));
+        }
+        props.set("distribution", std::string("ggx"), at);
+        props.set("alpha", float(alpha), at);
+    }
     // pbrt's stochastic layer evaluation: no effect on the mean of our analytic plastic.
     params.get_float("thickness", 0.01);
     params.get_int("maxdepth", 10);
@@ -218,22 +228,42 @@ std::shared_ptr<const Bsdf> make_material(
         Properties props("bsdf", "null", at);
         bsdf = make_bsdf(props);
     } else if (type == "mix") {
+        // pbrt-v4 picks materials[1] with probability `amount` at each shading point; its
+        // expectation is Mitsuba's blendbsdf with weight `amount` (0 and 1 pick one).
         const Param* m = params.find("materials");
         if (!m || m->type != "string" || m->strings.size() != 2)
             throw params.error("materials", "mix needs \"string materials\" with two names");
         m->used = true;
-        if (params.type_of("amount") == "texture")
-            throw params.error("amount", "a textured mix amount is not supported yet");
-        const double amount = params.get_float("amount", 0.5);
-        if (amount != 0 && amount != 1)
-            throw params.error("amount",
-                               "blending two materials is not supported yet (only "
-                               "amount 0 or 1, which picks one of them)");
-        const std::string& pick = m->strings[amount == 0 ? 0 : 1];
-        auto it = named.find(pick);
-        if (it == named.end())
-            throw params.error("materials", "unknown named material \"" + pick + "\"");
-        bsdf = it->second;
+        std::shared_ptr<const Bsdf> pair[2];
+        for (int i = 0; i < 2; ++i) {
+            auto it = named.find(m->strings[size_t(i)]);
+            if (it == named.end())
+                throw params.error("materials",
+                                   "unknown named material \"" + m->strings[size_t(i)] + "\"");
+            pair[i] = it->second;
+        }
+        Properties props("bsdf", "blendbsdf", at);
+        props.nested_bsdfs = {pair[0], pair[1]};
+        if (params.type_of("amount") == "texture") {
+            const Param* a = params.find("amount");
+            a->used = true;
+            if (a->strings.size() != 1) throw params.error("amount", "expects one texture name");
+            auto it = textures.floats.find(a->strings[0]);
+            if (it == textures.floats.end())
+                throw params.error("amount",
+                                   "unknown float texture \"" + a->strings[0] +
+                                       "\" (a texture must be defined before it is used)");
+            props.set("weight", it->second, a->where);
+            bsdf = make_bsdf(props);
+        } else {
+            const double amount = params.get_float("amount", 0.5);
+            if (amount <= 0 || amount >= 1) {
+                bsdf = pair[amount <= 0 ? 0 : 1];
+            } else {
+                props.set("weight", float(amount), at);
+                bsdf = make_bsdf(props);
+            }
+        }
     } else if (type == "diffusetransmission" || type == "coatedconductor" || type == "hair" ||
                type == "measured" || type == "subsurface") {
         throw SceneError(at, params.context() + ": material \"" + type + "\" is not supported yet");
