@@ -33,6 +33,7 @@
 #include <cmath>
 #include <memory>
 #include <optional>
+#include <tuple>
 #include <vector>
 
 #include "core/camera/perspective_camera.h"
@@ -721,7 +722,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOne) {
     EXPECT_GT(checked, 300);
 }
 
-// Paths in fog: medium vertices, surface vertices, and both, as a path in fog bouncing off walls.
+// Paths in fog: medium vertices, surface vertices, and both, as a path in fog bouncing off walls;
+// BPT with J1 connections, and query beams (UPBP's long camera query) beside each family.
 TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     using M = Material;
     const std::vector<std::vector<Material>> paths = {
@@ -760,6 +762,17 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                         check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", true);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
+                        // Query beams (P-B2D) beside BPT, VCM, BPM and alone: the merge factor
+                        // of a medium vertex is then per vertex, added at the next arrival on
+                        // light subpaths. The beam radius differs from the point radius, as
+                        // UPBP's schedules do.
+                        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
+                        for (const auto& [vc, vm, name] : {std::tuple{true, false, "BPT+PB2D"},
+                                                           std::tuple{true, true, "VCM+PB2D"},
+                                                           std::tuple{false, true, "BPM+PB2D"},
+                                                           std::tuple{false, false, "PB2D"}})
+                            check_family(power, vc, vm, eta_surface, eta_volume, name, false,
+                                         eta_beam);
                         ++checked;
                         with_medium_vertex += medium_vertex;
                     }
@@ -767,54 +780,6 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(checked, 500);
     EXPECT_GT(with_medium_vertex, 400);
     EXPECT_GT(joint_checked_, 400);
-}
-
-// Query beams (P-B2D, the long camera query of UPBP) beside connections, surface merges and
-// photon points: the merge factor of a medium vertex is then per vertex (it depends on the
-// camera side's distance density there), added at the next arrival on light subpaths. Both
-// checks as above: the sum, and each weight against the densities written out.
-TEST_F(MisSumTest, WeightsWithQueryBeamsSumToOneInAMedium) {
-    using M = Material;
-    const std::vector<std::vector<Material>> paths = {
-        {M::Medium},
-        {M::Medium, M::Medium},
-        {M::Medium, M::Diffuse},
-        {M::Diffuse, M::Medium},
-        {M::Glossy, M::Medium, M::Diffuse},
-        {M::Medium, M::Mirror, M::Medium},
-        {M::Mirror, M::Medium, M::Glossy},
-        {M::Medium, M::Medium, M::Medium},
-        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
-    };
-    Rng rng(StreamKey{2026, 0, 1, 0});
-    int checked = 0;
-    for (const auto& materials : paths)
-        for (LightKind kind : kAllLights)
-            for (int trial = 0; trial < 10; ++trial) {
-                if (!build_path(rng, materials, kind, true)) continue;
-                for (double radius : {0.05, 0.15})
-                    for (int power : {1, 2}) {
-                        const double eta_surface = kPi * radius * radius * kLightPaths;
-                        const double eta_volume =
-                            4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
-                        // The beam radius differs from the point radius, as UPBP's schedules do.
-                        const double eta_beam = kPi * 0.5 * radius * 0.5 * radius * kLightPaths;
-                        SCOPED_TRACE(::testing::Message()
-                                     << "fog path of " << materials.size()
-                                     << " vertices, light kind " << int(kind) << ", trial " << trial
-                                     << ", radius " << radius << ", power " << power);
-                        check_family(power, true, false, eta_surface, eta_volume, "BPT+PB2D", false,
-                                     eta_beam);
-                        check_family(power, true, true, eta_surface, eta_volume, "VCM+PB2D", false,
-                                     eta_beam);
-                        check_family(power, false, true, eta_surface, eta_volume, "BPM+PB2D", false,
-                                     eta_beam);
-                        check_family(power, false, false, eta_surface, eta_volume, "PB2D", false,
-                                     eta_beam);
-                        ++checked;
-                    }
-            }
-    EXPECT_GT(checked, 250);
     EXPECT_GT(query_beams_checked_, 1500);
 }
 
