@@ -101,10 +101,7 @@ DELTA_LIGHT_SKIPS = {**SURFACE, **NO_VPL, "pt": PT_DELTA_CAUSTICS, "lt": LT_SPHE
                      "bpt": BPT_DELTA_SDS}
 # Media scenes (docs/media.md).
 PT_IGNORES_MEDIA = "ignores participating media (it refuses media scenes; volpt is its media form)"
-HOMOGENEOUS_ONLY = ("handles homogeneous media only (bidirectional MIS needs exact "
-                    "distance-sampling densities); the smoke is a heterogeneous grid")
-GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA,
-              **{a: HOMOGENEOUS_ONLY for a in ("lt", "bpt", "ppm", "bpm", "vcm")}}
+GRID_SKIPS = {"pt": PT_IGNORES_MEDIA, **NO_VPL_MEDIA}
 
 # path, short name, reference algorithm, reference iterations, skipped algorithms (the others
 # run), S-D-S scene (claim checked), description. The reference iteration counts take a few
