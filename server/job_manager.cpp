@@ -120,9 +120,11 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
 
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
+      clock_(clock),
       store_((fs::create_directories(options.store), options.store / "render.db")),
       assets_(options.store),
-      scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds},
+      scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
+                                  options.max_lease_seconds},
                  std::move(clock)) {
     fs::create_directories(options_.store / "jobs");
     fs::create_directories(options_.store / "checkpoints");
@@ -729,6 +731,9 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     if (header.odd_count() != odd)
         return invalid("report odd_count " + std::to_string(header.odd_count()) +
                        " differs from the lease's " + std::to_string(odd));
+    if (header.odd_sum_omitted() && count != 1)
+        return invalid("report omits odd_sum but sums " + std::to_string(count) +
+                       " iterations (only a one-iteration report may)");
     if (!std::isfinite(header.render_seconds()) || header.render_seconds() < 0)
         return invalid("report render_seconds must be finite and >= 0");
     *values = size_t(job->row.width) * size_t(job->row.height) * 3;
@@ -798,18 +803,23 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         merged_error = frame.relative_error.load();
         const clock::time_point checkpoint_start = clock::now();
         add_time = checkpoint_start - add_start;
-        try {
-            frame.acc->save(checkpoint_path(grant.job_id, grant.frame), elapsed);
-            store_.add_merged_range(grant.job_id, grant.frame, grant.range);
-            store_.update_frame(grant.job_id, grant.frame, false, elapsed);
-        } catch (const std::exception& e) {
-            Log("error", "checkpoint_failed").kv("job", grant.job_id).kv("error", e.what());
+        // The checkpoint (the frame's whole sums) is written at most every checkpoint_seconds;
+        // until then the store still records only what the last checkpoint holds, so a crash
+        // re-leases what merged since, and nothing is counted twice.
+        frame.dirty = true;
+        const TimePoint now = clock_();
+        if (!frame.checkpoint_clock) frame.checkpoint_clock = now;
+        if (options_.checkpoint_seconds <= 0 ||
+            std::chrono::duration<double>(now - *frame.checkpoint_clock).count() >=
+                options_.checkpoint_seconds) {
+            save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "interval");
+            checkpoint_time = clock::now() - checkpoint_start;
         }
-        checkpoint_time = clock::now() - checkpoint_start;
     }
     {
         std::lock_guard lock(mu_);
         scheduler_.end_merge(grant);
+        scheduler_.note_report_cost(grant.job_id, std::chrono::duration<double>(add_time).count());
         const double target = job->request.settings().target_error();
         if (target > 0 && merged_count >= kMinTargetErrorIterations && merged_error <= target) {
             scheduler_.close_frame(grant.job_id, grant.frame);
@@ -855,6 +865,63 @@ void JobManager::tick() {
         for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
     }
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
+    flush_checkpoints(false);
+}
+
+bool JobManager::save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
+                                 double elapsed, const char* reason) {
+    const auto start = std::chrono::steady_clock::now();
+    try {
+        frame.acc->save(checkpoint_path(job_id, index), elapsed);
+        store_.save_frame(job_id, index, frame.acc->ranges().ranges(), false, elapsed);
+    } catch (const std::exception& e) {
+        Log("error", "checkpoint_failed")
+            .kv("job", job_id)
+            .kv("frame", index)
+            .kv("error", e.what());
+        return false;
+    }
+    frame.dirty = false;
+    frame.checkpoint_clock = clock_();
+    Log("info", "checkpoint")
+        .kv("job", job_id)
+        .kv("frame", index)
+        .kv("reason", reason)
+        .kv("iterations", frame.acc->count())
+        .kv("us", std::chrono::duration_cast<std::chrono::microseconds>(
+                      std::chrono::steady_clock::now() - start)
+                      .count());
+    return true;
+}
+
+void JobManager::flush_checkpoints(bool all) {
+    struct Due {
+        std::shared_ptr<JobData> job;
+        std::string id;
+        uint32_t index;
+        double elapsed;
+    };
+    std::vector<Due> due;
+    {
+        std::lock_guard lock(mu_);
+        for (const auto& [id, job] : jobs_) {
+            if (is_terminal(scheduler_.state(id))) continue;
+            for (uint32_t i = 0; i < job->frames.size(); ++i)
+                if (job->frames[i]->dirty.load())
+                    due.push_back({job, id, i, scheduler_.progress(id, i).elapsed_seconds});
+        }
+    }
+    const TimePoint now = clock_();
+    for (const Due& d : due) {
+        FrameData& frame = *d.job->frames[d.index];
+        std::lock_guard lock(frame.mu);
+        if (!frame.dirty || !frame.acc) continue;
+        if (!all && frame.checkpoint_clock &&
+            std::chrono::duration<double>(now - *frame.checkpoint_clock).count() <
+                options_.checkpoint_seconds)
+            continue;
+        save_checkpoint(d.id, d.index, frame, d.elapsed, all ? "shutdown" : "interval");
+    }
 }
 
 void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
@@ -869,6 +936,7 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     if (!job) return;
     FrameData& frame = *job->frames[index];
     std::string error;
+    std::vector<Range> ranges;  // what the EXR holds
     {
         std::lock_guard lock(frame.mu);
         if (!frame.acc) {
@@ -880,7 +948,9 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
                 write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata,
                                 frame.acc->layer_averages());
                 frame.relative_error = frame.acc->relative_error();
+                ranges = frame.acc->ranges().ranges();
                 frame.acc.reset();
+                frame.dirty = false;
             } catch (const std::exception& e) {
                 error = std::string("cannot write the result: ") + e.what();
             }
@@ -894,7 +964,7 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     }
     bool job_done = scheduler_.finish_frame(job_id, index);
     store_or_log("job", job_id, [&] {
-        store_.update_frame(job_id, index, true, progress.elapsed_seconds);
+        store_.save_frame(job_id, index, ranges, true, progress.elapsed_seconds);
         std::error_code ec;
         fs::remove(checkpoint_path(job_id, index), ec);
     });
@@ -1013,6 +1083,7 @@ std::string JobManager::metrics_text() {
 }
 
 void JobManager::checkpoint_all() {
+    flush_checkpoints(true);
     std::lock_guard lock(mu_);
     for (const auto& [id, job] : jobs_) {
         if (is_terminal(scheduler_.state(id))) continue;
@@ -1023,6 +1094,18 @@ void JobManager::checkpoint_all() {
         }
     }
     Log("info", "checkpointed");
+}
+
+std::shared_ptr<void> JobManager::report_slot(const std::string& lease_id) {
+    std::shared_ptr<JobData> job;
+    {
+        std::lock_guard lock(mu_);
+        if (std::optional<LeaseGrant> grant = scheduler_.find_lease(lease_id))
+            job = find(grant->job_id);
+    }
+    if (!job) return nullptr;
+    job->report_mu.lock();
+    return std::shared_ptr<void>(job.get(), [job](void*) { job->report_mu.unlock(); });
 }
 
 }  // namespace render::server
