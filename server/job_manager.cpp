@@ -31,6 +31,10 @@ namespace {
 // Points of a frame's error history kept (halved when full).
 constexpr size_t kMaxHistory = 512;
 
+// A frame is checkpointed at most every kCheckpointCostFactor times its last checkpoint's
+// duration (and at most every checkpoint_seconds): checkpoints take at most 2 % of the time.
+constexpr double kCheckpointCostFactor = 50;
+
 int64_t unix_ms() {
     return std::chrono::duration_cast<std::chrono::milliseconds>(
                std::chrono::system_clock::now().time_since_epoch())
@@ -803,16 +807,14 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         merged_error = frame.relative_error.load();
         const clock::time_point checkpoint_start = clock::now();
         add_time = checkpoint_start - add_start;
-        // The checkpoint (the frame's whole sums) is written at most every checkpoint_seconds;
-        // until then the store still records only what the last checkpoint holds, so a crash
-        // re-leases what merged since, and nothing is counted twice.
+        // The checkpoint (the frame's whole sums) is written by the periodic tick, at most
+        // every checkpoint_interval, not here: the worker waits for this reply. Until then the
+        // store records only what the last checkpoint holds, so a crash re-leases what merged
+        // since, and nothing is counted twice. With checkpoint_seconds 0, after every report.
         frame.dirty = true;
-        const TimePoint now = clock_();
-        if (!frame.checkpoint_clock) frame.checkpoint_clock = now;
-        if (options_.checkpoint_seconds <= 0 ||
-            std::chrono::duration<double>(now - *frame.checkpoint_clock).count() >=
-                options_.checkpoint_seconds) {
-            save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "interval");
+        if (!frame.checkpoint_clock) frame.checkpoint_clock = clock_();
+        if (options_.checkpoint_seconds <= 0) {
+            save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "report");
             checkpoint_time = clock::now() - checkpoint_start;
         }
     }
@@ -853,11 +855,16 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         .kv("add_us", std::chrono::duration_cast<std::chrono::microseconds>(add_time).count())
         .kv("checkpoint_us",
             std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
-    tick();
+    advance();
     return Status::OK;
 }
 
 void JobManager::tick() {
+    advance();
+    flush_checkpoints(false);
+}
+
+void JobManager::advance() {
     std::vector<std::pair<std::string, uint32_t>> complete;
     {
         std::lock_guard lock(mu_);
@@ -865,12 +872,16 @@ void JobManager::tick() {
         for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
     }
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
-    flush_checkpoints(false);
+}
+
+double JobManager::checkpoint_interval(const FrameData& frame) const {
+    return std::max(options_.checkpoint_seconds,
+                    kCheckpointCostFactor * frame.last_checkpoint_seconds);
 }
 
 bool JobManager::save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
                                  double elapsed, const char* reason) {
-    const auto start = std::chrono::steady_clock::now();
+    const TimePoint start = clock_();
     try {
         frame.acc->save(checkpoint_path(job_id, index), elapsed);
         store_.save_frame(job_id, index, frame.acc->ranges().ranges(), false, elapsed);
@@ -883,14 +894,15 @@ bool JobManager::save_checkpoint(const std::string& job_id, uint32_t index, Fram
     }
     frame.dirty = false;
     frame.checkpoint_clock = clock_();
+    frame.last_checkpoint_seconds =
+        std::chrono::duration<double>(*frame.checkpoint_clock - start).count();
     Log("info", "checkpoint")
         .kv("job", job_id)
         .kv("frame", index)
         .kv("reason", reason)
         .kv("iterations", frame.acc->count())
-        .kv("us", std::chrono::duration_cast<std::chrono::microseconds>(
-                      std::chrono::steady_clock::now() - start)
-                      .count());
+        .kv("us", int64_t(frame.last_checkpoint_seconds * 1e6))
+        .kv("next_in_seconds", checkpoint_interval(frame));
     return true;
 }
 
@@ -918,7 +930,7 @@ void JobManager::flush_checkpoints(bool all) {
         if (!frame.dirty || !frame.acc) continue;
         if (!all && frame.checkpoint_clock &&
             std::chrono::duration<double>(now - *frame.checkpoint_clock).count() <
-                options_.checkpoint_seconds)
+                checkpoint_interval(frame))
             continue;
         save_checkpoint(d.id, d.index, frame, d.elapsed, all ? "shutdown" : "interval");
     }

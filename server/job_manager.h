@@ -36,9 +36,10 @@ struct ServerOptions {
     // A lease of several iterations lasts at most this long (SchedulerOptions).
     double max_lease_seconds = 30;
     // A frame's merged sums are written to its checkpoint (and the job store records the
-    // ranges the checkpoint holds) at most every checkpoint_seconds, counted from the frame's
-    // first merge in this run; on SIGTERM (checkpoint_all) at once. 0: after every report. A
-    // crash loses what merged after the last checkpoint: those ranges are leased again.
+    // ranges the checkpoint holds) by tick() at most every checkpoint_seconds, counted from the
+    // frame's first merge in this run, or 50 times the last checkpoint's duration if longer;
+    // on SIGTERM (checkpoint_all) at once. 0: by every report. A crash loses what merged after
+    // the last checkpoint: those ranges are leased again.
     double checkpoint_seconds = 30;
     // SubmitJob loads every frame's scene; an animation whose loads would take longer than this
     // (estimated from the frames loaded so far) is refused with RESOURCE_EXHAUSTED.
@@ -102,7 +103,8 @@ class JobManager {
     // (null for a lease the server does not know: such a report is dropped unread).
     std::shared_ptr<void> report_slot(const std::string& lease_id);
 
-    // Expires leases, closes time budgets and finishes complete frames. Called periodically.
+    // Expires leases, closes time budgets, finishes complete frames and writes the checkpoints
+    // that are due. Called periodically (a report does all but the checkpoints).
     void tick();
     // Writes the checkpoint of every frame that merged since its last one and saves the render
     // time of unfinished frames (SIGTERM).
@@ -123,6 +125,7 @@ class JobManager {
         // When the interval to the next checkpoint started: the last checkpoint, or the first
         // merge of this run (under mu).
         std::optional<TimePoint> checkpoint_clock;
+        double last_checkpoint_seconds = 0;  // how long the last checkpoint took (under mu)
     };
     struct JobData {
         JobRow row;
@@ -152,6 +155,11 @@ class JobManager {
                          double elapsed, const char* reason);
     // Writes the checkpoints that are due (all dirty ones with `all`).
     void flush_checkpoints(bool all);
+    // How long a frame waits between checkpoints: checkpoint_seconds, or kCheckpointCostFactor
+    // times its last checkpoint's duration if longer (frame.mu held).
+    double checkpoint_interval(const FrameData& frame) const;
+    // Expires leases and finishes complete frames (tick() without the checkpoints).
+    void advance();
     void fill_job(const JobData& job, v1::Job* out) const;                   // mu_ held
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
     void finish_frame(const std::string& job_id, uint32_t frame);

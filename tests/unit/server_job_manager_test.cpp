@@ -498,7 +498,9 @@ TEST_F(ManagerTest, RangesMergedAfterTheLastCheckpointAreLeasedAgainAfterACrash)
         ASSERT_TRUE(render_and_report(m, a, 3));  // the interval starts: no checkpoint yet
         EXPECT_FALSE(fs::exists(ckpt_dir / id / "0.ckpt"));
         clock.advance(10);
-        ASSERT_TRUE(render_and_report(m, c, 3));  // 10 s later: checkpoint of [1, 2) + [3, 4)
+        ASSERT_TRUE(render_and_report(m, c, 3));  // the report does not write it (a worker
+        EXPECT_FALSE(fs::exists(ckpt_dir / id / "0.ckpt"));  // waits for the reply)...
+        m.tick();  // ...the tick does, 10 s after the first merge: [1, 2) + [3, 4)
         EXPECT_TRUE(fs::exists(ckpt_dir / id / "0.ckpt"));
         ASSERT_TRUE(render_and_report(m, b, 3));  // [2, 3): merged, not checkpointed
         clock.advance(9);
@@ -577,4 +579,44 @@ TEST_F(ManagerTest, CheckpointAllSavesWhatMergedSinceTheLastCheckpoint) {
     JobManager m(options, [&] { return clock.now; });
     EXPECT_EQ(iterations_done(m, id), 3u);
     EXPECT_EQ(one_iteration(m, "w-2").first_iteration(), 4u);
+}
+
+// A checkpoint that took 1 s (of the injected clock) puts the frame's next one 50 s later, not
+// checkpoint_seconds (10) later: checkpoints take at most 2 % of the time however large the
+// frame.
+TEST_F(ManagerTest, ASlowCheckpointSpacesTheNextOnes) {
+    options.checkpoint_seconds = 10;
+    FakeClock clock;
+    double step = 0;  // seconds the clock moves at each reading
+    auto now = [&] {
+        clock.advance(step);
+        return clock.now;
+    };
+    std::string id;
+    {
+        JobManager m(options, now);
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 10), &job).ok());
+        id = job.id();
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(10);
+        step = 1;  // the checkpoint's two readings of the clock are 1 s apart
+        m.tick();
+        step = 0;
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(40);
+        m.tick();  // 40 s < 50 s: not due
+    }
+    {
+        JobManager m(options, now);
+        EXPECT_EQ(iterations_done(m, id), 1u);
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));  // [2, 3) again
+        clock.advance(10);
+        m.tick();  // a fast checkpoint: the next is due checkpoint_seconds later
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(10);
+        m.tick();
+    }
+    JobManager m(options, now);
+    EXPECT_EQ(iterations_done(m, id), 3u);
 }
