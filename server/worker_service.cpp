@@ -122,7 +122,8 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     const auto received_at = std::chrono::steady_clock::now();
     manager_.metrics().report_received(header.ByteSizeLong() + received);
     bool merged = false;
-    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged); !s.ok()) return s;
+    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged, &values); !s.ok())
+        return s;
     reply->set_merged(merged);
     // Cost of a report for the performance report (docs/performance.md): bytes on the wire
     // (header + values), time spent receiving the chunks and time spent merging (accumulate +
