@@ -782,10 +782,12 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     double merged_error = 1;
     {
         std::lock_guard lock(frame.mu);
-        const clock::time_point add_start = clock::now();
+        // Made (and its pages touched) once per frame, outside the measured per-report cost
+        // that sizes the job's leases.
         if (!frame.acc)
             frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
                                                            job->settings.layers);
+        const clock::time_point add_start = clock::now();
         RenderStats stats;
         stats.samples = header.samples();
         stats.rays = header.rays();
