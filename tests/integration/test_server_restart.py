@@ -36,6 +36,10 @@ class ServerRestart(cluster.ClusterTestCase):
         # workers started rendering it).
         state = {}
 
+        def checkpointed():
+            with open(c.server.log_path, "rb") as f:
+                return b"event=checkpoint " in f.read()
+
         def progressed():
             j = c.api.get_job(job.id)
             st = c.api.cluster_status()
@@ -46,10 +50,9 @@ class ServerRestart(cluster.ClusterTestCase):
                 state["leased_at"] = time.monotonic()
             if j.state == P.JOB_STATE_DONE:
                 return True
-            # More than the first (calibration) iteration of each worker merged: a checkpoint
-            # (every second) has most likely been written, and the workers are in the middle
-            # of their next ranges.
-            if 2 < done < ITERATIONS:
+            # More than the first (calibration) iteration of each worker merged, a checkpoint
+            # written (every second), and the workers in the middle of their next ranges.
+            if 2 < done < ITERATIONS and checkpointed():
                 return True
             return "leased_at" in state and time.monotonic() - state["leased_at"] > 6
         cluster.wait_until(progressed, timeout=40, poll=0.05, what="the job to make progress")
