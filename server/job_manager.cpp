@@ -894,6 +894,7 @@ bool JobManager::save_checkpoint(const std::string& job_id, uint32_t index, Fram
             .kv("job", job_id)
             .kv("frame", index)
             .kv("error", e.what());
+        frame.checkpoint_clock = clock_();  // tried again an interval later, not at every tick
         return false;
     }
     frame.dirty = false;
