@@ -53,13 +53,24 @@ void FrameAccumulator::add(Range range, std::span<const double> sum,
                            std::span<const double> odd_sum, std::span<const double> layer_sums,
                            uint64_t odd_count, const RenderStats& stats) {
     const size_t n = value_count();
-    if (sum.size() != n || odd_sum.size() != n || layer_sums.size() != layer_count() * n)
+    const bool odd_derived = odd_sum.empty() && range.size() == 1 && odd_count <= 1;
+    if (sum.size() != n || (odd_sum.size() != n && !odd_derived) ||
+        layer_sums.size() != layer_count() * n)
         throw std::invalid_argument("accumulator: buffer size mismatch");
     auto& s = result_.sum.values();
     auto& o = result_.odd_sum.values();
-    for (size_t i = 0; i < s.size(); ++i) {
-        s[i] += sum[i];
-        o[i] += odd_sum[i];
+    if (!odd_derived) {
+        for (size_t i = 0; i < s.size(); ++i) {
+            s[i] += sum[i];
+            o[i] += odd_sum[i];
+        }
+    } else if (odd_count == 1) {
+        for (size_t i = 0; i < s.size(); ++i) {
+            s[i] += sum[i];
+            o[i] += sum[i];
+        }
+    } else {
+        for (size_t i = 0; i < s.size(); ++i) s[i] += sum[i];
     }
     for (size_t l = 0; l < layer_count(); ++l) {
         auto& values = result_.layers.buffer(l).values();

@@ -30,7 +30,9 @@ class FrameAccumulator {
     size_t layer_count() const { return result_.layers.size(); }
 
     // Adds one range's sums. `sum` and `odd_sum` must have value_count() entries,
-    // `layer_sums` layer_count() * value_count() (the layers one after the other).
+    // `layer_sums` layer_count() * value_count() (the layers one after the other). For a range
+    // of one iteration `odd_sum` may be empty: it is then `sum` when `odd_count` is 1 (an odd
+    // iteration) and zero otherwise, exactly what the worker would have sent.
     void add(Range range, std::span<const double> sum, std::span<const double> odd_sum,
              std::span<const double> layer_sums, uint64_t odd_count, const RenderStats& stats);
 

@@ -31,6 +31,10 @@ namespace {
 // Points of a frame's error history kept (halved when full).
 constexpr size_t kMaxHistory = 512;
 
+// A frame is checkpointed at most every kCheckpointCostFactor times its last checkpoint's
+// duration (and at most every checkpoint_seconds): checkpoints take at most 2 % of the time.
+constexpr double kCheckpointCostFactor = 50;
+
 int64_t unix_ms() {
     return std::chrono::duration_cast<std::chrono::milliseconds>(
                std::chrono::system_clock::now().time_since_epoch())
@@ -120,9 +124,11 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
 
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
+      clock_(clock),
       store_((fs::create_directories(options.store), options.store / "render.db")),
       assets_(options.store),
-      scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds},
+      scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
+                                  options.max_lease_seconds},
                  std::move(clock)) {
     fs::create_directories(options_.store / "jobs");
     fs::create_directories(options_.store / "checkpoints");
@@ -729,6 +735,9 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     if (header.odd_count() != odd)
         return invalid("report odd_count " + std::to_string(header.odd_count()) +
                        " differs from the lease's " + std::to_string(odd));
+    if (header.odd_sum_omitted() && count != 1)
+        return invalid("report omits odd_sum but sums " + std::to_string(count) +
+                       " iterations (only a one-iteration report may)");
     if (!std::isfinite(header.render_seconds()) || header.render_seconds() < 0)
         return invalid("report render_seconds must be finite and >= 0");
     *values = size_t(job->row.width) * size_t(job->row.height) * 3;
@@ -742,7 +751,7 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
 
 Status JobManager::report(const v1::ReportHeader& header, std::span<const double> sum,
                           std::span<const double> odd_sum, std::span<const double> layer_sums,
-                          bool* merged) {
+                          bool* merged, std::vector<double>* values) {
     *merged = false;
     LeaseGrant grant;
     std::shared_ptr<JobData> job;
@@ -773,10 +782,12 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
     double merged_error = 1;
     {
         std::lock_guard lock(frame.mu);
-        const clock::time_point add_start = clock::now();
+        // Made (and its pages touched) once per frame, outside the measured per-report cost
+        // that sizes the job's leases.
         if (!frame.acc)
             frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
                                                            job->settings.layers);
+        const clock::time_point add_start = clock::now();
         RenderStats stats;
         stats.samples = header.samples();
         stats.rays = header.rays();
@@ -798,18 +809,21 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         merged_error = frame.relative_error.load();
         const clock::time_point checkpoint_start = clock::now();
         add_time = checkpoint_start - add_start;
-        try {
-            frame.acc->save(checkpoint_path(grant.job_id, grant.frame), elapsed);
-            store_.add_merged_range(grant.job_id, grant.frame, grant.range);
-            store_.update_frame(grant.job_id, grant.frame, false, elapsed);
-        } catch (const std::exception& e) {
-            Log("error", "checkpoint_failed").kv("job", grant.job_id).kv("error", e.what());
+        // The checkpoint (the frame's whole sums) is written by the periodic tick, at most
+        // every checkpoint_interval, not here: the worker waits for this reply. Until then the
+        // store records only what the last checkpoint holds, so a crash re-leases what merged
+        // since, and nothing is counted twice. With checkpoint_seconds 0, after every report.
+        frame.dirty = true;
+        if (!frame.checkpoint_clock) frame.checkpoint_clock = clock_();
+        if (options_.checkpoint_seconds <= 0) {
+            save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "report");
+            checkpoint_time = clock::now() - checkpoint_start;
         }
-        checkpoint_time = clock::now() - checkpoint_start;
     }
     {
         std::lock_guard lock(mu_);
         scheduler_.end_merge(grant);
+        scheduler_.note_report_cost(grant.job_id, std::chrono::duration<double>(add_time).count());
         const double target = job->request.settings().target_error();
         if (target > 0 && merged_count >= kMinTargetErrorIterations && merged_error <= target) {
             scheduler_.close_frame(grant.job_id, grant.frame);
@@ -843,11 +857,18 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         .kv("add_us", std::chrono::duration_cast<std::chrono::microseconds>(add_time).count())
         .kv("checkpoint_us",
             std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
-    tick();
+    // The report's values are in the sums: free them before a completed frame's EXR is made.
+    if (values) std::vector<double>().swap(*values);
+    advance();
     return Status::OK;
 }
 
 void JobManager::tick() {
+    advance();
+    flush_checkpoints(false);
+}
+
+void JobManager::advance() {
     std::vector<std::pair<std::string, uint32_t>> complete;
     {
         std::lock_guard lock(mu_);
@@ -855,6 +876,69 @@ void JobManager::tick() {
         for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
     }
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
+}
+
+double JobManager::checkpoint_interval(const FrameData& frame) const {
+    return std::max(options_.checkpoint_seconds,
+                    kCheckpointCostFactor * frame.last_checkpoint_seconds);
+}
+
+bool JobManager::save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
+                                 double elapsed, const char* reason) {
+    const TimePoint start = clock_();
+    try {
+        frame.acc->save(checkpoint_path(job_id, index), elapsed);
+        store_.save_frame(job_id, index, frame.acc->ranges().ranges(), false, elapsed);
+    } catch (const std::exception& e) {
+        Log("error", "checkpoint_failed")
+            .kv("job", job_id)
+            .kv("frame", index)
+            .kv("error", e.what());
+        frame.checkpoint_clock = clock_();  // tried again an interval later, not at every tick
+        return false;
+    }
+    frame.dirty = false;
+    frame.checkpoint_clock = clock_();
+    frame.last_checkpoint_seconds =
+        std::chrono::duration<double>(*frame.checkpoint_clock - start).count();
+    Log("info", "checkpoint")
+        .kv("job", job_id)
+        .kv("frame", index)
+        .kv("reason", reason)
+        .kv("iterations", frame.acc->count())
+        .kv("us", int64_t(frame.last_checkpoint_seconds * 1e6))
+        .kv("next_in_seconds", checkpoint_interval(frame));
+    return true;
+}
+
+void JobManager::flush_checkpoints(bool all) {
+    struct Due {
+        std::shared_ptr<JobData> job;
+        std::string id;
+        uint32_t index;
+        double elapsed;
+    };
+    std::vector<Due> due;
+    {
+        std::lock_guard lock(mu_);
+        for (const auto& [id, job] : jobs_) {
+            if (is_terminal(scheduler_.state(id))) continue;
+            for (uint32_t i = 0; i < job->frames.size(); ++i)
+                if (job->frames[i]->dirty.load())
+                    due.push_back({job, id, i, scheduler_.progress(id, i).elapsed_seconds});
+        }
+    }
+    const TimePoint now = clock_();
+    for (const Due& d : due) {
+        FrameData& frame = *d.job->frames[d.index];
+        std::lock_guard lock(frame.mu);
+        if (!frame.dirty || !frame.acc) continue;
+        if (!all && frame.checkpoint_clock &&
+            std::chrono::duration<double>(now - *frame.checkpoint_clock).count() <
+                checkpoint_interval(frame))
+            continue;
+        save_checkpoint(d.id, d.index, frame, d.elapsed, all ? "shutdown" : "interval");
+    }
 }
 
 void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
@@ -869,6 +953,7 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     if (!job) return;
     FrameData& frame = *job->frames[index];
     std::string error;
+    std::vector<Range> ranges;  // what the EXR holds
     {
         std::lock_guard lock(frame.mu);
         if (!frame.acc) {
@@ -880,7 +965,9 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
                 write_frame_exr(result_path(job_id, index), frame.acc->average(), metadata,
                                 frame.acc->layer_averages());
                 frame.relative_error = frame.acc->relative_error();
+                ranges = frame.acc->ranges().ranges();
                 frame.acc.reset();
+                frame.dirty = false;
             } catch (const std::exception& e) {
                 error = std::string("cannot write the result: ") + e.what();
             }
@@ -894,7 +981,7 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     }
     bool job_done = scheduler_.finish_frame(job_id, index);
     store_or_log("job", job_id, [&] {
-        store_.update_frame(job_id, index, true, progress.elapsed_seconds);
+        store_.save_frame(job_id, index, ranges, true, progress.elapsed_seconds);
         std::error_code ec;
         fs::remove(checkpoint_path(job_id, index), ec);
     });
@@ -1013,6 +1100,7 @@ std::string JobManager::metrics_text() {
 }
 
 void JobManager::checkpoint_all() {
+    flush_checkpoints(true);
     std::lock_guard lock(mu_);
     for (const auto& [id, job] : jobs_) {
         if (is_terminal(scheduler_.state(id))) continue;
@@ -1023,6 +1111,18 @@ void JobManager::checkpoint_all() {
         }
     }
     Log("info", "checkpointed");
+}
+
+std::shared_ptr<void> JobManager::report_slot(const std::string& lease_id) {
+    std::shared_ptr<JobData> job;
+    {
+        std::lock_guard lock(mu_);
+        if (std::optional<LeaseGrant> grant = scheduler_.find_lease(lease_id))
+            job = find(grant->job_id);
+    }
+    if (!job) return nullptr;
+    job->report_mu.lock();
+    return std::shared_ptr<void>(job.get(), [job](void*) { job->report_mu.unlock(); });
 }
 
 }  // namespace render::server

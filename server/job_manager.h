@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <span>
 #include <string>
@@ -32,6 +33,14 @@ struct ServerOptions {
     double lease_timeout_seconds = 30;
     double heartbeat_seconds = 2;
     double target_lease_seconds = 3;
+    // A lease of several iterations lasts at most this long (SchedulerOptions).
+    double max_lease_seconds = 30;
+    // A frame's merged sums are written to its checkpoint (and the job store records the
+    // ranges the checkpoint holds) by tick() at most every checkpoint_seconds, counted from the
+    // frame's first merge in this run, or 50 times the last checkpoint's duration if longer;
+    // on SIGTERM (checkpoint_all) at once. 0: by every report. A crash loses what merged after
+    // the last checkpoint: those ranges are leased again.
+    double checkpoint_seconds = 30;
     // SubmitJob loads every frame's scene; an animation whose loads would take longer than this
     // (estimated from the frames loaded so far) is refused with RESOURCE_EXHAUSTED.
     double submit_validation_seconds = 120;
@@ -76,20 +85,30 @@ class JobManager {
     grpc::Status lease(const v1::LeaseRequest& request, v1::LeaseReply* reply);
     grpc::Status heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply);
     // Checks a report's header before its values are read: `values` receives the number of
-    // float64 values each of sum, odd_sum and the job's technique layers must have, `layers`
-    // how many layers follow the two sums. `drop` is set (and OK returned) for a late or
-    // duplicate report, which is answered merged=false.
+    // float64 values each of sum, odd_sum (unless the header omits it) and the job's technique
+    // layers must have, `layers` how many layers follow the sums. `drop` is set (and OK returned)
+    // for a late or duplicate report, which is answered merged=false.
     grpc::Status check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
                               bool* drop);
     // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
-    // layers' sums one after the other (empty for a job without layers).
+    // layers' sums one after the other (empty for a job without layers); `odd_sum` empty when
+    // the header omits it. `values`, if given, holds the spans' storage: it is freed once the
+    // sums are added, before a frame the report completes is written (memory).
     grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
                         std::span<const double> odd_sum, std::span<const double> layer_sums,
-                        bool* merged);
+                        bool* merged, std::vector<double>* values = nullptr);
+    // Reports of one job are received and merged one at a time: each holds a frame's whole
+    // sums in memory until it is merged, so a job's memory stays its frames' sums plus one
+    // report's, however many workers report at once. Blocks until the job of `lease_id` has no
+    // other report in progress; the slot is released when the returned handle is destroyed
+    // (null for a lease the server does not know: such a report is dropped unread).
+    std::shared_ptr<void> report_slot(const std::string& lease_id);
 
-    // Expires leases, closes time budgets and finishes complete frames. Called periodically.
+    // Expires leases, closes time budgets, finishes complete frames and writes the checkpoints
+    // that are due. Called periodically (a report does all but the checkpoints).
     void tick();
-    // Saves the render time of unfinished frames (SIGTERM); merged sums are already saved.
+    // Writes the checkpoint of every frame that merged since its last one and saves the render
+    // time of unfinished frames (SIGTERM).
     void checkpoint_all();
 
     AssetStore& assets() { return assets_; }
@@ -102,6 +121,12 @@ class JobManager {
         std::atomic<double> relative_error{1.0};
         std::atomic<uint64_t> non_finite{0};
         std::vector<ErrorPoint> history;  // under mu (kept to kMaxHistory points)
+        // Merged since the last checkpoint (set under mu; read without it to skip clean frames).
+        std::atomic<bool> dirty{false};
+        // When the interval to the next checkpoint started: the last checkpoint, or the first
+        // merge of this run (under mu).
+        std::optional<TimePoint> checkpoint_clock;
+        double last_checkpoint_seconds = 0;  // how long the last checkpoint took (under mu)
     };
     struct JobData {
         JobRow row;
@@ -114,6 +139,7 @@ class JobManager {
         std::set<std::string> failed_workers;
         std::set<std::string> lost_workers;
         std::string last_failure;
+        std::mutex report_mu;  // held by the report being received and merged (report_slot)
     };
     struct WorkerInfo {
         std::string host;
@@ -124,6 +150,17 @@ class JobManager {
     };
 
     void restore();
+    // Writes the frame's checkpoint and records its ranges in the store; frame.mu held, and
+    // frame.acc set. Returns false (logged) when it could not be written.
+    bool save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
+                         double elapsed, const char* reason);
+    // Writes the checkpoints that are due (all dirty ones with `all`).
+    void flush_checkpoints(bool all);
+    // How long a frame waits between checkpoints: checkpoint_seconds, or kCheckpointCostFactor
+    // times its last checkpoint's duration if longer (frame.mu held).
+    double checkpoint_interval(const FrameData& frame) const;
+    // Expires leases and finishes complete frames (tick() without the checkpoints).
+    void advance();
     void fill_job(const JobData& job, v1::Job* out) const;                   // mu_ held
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
     void finish_frame(const std::string& job_id, uint32_t frame);
@@ -142,6 +179,7 @@ class JobManager {
     std::shared_ptr<JobData> find(const std::string& job_id);
 
     ServerOptions options_;
+    Scheduler::ClockFn clock_;
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;

@@ -227,6 +227,26 @@ void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
     }
 }
 
+void JobStore::save_frame(const std::string& job_id, uint32_t frame,
+                          const std::vector<Range>& ranges, bool done, double elapsed) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
+        d.text(1, job_id).bind(2, int64_t(frame));
+        d.run();
+        for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
+        Statement u(db_,
+                    "UPDATE frames SET done = ?3, elapsed = ?4 WHERE job_id = ?1 AND idx = ?2");
+        u.text(1, job_id).bind(2, int64_t(frame)).bind(3, int64_t(done ? 1 : 0)).bind(4, elapsed);
+        u.run();
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
 std::vector<Range> JobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
     std::lock_guard lock(mu_);
     Statement s(db_,

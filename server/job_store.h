@@ -54,6 +54,10 @@ class JobStore {
     void set_merged_ranges(const std::string& job_id, uint32_t frame,
                            const std::vector<Range>& ranges);
     std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame);
+    // In one transaction: the frame's merged ranges become `ranges` (what its checkpoint, or
+    // its finished EXR, holds) and its row gets `done` and `elapsed`.
+    void save_frame(const std::string& job_id, uint32_t frame, const std::vector<Range>& ranges,
+                    bool done, double elapsed);
 
     void add_asset(const std::string& sha256, uint64_t size);
 

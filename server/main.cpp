@@ -1,8 +1,8 @@
 // `server`: the render service's gRPC frontend.
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
-//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--metrics HOST:PORT]
-//          [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
+//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--checkpoint-seconds SECONDS]
+//          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT]
 //
 // The token may also come from the environment variable RENDER_TOKEN, the TLS files from
@@ -86,6 +86,13 @@ ArgumentParser make_parser(Options& o) {
             "leases merge (and refresh previews) more often, at more report traffic",
             [&](const std::string& v) {
                 o.server.target_lease_seconds = parse_seconds("--lease-seconds", v);
+            });
+    p.value({"--checkpoint-seconds"}, "SECONDS",
+            "write a frame's merged sums to its checkpoint at most this often (default 30; 0: "
+            "after every report); a crash re-renders what merged since the last checkpoint",
+            [&](const std::string& v) {
+                o.server.checkpoint_seconds =
+                    v == "0" ? 0.0 : parse_seconds("--checkpoint-seconds", v);
             });
     p.value({"--submit-validation-seconds"}, "SECONDS",
             "refuse an animation whose frames' scenes would take longer than this to load at "

@@ -170,12 +170,30 @@ bool Scheduler::is_complete(const Frame& f) const {
     return f.plan.merged.contains({1, end});
 }
 
+void Scheduler::note_report_cost(const std::string& job_id, double seconds) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || !(seconds >= 0) || !std::isfinite(seconds)) return;
+    double& cost = it->second.report_cost_seconds;
+    cost = cost == 0 ? seconds : 0.5 * cost + 0.5 * seconds;
+}
+
 uint64_t Scheduler::lease_size(const std::string& worker_id, const std::string& job_id) const {
     auto it = rates_.find({worker_id, job_id});
-    if (it == rates_.end()) return 1;
-    double n = std::floor(it->second * options_.target_lease_seconds);
+    if (it == rates_.end() || !(it->second > 0) || !std::isfinite(it->second)) return 1;
+    const double rate = it->second;  // iterations per second
+    double shortest = options_.target_lease_seconds;
+    if (auto job = jobs_.find(job_id); job != jobs_.end() && options_.max_report_cost_fraction > 0)
+        shortest =
+            std::max(shortest, job->second.report_cost_seconds / options_.max_report_cost_fraction);
+    shortest = std::min(shortest, options_.max_lease_seconds);
+    // The fewest iterations that last `shortest` (a tolerance keeps an exact product, 10 it/s
+    // for 3 s, from rounding up to one more), but no more than fit in max_lease_seconds.
+    const double want = std::ceil(rate * shortest - 1e-9);
+    const double most = std::floor(rate * options_.max_lease_seconds + 1e-9);
+    const double n = std::min(want, most);
     if (!(n >= 1)) return 1;
-    return std::min<uint64_t>(uint64_t(n), kMaxLeaseIterations);
+    return std::min<uint64_t>(uint64_t(std::min(n, double(kMaxLeaseIterations))),
+                              kMaxLeaseIterations);
 }
 
 std::vector<Scheduler::Job*> Scheduler::ordered_jobs() {

@@ -57,9 +57,21 @@ struct LeaseCounters {
 enum class MergeDecision { Accept, UnknownLease, AlreadyMerged, Reissued, JobInactive };
 const char* to_string(MergeDecision d);
 
+// How long a lease takes at the worker's measured rate, i.e. how far apart one worker's
+// reports are. Every report costs the server a merge of the frame's whole sums (and the worker
+// a transfer of them), whatever the lease's length, so leases are sized to be long enough for
+// that cost to be small, and short enough for previews, error estimates and the work lost with
+// a dead worker to stay bounded:
+//   * at least target_lease_seconds, and at least the job's measured per-report merge cost
+//     divided by max_report_cost_fraction (a large frame merges slowly: its leases grow);
+//   * at most max_lease_seconds, unless one iteration alone takes longer: a lease is never
+//     less than one iteration (an iteration cannot be split), and a long iteration's lease
+//     stays alive through the worker's heartbeats.
 struct SchedulerOptions {
     double lease_timeout_seconds = 30;
     double target_lease_seconds = 3;
+    double max_lease_seconds = 30;
+    double max_report_cost_fraction = 0.01;
 };
 
 class Scheduler {
@@ -77,6 +89,13 @@ class Scheduler {
     bool set_priority(const std::string& job_id, int priority);
     // Sets a job's state; a terminal state voids its leases (heartbeats report them cancelled).
     void set_state(const std::string& job_id, JobState state);
+
+    // The server's cost of merging one report of the job (seconds, measured), which sizes the
+    // job's leases (SchedulerOptions). A running average over the job's reports.
+    void note_report_cost(const std::string& job_id, double seconds);
+    // The number of iterations of this job the worker gets in its next lease (before the
+    // frame's target and time budget cap it): 1 until the worker's rate for the job is known.
+    uint64_t lease_size(const std::string& worker_id, const std::string& job_id) const;
 
     // The next range for this worker, or nothing when no job needs iterations now.
     std::optional<LeaseGrant> lease(const std::string& worker_id);
@@ -141,6 +160,7 @@ class Scheduler {
         uint64_t sequence = 0;
         JobState state = JobState::Queued;
         std::vector<Frame> frames;
+        double report_cost_seconds = 0;  // running average; 0 until a report is measured
     };
     struct Lease {
         LeaseGrant grant;
@@ -151,7 +171,6 @@ class Scheduler {
     void expire(TimePoint now);
     void close_budgets(TimePoint now);
     bool is_complete(const Frame& f) const;
-    uint64_t lease_size(const std::string& worker_id, const std::string& job_id) const;
     std::vector<Job*> ordered_jobs();
     std::string new_lease_id();
 

@@ -65,7 +65,6 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     if (!reader->Read(&chunk) || !chunk.has_header())
         return Status(StatusCode::INVALID_ARGUMENT, "a report must start with its header");
     const v1::ReportHeader header = chunk.header();
-    const auto started = std::chrono::steady_clock::now();
     size_t n = 0, layers = 0;
     bool drop = false;
     if (Status s = manager_.check_report(header, &n, &layers, &drop); !s.ok()) {
@@ -83,8 +82,16 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         reply->set_merged(false);
         return Status::OK;
     }
-    // sum, odd_sum, then the layers' sums: one float64 sequence, split after it is complete.
-    std::vector<double> values(n * (2 + layers));
+    // One report of a job at a time holds its values (JobManager::report_slot): the wait is
+    // logged. A lease unknown by now is read and dropped by report() as before.
+    const auto wait_start = std::chrono::steady_clock::now();
+    const std::shared_ptr<void> slot = manager_.report_slot(header.lease_id());
+    const auto receiving = std::chrono::steady_clock::now();
+    const auto waited = receiving - wait_start;
+    // sum, odd_sum (unless omitted), then the layers' sums: one float64 sequence, split after
+    // it is complete.
+    const size_t sums = header.odd_sum_omitted() ? 1 : 2;
+    std::vector<double> values(n * (sums + layers));
     const size_t expected = values.size() * sizeof(double);
     size_t received = 0;
     while (reader->Read(&chunk)) {
@@ -102,20 +109,21 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     if (received != expected)
         return Status(StatusCode::INVALID_ARGUMENT,
                       "report has " + std::to_string(received) + " bytes of values, expected " +
-                          std::to_string(expected) + " (sum, odd_sum and " +
-                          std::to_string(layers) + " layers, " + std::to_string(n) +
-                          " float64 each)");
+                          std::to_string(expected) + " (sum, " +
+                          (sums == 2 ? "odd_sum and " : "no odd_sum, ") + std::to_string(layers) +
+                          " layers, " + std::to_string(n) + " float64 each)");
     for (size_t i = 0; i < values.size(); ++i)
         if (!std::isfinite(values[i]))
             return Status(StatusCode::INVALID_ARGUMENT,
                           "report value " + std::to_string(i) + " is not finite");
     const std::span<const double> all(values);
-    const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, n),
-                                  layer_sums = all.subspan(2 * n);
+    const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, (sums - 1) * n),
+                                  layer_sums = all.subspan(sums * n);
     const auto received_at = std::chrono::steady_clock::now();
     manager_.metrics().report_received(header.ByteSizeLong() + received);
     bool merged = false;
-    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged); !s.ok()) return s;
+    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged, &values); !s.ok())
+        return s;
     reply->set_merged(merged);
     // Cost of a report for the performance report (docs/performance.md): bytes on the wire
     // (header + values), time spent receiving the chunks and time spent merging (accumulate +
@@ -125,7 +133,8 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         .kv("lease", header.lease_id())
         .kv("bytes", header.ByteSizeLong() + received)
         .kv("iterations", header.count())
-        .kv("receive_us", std::chrono::duration_cast<us>(received_at - started).count())
+        .kv("wait_us", std::chrono::duration_cast<us>(waited).count())
+        .kv("receive_us", std::chrono::duration_cast<us>(received_at - receiving).count())
         .kv("merge_us",
             std::chrono::duration_cast<us>(std::chrono::steady_clock::now() - received_at).count())
         .kv("merged", merged ? 1 : 0);

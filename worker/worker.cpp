@@ -410,11 +410,15 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
         header->set_layer_count(uint32_t(result.layers.size()));
         header->set_vpl_candidates(result.stats.vpl_candidates);
         header->set_vpl_accepted(result.stats.vpl_accepted);
+        // One iteration: odd_sum is sum or zero, which the server derives exactly.
+        const bool omit_odd = result.count == 1;
+        header->set_odd_sum_omitted(omit_odd);
         bool ok = writer->Write(chunk);
-        // sum, odd_sum, then the layers, as one little-endian float64 sequence cut into
-        // <= 1 MiB chunks.
+        // sum, odd_sum (unless omitted), then the layers, as one little-endian float64
+        // sequence cut into <= 1 MiB chunks.
         const size_t per_chunk = kMaxChunkBytes / sizeof(double);
-        std::vector<const std::vector<double>*> buffers = {&result.sum, &result.odd_sum};
+        std::vector<const std::vector<double>*> buffers = {&result.sum};
+        if (!omit_odd) buffers.push_back(&result.odd_sum);
         for (const std::vector<double>& layer : result.layers) buffers.push_back(&layer);
         for (const std::vector<double>* buffer : buffers) {
             for (size_t at = 0; ok && at < buffer->size(); at += per_chunk) {

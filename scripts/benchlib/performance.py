@@ -632,23 +632,24 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "store rows, progress); *add* is the addition into the frame's sums alone and "
             "*checkpoint* the checkpoint file plus the store rows. "
             "`bytes` counts the report header plus the values: `sum` and `odd_sum` as float64 "
-            "RGB, 2 × 3 × 8 bytes per pixel whatever the number of iterations in the report, "
-            "so the bytes per iteration fall as leases grow (the scheduler sizes a lease to "
-            "about 3 s of a worker's measured rate).")
+            "RGB, 2 × 3 × 8 bytes per pixel whatever the number of iterations in the report "
+            "(`sum` alone for a one-iteration report), so the bytes per iteration fall as "
+            "leases grow (the scheduler sizes a lease to at least 3 s and at most 30 s of a "
+            "worker's measured rate, docs/service.md).")
         add("")
         per_report = [c for c in dist["configs"] if c["merge_us"] is not None]
         server_ms = max(((c["receive_us"] or 0) + c["merge_us"]) / 1e3 for c in per_report) \
             if per_report else None
         add("What limits it: transfer and merging cost the server "
             + (f"at most {server_ms:.0f} ms per report (median)" if server_ms else "little")
-            + ", against seconds of rendering per lease; most of the merge is the checkpoint "
-            "(the frame's full sums rewritten to disk after every report), not the addition. "
+            + ", against seconds of rendering per lease; checkpoints are written at most "
+            "every 30 s by the server's tick, not by the reports (see *Costs that grow with "
+            "the work* below). "
             "The per-job fixed costs are the asset check, each worker's scene load, a lease "
             "round trip per lease, and the first one-iteration lease of every worker (its rate "
-            "is unknown until then); the scheduler sizes later leases to about 3 s of the "
-            "worker's rate, so when an iteration takes more than 1.5 s (a slow or loaded "
-            "worker) every lease is a single iteration and the per-report costs are paid per "
-            "iteration (see *iterations / report*). At the end the job waits for the last "
+            "is unknown until then); the scheduler sizes later leases to at least 3 s of the "
+            "worker's rate (one iteration when an iteration is longer). At the end the job "
+            "waits for the last "
             "lease while the other core may idle. 2 × 1 workers render whole iterations "
             "independently, so the serial steps of a bidirectional iteration (previous "
             "sections) do not idle a core — on an idle machine that is what lets 2 × 1 beat "
@@ -657,20 +658,25 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     else:
         add("Not measured in this run.")
     add("")
+    # Measured by hand with scripts/farm-bench (its commands are in it); carry it over.
+    L.extend(hand_written_sections(path, ("### Costs that grow with the work (the render-farm "
+                                          "case)",), level="### "))
     # The "Start-up" section is measured by hand (its commands are in it); carry it over.
     L.extend(hand_written_sections(path))
     path.write_text("\n".join(L) + "\n")
 
 
-def hand_written_sections(path, titles=("## Start-up",)):
-    """The lines of the named sections of the existing document (up to the next `## `)."""
+def hand_written_sections(path, titles=("## Start-up",), level="## "):
+    """The lines of the named sections of the existing document (up to the next heading of
+    `level` or above)."""
     try:
         old = Path(path).read_text().split("\n")
     except OSError:
         return []
     kept, keep = [], False
     for line in old:
-        if line.startswith("## "):
+        if line.startswith("#") and line.split(" ")[0] in ("#" * n for n in
+                                                         range(1, len(level.strip()) + 1)):
             keep = line.strip() in titles
         if keep:
             kept.append(line)

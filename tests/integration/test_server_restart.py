@@ -2,7 +2,10 @@
 (and the same port, so that the running workers reconnect by themselves; if the port cannot be
 taken again, a new port and new workers). The job resumes and completes with the same image as
 `render` in one process. The image equality shows that no range was merged twice (a range
-merged twice would add its iterations' light twice) and none was lost."""
+merged twice would add its iterations' light twice) and none was lost. The server checkpoints
+every second (`--checkpoint-seconds 1`, default 30), so that the kill lands after some
+checkpoints, with ranges merged since the last one: those are leased again after the
+restart."""
 
 import time
 
@@ -20,7 +23,8 @@ RESOLUTION = (32, 32)
 class ServerRestart(cluster.ClusterTestCase):
     def test_sigkill_server_mid_job(self):
         P = cluster.pb()
-        c = self.new_cluster(lease_timeout=3, heartbeat=0.5)
+        c = self.new_cluster(lease_timeout=3, heartbeat=0.5,
+                             server_args=["--checkpoint-seconds", "1"])
         port = c.start_server()
         c.start_workers(2, threads=1)
         c.wait_workers_registered(2)
@@ -32,6 +36,10 @@ class ServerRestart(cluster.ClusterTestCase):
         # workers started rendering it).
         state = {}
 
+        def checkpointed():
+            with open(c.server.log_path, "rb") as f:
+                return b"event=checkpoint " in f.read()
+
         def progressed():
             j = c.api.get_job(job.id)
             st = c.api.cluster_status()
@@ -42,9 +50,9 @@ class ServerRestart(cluster.ClusterTestCase):
                 state["leased_at"] = time.monotonic()
             if j.state == P.JOB_STATE_DONE:
                 return True
-            # More than the first (calibration) iteration of each worker merged: the store
-            # holds a checkpoint, and the workers are in the middle of their next ranges.
-            if 2 < done < ITERATIONS:
+            # More than the first (calibration) iteration of each worker merged, a checkpoint
+            # written (every second), and the workers in the middle of their next ranges.
+            if 2 < done < ITERATIONS and checkpointed():
                 return True
             return "leased_at" in state and time.monotonic() - state["leased_at"] > 6
         cluster.wait_until(progressed, timeout=40, poll=0.05, what="the job to make progress")
@@ -75,6 +83,7 @@ class ServerRestart(cluster.ClusterTestCase):
             # Work merged and checkpointed before the kill may be partly lost, never more than
             # the target, and the count never exceeds what was merged.
             self.assertLessEqual(again.frames[0].iterations_done, ITERATIONS)
+            print(f"restored {again.frames[0].iterations_done} iterations from the checkpoint")
 
         done = c.api.wait_job(job.id, timeout=120, procs=[c.server])
         self.assertEqual(done.frames[0].iterations_done, ITERATIONS, str(done))

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 
+#include "core/image/exr_io.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/sha256.h"
@@ -90,7 +91,7 @@ struct ManagerTest : ::testing::Test {
         EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
     }
 
-    bool render_and_report(JobManager& m, const v1::Lease& lease) {
+    bool render_and_report(JobManager& m, const v1::Lease& lease, double render_seconds = 0.01) {
         auto scene = render::load_scene_from_string(kScene, ".");
         render::RenderSettings s;
         s.algorithm = lease.settings().algorithm();
@@ -103,7 +104,7 @@ struct ManagerTest : ::testing::Test {
         h.set_odd_count(r.odd_count);
         h.set_width(8);
         h.set_height(6);
-        h.set_render_seconds(0.01);
+        h.set_render_seconds(render_seconds);
         size_t n = 0, layers = 0;
         bool drop = false;
         EXPECT_TRUE(m.check_report(h, &n, &layers, &drop).ok());
@@ -257,6 +258,7 @@ TEST_F(ManagerTest, RendersAJobAndDropsDuplicates) {
 }
 
 TEST_F(ManagerTest, RestartResumesFromTheCheckpoint) {
+    options.checkpoint_seconds = 0;  // a checkpoint after every report
     std::string id;
     v1::Lease stale;
     {
@@ -443,4 +445,178 @@ TEST_F(ManagerTest, ValidatesEveryFrameOfAnAnimation) {
     EXPECT_EQ(tight.submit(r, &job).error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
     r.clear_frames();
     EXPECT_TRUE(tight.submit(r, &job).ok());
+}
+
+namespace {
+
+struct FakeClock {
+    TimePoint now = TimePoint{} + std::chrono::hours(1);
+    void advance(double seconds) {
+        now += std::chrono::duration_cast<SteadyClock::duration>(
+            std::chrono::duration<double>(seconds));
+    }
+};
+
+// A one-iteration lease for `worker` (the worker's rate is unknown, or 3 s per iteration).
+v1::Lease one_iteration(JobManager& m, const std::string& worker) {
+    v1::LeaseRequest lr;
+    lr.set_worker_id(worker);
+    v1::LeaseReply reply;
+    EXPECT_TRUE(m.lease(lr, &reply).ok());
+    EXPECT_TRUE(reply.granted());
+    EXPECT_EQ(reply.lease().end_iteration() - reply.lease().first_iteration(), 1u);
+    return reply.lease();
+}
+
+uint64_t iterations_done(JobManager& m, const std::string& id) {
+    v1::Job job;
+    EXPECT_TRUE(m.get(id, &job).ok());
+    return job.frames(0).iterations_done();
+}
+
+}  // namespace
+
+// Checkpoints every 10 s (of an injected clock): the store records only what the checkpoint
+// holds, so after a crash exactly the ranges merged since the last checkpoint are leased
+// again (a gap below merged ranges included), none is counted twice, and the image is
+// `render`'s.
+TEST_F(ManagerTest, RangesMergedAfterTheLastCheckpointAreLeasedAgainAfterACrash) {
+    options.checkpoint_seconds = 10;
+    FakeClock clock;
+    std::string id;
+    const fs::path ckpt_dir = dir / "checkpoints";
+    {
+        JobManager m(options, [&] { return clock.now; });
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 6), &job).ok());
+        id = job.id();
+        const v1::Lease a = one_iteration(m, "w-1");  // [1, 2)
+        const v1::Lease b = one_iteration(m, "w-2");  // [2, 3)
+        const v1::Lease c = one_iteration(m, "w-3");  // [3, 4)
+        ASSERT_EQ(b.first_iteration(), 2u);
+        ASSERT_EQ(c.first_iteration(), 3u);
+        ASSERT_TRUE(render_and_report(m, a, 3));  // the interval starts: no checkpoint yet
+        EXPECT_FALSE(fs::exists(ckpt_dir / id / "0.ckpt"));
+        clock.advance(10);
+        ASSERT_TRUE(render_and_report(m, c, 3));  // the report does not write it (a worker
+        EXPECT_FALSE(fs::exists(ckpt_dir / id / "0.ckpt"));  // waits for the reply)...
+        m.tick();  // ...the tick does, 10 s after the first merge: [1, 2) + [3, 4)
+        EXPECT_TRUE(fs::exists(ckpt_dir / id / "0.ckpt"));
+        ASSERT_TRUE(render_and_report(m, b, 3));  // [2, 3): merged, not checkpointed
+        clock.advance(9);
+        m.tick();  // 9 s since the checkpoint: not due
+        EXPECT_EQ(iterations_done(m, id), 3u);
+    }  // a crash: no checkpoint_all
+    {
+        JobManager m(options, [&] { return clock.now; });
+        EXPECT_EQ(iterations_done(m, id), 2u);  // what the checkpoint holds
+        // The lost range comes back first, then the iterations never handed out.
+        const v1::Lease again = one_iteration(m, "w-4");
+        EXPECT_EQ(again.first_iteration(), 2u);
+        const v1::Lease next = one_iteration(m, "w-5");
+        EXPECT_EQ(next.first_iteration(), 4u);
+        ASSERT_TRUE(render_and_report(m, again, 3));
+        ASSERT_TRUE(render_and_report(m, next, 3));
+        EXPECT_EQ(iterations_done(m, id), 4u);
+        clock.advance(10);
+        m.tick();  // due: [1, 5) checkpointed without a new report
+    }
+    JobManager m(options, [&] { return clock.now; });
+    EXPECT_EQ(iterations_done(m, id), 4u);
+    v1::LeaseRequest lr;
+    lr.set_worker_id("w-6");
+    v1::LeaseReply next;
+    uint64_t first = 0;
+    while (m.lease(lr, &next).ok() && next.granted()) {
+        if (first == 0) first = next.lease().first_iteration();
+        EXPECT_TRUE(render_and_report(m, next.lease(), 3));
+        next.Clear();
+    }
+    EXPECT_EQ(first, 5u);
+    v1::Job job;
+    ASSERT_TRUE(m.get(id, &job).ok());
+    ASSERT_EQ(job.state(), v1::JOB_STATE_DONE);
+    EXPECT_EQ(job.frames(0).iterations_done(), 6u);
+    // The image is the mean of iterations 1..6 exactly once each.
+    v1::FetchResultRequest fr;
+    fr.set_job_id(id);
+    fs::path file;
+    bool temporary = false;
+    ASSERT_TRUE(m.result_file(fr, &file, &temporary).ok());
+    const Image image = read_image(file);
+    auto scene = render::load_scene_from_string(kScene, ".");
+    render::RenderSettings s;
+    s.algorithm = "pt";
+    s.seed = job.settings().seed();  // as render_and_report renders
+    const Image expected = render::render_iterations(*scene, s, 0, {1, 7}).sum.average(6);
+    ASSERT_EQ(image.pixel_count(), expected.pixel_count());
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        const Rgb a = image.at(i), e = expected.at(i);
+        EXPECT_NEAR(a.r, e.r, 1e-6f * std::max(1.0f, std::abs(e.r))) << "pixel " << i;
+        EXPECT_NEAR(a.g, e.g, 1e-6f * std::max(1.0f, std::abs(e.g))) << "pixel " << i;
+        EXPECT_NEAR(a.b, e.b, 1e-6f * std::max(1.0f, std::abs(e.b))) << "pixel " << i;
+    }
+}
+
+// A server stopped with SIGTERM writes every frame's pending checkpoint: nothing merged is lost.
+TEST_F(ManagerTest, CheckpointAllSavesWhatMergedSinceTheLastCheckpoint) {
+    options.checkpoint_seconds = 30;
+    FakeClock clock;
+    std::string id;
+    {
+        JobManager m(options, [&] { return clock.now; });
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 10), &job).ok());
+        id = job.id();
+        for (int i = 0; i < 3; ++i) {
+            ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+            clock.advance(1);
+        }
+        m.tick();
+        EXPECT_FALSE(fs::exists(dir / "checkpoints" / id / "0.ckpt"));
+        m.checkpoint_all();
+    }
+    JobManager m(options, [&] { return clock.now; });
+    EXPECT_EQ(iterations_done(m, id), 3u);
+    EXPECT_EQ(one_iteration(m, "w-2").first_iteration(), 4u);
+}
+
+// A checkpoint that took 1 s (of the injected clock) puts the frame's next one 50 s later, not
+// checkpoint_seconds (10) later: checkpoints take at most 2 % of the time however large the
+// frame.
+TEST_F(ManagerTest, ASlowCheckpointSpacesTheNextOnes) {
+    options.checkpoint_seconds = 10;
+    FakeClock clock;
+    double step = 0;  // seconds the clock moves at each reading
+    auto now = [&] {
+        clock.advance(step);
+        return clock.now;
+    };
+    std::string id;
+    {
+        JobManager m(options, now);
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 10), &job).ok());
+        id = job.id();
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(10);
+        step = 1;  // the checkpoint's two readings of the clock are 1 s apart
+        m.tick();
+        step = 0;
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(40);
+        m.tick();  // 40 s < 50 s: not due
+    }
+    {
+        JobManager m(options, now);
+        EXPECT_EQ(iterations_done(m, id), 1u);
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));  // [2, 3) again
+        clock.advance(10);
+        m.tick();  // a fast checkpoint: the next is due checkpoint_seconds later
+        ASSERT_TRUE(render_and_report(m, one_iteration(m, "w-1"), 3));
+        clock.advance(10);
+        m.tick();
+    }
+    JobManager m(options, now);
+    EXPECT_EQ(iterations_done(m, id), 3u);
 }

@@ -273,3 +273,75 @@ TEST_F(SchedulerTest, PriorityChangeReordersLeases) {
     EXPECT_FALSE(scheduler.set_priority("nonsense", 5));
     EXPECT_EQ(scheduler.lease("w")->job_id, "b");
 }
+
+namespace {
+
+// The size of the worker's second lease of a fresh job after its first, one-iteration lease
+// took `iteration_seconds` (the measured rate is then exactly 1 / iteration_seconds).
+uint64_t lease_after_one_iteration(Scheduler& scheduler, const std::string& job,
+                                   double iteration_seconds, double report_cost = -1) {
+    scheduler.add_job(job, 0, 1, JobState::Queued, frames(1, 1000000));
+    if (report_cost >= 0) scheduler.note_report_cost(job, report_cost);
+    auto g = scheduler.lease("w");
+    EXPECT_TRUE(g && g->job_id == job && g->range.size() == 1u);
+    LeaseGrant out;
+    EXPECT_EQ(scheduler.begin_merge(g->lease_id, iteration_seconds, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    const uint64_t n = scheduler.lease_size("w", job);
+    scheduler.set_state(job, JobState::Cancelled);  // out of the way of the next job
+    return n;
+}
+
+}  // namespace
+
+TEST_F(SchedulerTest, LeasesLastAtLeastTheTargetAndAtMostTheLongestWhateverTheIteration) {
+    // target 3 s, longest 30 s (SchedulerOptions defaults, as the server's).
+    EXPECT_EQ(scheduler.lease_size("w", "unknown"), 1u);  // rate not measured yet
+    struct Case {
+        double iteration_seconds;
+        uint64_t expected;
+    };
+    const Case cases[] = {
+        {0.001, 3000},  // fast: grown to 3 s
+        {0.1, 30},
+        {1.0, 3},
+        {1.6, 2},   // was 1 (a lease of 1.6 s): now 3.2 s, at least the target
+        {2.9, 2},   // 5.8 s: two iterations rather than reports every 2.9 s
+        {3.0, 1},   // one iteration already lasts the target
+        {10.0, 1},  // slow: one iteration, never less
+        {29.0, 1},
+        {60.0, 1},   // longer than the longest lease: still one (heartbeats keep it alive)
+        {600.0, 1},  // ten minutes per iteration: one
+    };
+    int k = 0;
+    for (const Case& c : cases) {
+        const uint64_t n =
+            lease_after_one_iteration(scheduler, "job" + std::to_string(k++), c.iteration_seconds);
+        EXPECT_EQ(n, c.expected) << "iteration of " << c.iteration_seconds << " s";
+        const double seconds = double(n) * c.iteration_seconds;
+        // One worker reports at most every 3 s, and at least every 30 s unless one iteration
+        // alone takes longer.
+        EXPECT_GE(seconds, 3.0 - 1e-9) << c.iteration_seconds;
+        if (n > 1) EXPECT_LE(seconds, 30.0 + 1e-9) << c.iteration_seconds;
+    }
+}
+
+TEST_F(SchedulerTest, ACostlyMergeLengthensTheJobsLeasesUpToTheLongest) {
+    // Merging a report costs 0.1 s (a large frame): at most 1 % of render time, so leases
+    // of at least 10 s, i.e. 100 iterations at 10 it/s.
+    EXPECT_EQ(lease_after_one_iteration(scheduler, "big", 0.1, 0.1), 100u);
+    // A 1 s merge would ask for 100 s: capped at the longest lease, 30 s.
+    EXPECT_EQ(lease_after_one_iteration(scheduler, "huge", 0.1, 1.0), 300u);
+    // A cheap merge leaves the target of 3 s.
+    EXPECT_EQ(lease_after_one_iteration(scheduler, "small", 0.1, 0.001), 30u);
+    // The cost is a running average over the job's reports.
+    scheduler.add_job("avg", 0, 1, JobState::Queued, frames(1, 100));
+    scheduler.note_report_cost("avg", 0.2);
+    scheduler.note_report_cost("avg", 0.0);  // average 0.1 s: 10 s leases
+    auto g = scheduler.lease("w");
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(g->lease_id, 0.5, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    EXPECT_EQ(scheduler.lease_size("w", "avg"), 20u);  // 2 it/s for 10 s
+    scheduler.note_report_cost("nonsense", 1.0);       // unknown job: ignored
+}

@@ -195,3 +195,23 @@ TEST(FrameAccumulator, CheckpointRoundTrip) {
     EXPECT_THROW(FrameAccumulator::load(dir / "f.ckpt", nullptr), std::runtime_error);
     fs::remove_all(dir);
 }
+
+// A one-iteration report may leave odd_sum out: the accumulator adds `sum` to the odd sum for
+// an odd iteration and nothing for an even one, bit for bit what adding the worker's odd_sum
+// (0 + x, or zeros) would give. Several iterations must send it.
+TEST(FrameAccumulator, OneIterationReportsMayOmitTheOddSum) {
+    const std::vector<double> odd_image = {0.1, 1e-300, 3.25, 7e10, 0.0, 1.0 / 3.0};
+    const std::vector<double> even_image = {0.7, 2.0, 1e-5, 0.2, 5.0, 2.0 / 3.0};
+    const std::vector<double> zeros(6, 0.0);
+    FrameAccumulator sent(2, 1), derived(2, 1);
+    sent.add({1, 2}, odd_image, odd_image, {}, 1, {});
+    sent.add({2, 3}, even_image, zeros, {}, 0, {});
+    derived.add({1, 2}, odd_image, {}, {}, 1, {});
+    derived.add({2, 3}, even_image, {}, {}, 0, {});
+    EXPECT_EQ(derived.result().sum.values(), sent.result().sum.values());
+    EXPECT_EQ(derived.result().odd_sum.values(), sent.result().odd_sum.values());
+    EXPECT_EQ(derived.result().odd_sum.values()[2], 3.25);
+    EXPECT_EQ(derived.result().odd_count, 1u);
+    EXPECT_EQ(derived.relative_error(), sent.relative_error());
+    EXPECT_THROW(derived.add({3, 5}, odd_image, {}, {}, 1, {}), std::invalid_argument);
+}
