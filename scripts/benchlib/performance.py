@@ -661,8 +661,9 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     # Measured by hand with scripts/farm-bench (its commands are in it); carry it over.
     L.extend(hand_written_sections(path, ("### Costs that grow with the work (the render-farm "
                                           "case)",), level="### "))
-    # The "Start-up" section is measured by hand (its commands are in it); carry it over.
-    L.extend(hand_written_sections(path))
+    # The "Start-up" and "Per-iteration allocations" sections are measured by hand (their
+    # commands are in them); carry them over.
+    L.extend(hand_written_sections(path, ("## Start-up", "## Per-iteration allocations (issue 16)")))
     path.write_text("\n".join(L) + "\n")
 
 
