@@ -101,6 +101,31 @@ def measure_arm(binary, scene, algo, flags, resolution, threads, workdir, cfg):
             "mean": float(np.mean(run_means)), "command": commands[-1]}
 
 
+def plot(path: Path, table):
+    """Equal-time RMSE relative to the best arm, per scene (grouped bars)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(table)
+    arms = list(ARMS)
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    width = 0.8 / len(arms)
+    for k, arm in enumerate(arms):
+        ax.bar([i + (k - (len(arms) - 1) / 2) * width for i in range(len(scenes))],
+               [table[sc][arm] for sc in scenes], width, label=arm)
+    ax.axhline(1.0, color="black", linewidth=0.6)
+    ax.set_xticks(range(len(scenes)), scenes)
+    ax.set_ylabel("equal-time RMSE / best arm")
+    ax.set_ylim(bottom=0.8)
+    ax.legend(fontsize=8, ncol=2)
+    ax.set_title("bpt, vcm, upbp over a density sweep (lower is better)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     binary = common.render_binary(build_dir)
     workdir = Path(tempfile.mkdtemp(prefix="bench-upbp-"))
@@ -122,6 +147,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
              f"`{' '.join(RADIUS)}` (surfaces, photon points and query beams alike, alpha "
              "0.75).", ""]
     verdicts = []
+    relative = {}
     for title, (scene, defines) in SCENES.items():
         resolution = common.resolution_for_width(scene, cfg["width"])
         arms = {}
@@ -146,13 +172,15 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
             lines.append(f"| {arm} | {m['mean']:.4g} | {diff} | {m['v']:.4g} ± {m['v_se']:.2g} | "
                          f"{m['t']:.4f} | {score[arm]:.4g} | "
                          f"{math.sqrt(score[arm] / best):.2f} |")
+        relative[title] = {a: math.sqrt(score[a] / best) for a in score}
         worst = max(score, key=score.get)
         winner = min(score, key=score.get)
         ratio = math.sqrt(score["upbp: all"] / best)
         verdicts.append((title, winner, worst, ratio))
         lines += ["", f"Best: {winner}; worst: {worst}; upbp (all) has {ratio:.2f}× the best "
                   "arm's equal-time RMSE.", ""]
-    lines += ["## The claim", ""]
+    plot(docs_dir / "img" / "upbp" / "density-sweep.png", relative)
+    lines += ["## The claim", "", "![equal-time RMSE per arm](img/upbp/density-sweep.png)", ""]
     held = all(worst != "upbp: all" and ratio <= CLAIM_FACTOR for _, _, worst, ratio in verdicts)
     for title, winner, worst, ratio in verdicts:
         lines.append(f"- {title}: best {winner}, worst {worst}; upbp (all) {ratio:.2f}× the "
