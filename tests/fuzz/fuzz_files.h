@@ -41,10 +41,19 @@ inline bool safe_fuzz_name(std::string_view name) {
     return true;
 }
 
-// The folder the inputs are written to: one per process, below the system's temp folder.
+// The folder the inputs are written to: one per process, below the system's temp folder,
+// removed when the process exits normally (libFuzzer's -max_total_time, the replay's end).
+inline std::filesystem::path process_fuzz_folder() {
+    return std::filesystem::temp_directory_path() / ("render_fuzz_" + std::to_string(::getpid()));
+}
 inline const std::filesystem::path& fuzz_folder() {
-    static const std::filesystem::path folder =
-        std::filesystem::temp_directory_path() / ("render_fuzz_" + std::to_string(::getpid()));
+    static const std::filesystem::path folder = [] {
+        std::atexit([] {
+            std::error_code ec;
+            std::filesystem::remove_all(process_fuzz_folder(), ec);
+        });
+        return process_fuzz_folder();
+    }();
     return folder;
 }
 
