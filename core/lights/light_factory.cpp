@@ -5,6 +5,7 @@
 
 #include "core/base/error.h"
 #include "core/base/plugin_table.h"
+#include "core/base/scene_limits.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"
 #include "core/lights/directional_light.h"
@@ -36,7 +37,9 @@ std::unique_ptr<Light> make_point(const Properties& props) {
     Vec3 position = props.has("position")
                         ? props.get_vec3("position")
                         : props.get_transform("to_world", Transform()).apply_point(Vec3(0.0f));
-    if (!is_finite(position)) throw props.error("position", "must be finite");
+    if (!within_scene_limits(position))
+        throw props.error(props.has("position") ? "position" : "to_world",
+                          "the position must be finite and within 1e12 of the origin");
     return std::make_unique<PointLight>(position, get_emission(props, "intensity", Rgb(1.0f)));
 }
 
@@ -49,7 +52,8 @@ std::unique_ptr<Light> make_spot(const Properties& props) {
                           "a spot light's to_world must be a rotation and translation (e.g. "
                           "<lookat>), optionally uniformly scaled");
     const Vec3 position = to_world.apply_point(Vec3(0.0f));
-    if (!is_finite(position)) throw props.error("to_world", "the position must be finite");
+    if (!within_scene_limits(position))
+        throw props.error("to_world", "the position must be finite and within 1e12 of the origin");
     const float cutoff = props.get_float("cutoff_angle", 20.0f);
     if (!(cutoff > 0 && cutoff <= 180))
         throw props.error("cutoff_angle", "must be in (0, 180] degrees");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/base/interaction.h"
+#include "core/base/scene_limits.h"
 #include "core/base/shape.h"
 #include "core/camera/perspective_camera.h"
 #include "core/lights/light.h"
@@ -23,12 +24,8 @@ namespace render {
 
 class Medium;
 
-// Geometry our float arithmetic and Embree can handle: finite bounds within
-// kMaxSceneCoordinate of the origin and a finite area. A transform such as a scale of 1e30
-// would otherwise overflow ray offsets and light densities into non-finite rays, which Embree
-// asserts on (the process aborts: a worker would die on the scene, again and again). The
-// loaders refuse other shapes at their line.
-inline constexpr float kMaxSceneCoordinate = 1e12f;
+// Geometry within the scene's limits (core/base/scene_limits.h): finite bounds within
+// kMaxSceneCoordinate of the origin and a finite area.
 bool within_scene_limits(const Shape& shape);
 
 // Settings a scene file carries (integrator, sampler, film). Command-line options override them.

@@ -834,5 +834,31 @@ TEST(ShippedScenes, SmallVcmCornellGeometry) {
     }
 }
 
+// Fuzzing finding (tests/fuzz/corpus/mitsuba_xml/finding-*): a camera or a point or spot light
+// placed beyond the scene's limits (1e12) loaded, and the first ray from it aborted Embree
+// (`ray.valid()`) in the worker. Refused at their line instead; 1e12 itself is accepted.
+TEST_F(ParserTest, CameraAndLightsBeyondTheSceneLimitsAreRefused) {
+    const std::string film =
+        "<film type=\"hdrfilm\"><integer name=\"width\" value=\"8\"/>"
+        "<integer name=\"height\" value=\"8\"/></film>";
+    auto sensor_at = [&](const std::string& x) {
+        return "<scene version=\"3.0.0\"><sensor type=\"perspective\">"
+               "<transform name=\"to_world\"><translate x=\"" +
+               x + "\"/></transform>" + film + "</sensor><shape type=\"sphere\"/></scene>";
+    };
+    EXPECT_CONTAINS(error(sensor_at("3e38")), "places the camera beyond 1e12");
+    EXPECT_CONTAINS(error(sensor_at("-2e12")), "to_world");
+    EXPECT_NE(load(sensor_at("1e12")), nullptr);
+
+    const std::string point = with_camera(
+        "<shape type=\"sphere\"/><emitter type=\"point\">"
+        "<point name=\"position\" value=\"3e38, 0, 0\"/></emitter>\n");
+    EXPECT_CONTAINS(error(point), "parameter \"position\"");
+    EXPECT_CONTAINS(error(point), "within 1e12 of the origin");
+    EXPECT_CONTAINS(error(with_camera("<emitter type=\"spot\"><transform name=\"to_world\">"
+                                      "<translate y=\"1e20\"/></transform></emitter>\n")),
+                    "within 1e12 of the origin");
+}
+
 }  // namespace
 }  // namespace render

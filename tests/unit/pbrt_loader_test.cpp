@@ -794,5 +794,20 @@ TEST_F(PbrtTest, Textures) {
               std::string::npos);
 }
 
+// Fuzzing finding (tests/fuzz/corpus/pbrt/finding-camera-far.pbrt): a camera beyond the
+// scene's limits (1e12) loaded, and its first ray aborted Embree (`ray.valid()`). Refused at
+// the Camera's line; so is a point light there (the light factory the Mitsuba loader shares).
+TEST_F(PbrtTest, CameraAndLightsBeyondTheSceneLimitsAreRefused) {
+    const std::string far_camera =
+        "LookAt 3e38 0 0  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+        "Shape \"sphere\"\n";
+    const std::string message = error_of(far_camera);
+    EXPECT_NE(message.find("scene.pbrt:2: the camera lies beyond 1e12"), std::string::npos)
+        << message;
+    EXPECT_NE(world_error("LightSource \"point\" \"point3 from\" [0 0 1e30]\n")
+                  .find("within 1e12 of the origin"),
+              std::string::npos);
+}
+
 }  // namespace
 }  // namespace render

@@ -429,7 +429,10 @@ class Loader {
                 throw props.error("far_clip", "must be larger than near_clip");
             Transform to_world = props.get_transform("to_world", Transform());
             if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
-            return PerspectiveCamera(to_world, fov, fov_axis, width, height);
+            PerspectiveCamera camera(to_world, fov, fov_axis, width, height);
+            if (!within_scene_limits(camera.position()))
+                throw props.error("to_world", "places the camera beyond 1e12 from the origin");
+            return camera;
         });
         scene_.set_camera(camera);
         scene_.set_camera_medium(camera_medium);

@@ -450,7 +450,10 @@ class Loader {
             throw SceneError(p.where, "the camera transform is singular");
         // pbrt: fov spans the shorter image axis.
         const char axis = width_ > height_ ? 'y' : 'x';
-        scene_.set_camera(PerspectiveCamera(to_world, float(fov), axis, width_, height_));
+        const PerspectiveCamera camera(to_world, float(fov), axis, width_, height_);
+        if (!within_scene_limits(camera.position()))
+            throw SceneError(p.where, "the camera lies beyond 1e12 from the origin");
+        scene_.set_camera(camera);
     }
 
     // ----- world block -----
