@@ -322,7 +322,9 @@ TEST_F(SchedulerTest, LeasesLastAtLeastTheTargetAndAtMostTheLongestWhateverTheIt
         // One worker reports at most every 3 s, and at least every 30 s unless one iteration
         // alone takes longer.
         EXPECT_GE(seconds, 3.0 - 1e-9) << c.iteration_seconds;
-        if (n > 1) EXPECT_LE(seconds, 30.0 + 1e-9) << c.iteration_seconds;
+        if (n > 1) {
+            EXPECT_LE(seconds, 30.0 + 1e-9) << c.iteration_seconds;
+        }
     }
 }
 
