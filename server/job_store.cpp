@@ -216,10 +216,7 @@ void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
-        Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
-        d.text(1, job_id).bind(2, int64_t(frame));
-        d.run();
-        for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
+        replace_merged_ranges(job_id, frame, ranges);
         exec("COMMIT");
     } catch (...) {
         exec("ROLLBACK");
@@ -227,15 +224,20 @@ void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
     }
 }
 
+void JobStore::replace_merged_ranges(const std::string& job_id, uint32_t frame,
+                                     const std::vector<Range>& ranges) {
+    Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
+    d.text(1, job_id).bind(2, int64_t(frame));
+    d.run();
+    for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
+}
+
 void JobStore::save_frame(const std::string& job_id, uint32_t frame,
                           const std::vector<Range>& ranges, bool done, double elapsed) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
-        Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
-        d.text(1, job_id).bind(2, int64_t(frame));
-        d.run();
-        for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
+        replace_merged_ranges(job_id, frame, ranges);
         Statement u(db_,
                     "UPDATE frames SET done = ?3, elapsed = ?4 WHERE job_id = ?1 AND idx = ?2");
         u.text(1, job_id).bind(2, int64_t(frame)).bind(3, int64_t(done ? 1 : 0)).bind(4, elapsed);

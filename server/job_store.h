@@ -71,6 +71,9 @@ class JobStore {
     void exec(const char* sql);
     // Records one merged range; the caller holds mu_.
     void insert_merged_range(const std::string& job_id, uint32_t frame, Range range);
+    // A frame's merged ranges replaced by `ranges`, inside the caller's transaction.
+    void replace_merged_ranges(const std::string& job_id, uint32_t frame,
+                               const std::vector<Range>& ranges);
     sqlite3* db_ = nullptr;
     std::mutex mu_;
 };
