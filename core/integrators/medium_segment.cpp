@@ -8,15 +8,14 @@
 
 namespace render {
 void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, float length) {
-    const float pass = medium ? medium->probability_pass(ray, length) : 1.0f;
-    const float scatter = medium ? medium->pdf_scatter_l(ray, length) : 0.0f;
+    // Sampling the start from the far end (first piece, starting at a medium vertex): in a
+    // heterogeneous medium that density has sigma_t at the start, not at the end.
+    const bool at_start = pieces_ == 0 && start_in_medium_;
+    const Medium::PieceDensities d =
+        medium ? medium->piece_densities(ray, length, at_start) : Medium::PieceDensities{};
+    const float pass = d.pass, scatter = d.scatter_at_end;
     if (pieces_ == 0) {
-        // Sampling the start from the far end: in a heterogeneous medium the density there has
-        // sigma_t at the start, not at the end (the same optical depth, the reversed ray).
-        float scatter_at_start = scatter;
-        if (start_in_medium_ && medium && std::isfinite(length))
-            scatter_at_start = medium->pdf_scatter_l(Ray(ray.at(length), -ray.direction), length);
-        first_start_factor_ = start_in_medium_ ? scatter_at_start : pass;
+        first_start_factor_ = start_in_medium_ ? d.scatter_at_start : pass;
     } else {
         pass_before_last_ *= last_pass_;
         pass_after_first_ *= pass;

@@ -10,8 +10,7 @@ double min_merge_radius() {
 }
 
 double merge_radius(double r1, double alpha, uint64_t iteration) {
-    double i = double(std::max<uint64_t>(iteration, 1));
-    return std::max(r1 * std::pow(i, 0.5 * (alpha - 1.0)), min_merge_radius());
+    return merge_radius_in(r1, alpha, iteration, 2);
 }
 
 double merge_radius_in(double r1, double alpha, uint64_t iteration, int dimension) {

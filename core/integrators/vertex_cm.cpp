@@ -227,12 +227,13 @@ class Iteration {
                   ? merge_radius_in(config.volume_radius_factor * scene.bounding_sphere().radius,
                                     config.volume_alpha, key.iteration, 3)
                   : radius_),
+          // Without a volume schedule of their own, query beams share the surfaces' radius
+          // (a disc, like a surface merge: the same dimension).
           beam_radius_(
-              merge_radius_in((config.volume_radius_factor > 0 ? config.volume_radius_factor
-                                                               : config.radius_factor) *
-                                  scene.bounding_sphere().radius,
-                              config.volume_radius_factor > 0 ? config.volume_alpha : config.alpha,
-                              key.iteration, 2)),
+              config.volume_radius_factor > 0
+                  ? merge_radius_in(config.volume_radius_factor * scene.bounding_sphere().radius,
+                                    config.volume_alpha, key.iteration, 2)
+                  : radius_),
           // The report's eta_VCM = pi r^2 N_light: the ratio of merging to connection
           // densities of the same path.
           eta_vcm_(kPi * radius_ * radius_ * double(light_path_count_)),
@@ -1199,6 +1200,9 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
         const bool hit = scene_.intersect(piece, si);
         const float t_end = hit ? si.t : kInfinity;
         if (medium) {
+            // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
+            // medium, whose look-ups are skipped.
+            const bool homogeneous = medium->is_homogeneous();
             Ray query = piece;
             query.t_max = t_end;
             lookup.for_each_near(query, [&](uint32_t i, float t, float) {
@@ -1220,12 +1224,15 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                     {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
                 // sigma_s at x scatters the eye's light; the photon's throughput carries its
                 // own vertex's sigma_s (its distance sampling), divided out.
-                const Rgb sigma_query = medium->sigma_s(x);
-                const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
                 Rgb photon = lv.throughput;
-                for (int c = 0; c < 3; ++c)
-                    photon[c] =
-                        sigma_photon[c] > 0 ? photon[c] * sigma_query[c] / sigma_photon[c] : 0.0f;
+                if (!homogeneous) {
+                    const Rgb sigma_query = medium->sigma_s(x);
+                    const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
+                    for (int c = 0; c < 3; ++c)
+                        photon[c] = sigma_photon[c] > 0
+                                        ? photon[c] * sigma_query[c] / sigma_photon[c]
+                                        : 0.0f;
+                }
                 const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
                 sum += tr * photon * (p * weight);
             });

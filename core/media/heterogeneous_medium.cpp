@@ -140,6 +140,21 @@ float HeterogeneousMedium::pdf_scatter_l(const Ray& ray, float t) const {
     return pdf.average();
 }
 
+Medium::PieceDensities HeterogeneousMedium::piece_densities(const Ray& ray, float t,
+                                                            bool at_start) const {
+    const Rgb tau = optical_depth(ray, t);
+    const Rgb pass(std::exp(-tau.r), std::exp(-tau.g), std::exp(-tau.b));
+    auto scatter_at = [&](const Vec3& p) {
+        const Rgb st = sigma_t(p);
+        Rgb pdf;
+        for (int c = 0; c < 3; ++c) pdf[c] = st[c] > 0 ? st[c] * pass[c] : 0.0f;
+        return pdf.average();
+    };
+    PieceDensities d{pass.average(), scatter_at(ray.at(t)), 0.0f};
+    if (at_start) d.scatter_at_start = std::isfinite(t) ? scatter_at(ray.origin) : d.scatter_at_end;
+    return d;
+}
+
 float HeterogeneousMedium::probability_pass(const Ray& ray, float t) const {
     const Rgb tau = optical_depth(ray, t);
     return Rgb(std::exp(-tau.r), std::exp(-tau.g), std::exp(-tau.b)).average();

@@ -65,6 +65,8 @@ class HeterogeneousMedium final : public Medium {
     // probability_pass = avg(exp(-tau(t))). Exact for constant volumes.
     float pdf_scatter_l(const Ray& ray, float t) const override;
     float probability_pass(const Ray& ray, float t) const override;
+    // One optical-depth estimate for all three densities.
+    PieceDensities piece_densities(const Ray& ray, float t, bool at_start) const override;
 
     Rgb sigma_s(const Vec3& p) const override;
     Rgb sigma_t(const Vec3& p) const override { return sigma_t_->eval(p) * scale_; }

@@ -13,6 +13,7 @@
 // the channel uniformly, not by throughput, keeps the density a property of the segment alone,
 // which is what bidirectional MIS needs (the density is the same from either end).
 
+#include <cmath>
 #include <string>
 
 #include "core/math/ray.h"
@@ -56,6 +57,22 @@ class Medium {
     // to one, so MIS stays unbiased; only its variance reduction is approximate).
     virtual float pdf_scatter_l(const Ray& ray, float t) const = 0;
     virtual float probability_pass(const Ray& ray, float t) const = 0;
+
+    // The densities of one piece of length t along `ray` that bidirectional MIS needs
+    // (medium_segment.h): passing it, a scattering event at its end and, when `at_start`, a
+    // scattering event at its start sampled from the far end (sigma_t at the start, the same
+    // optical depth; 0 when not asked for). The default calls the two functions above;
+    // heterogeneous media override it to estimate the optical depth once.
+    struct PieceDensities {
+        float pass = 1, scatter_at_end = 0, scatter_at_start = 0;
+    };
+    virtual PieceDensities piece_densities(const Ray& ray, float t, bool at_start) const {
+        PieceDensities d{probability_pass(ray, t), pdf_scatter_l(ray, t), 0.0f};
+        if (at_start)
+            d.scatter_at_start = std::isfinite(t) ? pdf_scatter_l(Ray(ray.at(t), -ray.direction), t)
+                                                  : d.scatter_at_end;
+        return d;
+    }
 
     // Local coefficients, per unit length.
     virtual Rgb sigma_s(const Vec3& p) const = 0;
