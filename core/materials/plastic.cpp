@@ -17,14 +17,24 @@ PlasticBsdf::PlasticBsdf(const Rgb& diffuse_reflectance, const Rgb& specular_ref
       eta_(eta),
       nonlinear_(nonlinear) {
     // Light inside the coating meets the interface from the dense side: relative IOR 1/eta.
-    const float internal_reflectance = fresnel_diffuse_reflectance(1.0f / eta_);
+    const PlasticBase base =
+        plastic_base(diffuse_reflectance_, specular_reflectance_,
+                     fresnel_diffuse_reflectance(1.0f / eta_), eta_, nonlinear_);
+    diffuse_scaled_ = base.diffuse_scaled;
+    specular_sampling_weight_ = base.specular_sampling_weight;
+}
+
+PlasticBase plastic_base(const Rgb& diffuse_reflectance, const Rgb& specular_reflectance,
+                         float internal_reflectance, float eta, bool nonlinear) {
+    PlasticBase base;
     for (int c = 0; c < 3; ++c) {
-        const float kd = diffuse_reflectance_[c];
-        const float escape = 1.0f - (nonlinear_ ? kd * internal_reflectance : internal_reflectance);
-        diffuse_scaled_[c] = escape > 0 ? kd / escape * kInvPi / (eta_ * eta_) : 0.0f;
+        const float kd = diffuse_reflectance[c];
+        const float escape = 1.0f - (nonlinear ? kd * internal_reflectance : internal_reflectance);
+        base.diffuse_scaled[c] = escape > 0 ? kd / escape * kInvPi / (eta * eta) : 0.0f;
     }
-    const float d = diffuse_reflectance_.average(), s = specular_reflectance_.average();
-    specular_sampling_weight_ = d + s > 0 ? s / (d + s) : 0.5f;
+    const float d = diffuse_reflectance.average(), s = specular_reflectance.average();
+    base.specular_sampling_weight = d + s > 0 ? s / (d + s) : 0.5f;
+    return base;
 }
 
 std::shared_ptr<const Bsdf> PlasticBsdf::create(const Properties& props) {

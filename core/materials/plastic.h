@@ -14,6 +14,18 @@
 
 namespace render {
 
+// The diffuse base of a plastic under a coating of relative IOR eta whose reflectance for light
+// inside it is internal_reflectance (smooth: Fdr(1/eta); rough: Ri of the microfacet interface):
+// kd / (1 - Ri) (or kd / (1 - kd Ri) when nonlinear), divided by pi eta^2, and the probability
+// with which sampling picks the coating, mean(ks) / (mean(kd) + mean(ks)). PlasticBsdf and
+// RoughPlasticBsdf share it.
+struct PlasticBase {
+    Rgb diffuse_scaled;
+    float specular_sampling_weight;
+};
+PlasticBase plastic_base(const Rgb& diffuse_reflectance, const Rgb& specular_reflectance,
+                         float internal_reflectance, float eta, bool nonlinear);
+
 class PlasticBsdf final : public Bsdf {
   public:
     // eta = n_inside / n_outside of the coating.

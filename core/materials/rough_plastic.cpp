@@ -10,6 +10,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/plastic.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
@@ -155,14 +156,11 @@ RoughPlasticBsdf::RoughPlasticBsdf(std::shared_ptr<const RoughCoating> coating,
       diffuse_reflectance_(diffuse_reflectance),
       specular_reflectance_(specular_reflectance),
       nonlinear_(nonlinear) {
-    const float ri = coating_->internal_reflectance(), eta = coating_->eta();
-    for (int c = 0; c < 3; ++c) {
-        const float kd = diffuse_reflectance_[c];
-        const float escape = 1.0f - (nonlinear_ ? kd * ri : ri);
-        diffuse_scaled_[c] = escape > 0 ? kd / escape * kInvPi / (eta * eta) : 0.0f;
-    }
-    const float d = diffuse_reflectance_.average(), s = specular_reflectance_.average();
-    specular_sampling_weight_ = d + s > 0 ? s / (d + s) : 0.5f;
+    const PlasticBase base =
+        plastic_base(diffuse_reflectance_, specular_reflectance_, coating_->internal_reflectance(),
+                     coating_->eta(), nonlinear_);
+    diffuse_scaled_ = base.diffuse_scaled;
+    specular_sampling_weight_ = base.specular_sampling_weight;
 }
 
 std::shared_ptr<const Bsdf> RoughPlasticBsdf::create(const Properties& props) {
