@@ -595,33 +595,40 @@ void JobManager::register_worker(const v1::RegisterWorkerRequest& request,
 Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply) {
     if (!is_safe_id(request.worker_id()))
         return invalid("worker_id is empty or malformed; call RegisterWorker first");
-    std::lock_guard lock(mu_);
-    touch_worker(request.worker_id());
-    std::optional<LeaseGrant> grant = scheduler_.lease(request.worker_id());
-    if (!grant) {
-        reply->set_granted(false);
-        return Status::OK;
+    std::optional<LeaseGrant> grant;
+    {
+        std::lock_guard lock(mu_);
+        touch_worker(request.worker_id());
+        grant = scheduler_.lease(request.worker_id());
+        if (!grant) {
+            reply->set_granted(false);
+            return Status::OK;
+        }
+        auto job = find(grant->job_id);
+        if (job && job->row.state == int(JobState::Queued)) {
+            job->row.state = int(JobState::Running);
+            store_or_log("job", job->row.id,
+                         [&] { store_.update_job_state(job->row.id, int(JobState::Running), ""); });
+        }
+        reply->set_granted(true);
+        v1::Lease* l = reply->mutable_lease();
+        l->set_lease_id(grant->lease_id);
+        l->set_job_id(grant->job_id);
+        l->set_frame(grant->frame);
+        l->set_first_iteration(grant->range.first);
+        l->set_end_iteration(grant->range.end);
+        l->set_expires_in_seconds(options_.lease_timeout_seconds);
+        if (job) {
+            *l->mutable_settings() = job->request.settings();
+            for (const auto& [k, v] : frame_defines(job->request, grant->frame))
+                (*l->mutable_settings()->mutable_defines())[k] = v;
+            *l->mutable_bundle() = job->request.bundle();
+        }
     }
-    auto job = find(grant->job_id);
-    if (job && job->row.state == int(JobState::Queued)) {
-        job->row.state = int(JobState::Running);
-        store_or_log("job", job->row.id,
-                     [&] { store_.update_job_state(job->row.id, int(JobState::Running), ""); });
-    }
-    reply->set_granted(true);
-    v1::Lease* l = reply->mutable_lease();
-    l->set_lease_id(grant->lease_id);
-    l->set_job_id(grant->job_id);
-    l->set_frame(grant->frame);
-    l->set_first_iteration(grant->range.first);
-    l->set_end_iteration(grant->range.end);
-    l->set_expires_in_seconds(options_.lease_timeout_seconds);
-    if (job) {
-        *l->mutable_settings() = job->request.settings();
-        for (const auto& [k, v] : frame_defines(job->request, grant->frame))
-            (*l->mutable_settings()->mutable_defines())[k] = v;
-        *l->mutable_bundle() = job->request.bundle();
-    }
+    // The lease's row and log line are written after mu_ is released: every other call of
+    // every worker waits for mu_ (farm_sim, docs/service.md). The row is written before the
+    // worker has its lease (the reply is sent when this returns), so its report's delete
+    // comes after it.
     store_or_log("lease", grant->lease_id, [&] {
         store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
                             grant->range);
@@ -760,8 +767,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         std::lock_guard lock(mu_);
         decision = scheduler_.begin_merge(header.lease_id(), header.render_seconds(), &grant);
         if (decision == MergeDecision::Accept) job = find(grant.job_id);
-        store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
     }
+    store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
     if (decision != MergeDecision::Accept || !job) {
         metrics_.report_dropped(decision == MergeDecision::Accept ? "job_inactive"
                                                                   : to_string(decision));

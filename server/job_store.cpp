@@ -8,14 +8,27 @@ namespace render::server {
 
 namespace {
 
-// A prepared statement that finalizes itself.
+sqlite3_stmt* prepare(sqlite3* db, const char* sql) {
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr) != SQLITE_OK)
+        throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db));
+    return stmt;
+}
+
+// A prepared statement that finalizes itself, or one prepared once and kept by the store
+// (`reused`: reset and unbound when done, for the statements run at every Lease and Report).
 class Statement {
   public:
-    Statement(sqlite3* db, const char* sql) : db_(db) {
-        if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK)
-            throw std::runtime_error(std::string("sqlite prepare: ") + sqlite3_errmsg(db));
+    Statement(sqlite3* db, const char* sql) : db_(db), stmt_(prepare(db, sql)) {}
+    Statement(sqlite3* db, sqlite3_stmt* reused) : db_(db), stmt_(reused), owned_(false) {}
+    ~Statement() {
+        if (owned_) {
+            sqlite3_finalize(stmt_);
+        } else {
+            sqlite3_reset(stmt_);
+            sqlite3_clear_bindings(stmt_);
+        }
     }
-    ~Statement() { sqlite3_finalize(stmt_); }
     Statement(const Statement&) = delete;
     Statement& operator=(const Statement&) = delete;
 
@@ -61,6 +74,7 @@ class Statement {
     }
     sqlite3* db_;
     sqlite3_stmt* stmt_ = nullptr;
+    bool owned_ = true;
 };
 
 }  // namespace
@@ -91,9 +105,16 @@ JobStore::JobStore(const std::filesystem::path& database) {
     exec(R"(CREATE TABLE IF NOT EXISTS leases (
         lease_id TEXT PRIMARY KEY, worker_id TEXT, job_id TEXT, frame INTEGER,
         first INTEGER, end_ INTEGER, issued_ms INTEGER DEFAULT (strftime('%s','now') * 1000)))");
+    insert_lease_ =
+        prepare(db_,
+                "INSERT OR REPLACE INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    delete_lease_ = prepare(db_, "DELETE FROM leases WHERE lease_id = ?1");
 }
 
 JobStore::~JobStore() {
+    sqlite3_finalize(insert_lease_);
+    sqlite3_finalize(delete_lease_);
     sqlite3_close(db_);
 }
 
@@ -272,9 +293,7 @@ void JobStore::add_asset(const std::string& sha256, uint64_t size) {
 void JobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
                             const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
-    Statement s(db_,
-                "INSERT OR REPLACE INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
-                "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    Statement s(db_, insert_lease_);
     s.text(1, lease_id)
         .text(2, worker_id)
         .text(3, job_id)
@@ -286,7 +305,7 @@ void JobStore::insert_lease(const std::string& lease_id, const std::string& work
 
 void JobStore::delete_lease(const std::string& lease_id) {
     std::lock_guard lock(mu_);
-    Statement s(db_, "DELETE FROM leases WHERE lease_id = ?1");
+    Statement s(db_, delete_lease_);
     s.text(1, lease_id);
     s.run();
 }

@@ -13,6 +13,7 @@
 #include "server/interval_set.h"
 
 struct sqlite3;
+struct sqlite3_stmt;
 
 namespace render::server {
 
@@ -75,6 +76,9 @@ class JobStore {
     void replace_merged_ranges(const std::string& job_id, uint32_t frame,
                                const std::vector<Range>& ranges);
     sqlite3* db_ = nullptr;
+    // Prepared once: a lease row is written at every Lease and deleted at every Report.
+    sqlite3_stmt* insert_lease_ = nullptr;
+    sqlite3_stmt* delete_lease_ = nullptr;
     std::mutex mu_;
 };
 

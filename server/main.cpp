@@ -249,6 +249,11 @@ int main(int argc, char** argv) {
     builder.AddListeningPort(options.listen, credentials, &port);
     builder.RegisterService(&job_service);
     builder.RegisterService(&worker_service);
+    // gRPC's synchronous server keeps at most MAX_POLLERS idle threads (default 2) and makes
+    // and ends threads as calls come and go; with hundreds of workers that churn cost ~10 % of
+    // the server's CPU per lease (farm_sim, docs/service.md "How many workers one server
+    // carries"). Eight idle threads cost nothing and keep them.
+    builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 8);
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) {
         std::cerr << "server: cannot listen on " << options.listen

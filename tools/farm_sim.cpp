@@ -18,6 +18,7 @@
 //   farm_sim --server 127.0.0.1:PORT --workers 200 --seconds 30 --warmup 10 --server-pid PID
 //   farm_sim --server 127.0.0.1:PORT --workers 4 --jobs 2 --iterations 300 --until-done
 //
+// With --jobs 0 the workers find nothing to do and poll as idle workers do (every 0.3 s).
 // With --until-done the jobs have --iterations each and the run ends when every job is DONE
 // (or after --seconds, a failure); every --duplicate-every'th report is then sent a second
 // time, which the server must drop (merged=false).
@@ -118,8 +119,9 @@ Options parse(int argc, char** argv) {
         }
     }
     if (o.workers < 1 || o.workers > 10000) usage("--workers must be in [1, 10000]");
-    if (o.jobs < 1 || o.width < 1 || o.height < 1 || !(o.iteration_ms >= 0))
-        usage("--jobs, --resolution and --iteration-ms must be positive");
+    if (o.jobs < 0 || o.width < 1 || o.height < 1 || !(o.iteration_ms >= 0))
+        usage("--resolution and --iteration-ms must be positive, --jobs at least 0");
+    if (o.until_done && o.jobs < 1) usage("--until-done needs --jobs of at least 1");
     if (o.until_done && o.iterations == 0) usage("--until-done needs --iterations");
     return o;
 }
@@ -268,7 +270,7 @@ class Farm {
     std::atomic<bool> measuring_{false};
     std::mutex stop_mu_;
     std::condition_variable stop_cv_;
-    Latencies lease_latency_, report_latency_, heartbeat_latency_;
+    Latencies lease_latency_, empty_lease_latency_, report_latency_, heartbeat_latency_;
     std::atomic<uint64_t> leases_{0}, leases_empty_{0}, reports_{0}, reports_merged_{0},
         heartbeats_{0}, cancelled_{0}, abandoned_{0};
     // Over the whole run (--until-done checks): leases granted, first reports merged,
@@ -412,7 +414,10 @@ void Farm::worker(int index) {
             continue;
         }
         if (!reply.granted()) {
-            if (measuring_) ++leases_empty_;
+            if (measuring_) {
+                empty_lease_latency_.add(latency);
+                ++leases_empty_;
+            }
             sleep_until(Clock::now() + std::chrono::milliseconds(300));  // as the worker naps
             continue;
         }
@@ -532,10 +537,18 @@ std::string Farm::json(double window, const ProcSample& s0, const ProcSample& s1
           << ", \"max\": " << number(l.percentile(1.0) * 1e3) << "},\n";
     };
     lat("lease", lease_latency_);
+    lat("empty_lease", empty_lease_latency_);
     lat("report", report_latency_);
     lat("heartbeat", heartbeat_latency_);
     j << "  \"server_cpu_percent\": "
       << number(window > 0 && o_.server_pid ? 100 * (s1.cpu_seconds - s0.cpu_seconds) / window : 0)
+      << ",\n";
+    // Server CPU per lease cycle (Lease + Heartbeats + Report): what one worker costs the
+    // server per lease, less sensitive to the machine's other load than the rates.
+    j << "  \"server_cpu_ms_per_lease\": "
+      << number(leases_ + leases_empty_ > 0 && o_.server_pid
+                    ? 1e3 * (s1.cpu_seconds - s0.cpu_seconds) / double(leases_ + leases_empty_)
+                    : 0)
       << ",\n";
     j << "  \"server_rss_mb\": " << number(s1.rss_mb)
       << ", \"server_rss_peak_sampled_mb\": " << number(peak_rss)
