@@ -126,6 +126,15 @@ Options parse(int argc, char** argv) {
     return o;
 }
 
+// A JSON number (null when not finite).
+std::string number(double x) {
+    if (!std::isfinite(x)) return "null";
+    std::ostringstream s;
+    s.precision(9);
+    s << x;
+    return s.str();
+}
+
 // The sums of a range, as the protocol defines them (sum, then odd_sum over odd iterations).
 // Iteration i gives value k the value 1 + ((i + k) mod 8) / 8: exact in float64, and periodic
 // in i with period 8 (parity included), so a range's sum costs at most 16 terms per value.
@@ -506,14 +515,6 @@ bool Farm::all_jobs_done() {
         if (job.state() != v1::JOB_STATE_DONE) return false;
     }
     return true;
-}
-
-std::string number(double x) {
-    if (!std::isfinite(x)) return "null";
-    std::ostringstream s;
-    s.precision(9);
-    s << x;
-    return s.str();
 }
 
 std::string Farm::json(double window, const ProcSample& s0, const ProcSample& s1,
