@@ -18,7 +18,8 @@
 //   farm_sim --server 127.0.0.1:PORT --workers 200 --seconds 30 --warmup 10 --server-pid PID
 //   farm_sim --server 127.0.0.1:PORT --workers 4 --jobs 2 --iterations 300 --until-done
 //
-// With --jobs 0 the workers find nothing to do and poll as idle workers do (every 0.3 s).
+// With --jobs 0 the workers find nothing to do and poll as idle workers do (service/idle_poll.h:
+// 0.3 s growing to 2 s, jittered).
 // With --until-done the jobs have --iterations each and the run ends when every job is DONE
 // (or after --seconds, a failure); every --duplicate-every'th report is then sent a second
 // time, which the server must drop (merged=false).
@@ -44,6 +45,7 @@
 
 #include "core/util/sha256.h"
 #include "render.grpc.pb.h"
+#include "service/idle_poll.h"
 
 namespace {
 
@@ -408,6 +410,7 @@ void Farm::worker(int index) {
         if (reply.heartbeat_seconds() > 0) heartbeat_seconds = reply.heartbeat_seconds();
     }
     uint64_t reports_sent = 0;
+    render::service::IdlePoll idle(uint64_t(index) * 0x9e3779b97f4a7c15ull + 1);
     while (!stop_) {
         v1::LeaseRequest request;
         request.set_worker_id(worker_id);
@@ -427,9 +430,12 @@ void Farm::worker(int index) {
                 empty_lease_latency_.add(latency);
                 ++leases_empty_;
             }
-            sleep_until(Clock::now() + std::chrono::milliseconds(300));  // as the worker naps
+            // As the worker naps (the same schedule).
+            sleep_until(Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(idle.next())));
             continue;
         }
+        idle.reset();
         ++total_leases_;
         if (measuring_) {
             lease_latency_.add(latency);

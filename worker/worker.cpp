@@ -7,6 +7,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
+#include <functional>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
 #include "service/bundle_paths.h"
+#include "service/idle_poll.h"
 #include "service/request_options.h"
 #include "service/rpc.h"
 
@@ -117,6 +119,7 @@ bool Worker::register_worker() {
 int Worker::run() {
     log_info("start").kv("server", options_.server).kv("cache", cache_.dir().string());
     Backoff backoff;
+    IdlePoll idle(std::hash<std::string>{}(options_.server + host_name()) ^ uint64_t(getpid()));
     while (g_stop_requests.load() == 0) {
         if (worker_id_.empty()) {
             if (!register_worker()) {
@@ -148,9 +151,10 @@ int Worker::run() {
         }
         backoff.reset();
         if (!reply.granted() || !reply.has_lease()) {
-            nap(0.3);
+            nap(idle.next());
             continue;
         }
+        idle.reset();
         process(reply.lease());
     }
     log_info("stop").kv("worker", worker_id_);
