@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/image/exr_io.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
@@ -27,6 +28,18 @@ using grpc::Status;
 using grpc::StatusCode;
 
 namespace {
+
+// The scene loaded within the memory this machine has available: a scene that would need more
+// is refused at submit (a SceneError naming the file and the estimate) instead of exhausting
+// the server.
+std::unique_ptr<Scene> load_scene_within_memory(const fs::path& file,
+                                                const std::map<std::string, std::string>& defines,
+                                                const fs::path& confine_to) {
+    SceneMemoryBudget budget(available_memory_bytes(),
+                             "the memory available on the server's machine, MemAvailable in "
+                             "/proc/meminfo");
+    return load_scene(file, defines, confine_to);
+}
 
 // Points of a frame's error history kept (halved when full).
 constexpr size_t kMaxHistory = 512;
@@ -261,8 +274,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         // the other frames are loaded and checked below.
         const auto validate_start = std::chrono::steady_clock::now();
         loading_frame = 0;
-        std::unique_ptr<Scene> scene = load_scene(scene_dir / request.bundle().scene_path(),
-                                                  frame_defines(request, 0), scene_dir);
+        std::unique_ptr<Scene> scene = load_scene_within_memory(
+            scene_dir / request.bundle().scene_path(), frame_defines(request, 0), scene_dir);
         loading_frame = -1;
         v1::RenderSettings* s = request.mutable_settings();
         // The job stores the complete options its algorithm reads, resolved as `render` and
@@ -279,6 +292,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         if (s->iterations() > kMaxIterations)
             throw std::invalid_argument("the scene's sample_count exceeds " +
                                         std::to_string(kMaxIterations));
+        if (std::string e = check_job_iterations(s->iterations(), frames_requested); !e.empty())
+            throw std::invalid_argument(e);
         width = s->width() ? int(s->width()) : scene->camera().width();
         height = s->height() ? int(s->height()) : scene->camera().height();
         if (width < 1 || height < 1 || width > kMaxFilmResolution || height > kMaxFilmResolution)
@@ -316,8 +331,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
                     "jobs of fewer frames");
             std::map<std::string, std::string> defines = frame_defines(request, i);
             loading_frame = i;
-            std::unique_ptr<Scene> frame_scene =
-                load_scene(scene_dir / request.bundle().scene_path(), defines, scene_dir);
+            std::unique_ptr<Scene> frame_scene = load_scene_within_memory(
+                scene_dir / request.bundle().scene_path(), defines, scene_dir);
             check_algorithm_supports_scene(settings.algorithm, *frame_scene);
             loading_frame = -1;
         }
