@@ -444,6 +444,23 @@ TEST(MemoryBudget, GridAndImageAreCharged) {
     EXPECT_CONTAINS(scene_error([&] { read_image_file(exr); }), "i.exr: 64 x 32 image");
 }
 
+TEST(MemoryBudget, PbrtInlineMeshIsCharged) {
+    TempDir dir;
+    const std::string scene =
+        "Camera \"perspective\"\nWorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]\n"
+        "AttributeEnd\n";
+    const uint64_t mesh = mesh_vertex_bytes(3, true, true) + mesh_triangle_bytes(1);
+    {
+        SceneMemoryBudget budget(mesh, "test");
+        EXPECT_NO_THROW(pbrt::load_scene_from_string(scene, dir.path()));
+    }
+    SceneMemoryBudget budget(mesh - 1, "test");
+    const std::string e = scene_error([&] { pbrt::load_scene_from_string(scene, dir.path()); });
+    EXPECT_CONTAINS(e, "\"P\"");
+    EXPECT_CONTAINS(e, "the mesh: the scene needs at least");
+}
+
 TEST(MemoryBudget, ASceneOverItsBudgetIsRefusedNamingTheFileAndTheLimit) {
     TempDir dir;
     dir.write("fan.ply", ply_fan(1000));
