@@ -170,6 +170,19 @@ TEST(RequestLimits, AssetAndBundleSize) {
     EXPECT_EQ(server::check_submit_request(r).error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
 }
 
+TEST(RequestLimits, Defines) {
+    v1::SubmitJobRequest r = valid_request();
+    auto& defines = *r.mutable_settings()->mutable_defines();
+    for (int i = 0; i < 1000; ++i) defines["d" + std::to_string(i)] = "1";
+    defines["d0"] = std::string(65536, 'v');
+    EXPECT_TRUE(server::check_submit_request(r).ok());
+    defines["d0"] = std::string(65537, 'v');
+    EXPECT_CONTAINS(server::check_submit_request(r).error_message(), "is too long");
+    defines["d0"] = "1";
+    defines["one-more"] = "1";
+    EXPECT_CONTAINS(server::check_submit_request(r).error_message(), "more than 1000 defines");
+}
+
 TEST(RequestLimits, PathLength) {
     EXPECT_EQ(server::check_bundle_path(std::string(server::kMaxPathLength, 'a')), "");
     EXPECT_CONTAINS(server::check_bundle_path(std::string(server::kMaxPathLength + 1, 'a')),
