@@ -1,8 +1,9 @@
 """Load test (issue 18): 100 jobs from 10 concurrent clients on 2 workers, each client on its own
 channel doing a mix of what users do: submit and watch (WatchJob) to the end then fetch; submit
 and poll (GetJob) then fetch; submit and cancel at once; submit, drop a WatchJob stream after its
-first event, then poll; and a FetchResult stream dropped after its first chunk. The round runs
-twice.
+first event, then poll; and a FetchResult stream dropped after its first chunk. Each round's
+scene file is new to the server and the same for all clients, so that ten clients upload the
+same asset at once. The round runs twice.
 
 What must hold:
 * no job lost: ListJobs holds every submitted job, and every job ends in a final state (DONE,
@@ -21,6 +22,7 @@ Run alone with `ctest -L load` (about a minute).
 """
 
 import os
+import shutil
 import threading
 import time
 
@@ -99,6 +101,13 @@ class LoadClients(cluster.ClusterTestCase):
         os.remove(path)
 
     def round(self, c, scene, clients, round_no):
+        # A scene file new to the server in each round, the same for every client: the ten
+        # clients find it missing (HasAssets) and upload the same asset at the same time.
+        with open(scene) as f:
+            text = f.read()
+        scene = os.path.join(os.path.dirname(scene), f"round-{round_no}.xml")
+        with open(scene, "w") as f:
+            f.write(text + f"<!-- load test round {round_no} -->\n")
         jobs, errors = [], []
         threads = [threading.Thread(target=self.run_client,
                                     args=(c, n, scene, jobs, errors, round_no))
@@ -151,7 +160,11 @@ class LoadClients(cluster.ClusterTestCase):
         c.start_server()
         c.start_workers(2, threads=1)
         c.wait_workers_registered(2)
-        scene = cluster.cornell_box()
+        # The Cornell box copied next to its meshes, so that each round can add a scene file.
+        box = os.path.dirname(cluster.cornell_box())
+        folder = c.path("scene")
+        shutil.copytree(box, folder)
+        scene = os.path.join(folder, os.path.basename(cluster.cornell_box()))
 
         self.round(c, scene, 1, 0)  # warm-up: 10 jobs, one client
         fds0, rss0 = self.quiet_values(c)
@@ -169,6 +182,50 @@ class LoadClients(cluster.ClusterTestCase):
         self.assertLessEqual(growth, RSS_GROWTH_LIMIT,
                              f"RSS grew by {growth / 2**20:.1f} MiB from round 1 to round 2")
         self.assertTrue(c.server.alive())
+
+    def test_watch_streams_are_bounded(self):
+        """A client cannot open WatchJob streams without end: each holds a server thread (1000
+        of them took 1000 threads and made GetJob take 2 s). Past kMaxWatchStreams (256) a
+        watch is refused with RESOURCE_EXHAUSTED; a closed one frees its place."""
+        import grpc
+        P = cluster.pb()
+        c = self.new_cluster()
+        c.start_server()  # no worker: the job stays queued and its watches open
+        job = c.api.submit(cluster.cornell_box(), algorithm="pt", iterations=4,
+                           resolution=RESOLUTION, name="watched")
+        apis = [cluster.Api(c.address, c.token, timeout=60) for _ in range(4)]
+        streams = []
+        try:
+            def watch(n):
+                s = apis[n % len(apis)].jobs.WatchJob(P.WatchJobRequest(job_id=job.id),
+                                                      timeout=60)
+                next(iter(s))  # the first event: the stream is open on the server
+                return s
+            for n in range(256):
+                streams.append(watch(n))
+            with self.assertRaises(grpc.RpcError) as refused:
+                watch(256)
+            self.assertEqual(refused.exception.code(), grpc.StatusCode.RESOURCE_EXHAUSTED)
+            self.assertIn("more than 256 WatchJob streams", refused.exception.details())
+            self.assertEqual(c.api.get_job(job.id).id, job.id)  # other calls still served
+            streams.pop().cancel()
+            streams.append(cluster.wait_until(lambda: self.try_watch(watch), timeout=10,
+                                              what="a watch once one was closed"))
+        finally:
+            for s in streams:
+                s.cancel()
+            for a in apis:
+                a.close()
+
+    @staticmethod
+    def try_watch(watch):
+        import grpc
+        try:
+            return watch(0)
+        except grpc.RpcError as e:
+            if e.code() != grpc.StatusCode.RESOURCE_EXHAUSTED:
+                raise
+            return None
 
 
 if __name__ == "__main__":
