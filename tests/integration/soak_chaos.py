@@ -137,7 +137,10 @@ class ChaosSoak(cluster.ClusterTestCase):
                     self.assertGreaterEqual(done, floor,
                                             f"job {job_id} restored {done} iterations, fewer "
                                             f"than its last checkpoint ({floor})")
-                    self.assertLessEqual(done, progress[job_id] if progress[job_id] else done)
+                    # ... and no more than was merged before the kill (seen by the last poll,
+                    # or checkpointed after it).
+                    self.assertLessEqual(done, max(progress[job_id], floor),
+                                         f"job {job_id} restored more than was merged")
                     progress[job_id] = done
 
             # Kill a random worker every few seconds and start a replacement.
