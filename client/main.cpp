@@ -428,6 +428,15 @@ int watch(const Connection& c, const std::string& job_id) {
             break;
         }
         grpc::Status status = reader->Finish();
+        if (status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) {
+            // The server has as many watchers as it serves: poll instead.
+            last = get_job(c, job_id);
+            have = true;
+            display.update(last);
+            if (is_terminal(last.state())) break;
+            std::this_thread::sleep_for(std::chrono::seconds(1));
+            continue;
+        }
         if (!status.ok()) {
             // Ride out a short server restart; give up after ~30 s.
             if (status.error_code() == grpc::StatusCode::UNAVAILABLE && ++unavailable <= 12) {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/image/exr_io.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
@@ -27,6 +28,18 @@ using grpc::Status;
 using grpc::StatusCode;
 
 namespace {
+
+// The scene loaded within the memory this machine has available: a scene that would need more
+// is refused at submit (a SceneError naming the file and the estimate) instead of exhausting
+// the server.
+std::unique_ptr<Scene> load_scene_within_memory(const fs::path& file,
+                                                const std::map<std::string, std::string>& defines,
+                                                const fs::path& confine_to) {
+    SceneMemoryBudget budget(available_memory_bytes(),
+                             "the memory available on the server's machine, MemAvailable in "
+                             "/proc/meminfo");
+    return load_scene(file, defines, confine_to);
+}
 
 // Points of a frame's error history kept (halved when full).
 constexpr size_t kMaxHistory = 512;
@@ -261,8 +274,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         // the other frames are loaded and checked below.
         const auto validate_start = std::chrono::steady_clock::now();
         loading_frame = 0;
-        std::unique_ptr<Scene> scene = load_scene(scene_dir / request.bundle().scene_path(),
-                                                  frame_defines(request, 0), scene_dir);
+        std::unique_ptr<Scene> scene = load_scene_within_memory(
+            scene_dir / request.bundle().scene_path(), frame_defines(request, 0), scene_dir);
         loading_frame = -1;
         v1::RenderSettings* s = request.mutable_settings();
         // The job stores the complete options its algorithm reads, resolved as `render` and
@@ -279,6 +292,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         if (s->iterations() > kMaxIterations)
             throw std::invalid_argument("the scene's sample_count exceeds " +
                                         std::to_string(kMaxIterations));
+        if (std::string e = check_job_iterations(s->iterations(), frames_requested); !e.empty())
+            throw std::invalid_argument(e);
         width = s->width() ? int(s->width()) : scene->camera().width();
         height = s->height() ? int(s->height()) : scene->camera().height();
         if (width < 1 || height < 1 || width > kMaxFilmResolution || height > kMaxFilmResolution)
@@ -316,8 +331,8 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
                     "jobs of fewer frames");
             std::map<std::string, std::string> defines = frame_defines(request, i);
             loading_frame = i;
-            std::unique_ptr<Scene> frame_scene =
-                load_scene(scene_dir / request.bundle().scene_path(), defines, scene_dir);
+            std::unique_ptr<Scene> frame_scene = load_scene_within_memory(
+                scene_dir / request.bundle().scene_path(), defines, scene_dir);
             check_algorithm_supports_scene(settings.algorithm, *frame_scene);
             loading_frame = -1;
         }
@@ -650,6 +665,10 @@ constexpr size_t kMaxReportingWorkers = 2;
 // Counting workers that lost a lease of the job (died or stopped heartbeating) as well, this
 // many distinct ones fail it: a loss may be a machine taken away, so one more is asked for.
 constexpr size_t kMaxFailedWorkers = 3;
+// Workers lost after they reported rendering progress on the lease count only toward this
+// larger limit: under a chaos soak (a worker SIGKILLed every 2 s among 3) healthy jobs failed
+// after 3 such losses; a scene that crashes its workers mid-render still fails, later.
+constexpr size_t kMaxLostRenderingWorkers = 10;
 
 void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
     const std::optional<LeaseGrant> grant = scheduler_.release(worker_id, failure.lease_id());
@@ -663,6 +682,7 @@ void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailu
         .kv("error", error);
     auto job = find(grant->job_id);
     if (!job || is_terminal(scheduler_.state(grant->job_id))) return;
+    job->progressed_leases.erase(grant->lease_id);
     job->failed_workers.insert(worker_id);
     job->last_failure = error;
     fail_if_poison(*job, grant->job_id);
@@ -675,7 +695,10 @@ void JobManager::lease_lost(const LeaseGrant& grant) {
         .kv("job", grant.job_id);
     auto job = find(grant.job_id);
     if (!job || is_terminal(scheduler_.state(grant.job_id))) return;
-    job->lost_workers.insert(grant.worker_id);
+    if (job->progressed_leases.erase(grant.lease_id))
+        job->lost_rendering_workers.insert(grant.worker_id);
+    else
+        job->lost_workers.insert(grant.worker_id);
     fail_if_poison(*job, grant.job_id);
 }
 
@@ -685,16 +708,30 @@ void JobManager::fail_if_poison(JobData& job, const std::string& job_id) {
     // Reported failures: on every known worker (up to the limit) is enough; with lost leases
     // the limit itself is needed.
     const size_t needed_reported = std::clamp<size_t>(workers_.size(), 1, kMaxReportingWorkers);
-    if (job.failed_workers.size() < needed_reported && either.size() < kMaxFailedWorkers) return;
+    std::set<std::string> any = either;
+    any.insert(job.lost_rendering_workers.begin(), job.lost_rendering_workers.end());
+    if (job.failed_workers.size() < needed_reported && either.size() < kMaxFailedWorkers &&
+        any.size() < kMaxLostRenderingWorkers)
+        return;
+    const size_t lost = job.lost_workers.size() + job.lost_rendering_workers.size();
     std::string why =
-        "failed on " + std::to_string(either.size()) + " worker" + (either.size() == 1 ? "" : "s");
-    if (!job.lost_workers.empty())
-        why += " (" + std::to_string(job.lost_workers.size()) +
+        "failed on " + std::to_string(any.size()) + " worker" + (any.size() == 1 ? "" : "s");
+    if (lost > 0)
+        why += " (" + std::to_string(lost) +
                " lost the lease: died or stopped heartbeating while rendering it)";
     why += job.last_failure.empty() ? std::string("; no worker reported an error")
                                     : "; last error: " + job.last_failure;
     Log("error", "job_failed").kv("job", job_id).kv("error", why);
     set_state(job, JobState::Failed, why);
+}
+
+void JobManager::note_lease_progress(
+    const std::string& worker_id,
+    const google::protobuf::RepeatedPtrField<std::string>& lease_ids) {
+    for (const std::string& id : lease_ids)
+        if (std::optional<LeaseGrant> grant = scheduler_.find_lease(id);
+            grant && grant->worker_id == worker_id)
+            if (auto job = find(grant->job_id)) job->progressed_leases.insert(id);
 }
 
 Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply) {
@@ -709,6 +746,8 @@ Status JobManager::heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatR
             std::isfinite(r.rays_per_second()))
             workers_[request.worker_id()].rates = r;
     }
+    if (request.has_rates() && request.rates().iterations_per_second() > 0)
+        note_lease_progress(request.worker_id(), request.lease_ids());
     for (const v1::LeaseFailure& failure : request.failed_leases())
         lease_failed(request.worker_id(), failure);
     for (const std::string& id : scheduler_.heartbeat(request.worker_id(), ids))
@@ -850,6 +889,8 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         // never merges anything), so they no longer count toward failing it.
         job->failed_workers.clear();
         job->lost_workers.clear();
+        job->lost_rendering_workers.clear();
+        job->progressed_leases.erase(grant.lease_id);
     }
     *merged = true;
     metrics_.report_merged(std::chrono::duration<double>(add_time).count(),

@@ -139,6 +139,13 @@ class JobManager {
         std::set<std::string> failed_workers;
         std::set<std::string> lost_workers;
         std::string last_failure;
+        // Leases of this job whose worker reported rendering progress (a heartbeat with
+        // measured rates), and the workers that lost such a lease: a worker killed from
+        // outside (preempted, rolled, OOM-killed for another process) while rendering fine,
+        // which counts toward failing the job far later than a worker that died before it
+        // rendered an iteration (a poison scene).
+        std::set<std::string> progressed_leases;
+        std::set<std::string> lost_rendering_workers;
         std::mutex report_mu;  // held by the report being received and merged (report_slot)
     };
     struct WorkerInfo {
@@ -172,6 +179,9 @@ class JobManager {
     // The job FAILS once kMaxFailedWorkers distinct workers failed it or lost it (a crash
     // is not told apart from a worker taken away, so every known worker is not enough).
     void lease_lost(const LeaseGrant& grant);  // mu_ held
+    // Marks these leases of the worker as having rendered iterations (mu_ held).
+    void note_lease_progress(const std::string& worker_id,
+                             const google::protobuf::RepeatedPtrField<std::string>& lease_ids);
     // FAILS `job` if its failed and lost workers reach the limits above.
     void fail_if_poison(JobData& job, const std::string& job_id);  // mu_ held
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;

@@ -111,6 +111,16 @@ Status JobServiceImpl::ListJobs(grpc::ServerContext* context, const v1::ListJobs
 Status JobServiceImpl::WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
                                 grpc::ServerWriter<v1::JobEvent>* writer) {
     if (Status s = auth_.check(context); !s.ok()) return s;
+    if (watch_streams_.fetch_add(1) >= kMaxWatchStreams) {
+        watch_streams_.fetch_sub(1);
+        return Status(StatusCode::RESOURCE_EXHAUSTED,
+                      "more than " + std::to_string(kMaxWatchStreams) +
+                          " WatchJob streams are open on this server: poll GetJob instead");
+    }
+    struct Release {
+        std::atomic<size_t>& open;
+        ~Release() { open.fetch_sub(1); }
+    } release{watch_streams_};
     std::string last;
     while (!context->IsCancelled()) {
         v1::JobEvent event;

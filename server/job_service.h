@@ -40,6 +40,7 @@ class JobServiceImpl final : public v1::JobService::Service {
     JobManager& manager_;
     const Auth& auth_;
     const std::atomic<bool>& stopping_;
+    std::atomic<size_t> watch_streams_{0};  // WatchJob streams open now (kMaxWatchStreams)
 };
 
 // Streams a file in chunks of at most 1 MiB through `send(data, total_size)`.

@@ -99,6 +99,10 @@ Status check_submit_request(const v1::SubmitJobRequest& r) {
     if (Status st = check_defines(s.defines(), "settings"); !st.ok()) return st;
     if (size_t(r.frames_size()) > kMaxFrames)
         return invalid("frames: " + std::to_string(r.frames_size()) + " frames exceed 1000");
+    if (std::string e =
+            check_job_iterations(s.iterations(), uint64_t(std::max(1, r.frames_size())));
+        !e.empty())
+        return invalid(e);
     for (int i = 0; i < r.frames_size(); ++i)
         if (Status st = check_defines(r.frames(i).defines(), "frames[" + std::to_string(i) + "]");
             !st.ok())

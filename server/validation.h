@@ -18,6 +18,10 @@ inline constexpr size_t kMaxBundleFiles = 10000;
 inline constexpr uint64_t kMaxAssetSize = 4ull << 30;    // 4 GiB per asset
 inline constexpr uint64_t kMaxBundleSize = 16ull << 30;  // 16 GiB per job
 inline constexpr size_t kMaxPathLength = 1024;
+// WatchJob streams open at once on a server: each holds one of the server's threads and polls
+// the job manager for as long as its job runs (1000 streams took 1000 threads and made GetJob
+// take 2 s). Past it a watch is refused with RESOURCE_EXHAUSTED; clients then poll GetJob.
+inline constexpr size_t kMaxWatchStreams = 256;
 
 // A bundle path: relative, forward slashes, no "..", ".", empty or absolute parts.
 std::string check_bundle_path(const std::string& path);

@@ -1,6 +1,6 @@
 // `worker`: leases ranges of iterations from a render server, renders them, reports the sums.
 //
-//   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR]
+//   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR] [--max-memory SIZE]
 //          [--tls-ca FILE [--tls-server-name NAME]]
 
 #include <csignal>
@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/base/memory_budget.h"
 #include "core/util/arguments.h"
 #include "core/util/log.h"
 #include "service/rpc.h"
@@ -34,6 +35,18 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, 
             [&](const std::string& v) {
                 o.threads = parse_number<int>("--threads", v);
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
+            });
+    p.value({"--max-memory"}, "SIZE",
+            "memory a job's scene and film may take, e.g. 4G (default: the memory available "
+            "when the scene is loaded); a job whose scene is estimated to need more fails with "
+            "that message",
+            [&](const std::string& v) {
+                try {
+                    o.max_memory = parse_byte_size(v);
+                } catch (const std::invalid_argument& e) {
+                    throw UsageError(std::string("--max-memory: ") + e.what());
+                }
+                if (o.max_memory == 0) throw UsageError("--max-memory must be > 0");
             });
     p.value({"--token"}, "T", "bearer token (default: env RENDER_TOKEN)",
             [&](const std::string& v) { token = v; });

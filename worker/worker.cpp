@@ -13,6 +13,7 @@
 #include <string>
 #include <thread>
 
+#include "core/base/memory_budget.h"
 #include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
@@ -34,6 +35,21 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr const char* kVersion = "render-worker 0.1";
 constexpr double kRpcTimeout = 10.0;
+
+// Full-frame buffers (3 doubles per pixel) a lease holds at its peak: the renderer's sum and
+// odd sum, the range result's two and the report being sent.
+constexpr uint64_t kWorkerFilmBuffers = 5;
+
+// The budget of a job's scene and film: --max-memory, or less if the machine has less
+// available when the scene is loaded.
+SceneMemoryBudget scene_memory_budget(uint64_t max_memory) {
+    const uint64_t available = available_memory_bytes();
+    if (max_memory > 0 && (available == 0 || max_memory <= available))
+        return SceneMemoryBudget(max_memory, "worker --max-memory " + format_bytes(max_memory));
+    return SceneMemoryBudget(available,
+                             "the memory available on the worker's machine, "
+                             "MemAvailable in /proc/meminfo");
+}
 
 double seconds_since(Clock::time_point t) {
     return std::chrono::duration<double>(Clock::now() - t).count();
@@ -190,7 +206,17 @@ const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::pa
         (void)part;
         job_dir = job_dir.parent_path();
     }
-    std::unique_ptr<Scene> scene = load_scene(scene_file, defines, job_dir);
+    std::unique_ptr<Scene> scene;
+    {
+        // Estimated before anything large is allocated: the film's sums, then every buffer the
+        // loaders allocate. A scene over the budget fails the job instead of this process.
+        SceneMemoryBudget budget = scene_memory_budget(options_.max_memory);
+        if (s.width() > 0 && s.height() > 0)
+            budget.charge(film_memory_bytes(s.width(), s.height(), kWorkerFilmBuffers),
+                          "the film (" + std::to_string(s.width()) + " x " +
+                              std::to_string(s.height()) + ")");
+        scene = load_scene(scene_file, defines, job_dir);
+    }
     if (s.width() > 0 && s.height() > 0)
         scene->set_camera(scene->camera().with_resolution(int(s.width()), int(s.height())));
     log_info("scene_loaded")

@@ -22,6 +22,9 @@ struct WorkerOptions {
     std::string token;
     ClientTls tls;  // plaintext unless tls.tls
     std::filesystem::path cache_dir;
+    // The memory a job's scene and film may take (0: the machine's available memory when the
+    // scene is loaded). A scene estimated to need more fails its job with that message.
+    uint64_t max_memory = 0;
 };
 
 // Set by the signal handler: 1 = finish the current range and exit, 2+ = give up at once.

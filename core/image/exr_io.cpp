@@ -15,10 +15,24 @@
 #include <fstream>
 #include <optional>
 
+#include "core/base/memory_budget.h"
 #include "core/image/image_plugin.h"
 
 namespace render {
 namespace {
+
+// The metadata key under which the plugin's pixel sink leaves its own error for the caller.
+constexpr const char* kSinkError = "render:sink-error";
+
+// The decoded pixels (float), charged to the scene's memory budget before they are allocated.
+uint64_t pixel_bytes(int width, int height, size_t channels) {
+    return saturating_product(
+        saturating_product(uint64_t(std::max(width, 0)), uint64_t(std::max(height, 0))),
+        4 * channels);
+}
+std::string pixels_name(int width, int height) {
+    return std::to_string(width) + " x " + std::to_string(height) + " image";
+}
 
 // "YYYY:MM:DD HH:MM:SS" local time: the capDate OpenImageIO puts in every EXR it writes.
 std::string capture_date() {
@@ -65,6 +79,8 @@ std::optional<ImageFileData> read_exr_file(const std::filesystem::path& file) {
     data.height = window.max.y - window.min.y + 1;
     data.channels = int(names.size());
     if (data.width <= 0 || data.height <= 0) throw ImageFileError(file, "the image has no pixels");
+    charge_scene_memory(pixel_bytes(data.width, data.height, names.size()),
+                        file.string() + ": " + pixels_name(data.width, data.height));
     data.pixels.assign(size_t(data.width) * size_t(data.height) * names.size(), 0.0f);
     Imf::FrameBuffer frame;
     const size_t x_stride = sizeof(float) * names.size();
@@ -98,8 +114,13 @@ ImageFileData read_with_plugin(const std::filesystem::path& file) {
             d.channels = channels;
             d.integer_format = integer_format != 0;
             d.color_space = color_space ? color_space : "";
+            charge_scene_memory(pixel_bytes(width, height, size_t(std::max(channels, 0))),
+                                pixels_name(width, height));
             d.pixels.assign(size_t(width) * size_t(height) * size_t(channels), 0.0f);
             return d.pixels.data();
+        } catch (const std::exception& e) {
+            static_cast<ImageFileData*>(context)->metadata[kSinkError] = e.what();
+            return nullptr;
         } catch (...) {
             return nullptr;
         }
@@ -111,8 +132,11 @@ ImageFileData read_with_plugin(const std::filesystem::path& file) {
         }
     };
     char error[2048] = "";
-    if (plugin->read(file.c_str(), &sink, error, sizeof error) != 0)
+    if (plugin->read(file.c_str(), &sink, error, sizeof error) != 0) {
+        if (auto it = data.metadata.find(kSinkError); it != data.metadata.end())
+            throw SceneError(file.string() + ": " + it->second);  // the memory budget's refusal
         throw ImageFileError(file, error);
+    }
     if (data.width <= 0 || data.height <= 0 || data.channels <= 0)
         throw ImageFileError(file, "the image has no pixels");
     return data;
@@ -162,6 +186,8 @@ ImageFileData read_image_file(const std::filesystem::path& file) {
             data = read_exr_file(file);
         } catch (const ImageFileError&) {
             throw;
+        } catch (const MemoryLimitExceeded&) {
+            throw;  // names the file and the limit already
         } catch (const std::exception& e) {
             throw ImageFileError(file, e.what());
         }

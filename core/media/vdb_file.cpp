@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 
 namespace render {
 namespace {
@@ -58,6 +59,7 @@ VolumeGridData read_vdb_file(const std::string& path) {
            << d.yres << " x " << d.zres << " voxels)";
         throw error(path, os.str());
     }
+    charge_scene_memory(4 * d.voxel_count(), path + ": grid \"" + grid->getName() + "\" densified");
     d.values.resize(d.voxel_count());
     openvdb::FloatGrid::ConstAccessor acc = grid->getConstAccessor();
     const openvdb::Coord lo = box.min();

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 
 namespace render {
 namespace {
@@ -95,6 +96,8 @@ VolumeGridData parse_header(const unsigned char* bytes, size_t size, const std::
            << expected << " bytes, the file has " << size;
         throw error(name, os.str());
     }
+    // Read as a body of bytes, then decoded to floats: twice the values.
+    charge_scene_memory(8 * count, name + ": grid values");
     float box[6];
     for (int i = 0; i < 6; ++i) box[i] = read_f32(&bytes[24 + 4 * size_t(i)]);
     d.bbox.lo = Vec3(box[0], box[1], box[2]);

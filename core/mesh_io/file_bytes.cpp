@@ -5,6 +5,7 @@
 #include <system_error>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 
 namespace render {
 
@@ -13,6 +14,7 @@ std::string read_file_bytes(const std::filesystem::path& path) {
     if (!std::filesystem::exists(path, ec)) throw SceneError(path.string() + ": file not found");
     if (!std::filesystem::is_regular_file(path, ec))
         throw SceneError(path.string() + ": not a regular file");
+    charge_file_contents(path);
     std::ifstream in(path, std::ios::binary);
     if (!in) throw SceneError(path.string() + ": cannot open file");
     std::ostringstream out;

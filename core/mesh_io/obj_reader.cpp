@@ -8,7 +8,9 @@
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/mesh_io/file_bytes.h"
+#include "core/mesh_io/mesh_limits.h"
 
 namespace render {
 namespace {
@@ -136,6 +138,7 @@ class ObjParser {
                 corners_.push_back(polygon[i]);
                 corners_.push_back(polygon[i + 1]);
             }
+            if (corners_.size() / 3 >= charged_triangles_ + kChargeBatch) charge_triangles();
         }
         // Everything else (o, g, s, usemtl, mtllib, l, p, vp, curves...) does not matter here.
     }
@@ -163,7 +166,21 @@ class ObjParser {
         return fv;
     }
 
-    MeshData build() const {
+    // Checks the triangles parsed so far against the mesh limit and charges the scene's memory
+    // budget with them (their corners here and the mesh they become), in batches: a short
+    // polygon line gives many corners, so the text's size alone does not bound them well.
+    static constexpr uint64_t kChargeBatch = 1 << 16;
+    void charge_triangles() {
+        const uint64_t triangles = corners_.size() / 3;
+        check_mesh_counts(name_, positions_.size(), triangles);
+        charge_scene_memory((triangles - charged_triangles_) * (3 * sizeof(FaceVertex)) +
+                                mesh_triangle_bytes(triangles - charged_triangles_),
+                            name_ + ":" + std::to_string(line_) + ": faces");
+        charged_triangles_ = triangles;
+    }
+
+    MeshData build() {
+        charge_triangles();
         bool all_n = !corners_.empty(), all_t = !corners_.empty();
         for (const FaceVertex& c : corners_) {
             all_n = all_n && c.n >= 0;
@@ -182,6 +199,9 @@ class ObjParser {
             }
             mesh.indices.push_back(it->second);
         }
+        check_mesh_counts(name_, mesh.positions.size(), mesh.indices.size() / 3);
+        charge_scene_memory(mesh_vertex_bytes(mesh.positions.size(), all_n, all_t),
+                            name_ + ": vertices");
         return mesh;
     }
 
@@ -190,6 +210,7 @@ class ObjParser {
     std::vector<Vec3> positions_, normals_;
     std::vector<Vec2> uvs_;
     std::vector<FaceVertex> corners_;  // 3 per triangle
+    uint64_t charged_triangles_ = 0;   // triangles charged to the memory budget
 };
 
 }  // namespace

@@ -9,7 +9,9 @@
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/mesh_io/file_bytes.h"
+#include "core/mesh_io/mesh_limits.h"
 
 namespace render {
 namespace {
@@ -346,8 +348,7 @@ MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
             throw SceneError(name + ": vertex_indices must have an integer type");
     }
     const uint64_t vertex_count = vertex->count;
-    if (vertex_count > uint64_t(UINT32_MAX))
-        throw SceneError(name + ": too many vertices (" + std::to_string(vertex_count) + ")");
+    check_mesh_counts(name, vertex_count, face ? face->count : 0);
 
     std::vector<double> values;
     for (const PlyElement& e : h.elements) {
@@ -360,11 +361,16 @@ MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
         bool is_vertex = &e == vertex, is_face = &e == face;
         if (is_vertex) {
             size_t n = size_t(std::min<uint64_t>(e.count, plausible));
+            charge_scene_memory(mesh_vertex_bytes(n, has_normals, has_uvs), name + ": vertices");
             mesh.positions.reserve(n);
             if (has_normals) mesh.normals.reserve(n);
             if (has_uvs) mesh.uvs.reserve(n);
         }
-        if (is_face) mesh.indices.reserve(3 * size_t(std::min<uint64_t>(e.count, plausible)));
+        if (is_face) {
+            const size_t n = size_t(std::min<uint64_t>(e.count, plausible));
+            charge_scene_memory(mesh_triangle_bytes(n), name + ": faces");
+            mesh.indices.reserve(3 * n);
+        }
         values.assign(e.properties.size(), 0.0);
         std::vector<uint32_t> polygon;
         for (uint64_t k = 0; k < e.count; ++k) {
@@ -394,6 +400,10 @@ MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
                                          std::to_string(vertex_count) + " vertices)");
                     polygon.push_back(uint32_t(v));
                 }
+                // A polygon of n vertices gives n - 2 triangles: more triangles than faces.
+                if (is_index_list)
+                    check_mesh_counts(name, vertex_count,
+                                      mesh.indices.size() / 3 + polygon.size() - 2);
                 if (is_index_list)
                     for (size_t j = 1; j + 1 < polygon.size(); ++j)
                         mesh.indices.insert(mesh.indices.end(),

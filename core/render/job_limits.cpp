@@ -28,4 +28,11 @@ double parse_target_error(const std::string& flag, const std::string& text) {
     return e;
 }
 
+std::string check_job_iterations(uint64_t iterations, uint64_t frames) {
+    if (frames == 0 || iterations <= kMaxJobIterations / frames) return {};
+    return "settings.iterations x frames: " + std::to_string(iterations) + " x " +
+           std::to_string(frames) + " exceeds the limit of " + std::to_string(kMaxJobIterations) +
+           " iterations per job (kMaxJobIterations)";
+}
+
 }  // namespace render

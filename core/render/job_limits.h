@@ -16,6 +16,11 @@ inline constexpr double kMaxTimeBudgetSeconds = 30 * 24 * 3600.0;  // 30 days
 // estimate of fewer is too rough to stop on (with one iteration there is none).
 inline constexpr double kMaxTargetError = 10.0;
 inline constexpr uint64_t kMinTargetErrorIterations = 4;
+// Largest total of iterations over a job's frames (iterations x frames): 10^8, e.g. 100000
+// iterations of each of 1000 frames.
+inline constexpr uint64_t kMaxJobIterations = 100000000;
+// "" if iterations x frames is within kMaxJobIterations, else the message naming the limit.
+std::string check_job_iterations(uint64_t iterations, uint64_t frames);
 // Largest film side: an 8192^2 frame's two float64 sums take 3.2 GB at the server.
 inline constexpr int kMaxFilmResolution = 8192;
 

@@ -83,6 +83,49 @@ class WorkerKilled(cluster.ClusterTestCase):
         self.assertIn("failed on 3 workers (3 lost the lease", done.error)
         self.assertTrue(c.server.alive(), "the server died")
 
+    def test_job_survives_workers_killed_while_rendering(self):
+        """Workers killed from outside while they render fine (preempted machines, a rolling
+        restart) are not a poison job: a worker lost after it reported progress on its lease
+        (a heartbeat with measured rates) counts toward failing the job only at 10 distinct
+        workers, not 3. Before that rule, a VCM job on 3 workers with one SIGKILLed every 1-2 s
+        FAILED after 6-20 kills on the loaded machine. Here all three workers are killed in the
+        middle of long (8 s) leases they have rendered part of, with no merge in between: the
+        job stays RUNNING, and new workers finish it with render's image."""
+        P = cluster.pb()
+        c = self.new_cluster(lease_timeout=LEASE_TIMEOUT, heartbeat=0.5,
+                             server_args=["--lease-seconds", "8"])
+        c.start_server()
+        first = c.start_workers(3, threads=1)
+        c.wait_workers_registered(3)
+        scene = cluster.cornell_box()
+        iterations, resolution = 3000, (24, 24)
+        job = c.api.submit(scene, algorithm=ALGO, iterations=iterations, resolution=resolution,
+                           seed=SEED, name="preempted")
+
+        # Each worker's one-iteration calibration merged, then a long lease held by all three.
+        def rendering():
+            j = c.api.get_job(job.id)
+            held = [w.lease_id for w in c.api.cluster_status().workers if w.lease_id]
+            return j.frames and j.frames[0].iterations_done >= 3 and len(held) == 3
+        cluster.wait_until(rendering, timeout=60, what="three workers rendering long leases")
+        time.sleep(1.5)  # at least one heartbeat with progress from each (every 0.5 s)
+        before = c.api.get_job(job.id).frames[0].iterations_done
+        for w in first:
+            w.kill()
+        time.sleep(LEASE_TIMEOUT + 2.5)  # the three leases expire and are counted
+        after = c.api.get_job(job.id)
+        self.assertEqual(after.frames[0].iterations_done, before,
+                         "a report merged between the kills; make the leases longer")
+        with open(c.server.log_path, "rb") as f:
+            self.assertEqual(f.read().count(b"event=lease_lost "), 3)
+        self.assertEqual(after.state, P.JOB_STATE_RUNNING, after.error)
+
+        c.start_workers(2, threads=1)
+        done = c.api.wait_job(job.id, timeout=90, procs=[c.server])
+        self.assertEqual(done.frames[0].iterations_done, iterations)
+        out = c.api.fetch_to(job.id, c.path("preempted.exr"))
+        self.assertImagesMatch(out, cluster.render_reference(scene, ALGO, iterations, resolution,
+                                                             SEED))
 
 if __name__ == "__main__":
     cluster.main()

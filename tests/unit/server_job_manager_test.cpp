@@ -410,6 +410,35 @@ TEST_F(ManagerTest, LeasesLostOnThreeWorkersFailTheJob) {
     EXPECT_NE(job.error().find("out of memory"), std::string::npos) << job.error();
 }
 
+// Workers lost after they reported progress on the lease (preempted while rendering fine) count
+// toward failing the job only at 10 distinct workers.
+TEST_F(ManagerTest, LeasesLostAfterProgressFailTheJobOnlyAtTen) {
+    TimePoint now = SteadyClock::now();
+    JobManager m(options, [&] { return now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 200), &job).ok());
+    auto state = [&] {
+        EXPECT_TRUE(m.get(job.id(), &job).ok());
+        return job.state();
+    };
+    for (int w = 1; w <= 10; ++w) {
+        const std::string worker = "w-" + std::to_string(w);
+        const v1::LeaseReply lease = lease_for(m, worker);
+        ASSERT_TRUE(lease.granted());
+        v1::HeartbeatRequest beat;
+        beat.set_worker_id(worker);
+        beat.add_lease_ids(lease.lease().lease_id());
+        beat.mutable_rates()->set_iterations_per_second(10);
+        v1::HeartbeatReply reply;
+        ASSERT_TRUE(m.heartbeat(beat, &reply).ok());
+        now += std::chrono::seconds(int(options.lease_timeout_seconds) + 1);
+        m.tick();
+        EXPECT_EQ(state(), w < 10 ? v1::JOB_STATE_RUNNING : v1::JOB_STATE_FAILED) << worker;
+    }
+    EXPECT_NE(job.error().find("failed on 10 workers (10 lost the lease"), std::string::npos)
+        << job.error();
+}
+
 // With fewer workers than three, the job fails once every worker the server knows failed it.
 TEST_F(ManagerTest, ALeaseFailedOnTheOnlyWorkerFailsTheJob) {
     JobManager m(options);

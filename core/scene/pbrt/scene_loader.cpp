@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/base/memory_budget.h"
 #include "core/scene/pbrt/builders.h"
 #include "core/scene/pbrt/graphics_state.h"
 #include "core/scene/pbrt/tokenizer.h"
@@ -27,6 +28,7 @@ constexpr int kMaxIncludeDepth = 32;
 std::string read_text(const fs::path& path, const SourceLocation& from) {
     std::error_code ec;
     if (!fs::is_regular_file(path, ec)) throw SceneError(from, "file not found: " + path.string());
+    charge_file_contents(path);
     std::ifstream in(path, std::ios::binary);
     if (!in) throw SceneError(from, "cannot read " + path.string());
     std::ostringstream out;

@@ -3,7 +3,9 @@
 
 #include <cmath>
 
+#include "core/base/memory_budget.h"
 #include "core/base/properties.h"
+#include "core/mesh_io/mesh_limits.h"
 #include "core/mesh_io/ply_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/pbrt/builders.h"
@@ -58,6 +60,18 @@ std::unique_ptr<Shape> finish_mesh(MeshData mesh, const ParamList& params,
     }
 }
 
+// The mesh limits and the memory budget, as for PLY and OBJ files (the parameter lists
+// themselves are bounded by the file's size, charged when it was read).
+void check_inline_mesh(const ParamList& params, uint64_t vertices, uint64_t triangles) {
+    try {
+        check_mesh_counts("the mesh", vertices, triangles);
+        charge_scene_memory(
+            mesh_vertex_bytes(vertices, true, true) + mesh_triangle_bytes(triangles), "the mesh");
+    } catch (const SceneError& e) {
+        throw params.error("P", e.what());
+    }
+}
+
 MeshData inline_mesh(const ParamList& params, size_t corners) {
     MeshData mesh;
     mesh.positions = vec3s(params.get_numbers("P", {"point3", "point"}, 3));
@@ -76,6 +90,7 @@ MeshData inline_mesh(const ParamList& params, size_t corners) {
         if (i < 0 || size_t(i) >= mesh.positions.size())
             throw params.error("indices", "index " + std::to_string(i) + " is out of range (" +
                                               std::to_string(mesh.positions.size()) + " vertices)");
+    check_inline_mesh(params, mesh.positions.size(), indices.size() / corners * (corners - 2));
     mesh.normals = vec3s(params.get_numbers("N", {"normal", "normal3"}, 3));
     if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
         throw params.error("N", "one normal per vertex is needed");
