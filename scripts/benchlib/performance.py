@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchlib import reference
+
 SOURCE_DIR = Path(__file__).resolve().parents[2]
 
 # The distribution job: the demo's job (docs/service.md), so the figures can be compared.
@@ -356,7 +358,8 @@ def short_symbol(symbol, width=90):
     return symbol if len(symbol) <= width else symbol[:width - 1] + "…"
 
 
-def write_document(path, machine, bench, dist, profiles, quick, started, total_seconds):
+def write_document(path, machine, bench, dist, profiles, quick, started, total_seconds,
+                   reference_result=None):
     results, bench_cmd, bench_seconds, context = bench
     try:
         loaded = float(machine["loadavg"][0]) > 0.5 * float(machine["cores"])
@@ -663,7 +666,10 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
                                           "case)",), level="### "))
     # The "Start-up" and "Per-iteration allocations" sections are measured by hand (their
     # commands are in them); carry them over.
-    L.extend(hand_written_sections(path, ("## Start-up", "## Per-iteration allocations (issue 16)")))
+    L.extend(hand_written_sections(path, ("## Start-up", "## Per-iteration allocations (issue 16)",
+                                          "## Parallel iteration steps and peak memory "
+                                          "(issue 16)")))
+    L.extend(reference.section(reference_result))
     path.write_text("\n".join(L) + "\n")
 
 
@@ -689,7 +695,7 @@ def hand_written_sections(path, titles=("## Start-up",), level="## "):
 # ---------------------------------------------------------------------------------------------
 
 
-def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
+def run(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm=None) -> None:
     build_dir, docs_dir = Path(build_dir).resolve(), Path(docs_dir).resolve()
     bin_dir = build_dir / "bin"
     for name in ("render_bench", "render", "server", "worker", "client"):
@@ -706,14 +712,16 @@ def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
         bench = run_render_bench(bin_dir / "render_bench", quick, work)
         dist = run_distribution(bin_dir, quick, work)
         profiles = run_perf(bin_dir / "render_bench", quick, work)
+        reference_result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         raw = {"machine": machine, "bench": bench, "dist": dist, "profiles": profiles,
-               "quick": quick, "started": started, "seconds": time.monotonic() - t0}
+               "reference": reference_result, "quick": quick, "started": started,
+               "seconds": time.monotonic() - t0}
         # The raw measurements, so that the document can be rewritten without rerunning
         # (write_from_raw).
         (build_dir / "performance-raw.json").write_text(json.dumps(raw, indent=1))
         docs_dir.mkdir(parents=True, exist_ok=True)
         write_document(docs_dir / "performance.md", machine, bench, dist, profiles, quick,
-                       started, raw["seconds"])
+                       started, raw["seconds"], reference_result)
         log(f"wrote {docs_dir / 'performance.md'} in {(time.monotonic() - t0) / 60:.1f} min")
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -741,4 +749,5 @@ def write_from_raw(raw_file: Path, docs_dir: Path) -> None:
     """Rewrites docs_dir/performance.md from a previous run's build/performance-raw.json."""
     raw = json.loads(Path(raw_file).read_text())
     write_document(Path(docs_dir) / "performance.md", raw["machine"], tuple(raw["bench"]),
-                   raw["dist"], raw["profiles"], raw["quick"], raw["started"], raw["seconds"])
+                   raw["dist"], raw["profiles"], raw["quick"], raw["started"], raw["seconds"],
+                   raw.get("reference"))
