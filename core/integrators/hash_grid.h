@@ -70,8 +70,13 @@ class HashGrid {
     uint64_t table_size_ = 1;
     std::vector<uint32_t> cell_starts_;  // table_size_ + 1 prefix sums
     std::vector<uint32_t> indices_;      // point indices sorted by bucket, then by index
-    // Scratch of the build: each point's bucket, and each bucket's next free slot.
-    std::vector<uint32_t> bucket_of_, fill_;
+    // Scratch of the build (hash_grid.cpp): per block and group of buckets, a count and then
+    // a slot; the groups' starts; the points as (bucket, index) in group order.
+    struct BucketPoint {
+        uint32_t bucket, point;
+    };
+    std::vector<uint32_t> slots_, group_starts_;
+    std::vector<BucketPoint> pairs_;
 };
 
 }  // namespace render

@@ -169,9 +169,9 @@ TEST(HashGrid, EmptyAndSinglePointSets) {
 
 // The grid is built in parallel, but every cell's points are visited in increasing index order
 // whatever the number of threads (the merge sums visits in that order: images must not depend
-// on the thread count). 240000 points, a third of them at one position (one cell, spread over
-// the build's parallel ranges, whose slot claims interleave when ranges run at the same time:
-// builds are repeated because on a busy machine they may not), the rest uniform.
+// on the thread count). 240000 points, a third of them at one position (one cell, whose points
+// come from every block of the build's parallel passes), the rest uniform; builds with 2 and 4
+// threads are repeated, as scheduling differs from run to run.
 TEST(HashGrid, VisitOrderIsIncreasingAndIndependentOfTheThreadCount) {
     Rng rng(StreamKey{21, 0, 1, 0});
     const Vec3 shared(1.0f, 1.0f, 1.0f);
