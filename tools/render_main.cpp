@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -177,8 +178,10 @@ int render_scene(const Options& o) {
                  total ? (std::to_string(*total) + " iterations").c_str() : "time budget",
                  load_seconds);
 
-    IterationRenderer renderer(*scene, settings, o.frame);
-    IterationResult accumulated = renderer.empty_result();
+    // The renderer (its integrator's light vertices and grids, the iteration image) is freed
+    // before the image is averaged and written, so that those do not add to its peak memory.
+    auto renderer = std::make_unique<IterationRenderer>(*scene, settings, o.frame);
+    IterationResult accumulated = renderer->empty_result();
     Progress progress(total, o.job.seconds);
     auto t0 = Clock::now();
     double elapsed = 0;
@@ -187,7 +190,7 @@ int render_scene(const Options& o) {
     for (uint64_t i = 1;; ++i) {
         if (total && i > *total) break;
         if (o.job.seconds && elapsed >= *o.job.seconds && i > 1) break;
-        renderer.add(IterationRange{i, i + 1}, accumulated);
+        renderer->add(IterationRange{i, i + 1}, accumulated);
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
         if (o.job.target_error && accumulated.count >= kMinTargetErrorIterations &&
@@ -195,6 +198,7 @@ int render_scene(const Options& o) {
             break;
     }
     progress.finish();
+    renderer.reset();
 
     Image image = accumulated.sum.average(double(accumulated.count));
     const double error = estimate_relative_error(accumulated);

@@ -1,31 +1,108 @@
 #include "core/integrators/hash_grid.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
+#include <array>
 #include <limits>
 
 namespace render {
+namespace {
 
+using Range = tbb::blocked_range<size_t>;
+// Points per block of the first two passes: fixed, so that the order of the points within a
+// group does not depend on the thread count.
+constexpr size_t kBlockPoints = 16384;
+// Buckets per group: a group's slice of cell_starts_ (16 KiB) stays in the L1 cache while its
+// points are counted and placed.
+constexpr size_t kGroupBuckets = 4096;
+
+}  // namespace
+
+// A counting sort of the points by bucket in two levels, without atomics: the points are first
+// distributed, block by block, into groups of consecutive buckets (each block counts its
+// points per group, an exclusive prefix over (group, block) gives every block its slots), then
+// each group is counting-sorted by bucket on its own. Both levels are stable, so a bucket's
+// points are in increasing index order, as a serial counting sort leaves them, whatever the
+// number of threads.
 void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
     positions_ = &positions;
     radius2_ = float(radius * radius);
     inv_cell_size_ = 1.0 / (2.0 * radius);
-    for (int a = 0; a < 3; ++a) lo_[a] = std::numeric_limits<double>::infinity();
-    for (const Vec3& p : positions)
-        for (int a = 0; a < 3; ++a) lo_[a] = std::min(lo_[a], double(p[a]));
-    table_size_ = std::max<uint64_t>(positions.size(), 1);
-    cell_starts_.assign(table_size_ + 1, 0);
-    indices_.resize(positions.size());
-    // Counting sort of the points by bucket.
-    std::vector<uint32_t> bucket_of(positions.size());
-    for (size_t i = 0; i < positions.size(); ++i) {
+    const size_t n = positions.size();
+    using Corner = std::array<double, 3>;
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    // The minimum is exact whatever the order of the comparisons.
+    const Corner lo = tbb::parallel_reduce(
+        Range(0, n, kBlockPoints), Corner{inf, inf, inf},
+        [&](const Range& r, Corner m) {
+            for (size_t i = r.begin(); i < r.end(); ++i)
+                for (int a = 0; a < 3; ++a) m[a] = std::min(m[a], double(positions[i][a]));
+            return m;
+        },
+        [](Corner a, const Corner& b) {
+            for (int k = 0; k < 3; ++k) a[k] = std::min(a[k], b[k]);
+            return a;
+        });
+    for (int a = 0; a < 3; ++a) lo_[a] = lo[a];
+    table_size_ = std::max<uint64_t>(n, 1);
+    cell_starts_.resize(table_size_ + 1);
+    indices_.resize(n);
+
+    auto bucket_of = [&](size_t i) {
         const Vec3& p = positions[i];
-        bucket_of[i] =
-            hash(cell_coordinate(p.x, 0), cell_coordinate(p.y, 1), cell_coordinate(p.z, 2));
-        ++cell_starts_[bucket_of[i] + 1];
+        return hash(cell_coordinate(p.x, 0), cell_coordinate(p.y, 1), cell_coordinate(p.z, 2));
+    };
+    const size_t groups = (table_size_ + kGroupBuckets - 1) / kGroupBuckets;
+    const size_t blocks = (n + kBlockPoints - 1) / kBlockPoints;
+    // slots_[block * groups + group]: the block's count in the group, then its first slot.
+    slots_.assign(blocks * groups, 0);
+    tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
+        uint32_t* count = slots_.data() + b * groups;
+        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i)
+            ++count[bucket_of(i) / kGroupBuckets];
+    });
+    group_starts_.resize(groups + 1);
+    uint32_t slot = 0;
+    for (size_t g = 0; g < groups; ++g) {
+        group_starts_[g] = slot;
+        for (size_t b = 0; b < blocks; ++b) {
+            const uint32_t count = slots_[b * groups + g];
+            slots_[b * groups + g] = slot;
+            slot += count;
+        }
     }
-    for (size_t b = 0; b < table_size_; ++b) cell_starts_[b + 1] += cell_starts_[b];
-    std::vector<uint32_t> fill(cell_starts_.begin(), cell_starts_.end() - 1);
-    for (size_t i = 0; i < positions.size(); ++i) indices_[fill[bucket_of[i]]++] = uint32_t(i);
+    group_starts_[groups] = slot;
+    // (bucket, point) pairs in group order; within a group in block order, then point order.
+    pairs_.resize(n);
+    tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
+        uint32_t* next = slots_.data() + b * groups;
+        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i) {
+            const uint32_t bucket = bucket_of(i);
+            pairs_[next[bucket / kGroupBuckets]++] = {bucket, uint32_t(i)};
+        }
+    });
+    tbb::parallel_for(size_t(0), groups, [&](size_t g) {
+        const size_t first = g * kGroupBuckets, end = std::min(table_size_, first + kGroupBuckets);
+        std::fill(cell_starts_.begin() + first, cell_starts_.begin() + end, 0);
+        for (uint32_t j = group_starts_[g]; j < group_starts_[g + 1]; ++j)
+            ++cell_starts_[pairs_[j].bucket];
+        uint32_t start = group_starts_[g];
+        for (size_t bucket = first; bucket < end; ++bucket) {
+            const uint32_t count = cell_starts_[bucket];
+            cell_starts_[bucket] = start;
+            start += count;
+        }
+        for (uint32_t j = group_starts_[g]; j < group_starts_[g + 1]; ++j)
+            indices_[cell_starts_[pairs_[j].bucket]++] = pairs_[j].point;
+        // cell_starts_[bucket] is now the next bucket's start: shift back by one bucket.
+        for (size_t bucket = end; bucket-- > first + 1;)
+            cell_starts_[bucket] = cell_starts_[bucket - 1];
+        cell_starts_[first] = group_starts_[g];
+    });
+    cell_starts_[table_size_] = uint32_t(n);
 }
 
 }  // namespace render

@@ -2,8 +2,9 @@
 
 // Fixed-radius range queries over points (photon/light vertices), as the VCM report's
 // section 5 suggests: a hashed uniform grid with cell size 2r, so a query sphere of radius r
-// overlaps at most 2 x 2 x 2 cells. Built once per iteration, then read-only and shared by all
-// threads.
+// overlaps at most 2 x 2 x 2 cells. Built once per iteration (in parallel), then read-only and
+// shared by all threads. A cell's points are visited in increasing index order whatever the
+// number of threads that built the grid, so sums over the visits do not depend on it.
 
 #include <array>
 #include <cmath>
@@ -16,7 +17,8 @@ namespace render {
 
 class HashGrid {
   public:
-    // Indexes `positions` (kept by reference: it must outlive the queries).
+    // Indexes `positions` (kept by reference: it must outlive the queries). Runs in the
+    // calling TBB arena; the buffers are kept for the next build.
     void build(const std::vector<Vec3>& positions, double radius);
 
     // Calls visit(i) for every point i with |positions[i] - p| <= radius.
@@ -67,7 +69,14 @@ class HashGrid {
     float radius2_ = 0;
     uint64_t table_size_ = 1;
     std::vector<uint32_t> cell_starts_;  // table_size_ + 1 prefix sums
-    std::vector<uint32_t> indices_;      // point indices sorted by bucket
+    std::vector<uint32_t> indices_;      // point indices sorted by bucket, then by index
+    // Scratch of the build (hash_grid.cpp): per block and group of buckets, a count and then
+    // a slot; the groups' starts; the points as (bucket, index) in group order.
+    struct BucketPoint {
+        uint32_t bucket, point;
+    };
+    std::vector<uint32_t> slots_, group_starts_;
+    std::vector<BucketPoint> pairs_;
 };
 
 }  // namespace render

@@ -3,11 +3,15 @@
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "core/integrators/direct_light.h"
@@ -27,6 +31,7 @@
 #include "core/media/medium.h"
 #include "core/media/medium_interface.h"
 #include "core/sampling/half_line_equiangular.h"
+#include "core/util/block_vector.h"
 
 namespace render {
 namespace {
@@ -47,9 +52,12 @@ constexpr int kIcConnectionRecordsPerPath = 3;
 // Importance caching keeps its tables (four doubles per record and VPL) below this size; a
 // denser record grid is thinned to fit (docs/algorithms.md).
 constexpr double kIcTableBytes = 512.0 * 1024 * 1024;
-// Light paths are traced in fixed chunks whose splats are added in chunk order, so the image
-// does not depend on the number of threads.
+// Light paths are traced in fixed chunks whose vertices are kept, and whose splats are added,
+// in chunk order, so the image does not depend on the number of threads.
 constexpr uint64_t kLightPathChunk = 256;
+// Chunks traced but not yet gathered, per thread: enough that no thread waits for a slow chunk
+// to be gathered, few enough that their buffers stay small next to the light vertices.
+constexpr int kLightChunksInFlightPerThread = 4;
 
 // A subpath being extended: the throughput and the report's recursive MIS quantities.
 struct SubpathState {
@@ -174,16 +182,29 @@ struct ConnectionGeometry {
     BsdfEvaluation eye, light;
 };
 
+// One chunk of light paths, from its tracing (in parallel with other chunks) to its gathering
+// into the iteration's arrays (in chunk order).
+struct LightChunk {
+    uint64_t index = 0;
+    std::vector<LightVertex> vertices;
+    std::vector<uint32_t> path_sizes;  // vertices kept per path
+    std::vector<Splat> splats;
+    RenderStats stats;
+};
+
+using SplatSink = std::function<void(std::span<const Splat>)>;
+
 }  // namespace
 
 // Buffers of an iteration that VertexConnectionMerging keeps from one iteration to the next.
 struct IterationStorage {
-    std::vector<LightVertex> light_vertices;
+    // In blocks: gathering a chunk appends without ever moving the vertices already there.
+    BlockVector<LightVertex> light_vertices;
     std::vector<uint32_t> path_ends;
-    std::vector<std::vector<LightVertex>> chunk_vertices;
-    std::vector<std::vector<uint32_t>> chunk_path_sizes;
-    std::vector<std::vector<Splat>> chunk_splats;
-    std::vector<Splat> splats;
+    // The light pass's chunk buffers (a few per thread), reused from one iteration to the next.
+    std::vector<std::unique_ptr<LightChunk>> light_chunks;
+    std::vector<LightChunk*> free_light_chunks;
+    std::mutex light_chunks_mutex;
     std::vector<Vec3> surface_positions, medium_positions;
     std::vector<uint32_t> surface_index, medium_index;
     HashGrid surface_grid, medium_grid;
@@ -274,10 +295,17 @@ class Iteration {
           medium_grid_(storage.medium_grid) {
         for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
         for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
+        // Destroying the last iteration's vertices reads all of them (hundreds of MB): in
+        // parallel over the blocks.
+        tbb::parallel_for(size_t(0), light_vertices_.block_count(),
+                          [&](size_t b) { light_vertices_.clear_block(b); });
         light_vertices_.clear();
     }
 
-    void trace_light_paths(RenderStats& stats, std::vector<Splat>& splats);
+    // Traces the light paths in chunks, in parallel, and gathers each chunk in chunk order: its
+    // vertices into light_vertices_ (and the merging grids' positions), its splats to
+    // add_splats, on one thread at a time.
+    void trace_light_paths(RenderStats& stats, const SplatSink& add_splats);
     // vpl with the importance-driven distribution: keeps each light vertex with its
     // probability P_k (dividing its throughput by P_k) and drops the others.
     void select_vpls(RenderStats& stats, VplSelection* inspection = nullptr);
@@ -419,7 +447,7 @@ class Iteration {
     size_t ic_vertex_count_ = 0;
 
     IterationStorage& storage_;
-    std::vector<LightVertex>& light_vertices_;
+    BlockVector<LightVertex>& light_vertices_;
     std::vector<uint32_t>& path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
@@ -562,61 +590,80 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
     }
 }
 
-void Iteration::trace_light_paths(RenderStats& stats, std::vector<Splat>& splats) {
+void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splats) {
     const uint64_t chunks = (light_path_count_ + kLightPathChunk - 1) / kLightPathChunk;
-    // Per-chunk buffers of the storage: cleared, their capacity kept from the last iteration.
-    std::vector<std::vector<LightVertex>>& chunk_vertices = storage_.chunk_vertices;
-    std::vector<std::vector<uint32_t>>& chunk_path_sizes = storage_.chunk_path_sizes;
-    std::vector<std::vector<Splat>>& chunk_splats = storage_.chunk_splats;
-    chunk_vertices.resize(chunks);
-    chunk_path_sizes.resize(chunks);
-    chunk_splats.resize(chunks);
-    for (uint64_t c = 0; c < chunks; ++c) {
-        chunk_vertices[c].clear();
-        chunk_path_sizes[c].clear();
-        chunk_splats[c].clear();
-    }
-    tbb::combinable<RenderStats> chunk_stats;
-    tbb::parallel_for(
-        tbb::blocked_range<uint64_t>(0, chunks, 1), [&](const tbb::blocked_range<uint64_t>& range) {
-            RenderStats& local = chunk_stats.local();
-            for (uint64_t c = range.begin(); c < range.end(); ++c) {
-                uint64_t first = c * kLightPathChunk;
-                uint64_t end = std::min(first + kLightPathChunk, light_path_count_);
-                for (uint64_t p = first; p < end; ++p) {
-                    size_t before = chunk_vertices[c].size();
-                    trace_light_path(p, chunk_vertices[c], chunk_splats[c], local);
-                    chunk_path_sizes[c].push_back(uint32_t(chunk_vertices[c].size() - before));
-                }
-            }
-        });
-    chunk_stats.combine_each([&](const RenderStats& s) { stats += s; });
-
-    // Concatenate in chunk order: deterministic whatever the thread count.
-    path_ends_.clear();
-    path_ends_.reserve(light_path_count_);
-    size_t vertex_count = 0, splat_count = splats.size();
-    for (uint64_t c = 0; c < chunks; ++c) {
-        vertex_count += chunk_vertices[c].size();
-        splat_count += chunk_splats[c].size();
-    }
-    light_vertices_.reserve(vertex_count);
-    splats.reserve(splat_count);
-    uint32_t end = 0;
-    for (uint64_t c = 0; c < chunks; ++c) {
-        for (uint32_t size : chunk_path_sizes[c]) path_ends_.push_back(end += size);
-        for (LightVertex& v : chunk_vertices[c]) light_vertices_.push_back(std::move(v));
-        splats.insert(splats.end(), chunk_splats[c].begin(), chunk_splats[c].end());
-    }
-    if (use_vm_) {
-        surface_positions_.reserve(light_vertices_.size());
-        surface_index_.reserve(light_vertices_.size());
-        for (uint32_t i = 0; i < light_vertices_.size(); ++i) {
-            const bool medium = light_vertices_[i].vertex.in_medium();
-            (medium ? medium_positions_ : surface_positions_)
-                .push_back(light_vertices_[i].vertex.p);
-            (medium ? medium_index_ : surface_index_).push_back(i);
+    // Chunk buffers: cleared, their capacity kept from the last iteration.
+    std::vector<LightChunk*>& free_chunks = storage_.free_light_chunks;
+    free_chunks.clear();
+    for (const std::unique_ptr<LightChunk>& c : storage_.light_chunks)
+        free_chunks.push_back(c.get());
+    auto take_chunk = [&] {
+        std::lock_guard lock(storage_.light_chunks_mutex);
+        if (free_chunks.empty()) {
+            storage_.light_chunks.push_back(std::make_unique<LightChunk>());
+            return storage_.light_chunks.back().get();
         }
+        LightChunk* chunk = free_chunks.back();
+        free_chunks.pop_back();
+        return chunk;
+    };
+    auto give_back = [&](LightChunk* chunk) {
+        std::lock_guard lock(storage_.light_chunks_mutex);
+        free_chunks.push_back(chunk);
+    };
+
+    path_ends_.reserve(light_path_count_);
+    uint64_t next_chunk = 0;
+    auto next = [&](tbb::flow_control& control) -> LightChunk* {
+        if (next_chunk == chunks) {
+            control.stop();
+            return nullptr;
+        }
+        LightChunk* chunk = take_chunk();
+        chunk->index = next_chunk++;
+        return chunk;
+    };
+    auto trace = [&](LightChunk* chunk) {
+        chunk->vertices.clear();
+        chunk->path_sizes.clear();
+        chunk->splats.clear();
+        chunk->stats = RenderStats{};
+        const uint64_t first = chunk->index * kLightPathChunk;
+        const uint64_t last = std::min(first + kLightPathChunk, light_path_count_);
+        for (uint64_t p = first; p < last; ++p) {
+            const size_t before = chunk->vertices.size();
+            trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats);
+            chunk->path_sizes.push_back(uint32_t(chunk->vertices.size() - before));
+        }
+        return chunk;
+    };
+    uint32_t end = 0;
+    auto gather = [&](LightChunk* chunk) {
+        for (uint32_t size : chunk->path_sizes) path_ends_.push_back(end += size);
+        for (LightVertex& v : chunk->vertices) {
+            if (use_vm_) {
+                const bool medium = v.vertex.in_medium();
+                (medium ? medium_positions_ : surface_positions_).push_back(v.vertex.p);
+                (medium ? medium_index_ : surface_index_)
+                    .push_back(uint32_t(light_vertices_.size()));
+            }
+            light_vertices_.push_back(std::move(v));
+        }
+        add_splats(chunk->splats);
+        stats += chunk->stats;
+        give_back(chunk);
+    };
+    // Gathering runs on one thread at a time, in chunk order (deterministic whatever the thread
+    // count), while the other threads go on tracing later chunks.
+    const size_t in_flight =
+        size_t(kLightChunksInFlightPerThread) * size_t(tbb::this_task_arena::max_concurrency());
+    tbb::parallel_pipeline(
+        in_flight,
+        tbb::make_filter<void, LightChunk*>(tbb::filter_mode::serial_in_order, next) &
+            tbb::make_filter<LightChunk*, LightChunk*>(tbb::filter_mode::parallel, trace) &
+            tbb::make_filter<LightChunk*, void>(tbb::filter_mode::serial_in_order, gather));
+
+    if (use_vm_) {
         surface_grid_.build(surface_positions_, radius_);
         medium_grid_.build(medium_positions_, volume_radius_);
     }
@@ -972,8 +1019,7 @@ void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
     const std::vector<double> phi = estimate_vpl_importance(stats);
     // Keep candidate k with P_k (fixed before any draw, so E[kept / P_k] = 1 for each k).
     const std::vector<double> keep = vpl_keep_probabilities(phi, config_.vpl_min_probability);
-    std::vector<LightVertex> kept;
-    kept.reserve(candidates);
+    BlockVector<LightVertex> kept;
     for (size_t k = 0; k < candidates; ++k) {
         const double p = keep[k];
         Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kAcceptStreamBase + k});
@@ -1375,23 +1421,24 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
                                                RenderStats& stats) const {
     std::lock_guard lock(storage_mutex_);
     Iteration iteration(config_, scene, key, *storage_);
-    std::vector<Splat>& splats = storage_->splats;
-    splats.clear();
     if (!scene.lights().empty()) {
-        iteration.trace_light_paths(stats, splats);
+        // The light tracer's splats reach the image in chunk order and before the eye pass's
+        // estimates, so that each pixel's sum is the same whatever the number of threads.
+        iteration.trace_light_paths(stats, [&](std::span<const Splat> splats) {
+            for (const Splat& splat : splats) {
+                if (!splat.value.is_finite()) {
+                    ++stats.non_finite;
+                    continue;
+                }
+                target.add(splat.pixel, splat.value);
+                if (layers)
+                    layers->add(layers->index(Technique::Connection, splat.light_vertices, 1),
+                                splat.pixel, splat.value);
+            }
+        });
         if (config_.mode == BidirectionalMode::Vpl && config_.vpl_importance)
             iteration.select_vpls(stats);
         if (iteration.uses_importance_caches()) iteration.build_importance_cache(stats);
-    }
-    for (const Splat& splat : splats) {
-        if (!splat.value.is_finite()) {
-            ++stats.non_finite;
-            continue;
-        }
-        target.add(splat.pixel, splat.value);
-        if (layers)
-            layers->add(layers->index(Technique::Connection, splat.light_vertices, 1), splat.pixel,
-                        splat.value);
     }
 
     const int width = scene.camera().width(), height = scene.camera().height();
@@ -1408,8 +1455,7 @@ VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
     IterationStorage storage;
     Iteration iteration(config_, scene, key, storage);
     RenderStats stats;
-    std::vector<Splat> splats;
-    iteration.trace_light_paths(stats, splats);
+    iteration.trace_light_paths(stats, [](std::span<const Splat>) {});
     iteration.select_vpls(stats, &selection);
     selection.light_paths = iteration.light_path_count();
     selection.importance_records = config_.importance_records;

@@ -1,6 +1,8 @@
 #include "core/render/render_iterations.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <cmath>
@@ -9,6 +11,18 @@
 #include "core/render/algorithms.h"
 
 namespace render {
+namespace {
+
+// f(begin, end) over [0, n) in parallel ranges: for the element-wise passes over a frame's
+// values, which give the same values whatever the split.
+template <class F>
+void for_each_range(size_t n, F&& f) {
+    constexpr size_t kGrain = size_t(1) << 16;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain),
+                      [&](const tbb::blocked_range<size_t>& r) { f(r.begin(), r.end()); });
+}
+
+}  // namespace
 
 struct IterationRenderer::State {
     const Scene& scene;
@@ -51,18 +65,25 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
     State& s = *state_;
     AccumulationBuffer& image = s.iteration_image;
     s.arena.execute([&] {
+        std::vector<double>& values = image.values();
+        std::vector<double>& sum = result.sum.values();
+        std::vector<double>& odd_sum = result.odd_sum.values();
         for (uint64_t i = range.first; i < range.end; ++i) {
-            std::fill(image.values().begin(), image.values().end(), 0.0);
+            for_each_range(values.size(), [&](size_t begin, size_t end) {
+                std::fill(values.begin() + begin, values.begin() + end, 0.0);
+            });
             // Layers are sums like the image; each pixel is written by one task per iteration,
             // so they accumulate directly.
             s.integrator->render_iteration(
                 s.scene, IterationKey{s.settings.seed, s.frame, i}, image,
                 result.layers.enabled() ? &result.layers : nullptr, result.stats);
-            result.sum.add(image);
-            if (i % 2 == 1) {
-                result.odd_sum.add(image);
-                ++result.odd_count;
-            }
+            const bool odd = i % 2 == 1;
+            for_each_range(values.size(), [&](size_t begin, size_t end) {
+                for (size_t k = begin; k < end; ++k) sum[k] += values[k];
+                if (odd)
+                    for (size_t k = begin; k < end; ++k) odd_sum[k] += values[k];
+            });
+            if (odd) ++result.odd_count;
             ++result.count;
         }
     });

@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchlib import reference
+
 SOURCE_DIR = Path(__file__).resolve().parents[2]
 
 # The distribution job: the demo's job (docs/service.md), so the figures can be compared.
@@ -356,7 +358,8 @@ def short_symbol(symbol, width=90):
     return symbol if len(symbol) <= width else symbol[:width - 1] + "…"
 
 
-def write_document(path, machine, bench, dist, profiles, quick, started, total_seconds):
+def write_document(path, machine, bench, dist, profiles, quick, started, total_seconds,
+                   reference_result=None):
     results, bench_cmd, bench_seconds, context = bench
     try:
         loaded = float(machine["loadavg"][0]) > 0.5 * float(machine["cores"])
@@ -461,8 +464,10 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("One progressive iteration (one sample per pixel, and for the light-path algorithms one "
         "light path per pixel) of each algorithm on the reference Cornell boxes at their "
         "reference resolution (512 × 512, from the scene files), rendered exactly as `render` "
-        "does: `render_iterations()` for one iteration at a time, consecutive iteration "
-        "indices, the thread count set by `tbb::global_control` and the settings' task arena "
+        "and the worker do: one `IterationRenderer` (integrator, task arena and buffers made "
+        "once) adding one iteration at a time, consecutive iteration indices, after one "
+        "untimed warm-up iteration that allocates the buffers the others reuse; the thread "
+        "count set by `tbb::global_control` and the settings' task arena "
         "(`bench/iterations.cpp`, names `iteration/<scene>/<algo>/threads:<n>`). Wall-clock "
         "seconds per iteration; *speed-up* is threads:1 / threads:2.")
     for scene in REFERENCE_SCENES:
@@ -513,13 +518,14 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("")
     add("What limits it: path tracing is embarrassingly parallel over pixels (its speed-up "
         "should approach the core count on an idle machine). The bidirectional algorithms "
-        "(lt, bpt, ppm, bpm, vcm) trace all light paths in parallel chunks and then run "
-        "serial steps inside every iteration (`core/integrators/vertex_cm.cpp`): concatenating "
-        "the chunks' light vertices and splats, copying positions and building the hash grid, "
-        "and adding the light-tracing splats to the image; `render_iterations` also allocates "
-        "three full-frame double buffers and a task arena per call. These serial parts cap the "
-        "2-thread speed-up (Amdahl), which is why a cluster of single-thread workers can beat "
-        "one two-thread process (next sections).")
+        "(lt, bpt, ppm, bpm, vcm) trace their light paths in parallel chunks through a TBB "
+        "pipeline whose last stage gathers each chunk in chunk order (vertices, grid "
+        "positions, splats added to the image) on one thread while the others trace later "
+        "chunks; the hash grid is built in parallel, then the eye pass is parallel over "
+        "16 × 16 tiles (`core/integrators/vertex_cm.cpp`, \"Parallel iteration steps and peak "
+        "memory\" below). What is left per iteration is waiting at the end of each parallel "
+        "phase for its last chunk or tile, and the two threads sharing the memory bus and "
+        "the L3 cache.")
     if profiles:
         add("")
         add("In the profiles below, `VertexConnectionMerging::render_iteration` and "
@@ -557,7 +563,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         "BSDF sampling in importance mode with a roulette on the sampled weight, storing every "
         "hit with a non-delta BSDF), eye subpaths likewise from jittered camera rays "
         "(`bench/bench_scenes.cpp`). One thread, CPU seconds; the share column divides by the CPU "
-        "time of a one-thread vcm iteration. VCM builds serially and queries in parallel.")
+        "time of a one-thread vcm iteration. VCM builds and queries in parallel.")
     add("")
     add("| scene | light vertices | build ms | eye vertices (queries) | query ms | "
         "neighbours / query | build + query, share of a 1-thread vcm iteration |")
@@ -577,9 +583,10 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             f"{fmt(q.get('neighbours_per_query') if q else None)} | "
             f"{'–' if share is None else f'{100 * share:.1f} %'} |")
     add("")
-    add("What limits it: the build is a counting sort (one pass to hash, a prefix sum over a "
-        "table as large as the point count, one scatter pass) and is memory-bound; it runs on "
-        "one thread inside every VCM/BPM/PPM iteration, so it adds directly to the serial part. "
+    add("What limits it: the build is a stable counting sort in two levels (points into groups "
+        "of 4096 buckets block by block, then each group by bucket, both passes parallel and "
+        "the order independent of the threads) and is memory-bound; it runs on all the "
+        "arena's threads inside every VCM/BPM/PPM iteration. "
         "A query visits up to 8 cells; its cost is the random access to the cells' point "
         "indices and positions. The query figure here counts neighbours only; in VCM each "
         "neighbour also evaluates a BSDF and a MIS weight (in the iteration times above).")
@@ -663,7 +670,10 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
                                           "case)",), level="### "))
     # The "Start-up" and "Per-iteration allocations" sections are measured by hand (their
     # commands are in them); carry them over.
-    L.extend(hand_written_sections(path, ("## Start-up", "## Per-iteration allocations (issue 16)")))
+    L.extend(hand_written_sections(path, ("## Start-up", "## Per-iteration allocations (issue 16)",
+                                          "## Parallel iteration steps and peak memory "
+                                          "(issue 16)")))
+    L.extend(reference.section(reference_result))
     path.write_text("\n".join(L) + "\n")
 
 
@@ -689,7 +699,7 @@ def hand_written_sections(path, titles=("## Start-up",), level="## "):
 # ---------------------------------------------------------------------------------------------
 
 
-def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
+def run(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm=None) -> None:
     build_dir, docs_dir = Path(build_dir).resolve(), Path(docs_dir).resolve()
     bin_dir = build_dir / "bin"
     for name in ("render_bench", "render", "server", "worker", "client"):
@@ -706,14 +716,16 @@ def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
         bench = run_render_bench(bin_dir / "render_bench", quick, work)
         dist = run_distribution(bin_dir, quick, work)
         profiles = run_perf(bin_dir / "render_bench", quick, work)
+        reference_result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         raw = {"machine": machine, "bench": bench, "dist": dist, "profiles": profiles,
-               "quick": quick, "started": started, "seconds": time.monotonic() - t0}
+               "reference": reference_result, "quick": quick, "started": started,
+               "seconds": time.monotonic() - t0}
         # The raw measurements, so that the document can be rewritten without rerunning
         # (write_from_raw).
         (build_dir / "performance-raw.json").write_text(json.dumps(raw, indent=1))
         docs_dir.mkdir(parents=True, exist_ok=True)
         write_document(docs_dir / "performance.md", machine, bench, dist, profiles, quick,
-                       started, raw["seconds"])
+                       started, raw["seconds"], reference_result)
         log(f"wrote {docs_dir / 'performance.md'} in {(time.monotonic() - t0) / 60:.1f} min")
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -741,4 +753,5 @@ def write_from_raw(raw_file: Path, docs_dir: Path) -> None:
     """Rewrites docs_dir/performance.md from a previous run's build/performance-raw.json."""
     raw = json.loads(Path(raw_file).read_text())
     write_document(Path(docs_dir) / "performance.md", raw["machine"], tuple(raw["bench"]),
-                   raw["dist"], raw["profiles"], raw["quick"], raw["started"], raw["seconds"])
+                   raw["dist"], raw["profiles"], raw["quick"], raw["started"], raw["seconds"],
+                   raw.get("reference"))

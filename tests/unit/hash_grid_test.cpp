@@ -8,6 +8,7 @@
 #include "core/integrators/hash_grid.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -164,6 +165,47 @@ TEST(HashGrid, EmptyAndSinglePointSets) {
     visited.clear();
     grid.for_each_within_radius(Vec3(1.6f, 2, 3), [&](uint32_t i) { visited.push_back(i); });
     EXPECT_TRUE(visited.empty());
+}
+
+// The grid is built in parallel, but every cell's points are visited in increasing index order
+// whatever the number of threads (the merge sums visits in that order: images must not depend
+// on the thread count). 240000 points, a third of them at one position (one cell, whose points
+// come from every block of the build's parallel passes), the rest uniform; builds with 2 and 4
+// threads are repeated, as scheduling differs from run to run.
+TEST(HashGrid, VisitOrderIsIncreasingAndIndependentOfTheThreadCount) {
+    Rng rng(StreamKey{21, 0, 1, 0});
+    const Vec3 shared(1.0f, 1.0f, 1.0f);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 240000; ++i)
+        points.push_back(i % 3 == 0 ? shared : random_in(rng, kLow, kLow + Vec3(6.0f)));
+    const double radius = 0.05;
+    std::vector<Vec3> queries = {shared};
+    for (int i = 0; i < 2000; ++i) queries.push_back(points[size_t(i) * 113]);
+    auto visits = [&](int threads) {
+        HashGrid grid;
+        tbb::task_arena(threads).execute([&] { grid.build(points, radius); });
+        std::vector<std::vector<uint32_t>> all;
+        for (const Vec3& q : queries) {
+            all.emplace_back();
+            grid.for_each_within_radius(q, [&](uint32_t i) { all.back().push_back(i); });
+        }
+        return all;
+    };
+    const auto one = visits(1);
+    // The shared position's points are one cell's: visited in increasing order, all of them.
+    std::vector<uint32_t> at_shared;
+    for (uint32_t i : one[0])
+        if (points[i] == shared) at_shared.push_back(i);
+    EXPECT_EQ(at_shared.size(), 80000u);
+    EXPECT_TRUE(std::is_sorted(at_shared.begin(), at_shared.end()));
+    for (int threads : {2, 4}) {
+        for (int repeat = 0; repeat < 5; ++repeat) {
+            const auto many = visits(threads);
+            ASSERT_EQ(many.size(), one.size());
+            for (size_t q = 0; q < one.size(); ++q)
+                ASSERT_EQ(many[q], one[q]) << threads << " threads, query " << q;
+        }
+    }
 }
 
 }  // namespace

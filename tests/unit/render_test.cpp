@@ -119,6 +119,30 @@ TEST_P(IterationContract, ThreadCountDoesNotChangeTheImage) {
         ASSERT_NEAR(r1.sum.values()[i], r2.sum.values()[i], 1e-6 * std::abs(r1.sum.values()[i]));
 }
 
+// Bit for bit, through one IterationRenderer (whose integrator keeps its buffers from one
+// iteration to the next) as render and the worker use it, at a size where the light pass has
+// dozens of chunks and its vertices fill several storage blocks.
+TEST_P(IterationContract, ThreadCountDoesNotChangeTheImageBitForBit) {
+    auto scene = cornell_box(96);
+    RenderSettings settings = testing::algorithm_settings(GetParam());
+    auto render_with = [&](int threads) {
+        settings.threads = threads;
+        IterationRenderer renderer(*scene, settings, 2);
+        IterationResult result = renderer.empty_result();
+        renderer.add(IterationRange{3, 4}, result);
+        renderer.add(IterationRange{4, 6}, result);
+        return result;
+    };
+    const IterationResult one = render_with(1);
+    for (int threads : {2, 3}) {
+        const IterationResult many = render_with(threads);
+        EXPECT_EQ(many.stats.rays, one.stats.rays) << threads << " threads";
+        EXPECT_EQ(many.stats.non_finite, one.stats.non_finite) << threads << " threads";
+        EXPECT_TRUE(many.sum.values() == one.sum.values()) << threads << " threads";
+        EXPECT_TRUE(many.odd_sum.values() == one.odd_sum.values()) << threads << " threads";
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Algorithms, IterationContract,
                          ::testing::ValuesIn(testing::physically_based_algorithms()));
 
