@@ -22,6 +22,7 @@ void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, floa
     }
     last_pass_ = pass;
     last_scatter_ = scatter;
+    homogeneous_ = homogeneous_ && (!medium || medium->is_homogeneous());
     ++pieces_;
 }
 
@@ -30,6 +31,7 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
     SegmentDensities d;
     d.toward_end = pass_before_last_ * (end_in_medium ? last_scatter_ : last_pass_);
     d.toward_start = pass_after_first_ * first_start_factor_;
+    d.homogeneous = homogeneous_;
     return d;
 }
 

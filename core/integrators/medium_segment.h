@@ -29,6 +29,9 @@ inline constexpr int kMaxNullCrossings = 256;
 struct SegmentDensities {
     float toward_end = 1;
     float toward_start = 1;
+    // Every piece is in vacuum or a homogeneous medium: the segment can carry a photon beam
+    // (upbp's B-B1D is built in homogeneous media only).
+    bool homogeneous = true;
 };
 
 // Accumulates the densities of a segment piece by piece.
@@ -39,6 +42,7 @@ class SegmentDensityBuilder {
     void add_piece(const Medium* medium, const Ray& ray, float length);
     SegmentDensities finish(bool end_in_medium) const;
     int pieces() const { return pieces_; }
+    bool homogeneous() const { return homogeneous_; }
 
   private:
     bool start_in_medium_;
@@ -47,6 +51,7 @@ class SegmentDensityBuilder {
     float pass_after_first_ = 1;    // product of P_pass over all pieces but the first
     float first_start_factor_ = 1;  // the first piece's density toward the segment's start
     float last_pass_ = 1, last_scatter_ = 1;
+    bool homogeneous_ = true;
 };
 
 // Where a sampled segment ended.

@@ -12,6 +12,8 @@
 // beta = 1: balance heuristic). Russian roulette is not part of any density here: the weights
 // only need to sum to one over the techniques, and roulette is compensated in the throughput.
 
+#include <cmath>
+
 namespace render {
 
 // Merges in media come in two kinds (UPBP, Krivanek et al. 2014; ALGORITHMS-NEXT.md 4.3):
@@ -57,6 +59,9 @@ struct DirectTechnique {
     // receiver, the probability of passing every medium at a surface).
     float pass_to_light_probability = 1.0f;
     float distance_from_light = 1.0f;
+    // B-B1D at the receiver, the light's emission segment as the photon beam:
+    // VcmMis::photon_beam_eye_term (0: none).
+    float eye_photon_beam = 0;
 };
 
 // Eqs. (40) and (41): connecting an eye vertex to a light vertex.
@@ -81,6 +86,10 @@ struct ConnectionTechnique {
     // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.
     float light_joint_ratio = 0;
     float joint_ratio = 0;
+    // B-B1D at either vertex (the connection segment as the query at the light vertex, as the
+    // photon beam at the eye vertex): VcmMis::photon_beam_light_term and photon_beam_eye_term.
+    float light_photon_beam = 0;
+    float eye_photon_beam = 0;
 };
 
 // Eq. (46): a light vertex connected to the camera.
@@ -96,6 +105,9 @@ struct CameraTechnique {
     // J1 of the junction whose eye-side vertex is the light vertex, sampled from the camera
     // (ConnectionTechnique::light_joint_ratio).
     float light_joint_ratio = 0;
+    // B-B1D at the vertex with the camera ray as the query: VcmMis::photon_beam_light_term of
+    // the camera's density of the vertex without the distance density, over N_light.
+    float light_photon_beam = 0;
 };
 
 // Eqs. (38) and (39): merging an eye vertex with a light vertex.
@@ -108,6 +120,10 @@ struct MergeTechnique {
     // A point merge in a medium: the eye vertex's VcmMis::query_beam_factor (P-B2D at the same
     // vertex), 0 without query beams.
     float query_beam = 0;
+    // B-B1D at the same vertex: VcmMis::photon_beam_merge_term for a point merge, and
+    // photon_beam_light_term(sin, 1, ...) (the factor times the camera side's distance density)
+    // for a query beam. 0 without photon beams.
+    float photon_beam = 0;
 };
 
 // Which techniques a VcmMis combines, by their merging ratios (0: the technique is off).
@@ -116,6 +132,12 @@ struct MisTechniques {
     double surface_eta = 0;     // merging at surfaces, pi r^2 N_light
     double point_eta = 0;       // photon points in media (P-P3D), 4/3 pi r^3 N_light
     double query_beam_eta = 0;  // photon points along camera segments (P-B2D), pi r_2^2 N_light
+    // Photon beams gathered by camera segments (B-B1D): eta_1 N_light, with eta_1 = r_1 / 2
+    // (SmallUPBP's constant) or 2 r_1 (the kernel's support); 0: off.
+    double photon_beam_eta = 0;
+    // Short photon beams (each ends at its light subpath's sampled distance) instead of long
+    // ones (each reaches the next surface).
+    bool short_photon_beams = false;
 };
 
 class VcmMis {
@@ -148,6 +170,10 @@ class VcmMis {
         if (techniques.query_beam_eta > 0) {
             query_beam_eta_mis_ = mis_double(techniques.query_beam_eta);
             inverse_query_beam_ = clamp_factor(1.0 / query_beam_eta_mis_);
+        }
+        if (techniques.photon_beam_eta > 0) {
+            photon_beam_eta_mis_ = mis_double(techniques.photon_beam_eta);
+            short_photon_beams_ = techniques.short_photon_beams;
         }
     }
 
@@ -247,6 +273,97 @@ class VcmMis {
         q.dVM += term;
     }
 
+    // B-B1D (photon beams; ALGORITHMS-NEXT.md 4.3, docs/media.md "Photon beams"). A light
+    // segment x_{i-1} -> x_i in a medium is a photon beam, the camera segment x_{i+1} -> x_i
+    // the query; neither samples the distance to x_i. Relative to a point merge at x_i the
+    // technique's density has the merge factor
+    //     M_B(x_i) = eta_1 N sin(theta) q_L / p_C,
+    // theta the angle between the two segments, p_C the camera side's distance density of x_i
+    // (the query is long: it covers x_i whatever the eye sampled), q_L = 1 / p_L for a long
+    // photon beam (p_L the light side's distance density of x_i) and 1 / sigma_t(x_i) for a
+    // short one (it covers x_i with probability P_pass, and P_pass / p_L = 1 / sigma_t: exact
+    // for grey homogeneous media, a proxy with the right support otherwise, ALGORITHMS-NEXT.md
+    // 0.3). Each subpath knows its own side's density of a vertex on arrival and the other
+    // side's one vertex later, where arrive() multiplies it in: so the term of x_i is carried
+    // from scatter() at x_i and added after the next arrival (carried_photon_beam_term,
+    // add_photon_beam_term), with the density that arrive() multiplies in cancelled
+    // symbolically. Every function takes sin(theta) = 0 where the technique cannot sample the
+    // vertex (not in a homogeneous medium, the light segment not beam-supported) and treats
+    // near-parallel segments (beams_parallel) the same way, as the estimator rejects them.
+    bool uses_photon_beams() const { return photon_beam_eta_mis_ > 0; }
+    bool short_photon_beams() const { return short_photon_beams_; }
+    // The guard of both the estimator and the weights: sin^2(theta) below 1e-5 (SmallUPBP's
+    // test), and NaN.
+    static bool beams_parallel(float sin_theta) { return !(sin_theta * sin_theta >= 1e-5f); }
+    // A vertex's own part of its deferred term: on a light subpath mis(eta_1 N q_L) from the
+    // arrival's distance density light_distance (0 if the arrival is not beam-supported); on an
+    // eye subpath mis(eta_1 N / p_C), and with short beams also / sigma_t.
+    float photon_beam_light_factor(float light_distance, float sigma_t) const {
+        if (!uses_photon_beams()) return 0.0f;
+        return clamp_factor(photon_beam_eta_mis_ * mis_double(q_light(light_distance, sigma_t)));
+    }
+    float photon_beam_eye_factor(float camera_distance, float sigma_t) const {
+        if (!uses_photon_beams()) return 0.0f;
+        const double q =
+            1.0 / double(camera_distance) * (short_photon_beams_ ? 1.0 / double(sigma_t) : 1.0);
+        return clamp_factor(photon_beam_eta_mis_ * mis_double(q));
+    }
+    // scatter() at a medium vertex with the given factor: g mis(sin) factor, kept for the next
+    // arrival.
+    float carried_photon_beam_term(float cos_out, float forward_w, bool specular, float sin_theta,
+                                   float factor) const {
+        if (!(factor > 0) || specular || !(forward_w > 0) || beams_parallel(sin_theta)) return 0.0f;
+        return clamp_factor(double(mis(cos_out / forward_w)) * mis_double(sin_theta) * factor);
+    }
+    // After arrive(): the term of the vertex the segment started at. Light subpaths: arrive()
+    // multiplied in mis(p_C) of that vertex, which its q / p_C divides out: carried / c. Eye
+    // subpaths: arrive() multiplied in mis(p_L) (reverse_distance); a long beam's q_L = 1 / p_L
+    // divides it out, a short beam's keeps it. `supported`: on eye subpaths, whether the
+    // segment just traced (the light's segment into that vertex) can carry a photon beam.
+    void add_photon_beam_term(MisQuantities& q, float carried, float cos_in, float forward_distance,
+                              float reverse_distance, bool eye_subpath, bool supported) const {
+        if (!(carried > 0) || !supported) return;
+        double term = double(carried) / mis_double(double(cos_in) * forward_distance);
+        if (eye_subpath && short_photon_beams_) term *= mis_double(reverse_distance);
+        const float t = clamp_factor(term);
+        q.dVC += t;
+        q.dVM += t;
+    }
+    // The term of a light vertex (its arrival's light_distance, sigma_t) in a technique that
+    // samples it from the camera side with density pdf_without_distance times p_C:
+    // mis(pdf eta_1 N sin q_L) = mis(pdf p_C) mis(M_B) (connections, camera connections; with
+    // pdf = 1 a query beam's term).
+    float photon_beam_light_term(float sin_theta, float pdf_without_distance, float light_distance,
+                                 float sigma_t) const {
+        if (!uses_photon_beams() || beams_parallel(sin_theta)) return 0.0f;
+        return clamp_factor(photon_beam_eta_mis_ *
+                            mis_double(double(pdf_without_distance) * sin_theta *
+                                       q_light(light_distance, sigma_t)));
+    }
+    // The term of an eye vertex (its arrival's camera_distance, sigma_t) in a technique that
+    // samples it from the light side with density pdf_with_distance = pdf_without_distance p_L
+    // (connections, next-event estimation): mis(pdf_with_distance) mis(M_B), formed without
+    // dividing p_L back out for long beams. `supported`: the light side's segment can carry a
+    // photon beam.
+    float photon_beam_eye_term(float sin_theta, float camera_distance, float sigma_t,
+                               float pdf_with_distance, float pdf_without_distance,
+                               bool supported) const {
+        if (!uses_photon_beams() || !supported || beams_parallel(sin_theta)) return 0.0f;
+        const double pdf = short_photon_beams_ ? double(pdf_with_distance) / double(sigma_t)
+                                               : double(pdf_without_distance);
+        return clamp_factor(photon_beam_eta_mis_ *
+                            mis_double(pdf * sin_theta / double(camera_distance)));
+    }
+    // mis(M_B) of a vertex merged as a point (MergeTechnique::photon_beam): the light vertex's
+    // arrival density light_distance (0: not beam-supported), the eye vertex's camera_distance.
+    float photon_beam_merge_term(float sin_theta, float light_distance, float camera_distance,
+                                 float sigma_t) const {
+        if (!uses_photon_beams() || beams_parallel(sin_theta) || !(light_distance > 0)) return 0.0f;
+        return clamp_factor(photon_beam_eta_mis_ *
+                            mis_double(double(sin_theta) * q_light(light_distance, sigma_t) /
+                                       double(camera_distance)));
+    }
+
     // Joint (J1) connections. A J1 technique samples the eye-side vertex x_j of junction j (a
     // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1}
     // instead of by distance sampling; its density is the connection's times
@@ -287,8 +404,9 @@ class VcmMis {
         const float w_camera = t.cos_light > 0
                                    ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
                                          (t.direct_pdf_w * t.cos_light)) *
-                                         (vm_weight_factor_[t.eye_medium] + t.eye_query_beam +
-                                          eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w))
+                                             (vm_weight_factor_[t.eye_medium] + t.eye_query_beam +
+                                              eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w)) +
+                                         t.eye_photon_beam
                                    : 0.0f;
         return 1.0f / (w_light + 1.0f + w_camera);
     }
@@ -299,10 +417,11 @@ class VcmMis {
         const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] +
                                                   light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
                                                   light.dVC * mis(t.light_reverse_w)) +
-                              t.light_query_beam;
+                              t.light_query_beam + t.light_photon_beam;
         const float w_camera =
             mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + t.eye_query_beam + eye.dVCM +
-                                  eye.dVC * mis(t.eye_reverse_w));
+                                  eye.dVC * mis(t.eye_reverse_w)) +
+            t.eye_photon_beam;
         return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
     }
 
@@ -318,7 +437,7 @@ class VcmMis {
                                   (vm_weight_factor_[t.light_medium] +
                                    light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
                                    light.dVC * mis(t.light_reverse_w)) +
-                              t.light_query_beam;
+                              t.light_query_beam + t.light_photon_beam;
         return 1.0f / (w_light + 1.0f);
     }
 
@@ -328,7 +447,8 @@ class VcmMis {
         const float vc = vc_weight_factor_[t.medium], inverse_eta = inverse_eta_[t.medium];
         const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(t.eye_forward_w);
         const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(t.eye_reverse_w);
-        return 1.0f / (w_light + 1.0f + t.query_beam * inverse_eta + w_camera);
+        return 1.0f / (w_light + 1.0f + t.query_beam * inverse_eta + t.photon_beam * inverse_eta +
+                       w_camera);
     }
 
     // P-B2D: a photon (light subpath `light`) within r_2 of a camera segment, gathered at its
@@ -344,12 +464,43 @@ class VcmMis {
             vm_weight_factor_[1] + light.dVCM * connections + light.dVM * mis(t.eye_forward_w);
         const float camera_side =
             eye_at_query.dVCM * connections + eye_at_query.dVM * mis(t.eye_reverse_w);
-        return 1.0f /
-               (1.0f + (mis(camera_distance_l) * light_side + camera_side) * inverse_query_beam_);
+        return 1.0f / (1.0f + (mis(camera_distance_l) * light_side + camera_side + t.photon_beam) *
+                                  inverse_query_beam_);
+    }
+
+    // B-B1D: a photon beam passing within r_1 of a camera segment (the query), gathered at
+    // their closest approach x with sin(theta) between them. light_at_x, eye_at_x: each
+    // subpath's quantities as if it had arrived at x (arrive() with forward_distance = 1, the
+    // deferred terms added likewise); light_distance and camera_distance: those distance
+    // densities p_L, p_C, multiplied into the other terms here instead of divided out (every
+    // term below is the technique's ratio times mis(p_L p_C)). t.eye_*_w: the phase function at
+    // x with the query as the eye's direction and the beam as the light's.
+    float weight_photon_beam(const MisQuantities& light_at_x, const MisQuantities& eye_at_x,
+                             float light_distance, float camera_distance, float sin_theta,
+                             float sigma_t, const MergeTechnique& t) const {
+        if (beams_parallel(sin_theta)) return 0.0f;
+        const double connections = use_vc_ ? 1.0 : 0.0;
+        const double beam =
+            photon_beam_eta_mis_ *
+            mis_double(double(sin_theta) *
+                       (short_photon_beams_ ? double(light_distance) / sigma_t : 1.0));
+        const double p_l = mis_double(light_distance), p_c = mis_double(camera_distance);
+        const double light_side = double(light_at_x.dVCM) * connections +
+                                  double(light_at_x.dVM) * mis_double(t.eye_forward_w);
+        const double camera_side = double(eye_at_x.dVCM) * connections +
+                                   double(eye_at_x.dVM) * mis_double(t.eye_reverse_w);
+        const double others = p_l * p_c * vm_weight_factor_[1] + p_l * query_beam_eta_mis_ +
+                              p_c * light_side + p_l * camera_side;
+        const double w = beam / (beam + others);
+        return std::isfinite(w) ? float(w) : 0.0f;
     }
 
   private:
     double mis_double(double p) const { return power_ == 1 ? p : p * p; }
+    // q_L of B-B1D: 1 / p_L (long photon beams), 1 / sigma_t (short).
+    double q_light(float light_distance, float sigma_t) const {
+        return 1.0 / double(short_photon_beams_ ? sigma_t : light_distance);
+    }
     static float clamp_factor(double f) { return float(f < 1e30 ? f : 1e30); }
 
     int power_;
@@ -360,6 +511,9 @@ class VcmMis {
     // P-B2D: mis(eta_2D) (0: off) and its inverse.
     double query_beam_eta_mis_ = 0;
     float inverse_query_beam_ = 0;
+    // B-B1D: mis(eta_1 N) (0: off) and the beam length.
+    double photon_beam_eta_mis_ = 0;
+    bool short_photon_beams_ = false;
 };
 
 }  // namespace render

@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
@@ -14,6 +15,8 @@
 #include <span>
 #include <vector>
 
+#include "core/base/scene_limits.h"
+#include "core/integrators/beams_along_ray.h"
 #include "core/integrators/direct_light.h"
 #include "core/integrators/hash_grid.h"
 #include "core/integrators/importance_lookup.h"
@@ -80,6 +83,9 @@ struct SubpathState {
     // Light subpaths with query beams: the factor of the P-B2D term of the vertex the next
     // segment starts at, added at the next arrival (vcm_mis.h, add_query_beam_term).
     float carried_query_beam = 0;
+    // With photon beams (either subpath): the B-B1D term of the vertex the next segment starts
+    // at, added at the next arrival (vcm_mis.h, add_photon_beam_term).
+    float carried_photon_beam = 0;
 };
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
@@ -100,6 +106,14 @@ struct Vertex {
     // Eye subpaths with query beams (P-B2D): this medium vertex's merge factor of that
     // technique, VcmMis::query_beam_factor of the distance density that reached it.
     float query_beam = 0;
+    // With photon beams, at a medium vertex: the distance density of the segment that reached
+    // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
+    // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
+    // technique cannot sample it: outside homogeneous media, or on a light subpath reached by a
+    // segment that cannot carry a beam).
+    float arrival_distance = 0;
+    float sigma_t = 0;
+    float photon_beam = 0;
 
     bool in_medium() const { return phase != nullptr; }
     bool has_non_delta() const { return phase || bsdf->bsdf().has_non_delta(); }
@@ -163,6 +177,24 @@ struct Splat {
     int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
+// A photon beam: one piece, in a homogeneous medium, of a light subpath's segment (up to the
+// sampled distance for a short beam, to the next surface for a long one), with what its
+// estimate and MIS weight need of the subpath at the segment's start (the beam's source).
+struct PhotonBeam {
+    uint64_t order = 0;  // (light path, piece) : the beams' order whatever the thread count
+    BeamLine line;
+    const Medium* medium = nullptr;
+    // The source's throughput after scattering, times the pieces before this one: their
+    // transmittance (long) or transmittance over pass probability (short).
+    Rgb weight;
+    float offset = 0;                     // from the source to the piece's start
+    SegmentDensityBuilder before{false};  // the pieces before this one
+    MisQuantities mis;                    // the subpath after scattering at the source
+    float carried_query_beam = 0, carried_photon_beam = 0;
+    int path_length = 0;  // segments of the light path with the beam's
+    bool apply_distance = true;
+};
+
 // The squared distance clamp of VPL connections in (1-based, global) iteration i; 0 unclamped.
 double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,
                          uint64_t iteration) {
@@ -211,6 +243,12 @@ struct IterationStorage {
     // Query beams: the medium light vertices as balls of the beam radius (made on first use:
     // it owns an Embree device).
     std::unique_ptr<PointsAlongRay> beam_lookup;
+    // Photon beams: gathered per thread while the light paths are traced, then put in order
+    // (photon_beams, and their lines for the lookup).
+    tbb::enumerable_thread_specific<std::vector<PhotonBeam>> photon_beam_staging;
+    std::vector<PhotonBeam> photon_beams;
+    std::vector<BeamLine> photon_beam_lines;
+    std::unique_ptr<BeamsAlongRay> photon_beam_lookup;
 };
 
 namespace {
@@ -270,11 +308,29 @@ class Iteration {
           merge_points_(use_vm_ && config.photon_points),
           query_beams_(config.mode == BidirectionalMode::Vcm && config.query_beams &&
                        scene.has_media()),
+          photon_beams_(config.mode == BidirectionalMode::Vcm && config.photon_beams &&
+                        scene.has_media()),
+          // Photon beams: a 1-D kernel, r_i = r_1 i^(alpha - 1) (merge_radius_in at dimension
+          // 1) on the volume schedule, else on the surfaces' factor and alpha.
+          photon_beam_radius_(
+              merge_radius_in((config.volume_radius_factor > 0 ? config.volume_radius_factor
+                                                               : config.radius_factor) *
+                                  scene.bounding_sphere().radius,
+                              config.volume_radius_factor > 0 ? config.volume_alpha : config.alpha,
+                              key.iteration, 1)),
+          // The box kernel 1 / (2 r_1), each of the N_L light paths' beams one sample.
+          photon_beam_normalization_(
+              float(1.0 / (2.0 * photon_beam_radius_ * double(light_path_count_)))),
           mis_(config.mis_power,
                MisTechniques{.connections = use_vc_,
                              .surface_eta = merge_surfaces_ ? eta_vcm_ : 0.0,
                              .point_eta = merge_points_ ? eta_vcm_volume_ : 0.0,
-                             .query_beam_eta = query_beams_ ? eta_beam_ : 0.0},
+                             .query_beam_eta = query_beams_ ? eta_beam_ : 0.0,
+                             .photon_beam_eta = photon_beams_
+                                                    ? config.photon_beam_eta * photon_beam_radius_ *
+                                                          double(light_path_count_)
+                                                    : 0.0,
+                             .short_photon_beams = config.short_photon_beams},
                double(light_path_count_)),
           vpl_clamp2_(vpl_clamp_squared(config, scene, key.iteration)),
           vpl_scale_(float(1.0 / double(light_path_count_))),
@@ -381,6 +437,23 @@ class Iteration {
     // to be traced along `ray`, over every piece in a medium up to the first surface that is
     // not a null boundary (the long query), each gathered at its projection on the segment.
     Rgb query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // Photon beams (B-B1D). Light subpaths: the beams of the segment just sampled along `ray`
+    // from the subpath `from` (its state before the segment), appended to the thread's staging
+    // buffer; `piece` counts the path's pieces so far.
+    void emit_photon_beams(const Ray& ray, const SubpathState& from, const SampledSegment& seg,
+                           uint64_t path_index, uint32_t& piece, Rng& rng,
+                           RenderStats& stats) const;
+    // Puts the staged beams in order and builds their lookup.
+    void build_photon_beams();
+    // Eye subpaths: the photon beams within the beam radius of the eye segment about to be
+    // traced along `ray` (its pieces in media up to the first surface that is not a null
+    // boundary: the long query), each gathered at its closest approach.
+    Rgb photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // B-B1D terms of a light vertex v (reached from wo) sampled from the camera side along
+    // direction d with density pdf (without its distance density); 0 without the technique.
+    float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
+    // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
+    void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
     // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
@@ -435,7 +508,9 @@ class Iteration {
     double eta_vcm_, eta_vcm_volume_, eta_beam_;
     float vm_normalization_, vm_normalization_volume_, beam_normalization_;
     // Which merges are on (ppm, bpm, vcm: surfaces and photon points; upbp: as configured).
-    bool merge_surfaces_, merge_points_, query_beams_;
+    bool merge_surfaces_, merge_points_, query_beams_, photon_beams_;
+    double photon_beam_radius_;
+    float photon_beam_normalization_;
     VcmMis mis_;
     float vpl_clamp2_;  // squared distance clamp of VPL connections (0: none)
     float vpl_scale_;   // 1 / N_L: each light path is one sample of the VPL estimator
@@ -493,6 +568,7 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         if (seg.one_piece) v.joint_distance_pdf = seg.densities.toward_end;
         if (mode == TransportMode::Radiance)
             v.query_beam = mis_.query_beam_factor(seg.densities.toward_end);
+        if (photon_beams_) set_photon_beam_quantities(v, seg, mode);
     } else {
         v.n = seg.si.geometric_normal;
         v.shape = seg.si.shape;
@@ -517,7 +593,30 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     if (mode == TransportMode::Importance)
         mis_.add_query_beam_term(state.mis, state.carried_query_beam, cos_in,
                                  seg.densities.toward_end);
+    // Photon beams: the B-B1D term of the vertex this segment left (on eye subpaths, this
+    // segment is the photon beam that reaches it).
+    mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, cos_in,
+                              seg.densities.toward_end, seg.densities.toward_start,
+                              mode == TransportMode::Radiance, seg.densities.homogeneous);
     return v;
+}
+
+void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
+                                           TransportMode mode) const {
+    if (!seg.medium->is_homogeneous()) return;
+    v.arrival_distance = seg.densities.toward_end;
+    v.sigma_t = seg.medium->sigma_t(v.p).average();
+    if (!(v.sigma_t > 0)) return;
+    if (mode == TransportMode::Radiance)
+        v.photon_beam = mis_.photon_beam_eye_factor(v.arrival_distance, v.sigma_t);
+    else if (seg.densities.homogeneous)
+        v.photon_beam = mis_.photon_beam_light_factor(v.arrival_distance, v.sigma_t);
+}
+
+float Iteration::light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d,
+                                        float pdf) const {
+    if (!(v.photon_beam > 0)) return 0.0f;
+    return mis_.photon_beam_light_term(length(cross(wo, d)), pdf, v.arrival_distance, v.sigma_t);
 }
 
 Link Iteration::link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
@@ -570,10 +669,15 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
     Ray ray;
     if (!generate_light_sample(rng, state, ray)) return;
 
+    uint32_t beam_piece = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
+        // Photon beams need the subpath as it was before the segment.
+        std::optional<SubpathState> before;
+        if (photon_beams_) before = state;
         std::optional<Vertex> v =
             next_vertex(ray, TransportMode::Importance, rng, state, stats, seg);
+        if (before) emit_photon_beams(ray, *before, seg, path_index, beam_piece, rng, stats);
         if (!v) break;
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
@@ -671,6 +775,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         if (!storage_.beam_lookup) storage_.beam_lookup = std::make_unique<PointsAlongRay>();
         storage_.beam_lookup->build(medium_positions_, float(beam_radius_));
     }
+    if (photon_beams_) build_photon_beams();
 }
 
 bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
@@ -688,6 +793,11 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
             mis_.carried_connection_term(state.mis, cos_out, bs->pdf_w.forward, bs->delta);
     state.carried_query_beam =
         v.in_medium() ? mis_.carried_query_beam_term(cos_out, bs->pdf_w.forward, bs->delta) : 0.0f;
+    if (photon_beams_)
+        state.carried_photon_beam =
+            v.in_medium() ? mis_.carried_photon_beam_term(cos_out, bs->pdf_w.forward, bs->delta,
+                                                          length(cross(wo, bs->wi)), v.photon_beam)
+                          : 0.0f;
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
     mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta, v.in_medium(),
                  v.query_beam);
@@ -736,13 +846,17 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
         v.in_medium()
             ? mis_.query_beam_term(camera_pdf_w * v.cos(d) / dist2 / float(light_path_count_))
             : 0.0f;
+    // B-B1D at this vertex, the camera ray as the query.
+    const float light_photon_beam = light_photon_beam_term(
+        v, wo, d, camera_pdf_w * v.cos(d) / dist2 / float(light_path_count_));
     const float weight =
         light_trace_only_ ? 1.0f
                           : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
                                                            .light_reverse_w = pdf_w.reverse,
                                                            .light_medium = v.in_medium(),
                                                            .light_query_beam = light_query_beam,
-                                                           .light_joint_ratio = light_joint_ratio});
+                                                           .light_joint_ratio = light_joint_ratio,
+                                                           .light_photon_beam = light_photon_beam});
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
@@ -782,6 +896,17 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
+    // B-B1D at v, the light's emission segment toward v as the photon beam: the emission's
+    // density of v (relative to the light's direct density, as eq. 45 forms it) with and
+    // without the distance density.
+    float eye_photon_beam = 0;
+    if (v.photon_beam > 0 && ls.cos_at_light > 0) {
+        const float emission =
+            ls.pdf_emission_w * v.cos(ls.wi) / (ls.pdf_direct_w * ls.cos_at_light);
+        eye_photon_beam = mis_.photon_beam_eye_term(length(cross(wo, ls.wi)), v.arrival_distance,
+                                                    v.sigma_t, emission * l.densities.toward_start,
+                                                    emission, l.densities.homogeneous);
+    }
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const float weight =
         many_lights_
@@ -797,7 +922,8 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
                                              .eye_medium = v.in_medium(),
                                              .eye_query_beam = v.query_beam,
                                              .pass_to_light_probability = l.densities.toward_end,
-                                             .distance_from_light = l.densities.toward_start});
+                                             .distance_from_light = l.densities.toward_start,
+                                             .eye_photon_beam = eye_photon_beam});
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -856,7 +982,17 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
         .light_query_beam =
             w.in_medium() ? mis_.query_beam_term(eye_pdf_w.forward * w.cos(d) / dist2) : 0.0f,
         .light_joint_ratio = light_joint_ratio,
-        .joint_ratio = joint_ratio};
+        .joint_ratio = joint_ratio,
+        // B-B1D at the light vertex (the connection as the query) and at the eye vertex (the
+        // connection as the photon beam).
+        .light_photon_beam =
+            light_photon_beam_term(w, lv.wo, d, eye_pdf_w.forward * w.cos(d) / dist2),
+        .eye_photon_beam =
+            v.photon_beam > 0
+                ? mis_.photon_beam_eye_term(length(cross(wo, d)), v.arrival_distance, v.sigma_t,
+                                            light_pdf_a, light_pdf_w.forward * v.cos(d) / dist2,
+                                            l.densities.homogeneous)
+                : 0.0f};
     const float weight = joint ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
                                : mis_.weight_connection(lv.mis, eye_mis, technique);
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
@@ -1211,11 +1347,17 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         float weight = 1.0f;
         if (!ppm_) {
             // Eqs. (38) and (39).
-            weight = mis_.weight_merge(lv.mis, state.mis,
-                                       {.eye_forward_w = pdf_w.forward,
-                                        .eye_reverse_w = pdf_w.reverse,
-                                        .medium = medium,
-                                        .query_beam = v.query_beam});
+            weight = mis_.weight_merge(
+                lv.mis, state.mis,
+                {.eye_forward_w = pdf_w.forward,
+                 .eye_reverse_w = pdf_w.reverse,
+                 .medium = medium,
+                 .query_beam = v.query_beam,
+                 .photon_beam = v.photon_beam > 0 && lv.vertex.photon_beam > 0
+                                    ? mis_.photon_beam_merge_term(length(cross(wo, lv.wo)),
+                                                                  lv.vertex.arrival_distance,
+                                                                  v.arrival_distance, v.sigma_t)
+                                    : 0.0f});
         }
         Rgb photon = lv.throughput;
         if (medium) {
@@ -1265,9 +1407,14 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                 const SegmentDensities d = densities.finish(true);
                 MisQuantities eye = state.mis;
                 mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
+                mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
+                                          d.toward_start, true, d.homogeneous);
                 const float weight = mis_.weight_query_beam(
                     lv.mis, eye, d.toward_end,
-                    {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+                    {.eye_forward_w = p,
+                     .eye_reverse_w = p,
+                     .medium = true,
+                     .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
                 // sigma_s at x scatters the eye's light; the photon's throughput carries its
                 // own vertex's sigma_s (its distance sampling), divided out.
                 Rgb photon = lv.throughput;
@@ -1290,6 +1437,175 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
         piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
     }
     return sum * beam_normalization_;
+}
+
+// --- photon beams (B-B1D) ---------------------------------------------------------------------
+
+// Photon beams are clipped at this length where a light subpath leaves the scene inside an
+// unbounded medium: no vertex a ray can reach lies farther (core/base/scene_limits.h).
+constexpr float kMaxPhotonBeamLength = 4 * kMaxSceneCoordinate;
+
+void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
+                                  const SampledSegment& seg, uint64_t path_index, uint32_t& piece,
+                                  Rng& rng, RenderStats& stats) const {
+    const bool short_beams = config_.short_photon_beams;
+    std::vector<PhotonBeam>& out = storage_.photon_beam_staging.local();
+    PhotonBeam beam;
+    beam.line.direction = ray.direction;
+    beam.weight = from.throughput;
+    beam.before = SegmentDensityBuilder(from.in_medium);
+    beam.mis = from.mis;
+    beam.carried_query_beam = from.carried_query_beam;
+    beam.carried_photon_beam = from.carried_photon_beam;
+    beam.path_length = from.path_length;
+    beam.apply_distance = from.path_length > 1 || from.is_finite_light;
+    auto emit = [&](const Ray& r, const Medium* medium, float length, float offset) {
+        beam.order = (path_index << 24) | std::min<uint32_t>(piece++, (1u << 24) - 1);
+        beam.line.origin = r.origin;
+        beam.line.length = std::min(length, kMaxPhotonBeamLength);
+        beam.medium = medium;
+        beam.offset = offset;
+        out.push_back(beam);
+    };
+    const Medium* medium = from.medium;
+    // One piece that ends where the sample ended (short beams, or any beam ending at a
+    // surface): the segment already traced it.
+    if (seg.one_piece && seg.end != SegmentEnd::Escaped &&
+        (short_beams || seg.end == SegmentEnd::Surface)) {
+        if (medium && medium->is_homogeneous()) emit(ray, medium, seg.distance, 0.0f);
+        return;
+    }
+    // Otherwise walk the pieces again (the same closest hits as the sampling saw), up to the
+    // sampled distance (short) or the first surface that is not a null boundary (long). Beams
+    // are made in homogeneous media only: a piece in another medium ends the walk, and the
+    // segment's SegmentDensities::homogeneous tells the weights so.
+    Ray r = ray;
+    float offset = 0;
+    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
+        SurfaceInteraction si;
+        ++stats.rays;
+        const bool hit = scene_.intersect(r, si);
+        const float t_end = hit ? si.t : kInfinity;
+        float end = t_end;
+        bool last = !hit || !si.bsdf->is_null();
+        if (short_beams && seg.end != SegmentEnd::Escaped) {
+            const float t_sample = dot(seg.position - r.origin, r.direction);
+            if (t_sample <= t_end) {
+                end = std::max(t_sample, 0.0f);
+                last = true;
+            }
+        }
+        if (medium) {
+            if (!medium->is_homogeneous()) return;
+            emit(r, medium, end, offset);
+            if (last) return;
+            // Passing this piece: its transmittance, over the probability that the sample
+            // passed it for a short beam (which reached the next piece only if it did).
+            const Rgb tr = medium->transmittance(r, t_end, rng);  // exact: draws nothing
+            beam.weight *=
+                short_beams ? tr / std::max(medium->probability_pass(r, t_end), 1e-35f) : tr;
+            if (beam.weight.is_black()) return;
+        }
+        if (last) return;
+        beam.before.add_piece(medium, r, t_end);
+        offset += t_end;
+        medium = medium_after_transmission(si, r.direction);
+        r = scene_.spawn_ray(si.p, si.geometric_normal, r.direction);
+    }
+}
+
+void Iteration::build_photon_beams() {
+    std::vector<PhotonBeam>& beams = storage_.photon_beams;
+    beams.clear();
+    for (std::vector<PhotonBeam>& staged : storage_.photon_beam_staging) {
+        beams.insert(beams.end(), staged.begin(), staged.end());
+        staged.clear();
+    }
+    std::sort(beams.begin(), beams.end(),
+              [](const PhotonBeam& a, const PhotonBeam& b) { return a.order < b.order; });
+    std::vector<BeamLine>& lines = storage_.photon_beam_lines;
+    lines.clear();
+    lines.reserve(beams.size());
+    for (const PhotonBeam& b : beams) lines.push_back(b.line);
+    if (!storage_.photon_beam_lookup)
+        storage_.photon_beam_lookup = std::make_unique<BeamsAlongRay>();
+    storage_.photon_beam_lookup->build(lines, float(photon_beam_radius_));
+}
+
+Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
+                            RenderStats& stats) const {
+    Rgb sum(0.0f);
+    const std::vector<PhotonBeam>& beams = storage_.photon_beams;
+    if (beams.empty()) return sum;
+    const BeamsAlongRay& lookup = *storage_.photon_beam_lookup;
+    const bool short_beams = config_.short_photon_beams;
+    // Walks the pieces as query_beams does: the densities and the transmittance of the pieces
+    // before the current one.
+    SegmentDensityBuilder before(state.in_medium);
+    Rgb transmittance(1.0f);
+    const Medium* medium = state.medium;
+    Ray piece = ray;
+    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
+        SurfaceInteraction si;
+        ++stats.rays;
+        const bool hit = scene_.intersect(piece, si);
+        const float t_end = hit ? si.t : kInfinity;
+        if (medium && medium->is_homogeneous()) {
+            Ray query = piece;
+            query.t_max = t_end;
+            lookup.for_each_near(query, [&](uint32_t i, const BeamApproach& a) {
+                const PhotonBeam& b = beams[i];
+                if (b.medium != medium) return;  // a beam of another medium
+                if (b.path_length + state.path_length > max_length_) return;
+                const Vec3 x = piece.at(a.t_ray);
+                const float sigma_t = medium->sigma_t(x).average();
+                if (!(sigma_t > 0)) return;
+                // The eye scatters the beam's light toward the camera at x.
+                const float p = medium->phase().p(-ray.direction, -b.line.direction);
+                if (!(p > 0)) return;
+                // Both subpaths as if they had arrived at the closest approach, their distance
+                // densities left to the weight (vcm_mis.h, weight_photon_beam).
+                const Ray beam_ray(b.line.origin, b.line.direction);
+                SegmentDensityBuilder light_pieces = b.before;
+                light_pieces.add_piece(medium, beam_ray, a.t_beam);
+                const SegmentDensities dl = light_pieces.finish(true);
+                MisQuantities light = b.mis;
+                const float light_distance = b.offset + a.t_beam;
+                mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f, 1.0f,
+                            dl.toward_start);
+                mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
+                mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f, dl.toward_start,
+                                          false, true);
+                SegmentDensityBuilder eye_pieces = before;
+                eye_pieces.add_piece(medium, piece, a.t_ray);
+                const SegmentDensities dc = eye_pieces.finish(true);
+                MisQuantities eye = state.mis;
+                mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, dc.toward_start);
+                mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
+                                          dc.toward_start, true, dc.homogeneous);
+                const float weight = mis_.weight_photon_beam(
+                    light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
+                    {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+                if (!(weight > 0)) return;
+                // The beam's transmittance to the closest approach (over the probability that
+                // a short beam reaches it), the query's, sigma_s and the phase function at x,
+                // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
+                // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
+                Rgb beam_tr = medium->transmittance(beam_ray, a.t_beam, rng);  // draws nothing
+                if (short_beams)
+                    beam_tr =
+                        beam_tr / std::max(medium->probability_pass(beam_ray, a.t_beam), 1e-35f);
+                const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
+                sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
+            });
+        }
+        if (medium) transmittance *= medium->transmittance(piece, t_end, rng);
+        if (!hit || !si.bsdf->is_null() || transmittance.is_black()) break;
+        before.add_piece(medium, piece, si.t);
+        medium = medium_after_transmission(si, piece.direction);
+        piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
+    }
+    return sum * photon_beam_normalization_;
 }
 
 Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
@@ -1324,6 +1640,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
         if (query_beams_ && state.path_length < max_length_)
             add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));
+        if (photon_beams_ && state.path_length < max_length_)
+            add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
@@ -1332,6 +1650,9 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                 // technique's density; an infinite light has no distance or cosine term.
                 mis_.arrive(state.mis, 0.0f, false, 1.0f, seg.densities.toward_end,
                             seg.densities.toward_start);
+                mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, 1.0f,
+                                          seg.densities.toward_end, seg.densities.toward_start,
+                                          true, seg.densities.homogeneous);
                 for (const Light* light : scene_.background_lights())
                     add(Technique::Connection, 0,
                         state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));

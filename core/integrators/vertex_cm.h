@@ -92,6 +92,14 @@ struct BidirectionalConfig {
     bool query_beams = false;
     double volume_radius_factor = 0;
     double volume_alpha = 1;
+    // upbp's photon beams (B-B1D, docs/media.md "Photon beams"): the light subpaths' segments in
+    // homogeneous media gathered by camera segments with a 1-D kernel of radius r_1 (the volume
+    // schedule at dimension 1). short_photon_beams: each beam ends at its subpath's sampled
+    // distance (UPBP's default) instead of at the next surface. photon_beam_eta: the MIS constant
+    // eta_1 in units of r_1 (0.5: SmallUPBP's r / 2; 2: the kernel's support 2 r).
+    bool photon_beams = false;
+    bool short_photon_beams = true;
+    double photon_beam_eta = 0.5;
 };
 
 // One candidate VPL of an iteration of `vpl` with the importance-driven distribution, as the

@@ -80,8 +80,9 @@ const std::vector<Algorithm>& table() {
          .options = kConnecting,
          .create = make_bidirectional<BidirectionalMode::LightTracing>},
         {.name = "bpt",
-         .description = "bidirectional path tracing (homogeneous and grid media); --connections ic: "
-                        "importance-cached connections",
+         .description =
+             "bidirectional path tracing (homogeneous and grid media); --connections ic: "
+             "importance-cached connections",
          .support = {.homogeneous_media = true, .grid_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections",
                      "joint_connections", "ic_light_paths", "connection_samples",
@@ -113,22 +114,36 @@ const std::vector<Algorithm>& table() {
          .options = kMerging,
          .create = make_bidirectional<BidirectionalMode::Vcm>},
         {.name = "upbp",
-         .description = "unified points, beams and paths (homogeneous and grid media): vcm's connections "
-                        "and merges with query beams, photon points gathered along whole camera "
-                        "segments in media (photon beams not yet)",
+         .description =
+             "unified points, beams and paths (homogeneous and grid media): vcm's connections "
+             "and merges with query beams (photon points gathered along whole camera "
+             "segments in media) and photon beams (light-path segments in homogeneous "
+             "media gathered by camera segments)",
          .support = {.homogeneous_media = true, .grid_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
                      "vertex_connections", "surface_merging", "photon_points", "query_beams",
+                     "photon_beams", "photon_beam_length", "photon_beam_eta",
                      "volume_radius_factor", "volume_alpha"},
-         // Query beams beside connections only, and as the only estimator in media.
+         // Query and photon beams beside connections only; query beams, then photon beams (long,
+         // with the other eta_1), as the only estimator in media.
          .variants = {{{"surface_merging", "off"}, {"photon_points", "off"}},
-                      {{"vertex_connections", "off"}, {"photon_points", "off"}}},
+                      {{"vertex_connections", "off"},
+                       {"photon_points", "off"},
+                       {"photon_beams", "off"}},
+                      {{"vertex_connections", "off"},
+                       {"photon_points", "off"},
+                       {"query_beams", "off"},
+                       {"photon_beam_length", "long"},
+                       {"photon_beam_eta", "2r"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
              config.vertex_connections = s.vertex_connections;
              config.surface_merging = s.surface_merging;
              config.photon_points = s.photon_points;
              config.query_beams = s.query_beams;
+             config.photon_beams = s.photon_beams;
+             config.short_photon_beams = s.short_photon_beams;
+             config.photon_beam_eta = s.photon_beam_eta;
              config.volume_radius_factor = s.volume_radius_factor;
              config.volume_alpha = s.volume_alpha;
              return std::make_unique<VertexConnectionMerging>(config);

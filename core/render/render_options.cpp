@@ -130,13 +130,51 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.query_beams ? "on" : "off";
          }},
+        {.name = "photon_beams",
+         .flag = "--photon-beams",
+         .metavar = "on|off",
+         .type = OptionType::Choice,
+         .help = "upbp: light-path segments in homogeneous media stored as photon beams and "
+                 "gathered by camera segments with a 1-D kernel (B-B1D)",
+         .choices = {"on", "off"},
+         .default_text = "on",
+         .apply = [](RenderSettings& s, const std::string& v) { s.photon_beams = v == "on"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.photon_beams ? "on" : "off";
+         }},
+        {.name = "photon_beam_length",
+         .flag = "--photon-beam-length",
+         .metavar = "short|long",
+         .type = OptionType::Choice,
+         .help = "upbp: photon beams end at the light path's sampled distance (short) or at the "
+                 "next surface (long)",
+         .choices = {"short", "long"},
+         .default_text = "short",
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.short_photon_beams = v == "short"; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.short_photon_beams ? "short" : "long";
+         }},
+        {.name = "photon_beam_eta",
+         .flag = "--photon-beam-eta",
+         .metavar = "r/2|2r",
+         .type = OptionType::Choice,
+         .help = "upbp: the photon beams' MIS constant eta_1: SmallUPBP's r/2 or the 1-D "
+                 "kernel's support 2r",
+         .choices = {"r/2", "2r"},
+         .default_text = "r/2",
+         .apply = [](RenderSettings& s,
+                     const std::string& v) { s.photon_beam_eta = v == "2r" ? 2.0 : 0.5; },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.photon_beam_eta == 2.0 ? "2r" : "r/2";
+         }},
         {.name = "volume_radius_factor",
          .flag = "--volume-radius-factor",
          .metavar = "F",
          .type = OptionType::Real,
          .help =
-             "upbp: initial radius of photon points and query beams as a fraction of the scene's "
-             "bounding-sphere radius (0 = as --radius-factor, reduced with --alpha)",
+             "upbp: initial radius of photon points, query beams and photon beams as a fraction "
+             "of the scene's bounding-sphere radius (0 = as --radius-factor, reduced with --alpha)",
          .min = 0,
          .max = 1000,
          .default_text = "0",
@@ -148,7 +186,8 @@ const std::vector<RenderOption>& table() {
          .metavar = "A",
          .type = OptionType::Real,
          .help = "upbp, with --volume-radius-factor: radius reduction of the volume estimators, "
-                 "r_i = r_1 i^((A-1)/d) for a kernel of dimension d (3: points, 2: query beams)",
+                 "r_i = r_1 i^((A-1)/d) for a kernel of dimension d (3: points, 2: query beams, 1: "
+                 "photon beams)",
          .min = 0,
          .max = 1,
          .min_exclusive = true,

@@ -46,6 +46,12 @@ struct RenderSettings {
     bool query_beams = true;
     double volume_radius_factor = 0;
     double volume_alpha = 1;
+    // upbp: photon beams (B-B1D), short (each ends at its light subpath's sampled distance) or
+    // long (to the next surface), and their MIS constant eta_1 in units of the beam radius
+    // (0.5: SmallUPBP's r / 2; 2: the kernel's support 2 r).
+    bool photon_beams = true;
+    bool short_photon_beams = true;
+    double photon_beam_eta = 0.5;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

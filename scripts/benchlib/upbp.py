@@ -5,9 +5,10 @@ beams and paths").
 The claim to check (ALGORITHMS-NEXT.md 4.6 b): over isosph with sigma_t x 0.1, x 1, x 10 (the
 scene's `density` define) and glasssph, `upbp` with every estimator is never the worst arm and
 within 2x of the best at every density, and which single estimator wins changes with density.
-Photon beams (B-B1D) are not built yet, so the arms are `bpt`, `vcm` (connections, surface
-merges, photon points), `upbp` with connections and query beams only, and `upbp` with
-everything it has (connections, surface merges, photon points, query beams).
+The arms: `bpt`, `vcm` (connections, surface merges, photon points), `upbp` with connections
+and query beams only (P-B2D), `upbp` with connections and photon beams only (B-B1D, short
+beams, eta_1 = r/2), and `upbp` with everything (connections, surface merges, photon points,
+query beams, photon beams).
 
 Measured per arm, as in docs/joint-sampling.md, on the image without the emitter seen
 directly (every arm samples that alike): v, one iteration's variance (the per-pixel
@@ -43,7 +44,11 @@ RADIUS = ["--radius-factor", "0.01"]
 ARMS = {"bpt": ("bpt", []),
         "vcm": ("vcm", RADIUS),
         "upbp: connections + query beams": ("upbp", [*RADIUS, "--surface-merging", "off",
-                                                     "--photon-points", "off"]),
+                                                     "--photon-points", "off",
+                                                     "--photon-beams", "off"]),
+        "upbp: connections + photon beams": ("upbp", [*RADIUS, "--surface-merging", "off",
+                                                      "--photon-points", "off",
+                                                      "--query-beams", "off"]),
         "upbp: all": ("upbp", RADIUS)}
 WIDTH = 64
 RUNS = 8
@@ -144,8 +149,8 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
              f"{cfg['timing_repeats']} timing runs of about {cfg['timing_seconds']:g} s"
              + (" under SCHED_FIFO (`chrt -f 10`)" if common.realtime_prefix() else
                 " at normal priority") + f"{' (quick mode)' if quick else ''}. Merging arms: "
-             f"`{' '.join(RADIUS)}` (surfaces, photon points and query beams alike, alpha "
-             "0.75).", ""]
+             f"`{' '.join(RADIUS)}` (surfaces, photon points, query beams and photon beams "
+             "alike, alpha 0.75, each reduced by its kernel's dimension).", ""]
     verdicts = []
     relative = {}
     for title, (scene, defines) in SCENES.items():
@@ -187,8 +192,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                      "best.")
     lines += ["", f"upbp with every estimator it has is never the worst and within "
               f"{CLAIM_FACTOR:g}× of the best at every density: **{'held' if held else 'not held'}**"
-              " (photon beams, the estimator UPBP's robustness rests on in thin media, are not "
-              "built yet).", ""]
+              ".", ""]
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "upbp.md"
     out_doc.write_text("\n".join(lines) + "\n")

@@ -90,7 +90,8 @@ enum class TechniqueKind {
     Camera,
     Merge,
     JointConnection,
-    QueryBeam
+    QueryBeam,
+    PhotonBeam
 };
 struct Technique {
     TechniqueKind kind;
@@ -98,16 +99,22 @@ struct Technique {
     // JointConnection: as Connection, with the eye vertex (in the medium) sampled by half-line
     // equi-angular sampling toward the light vertex instead of by distance sampling (J1);
     // QueryBeam: the medium vertex `vertex` is a photon gathered along the camera segment
-    // that reaches it (P-B2D, the long query beam: the eye side samples no distance there).
+    // that reaches it (P-B2D, the long query beam: the eye side samples no distance there);
+    // PhotonBeam: the medium vertex `vertex` is the closest approach of the light segment that
+    // reaches it (the photon beam) and the camera segment that reaches it (the query), B-B1D:
+    // neither side samples the distance there.
     size_t vertex = 0;
 };
 
 // The recursive quantities of both subpaths along the path, as the integrator holds them.
 struct SubpathStates {
-    std::vector<MisQuantities> light;       // after arriving at each vertex
-    std::vector<MisQuantities> eye;         // after arriving at each vertex
-    std::vector<MisQuantities> eye_before;  // before arriving at each vertex (query beams)
-    MisQuantities eye_at_light;             // after hitting the light or leaving the scene
+    std::vector<MisQuantities> light;         // after arriving at each vertex
+    std::vector<MisQuantities> eye;           // after arriving at each vertex
+    std::vector<MisQuantities> eye_before;    // before arriving at each vertex (query beams)
+    std::vector<MisQuantities> light_before;  // before arriving at each vertex (photon beams)
+    // The terms each subpath carried into its arrival at each vertex (photon beams).
+    std::vector<float> light_carried_query, light_carried_photon, eye_carried_photon;
+    MisQuantities eye_at_light;  // after hitting the light or leaving the scene
 };
 
 class MisSumTest : public ::testing::Test {
@@ -347,6 +354,16 @@ class MisSumTest : public ::testing::Test {
         return mis.query_beam_factor(segment(int(i) + 1, int(i)).toward_end);
     }
 
+    // --- photon beams (B-B1D) ----------------------------------------------------------------
+
+    // sin of the angle between the light segment and the camera segment that reach vertex i.
+    float beam_sin(size_t i) const { return length(cross(toward_light(i), toward_eye(i))); }
+    // The fog's sigma_t as the weights use it (mean over the channels).
+    float beam_sigma_t(size_t i) const { return fog_medium_.sigma_t(vertices_[i].p).average(); }
+    // Distance densities of vertex i from the light side (p_L) and the camera side (p_C).
+    float light_distance(size_t i) const { return segment(int(i) - 1, int(i)).toward_end; }
+    float camera_distance(size_t i) const { return segment(int(i) + 1, int(i)).toward_end; }
+
     // --- the integrator's recursion ---------------------------------------------------------
 
     SubpathStates trace_states(const VcmMis& mis) const {
@@ -355,15 +372,23 @@ class MisSumTest : public ::testing::Test {
         st.light.resize(m);
         st.eye.resize(m);
         st.eye_before.resize(m);
+        st.light_before.resize(m);
+        st.light_carried_query.resize(m);
+        st.light_carried_photon.resize(m);
+        st.eye_carried_photon.resize(m);
         // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
         MisQuantities q =
             mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
-        float carried = 0;       // J1: the previous vertex's connection term (vertex_cm.cpp)
-        float carried_beam = 0;  // P-B2D: the previous vertex's scatter factor
+        float carried = 0;         // J1: the previous vertex's connection term (vertex_cm.cpp)
+        float carried_beam = 0;    // P-B2D: the previous vertex's scatter factor
+        float carried_photon = 0;  // B-B1D: the previous vertex's deferred term
         for (size_t i = 0; i < m; ++i) {
             const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_light(i);
             const SegmentDensities s = segment(int(i) - 1, int(i));
+            st.light_before[i] = q;
+            st.light_carried_query[i] = carried_beam;
+            st.light_carried_photon[i] = carried_photon;
             mis.arrive(q, distance2_to_light_side(i), i > 0 || end_.finite, v.cos(wo), s.toward_end,
                        s.toward_start);
             // The junction whose eye-side vertex is i - 1, sampled from i.
@@ -371,6 +396,8 @@ class MisSumTest : public ::testing::Test {
                 mis.add_joint_term(q, carried, joint_pdf(int(i), int(i) - 1, int(i) - 2), v.cos(wo),
                                    s.toward_end);
             mis.add_query_beam_term(q, carried_beam, v.cos(wo), s.toward_end);
+            mis.add_photon_beam_term(q, carried_photon, v.cos(wo), s.toward_end, s.toward_start,
+                                     false, true);
             st.light[i] = q;
             if (i + 1 == m) break;
             const Vec3 wi = toward_eye(i);
@@ -379,22 +406,36 @@ class MisSumTest : public ::testing::Test {
             carried_beam = v.in_medium()
                                ? mis.carried_query_beam_term(v.cos(wi), pdf_w.forward, v.specular)
                                : 0.0f;
+            carried_photon = v.in_medium()
+                                 ? mis.carried_photon_beam_term(
+                                       v.cos(wi), pdf_w.forward, v.specular, beam_sin(i),
+                                       mis.photon_beam_light_factor(s.toward_end, beam_sigma_t(i)))
+                                 : 0.0f;
             mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium());
         }
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
         q = mis.start_camera(camera_pdf_w(-toward_eye(m - 1)));
+        carried_photon = 0;
         for (size_t k = 0; k < m; ++k) {
             const size_t i = m - 1 - k;
             const PathVertex& v = vertices_[i];
             const Vec3 wo = toward_eye(i);
             const SegmentDensities s = segment(int(i) + 1, int(i));
             st.eye_before[i] = q;
+            st.eye_carried_photon[i] = carried_photon;
             mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
+            mis.add_photon_beam_term(q, carried_photon, v.cos(wo), s.toward_end, s.toward_start,
+                                     true, true);
             // The junction toward the camera (eye-side vertex i + 1, sampled from i + 2).
             mis.include_joint_junction(q, joint_ratio(int(i) + 1, int(i) + 2));
             st.eye[i] = q;
             const Vec3 wi = toward_light(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Radiance, wo, wi);
+            carried_photon = v.in_medium()
+                                 ? mis.carried_photon_beam_term(
+                                       v.cos(wi), pdf_w.forward, v.specular, beam_sin(i),
+                                       mis.photon_beam_eye_factor(s.toward_end, beam_sigma_t(i)))
+                                 : 0.0f;
             mis.scatter(q, v.cos(wi), pdf_w.forward, pdf_w.reverse, v.specular, v.in_medium(),
                         eye_query_beam(mis, i));
         }
@@ -405,12 +446,15 @@ class MisSumTest : public ::testing::Test {
                        s.toward_start);
         else
             mis.arrive(q, 0.0f, false, 1.0f, s.toward_end, s.toward_start);
+        mis.add_photon_beam_term(q, carried_photon, end_.finite ? end_.cos_light : 1.0f,
+                                 s.toward_end, s.toward_start, true, true);
         st.eye_at_light = q;
         return st;
     }
 
     // Every technique that can sample the current path with the enabled families.
-    std::vector<Technique> techniques(bool use_vc, bool use_vm, bool query_beams = false) const {
+    std::vector<Technique> techniques(bool use_vc, bool use_vm, bool query_beams = false,
+                                      bool photon_beams = false) const {
         const size_t m = vertices_.size();
         std::vector<Technique> list;
         if (use_vc && !end_.delta) list.push_back({TechniqueKind::Emission});
@@ -426,6 +470,9 @@ class MisSumTest : public ::testing::Test {
             if (!vertices_[i].specular) list.push_back({TechniqueKind::Merge, i});
         for (size_t i = 0; query_beams && i < m; ++i)
             if (vertices_[i].in_medium()) list.push_back({TechniqueKind::QueryBeam, i});
+        for (size_t i = 0; photon_beams && i < m; ++i)
+            if (vertices_[i].in_medium() && !VcmMis::beams_parallel(beam_sin(i)))
+                list.push_back({TechniqueKind::PhotonBeam, i});
         return list;
     }
 
@@ -440,6 +487,14 @@ class MisSumTest : public ::testing::Test {
                 const Vec3 wo = toward_eye(0), wi = toward_light(0);
                 const BsdfPdf pdf_w = pdf_at(0, TransportMode::Radiance, wo, wi);
                 const SegmentDensities l = segment(0, kLightEnd);
+                // B-B1D at the receiver, the emission segment as the photon beam.
+                const float light_density =
+                    end_.emission_pdf_w * v.cos(wi) / (end_.direct_pdf_w * end_.cos_light);
+                const float eye_beam =
+                    v.in_medium() ? mis.photon_beam_eye_term(
+                                        beam_sin(0), camera_distance(0), beam_sigma_t(0),
+                                        light_density * l.toward_start, light_density, true)
+                                  : 0.0f;
                 return mis.weight_direct(st.eye[0], {.bsdf_forward_w = pdf_w.forward,
                                                      .bsdf_reverse_w = pdf_w.reverse,
                                                      .light_pdf_w = end_.direct_pdf_w,
@@ -451,7 +506,8 @@ class MisSumTest : public ::testing::Test {
                                                      .eye_medium = v.in_medium(),
                                                      .eye_query_beam = eye_query_beam(mis, 0),
                                                      .pass_to_light_probability = l.toward_end,
-                                                     .distance_from_light = l.toward_start});
+                                                     .distance_from_light = l.toward_start,
+                                                     .eye_photon_beam = eye_beam});
             }
             case TechniqueKind::Connection:  // eqs. 40-41 (connect_vertices)
             case TechniqueKind::JointConnection: {
@@ -480,7 +536,20 @@ class MisSumTest : public ::testing::Test {
                     // The light vertex sampled from the eye vertex; the eye
                     // vertex from its successor (the camera for the last).
                     .light_joint_ratio = joint_ratio(int(a), int(b)),
-                    .joint_ratio = joint_ratio(int(b), int(b) + 1)};
+                    .joint_ratio = joint_ratio(int(b), int(b) + 1),
+                    // B-B1D at the light vertex (the connection as the query) and at the eye
+                    // vertex (the connection as the photon beam).
+                    .light_photon_beam = w.in_medium() ? mis.photon_beam_light_term(
+                                                             length(cross(toward_light(a), d)),
+                                                             eye_pdf_w.forward / dist2,
+                                                             light_distance(a), beam_sigma_t(a))
+                                                       : 0.0f,
+                    .eye_photon_beam =
+                        v.in_medium()
+                            ? mis.photon_beam_eye_term(
+                                  length(cross(toward_eye(b), d)), camera_distance(b),
+                                  beam_sigma_t(b), light_pdf_a, light_pdf_w.forward / dist2, true)
+                            : 0.0f};
                 return t.kind == TechniqueKind::Connection
                            ? mis.weight_connection(st.light[a], st.eye[b], c)
                            : mis.weight_joint_connection(st.light[a], st.eye[b], c);
@@ -502,21 +571,33 @@ class MisSumTest : public ::testing::Test {
                     v.in_medium()
                         ? mis.query_beam_term(camera_pdf_w(-d) / dist2 / float(kLightPaths))
                         : 0.0f;
+                const float photon_beam =
+                    v.in_medium() ? mis.photon_beam_light_term(
+                                        beam_sin(i), camera_pdf_w(-d) / dist2 / float(kLightPaths),
+                                        light_distance(i), beam_sigma_t(i))
+                                  : 0.0f;
                 return mis.weight_camera(st.light[i], {.camera_pdf_a = camera_pdf_a,
                                                        .light_reverse_w = pdf_w.reverse,
                                                        .light_medium = v.in_medium(),
                                                        .light_query_beam = beam,
-                                                       .light_joint_ratio = joint});
+                                                       .light_joint_ratio = joint,
+                                                       .light_photon_beam = photon_beam});
             }
             case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
                 const size_t i = t.vertex;
                 const BsdfPdf pdf_w =
                     pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
-                return mis.weight_merge(st.light[i], st.eye[i],
-                                        {.eye_forward_w = pdf_w.forward,
-                                         .eye_reverse_w = pdf_w.reverse,
-                                         .medium = vertices_[i].in_medium(),
-                                         .query_beam = eye_query_beam(mis, i)});
+                return mis.weight_merge(
+                    st.light[i], st.eye[i],
+                    {.eye_forward_w = pdf_w.forward,
+                     .eye_reverse_w = pdf_w.reverse,
+                     .medium = vertices_[i].in_medium(),
+                     .query_beam = eye_query_beam(mis, i),
+                     .photon_beam =
+                         vertices_[i].in_medium()
+                             ? mis.photon_beam_merge_term(beam_sin(i), light_distance(i),
+                                                          camera_distance(i), beam_sigma_t(i))
+                             : 0.0f});
             }
             case TechniqueKind::QueryBeam: {  // vertex_cm.cpp, query_beams
                 // The eye subpath as if it had arrived at the photon's projection on the query
@@ -525,12 +606,41 @@ class MisSumTest : public ::testing::Test {
                 const SegmentDensities s = segment(int(i) + 1, int(i));
                 MisQuantities eye = st.eye_before[i];
                 mis.arrive(eye, distance2_to_eye_side(i), true, 1.0f, 1.0f, s.toward_start);
+                mis.add_photon_beam_term(eye, st.eye_carried_photon[i], 1.0f, 1.0f, s.toward_start,
+                                         true, true);
                 const BsdfPdf pdf_w =
                     pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
-                return mis.weight_query_beam(st.light[i], eye, s.toward_end,
-                                             {.eye_forward_w = pdf_w.forward,
-                                              .eye_reverse_w = pdf_w.reverse,
-                                              .medium = true});
+                return mis.weight_query_beam(
+                    st.light[i], eye, s.toward_end,
+                    {.eye_forward_w = pdf_w.forward,
+                     .eye_reverse_w = pdf_w.reverse,
+                     .medium = true,
+                     .photon_beam = mis.photon_beam_light_term(beam_sin(i), 1.0f, light_distance(i),
+                                                               beam_sigma_t(i))});
+            }
+            case TechniqueKind::PhotonBeam: {  // vertex_cm.cpp, photon_beams
+                // Both subpaths as if they had arrived at the closest approach (here the vertex
+                // itself), their distance densities left to the weight.
+                const size_t i = t.vertex;
+                const SegmentDensities sl = segment(int(i) - 1, int(i));
+                MisQuantities light = st.light_before[i];
+                mis.arrive(light, distance2_to_light_side(i), i > 0 || end_.finite, 1.0f, 1.0f,
+                           sl.toward_start);
+                mis.add_query_beam_term(light, st.light_carried_query[i], 1.0f, 1.0f);
+                mis.add_photon_beam_term(light, st.light_carried_photon[i], 1.0f, 1.0f,
+                                         sl.toward_start, false, true);
+                const SegmentDensities sc = segment(int(i) + 1, int(i));
+                MisQuantities eye = st.eye_before[i];
+                mis.arrive(eye, distance2_to_eye_side(i), true, 1.0f, 1.0f, sc.toward_start);
+                mis.add_photon_beam_term(eye, st.eye_carried_photon[i], 1.0f, 1.0f, sc.toward_start,
+                                         true, true);
+                const BsdfPdf pdf_w =
+                    pdf_at(i, TransportMode::Radiance, toward_eye(i), toward_light(i));
+                return mis.weight_photon_beam(light, eye, sl.toward_end, sc.toward_end, beam_sin(i),
+                                              beam_sigma_t(i),
+                                              {.eye_forward_w = pdf_w.forward,
+                                               .eye_reverse_w = pdf_w.reverse,
+                                               .medium = true});
             }
         }
         return 0;
@@ -556,7 +666,8 @@ class MisSumTest : public ::testing::Test {
     // per unit solid angle for infinite lights).
     std::vector<double> reference_weights(const std::vector<Technique>& list, int power,
                                           double eta_surface, double eta_volume,
-                                          double eta_beam = 0) const {
+                                          double eta_beam = 0, double eta_photon_beam = 0,
+                                          bool short_beams = false) const {
         const size_t m = vertices_.size();
         // light_fwd[i], eye_fwd[i]: the light (eye) subpath's density of vertex i given the
         // vertices before it: direction, cosine at i, distance density at i, squared distance.
@@ -625,6 +736,17 @@ class MisSumTest : public ::testing::Test {
                     p.push_back(eta_beam * light_prefix(t.vertex + 1) * eye_suffix(t.vertex) /
                                 segment(int(t.vertex) + 1, int(t.vertex)).toward_end);
                     break;
+                case TechniqueKind::PhotonBeam: {
+                    // The merge without either side's distance sample: eta_1 N sin(theta) over
+                    // both distance densities; a short beam covers the vertex with the light
+                    // side's probability of passing it, P_pass / p_L = 1 / sigma_t here.
+                    const size_t i = t.vertex;
+                    const double p_l = light_distance(i), p_c = camera_distance(i);
+                    const double q_l = short_beams ? 1.0 / beam_sigma_t(i) : 1.0 / p_l;
+                    p.push_back(eta_photon_beam * beam_sin(i) * q_l / p_c * light_prefix(i + 1) *
+                                eye_suffix(i));
+                    break;
+                }
             }
         }
         double sum = 0;
@@ -635,22 +757,27 @@ class MisSumTest : public ::testing::Test {
 
     // Checks both properties for one family (with the listed techniques' weights).
     void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
-                      const char* name, bool joint = false, double eta_beam = 0) {
+                      const char* name, bool joint = false, double eta_beam = 0,
+                      double eta_photon_beam = 0, bool short_beams = false) {
         joint_ = joint;
-        const std::vector<Technique> list = techniques(use_vc, use_vm, eta_beam > 0);
+        const std::vector<Technique> list =
+            techniques(use_vc, use_vm, eta_beam > 0, eta_photon_beam > 0);
         if (list.empty()) return;
         const VcmMis mis(power,
                          MisTechniques{.connections = use_vc,
                                        .surface_eta = use_vm ? eta_surface : 0.0,
                                        .point_eta = use_vm ? eta_volume : 0.0,
-                                       .query_beam_eta = eta_beam},
+                                       .query_beam_eta = eta_beam,
+                                       .photon_beam_eta = eta_photon_beam,
+                                       .short_photon_beams = short_beams},
                          kLightPaths);
         const std::vector<double> w = weights(mis, list);
-        const std::vector<double> reference =
-            reference_weights(list, power, eta_surface, eta_volume, eta_beam);
+        const std::vector<double> reference = reference_weights(
+            list, power, eta_surface, eta_volume, eta_beam, eta_photon_beam, short_beams);
         for (const Technique& t : list) {
             joint_checked_ += t.kind == TechniqueKind::JointConnection;
             query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
+            photon_beams_checked_ += t.kind == TechniqueKind::PhotonBeam;
         }
         double sum = 0;
         for (double x : w) sum += x;
@@ -675,11 +802,12 @@ class MisSumTest : public ::testing::Test {
     ConductorBsdf mirror_;
     TriangleMesh rectangle_;
     HomogeneousMedium fog_medium_;
-    const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
-    bool joint_ = false;           // the J1 techniques are enabled (bpt --joint-connections on)
-    int joint_checked_ = 0;        // J1 weights checked so far
-    int query_beams_checked_ = 0;  // P-B2D weights checked so far
-    float fog_exit_ = 0;           // from the first vertex toward an infinite light
+    const Medium* fog_ = nullptr;   // the medium filling the scene; null: vacuum
+    bool joint_ = false;            // the J1 techniques are enabled (bpt --joint-connections on)
+    int joint_checked_ = 0;         // J1 weights checked so far
+    int query_beams_checked_ = 0;   // P-B2D weights checked so far
+    int photon_beams_checked_ = 0;  // B-B1D weights checked so far
+    float fog_exit_ = 0;            // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
     LightKind kind_ = LightKind::Area;
@@ -773,6 +901,23 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                                                            std::tuple{false, false, "PB2D"}})
                             check_family(power, vc, vm, eta_surface, eta_volume, name, false,
                                          eta_beam);
+                        // Photon beams (B-B1D) beside BPT, beside everything (UPBP), beside
+                        // BPM and alone; long and short beams; both constants eta_1 of the
+                        // spec (SmallUPBP's r / 2 and the kernel's support 2 r).
+                        const double r_1 = 0.5 * radius;
+                        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
+                            for (const bool short_beams : {false, true})
+                                for (const auto& [vc, vm, qb, name] :
+                                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
+                                      std::tuple{true, true, eta_beam, "UPBP (all)"},
+                                      std::tuple{false, true, 0.0, "BPM+BB1D"},
+                                      std::tuple{false, false, 0.0, "BB1D"}}) {
+                                    SCOPED_TRACE(::testing::Message()
+                                                 << "eta_1 " << eta_1 << ", "
+                                                 << (short_beams ? "short" : "long") << " beams");
+                                    check_family(power, vc, vm, eta_surface, eta_volume, name,
+                                                 false, qb, eta_1 * kLightPaths, short_beams);
+                                }
                         ++checked;
                         with_medium_vertex += medium_vertex;
                     }
@@ -781,6 +926,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(with_medium_vertex, 400);
     EXPECT_GT(joint_checked_, 400);
     EXPECT_GT(query_beams_checked_, 1500);
+    EXPECT_GT(photon_beams_checked_, 10000);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
