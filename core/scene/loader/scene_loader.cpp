@@ -14,6 +14,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium_factory.h"
 #include "core/media/volume_factory.h"
+#include "core/mesh_io/file_bytes.h"
 #include "core/scene/loader/file_resolver.h"
 #include "core/scene/loader/property_reader.h"
 #include "core/scene/loader/shape_factory.h"
@@ -28,6 +29,7 @@ namespace render {
 namespace {
 
 constexpr int kMaxIncludeDepth = 32;
+constexpr uintmax_t kMaxSpectrumFileBytes = 16 << 20;
 
 // Mitsuba tags this renderer knows but does not support yet.
 struct Unsupported {
@@ -159,7 +161,9 @@ class Loader {
             props.id = *id;
         }
         for (const XmlElement& child : e.children()) {
-            if (is_property_tag(child.tag())) {
+            if (child.tag() == "spectrum" && child.has("filename")) {
+                read_spectrum_file_property(child, props);
+            } else if (is_property_tag(child.tag())) {
                 read_property(child, props);
             } else if (!on_child(child, props)) {
                 unknown_tag(child, e.describe());
@@ -174,6 +178,23 @@ class Loader {
             props.replace_string("filename", std::filesystem::absolute(path).string());
         }
         return props;
+    }
+
+    // <spectrum name="n" filename="f.spd"/>: the file resolves and is confined as every file.
+    void read_spectrum_file_property(const XmlElement& e, Properties& props) {
+        const std::string name = e.required("filename");
+        if (name.empty()) throw SceneError(e.where(), "<spectrum>: empty filename");
+        const std::filesystem::path path = resolve_file(name, e.file().dir());
+        if (outside_scene_folder(path))
+            throw SceneError(e.where(), "<spectrum>: " + outside_message(path));
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec))
+            throw SceneError(e.where(), "<spectrum>: file not found: " + path.string() +
+                                            searched(name, e.file().dir()));
+        if (std::filesystem::file_size(path, ec) > kMaxSpectrumFileBytes)
+            throw SceneError(e.where(), "<spectrum>: " + path.string() + " is larger than " +
+                                            std::to_string(kMaxSpectrumFileBytes) + " bytes");
+        read_spectrum_file(e, read_file_bytes(path), path.string(), props);
     }
 
     Properties read_plain_object(const XmlElement& e, const std::string& plugin_class) {
