@@ -79,6 +79,7 @@ void Instance::fill_interaction(const Ray& ray, float t, unsigned geometry_id, u
     // to_world), so a group's outside stays the outside.
     si.geometric_normal = normalize(to_world_.apply_normal(si.geometric_normal));
     si.shading = Frame::from_normal(normalize(to_world_.apply_normal(si.shading.n)));
+    si.dpdu = to_world_.apply_vector(si.dpdu);
 }
 
 Aabb Instance::bounds() const {

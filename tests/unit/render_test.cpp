@@ -220,8 +220,8 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
         }
     }
     // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures, materials,
-    // instances and instances-flat
-    EXPECT_EQ(surface_scenes, 14);
+    // instances, instances-flat and normalmap
+    EXPECT_EQ(surface_scenes, 15);
     EXPECT_EQ(media_scenes, 6);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame
 }
 

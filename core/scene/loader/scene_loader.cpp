@@ -558,6 +558,7 @@ class Loader {
             }
             return false;
         });
+        refuse_nested_normal_maps(props);
         std::shared_ptr<const Bsdf> bsdf = build(props, [&] { return make_bsdf(props); });
         if (!bsdf) throw SceneError(e.where(), "bsdf \"" + props.type() + "\" was not built");
         if (!props.id.empty()) {
@@ -568,6 +569,17 @@ class Loader {
     }
 
     void read_bsdf(const XmlElement& e) { keep(read_bsdf_object(e)); }
+
+    // A wrapper resolves its children at a hit without their shading frame, so a normal map
+    // must be the outermost bsdf (Mitsuba's examples write it so: normalmap around twosided).
+    static void refuse_nested_normal_maps(const Properties& props) {
+        if (props.type() == "normalmap") return;  // normalmap refuses a nested one itself
+        for (const auto& nested : props.nested_bsdfs)
+            if (nested->changes_shading_frame())
+                throw SceneError(props.where(), "bsdf \"" + props.type() +
+                                                    "\" cannot wrap a normalmap: write the "
+                                                    "normalmap around it instead");
+    }
 
     // ----- textures -----
 
