@@ -22,6 +22,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/pbrt/scene_loader.h"
 
 namespace render {
 namespace {
@@ -165,6 +166,35 @@ TEST(NormalMap, ATiltedMapTurnsTheShadingNormalAlongTheTangent) {
     const Vec3 phi = cross(Vec3(0, 0, 1), local);
     const Vec3 t = Vec3(phi.x * 1.5f, phi.y * 0.8f, phi.z);
     expect_tilt(si, n, normalize(t - n * dot(n, t)));
+}
+
+// pbrt-v4's "string normalmap" is Mitsuba's normalmap around the material with a raw bitmap:
+// a pbrt quad and a Mitsuba rectangle with the same uv get the same shading normals.
+TEST(NormalMap, PbrtNormalMapsMatchMitsubas) {
+    const std::string dir = std::string(RENDER_SOURCE_DIR) + "/scenes/tests";
+    auto mitsuba = load_scene_from_string(
+        "<scene version=\"3.0.0\"><sensor type=\"perspective\"/>"
+        "<shape type=\"rectangle\"><bsdf type=\"normalmap\">"
+        "<texture type=\"bitmap\" name=\"normalmap\"><string name=\"filename\" "
+        "value=\"textures/tiles.png\"/><boolean name=\"raw\" value=\"true\"/></texture>"
+        "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf></shape></scene>",
+        dir);
+    auto pbrt = pbrt::load_scene_from_string(
+        "Camera \"perspective\"\nWorldBegin\n"
+        "Material \"diffuse\" \"string normalmap\" \"textures/tiles.png\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]\n"
+        "  \"integer indices\" [0 1 2 0 2 3] \"point2 uv\" [0 1 1 1 1 0 0 0]\n",
+        dir);
+    int tilted = 0;
+    for (int i = 0; i < 100; ++i) {
+        const Ray down(Vec3(-0.95f + 0.019f * i, 0.37f - 0.013f * i, 2), Vec3(0, 0, -1));
+        SurfaceInteraction a, b;
+        ASSERT_TRUE(mitsuba->intersect(down, a));
+        ASSERT_TRUE(pbrt->intersect(down, b));
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(a.shading.n[c], b.shading.n[c], 1e-5f) << i;
+        tilted += a.shading.n.z < 0.999f;
+    }
+    EXPECT_GT(tilted, 50);  // tiles.png is no flat map
 }
 
 std::string load_error(const std::string& body) {

@@ -281,7 +281,7 @@ class Loader {
                 const std::string type = need_string(tokens, d, "material type");
                 ParamList p = ParamList::parse(tokens, "Material \"" + type + "\"");
                 p.where = d.where;
-                state_.material = make_material(type, p, textures_, named_materials_);
+                state_.material = make_material(type, p, textures_, named_materials_, resolver());
             } else if (n == "MakeNamedMaterial") {
                 need_world(d);
                 const std::string name = need_string(tokens, d, "material name");
@@ -290,8 +290,8 @@ class Loader {
                 if (named_materials_.count(name))
                     throw SceneError(d.where, "named material \"" + name + "\" redefined");
                 if (!p.has("type")) throw p.error("type", "\"string type\" is required");
-                named_materials_[name] =
-                    make_material(p.get_string("type", ""), p, textures_, named_materials_);
+                named_materials_[name] = make_material(p.get_string("type", ""), p, textures_,
+                                                       named_materials_, resolver());
             } else if (n == "NamedMaterial") {
                 need_world(d);
                 const std::string name = need_string(tokens, d, "material name");
@@ -522,7 +522,8 @@ class Loader {
             // pbrt-v4's default material: diffuse, reflectance 0.5.
             ParamList none;
             none.where = d.where;
-            state_.material = make_material("diffuse", none, textures_, named_materials_);
+            state_.material =
+                make_material("diffuse", none, textures_, named_materials_, resolver());
         }
         if (object_) return object_->add(std::move(shape), keep(state_.material));
         scene_.add_shape(std::move(shape), keep(state_.material));
