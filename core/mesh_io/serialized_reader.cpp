@@ -157,7 +157,8 @@ size_t mesh_offset(std::string_view bytes, uint16_t version, size_t index,
                          " bytes");
     const size_t at = bytes.size() - 4 - size_t((count - index) * entry);
     const uint64_t offset = read_le(bytes, at, size_t(entry));
-    if (offset + 4 > bytes.size() - 4 - count * entry)
+    const uint64_t meshes_end = bytes.size() - 4 - count * entry;
+    if (offset >= meshes_end || meshes_end - offset < 4)  // (offset + 4 could overflow)
         throw SceneError(file + ": broken dictionary: mesh " + std::to_string(index) +
                          " starts at byte " + std::to_string(offset) + ", beyond the meshes");
     return size_t(offset);

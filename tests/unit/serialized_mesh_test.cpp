@@ -217,6 +217,13 @@ TEST(SerializedMesh, RefusesBadHeadersCountsAndIndices) {
     std::string many_file = huge.substr(0, 4) + compress(many);
     EXPECT_NE(message(many_file).find("more than 2^32 - 1"), std::string::npos);
 
+    // An offset so large that offset + 4 overflows (found by the fuzzer: it read before the
+    // file's start).
+    std::string wrapped = serialized_file({square(), square()});
+    std::memset(wrapped.data() + wrapped.size() - 4 - 8, 0xff, 8);
+    EXPECT_NE(message(wrapped, 1).find("broken dictionary"), std::string::npos)
+        << message(wrapped, 1);
+
     // A dictionary whose offset points elsewhere than a mesh header.
     std::string broken = serialized_file({square(), square()});
     broken[broken.size() - 4 - 8] = 3;  // mesh 1 "starts" at byte 3
