@@ -107,6 +107,10 @@ class Collector {
                 fs::path included = resolve(name, file);
                 add_file(included, file);
                 visit_scene_file(included, depth + 1);
+            } else if (tag == "spectrum" && node.attribute("filename")) {
+                // A spectrum file (.spd), resolved as the loader does.
+                std::string name = need(node.attribute("filename").value(), file, node);
+                add_file(resolve(name, file), file);
             } else if (std::string(node.attribute("name").value()) == "filename" &&
                        node.attribute("value")) {
                 std::string name = need(node.attribute("value").value(), file, node);

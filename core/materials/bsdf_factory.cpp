@@ -6,6 +6,7 @@
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
+#include "core/materials/normal_map.h"
 #include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
 #include "core/materials/plastic.h"
@@ -32,6 +33,7 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"null", &NullBsdf::create},
     {"blendbsdf", &BlendBsdf::create},
     {"mask", &BlendBsdf::create_mask},
+    {"normalmap", &NormalMapBsdf::create},
 };
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
 #include "core/scene/embree_ray.h"
+#include "core/shapes/instance.h"
 
 namespace render {
 namespace {
@@ -32,6 +33,7 @@ Scene::Scene() {
 }
 
 Scene::~Scene() {
+    instances_.clear();  // their groups' Embree scenes go before the device
     if (rtc_scene_) rtcReleaseScene(rtc_scene_);
     if (device_) rtcReleaseDevice(device_);
 }
@@ -53,6 +55,10 @@ Shape* Scene::add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf) {
     return shapes_.back().get();
 }
 
+void Scene::add_instance(std::unique_ptr<Instance> instance) {
+    instances_.push_back(std::move(instance));
+}
+
 const Medium* Scene::add_medium(std::shared_ptr<const Medium> medium, std::string name) {
     media_.push_back(std::move(medium));
     medium_names_.push_back(std::move(name));
@@ -72,6 +78,13 @@ void Scene::commit() {
         geometry_to_shape_[id] = shape.get();
         bounds_.expand(shape->bounds());
         has_media_ = has_media_ || shape->interior || shape->exterior;
+    }
+    for (const auto& instance : instances_) {
+        const unsigned id = instance->attach(device_, rtc_scene_);
+        if (id >= geometry_to_instance_.size()) geometry_to_instance_.resize(id + 1, nullptr);
+        geometry_to_instance_[id] = instance.get();
+        bounds_.expand(instance->bounds());
+        has_media_ = has_media_ || instance->group().has_media();
     }
     has_media_ = has_media_ || camera_medium_;
     rtcCommitScene(rtc_scene_);
@@ -98,13 +111,24 @@ void Scene::commit() {
     committed_ = true;
 }
 
-bool within_scene_limits(const Shape& shape) {
-    const Aabb b = shape.bounds();
-    bool ok = !b.empty() && std::isfinite(shape.surface_area());
+namespace {
+
+bool within_scene_limits(const Aabb& b) {
+    bool ok = !b.empty();
     for (int a = 0; a < 3 && ok; ++a)
         ok = std::isfinite(b.lo[a]) && std::isfinite(b.hi[a]) &&
              std::abs(b.lo[a]) <= kMaxSceneCoordinate && std::abs(b.hi[a]) <= kMaxSceneCoordinate;
     return ok;
+}
+
+}  // namespace
+
+bool within_scene_limits(const Shape& shape) {
+    return std::isfinite(shape.surface_area()) && within_scene_limits(shape.bounds());
+}
+
+bool within_scene_limits(const Instance& instance) {
+    return within_scene_limits(instance.bounds());
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
@@ -113,9 +137,14 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     RTCRayHit rh = to_rtc_ray_hit(ray);
     rtcIntersect1(rtc_scene_, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    const Shape* shape = geometry_to_shape_[rh.hit.geomID];
-    shape->fill_interaction(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+    if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID)
+        geometry_to_instance_[rh.hit.instID[0]]->fill_interaction(
+            ray, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+    else
+        geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
+                                                            rh.hit.u, rh.hit.v, si);
     if (si.bsdf->varies()) {
+        si.shading = si.bsdf->shading_frame(si.uv, si.shading, si.dpdu);  // normal maps
         si.hit_bsdf = si.bsdf->at(si.uv);
         si.bsdf = si.hit_bsdf.get();
     } else if (si.hit_bsdf) {

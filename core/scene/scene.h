@@ -22,11 +22,14 @@
 
 namespace render {
 
+class Instance;
 class Medium;
 
 // Geometry within the scene's limits (core/base/scene_limits.h): finite bounds within
 // kMaxSceneCoordinate of the origin and a finite area.
 bool within_scene_limits(const Shape& shape);
+// The same for an instance: its world bounds (its group's shapes are checked in their space).
+bool within_scene_limits(const Instance& instance);
 
 // Settings a scene file carries (integrator, sampler, film). Command-line options override them.
 struct SceneSettings {
@@ -48,6 +51,8 @@ class Scene {
     const Bsdf* add_bsdf(std::shared_ptr<const Bsdf> bsdf);
     // Adds a shape; `bsdf` may be null (gets an absorbing black diffuse). `emitter` may be null.
     Shape* add_shape(std::unique_ptr<Shape> shape, const Bsdf* bsdf);
+    // Adds an instance of a shape group (core/shapes/instance.h); instances never emit.
+    void add_instance(std::unique_ptr<Instance> instance);
     // Adds a light (area lights must already be attached to their shape via shape->emitter).
     const Light* add_light(std::unique_ptr<Light> light);
     void set_camera(const PerspectiveCamera& camera) { camera_ = camera; }
@@ -91,6 +96,8 @@ class Scene {
     bool has_media() const { return has_media_; }
     const std::vector<std::unique_ptr<Light>>& lights() const { return lights_; }
     const std::vector<std::unique_ptr<Shape>>& shapes() const { return shapes_; }
+    // Instances of shape groups: geometry that is not in shapes() (their groups hold it).
+    const std::vector<std::unique_ptr<Instance>>& instances() const { return instances_; }
     // Lights hit by escaping rays (constant, envmap).
     const std::vector<const Light*>& background_lights() const { return background_lights_; }
 
@@ -110,6 +117,8 @@ class Scene {
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;
     std::vector<std::unique_ptr<Shape>> shapes_;
     std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
+    std::vector<std::unique_ptr<Instance>> instances_;
+    std::vector<const Instance*> geometry_to_instance_;  // Embree geometry id -> instance
     std::vector<std::unique_ptr<Light>> lights_;
     std::vector<const Light*> background_lights_;
     std::vector<std::shared_ptr<const Medium>> media_;

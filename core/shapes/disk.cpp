@@ -58,6 +58,9 @@ void Disk::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     si.geometric_normal = normal_;
     si.shading = Frame::from_normal(normal_);
     si.uv = uv_of_local(local.x, local.y);
+    // u = r: dp/du is the radial direction (zero at the centre).
+    const float r = std::sqrt(local.x * local.x + local.y * local.y);
+    si.dpdu = r > 0 ? to_world_.apply_vector(Vec3(local.x / r, local.y / r, 0)) : Vec3(0.0f);
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;

@@ -58,6 +58,10 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     si.p = center_ + n * radius_;
     si.t = t;
     si.uv = uv_of_direction(n);
+    // u = phi / 2pi turns about the object's z axis (the other way in a mirrored frame):
+    // dp/du = 2 pi z x (p - c); zero at the poles.
+    const float handedness = dot(cross(axes_.s, axes_.t), axes_.n) < 0 ? -1.0f : 1.0f;
+    si.dpdu = cross(axes_.n, n * radius_) * (2 * kPi * handedness);
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);

@@ -17,6 +17,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import zlib
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 CORPUS = ROOT / "tests" / "fuzz" / "corpus"
@@ -38,6 +39,29 @@ def tiny_vol(channels=1):
     header = b"VOL" + bytes([3]) + struct.pack("<5i", 1, 2, 2, 2, channels)
     header += struct.pack("<6f", 0, 0, 0, 1, 1, 1)
     return header + struct.pack("<%df" % (8 * channels), *[0.5] * (8 * channels))
+
+
+def tiny_serialized(version=4, double=False):
+    """Two meshes in Mitsuba's serialized format: a quad with normals and uv, a triangle."""
+    real = "d" if double else "f"
+    meshes = [
+        (0x1 | 0x2, b"quad", [0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0], [0, 0, 1] * 4,
+         [0, 0, 1, 0, 1, 1, 0, 1], [0, 1, 2, 0, 2, 3]),
+        (0x10, b"tri", [0, 0, 0, 1, 0, 0, 0, 1, 0], [], [], [0, 1, 2]),
+    ]
+    out, offsets = b"", []
+    for flags, name, positions, normals, uvs, indices in meshes:
+        raw = struct.pack("<I", flags | (0x2000 if double else 0x1000))
+        if version == 4:
+            raw += name + b"\0"
+        raw += struct.pack("<QQ", len(positions) // 3, len(indices) // 3)
+        values = positions + normals + uvs
+        raw += struct.pack("<%d%s" % (len(values), real), *values)
+        raw += struct.pack("<%dI" % len(indices), *indices)
+        offsets.append(len(out))
+        out += struct.pack("<HH", 0x041C, version) + zlib.compress(raw, 9)
+    out += b"".join(struct.pack("<Q" if version == 4 else "<I", o) for o in offsets)
+    return out + struct.pack("<I", len(offsets))
 
 
 def scene_seed(main):
@@ -107,6 +131,8 @@ def main():
           b"property float x\nproperty float y\nproperty float z\nproperty float u\n"
           b"property float v\nelement face 1\nproperty list uchar int vertex_indices\n"
           b"end_header\n0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n4 0 1 2 3\n")
+    write("serialized", "two-meshes-v4.serialized", tiny_serialized(4))
+    write("serialized", "two-meshes-v3-double.serialized", tiny_serialized(3, True))
     write("vol", "grey.vol", tiny_vol(1))
     write("vol", "rgb.vol", tiny_vol(3))
 

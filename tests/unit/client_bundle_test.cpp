@@ -71,6 +71,19 @@ TEST(ClientBundle, FollowsTheLoadersFileResolution) {
         EXPECT_EQ(copy->shapes()[i]->surface_area(), original->shapes()[i]->surface_area()) << i;
 }
 
+// A spectrum file (<spectrum filename>) travels with the scene.
+TEST(ClientBundle, TakesSpectrumFiles) {
+    TempDir dir("client_bundle_test_spd");
+    dir.write("spectra/white.spd", "400 0.5\n700 0.5\n");
+    dir.write("scene.xml",
+              "<scene version=\"3.0.0\"><sensor type=\"perspective\"/>"
+              "<shape type=\"rectangle\"><bsdf type=\"diffuse\">"
+              "<spectrum name=\"reflectance\" filename=\"spectra/white.spd\"/>"
+              "</bsdf></shape></scene>");
+    EXPECT_EQ(paths_of(collect_bundle(dir.path / "scene.xml", {})),
+              (std::set<std::string>{"scene.xml", "spectra/white.spd"}));
+}
+
 // A bitmap texture's file travels with the scene, and the job's copy loads with it.
 TEST(ClientBundle, TakesTextureFiles) {
     const fs::path scene = fs::path(RENDER_SOURCE_DIR) / "scenes/tests/textures.xml";

@@ -668,8 +668,9 @@ TEST_F(PbrtTest, DirectiveErrorsNameFileAndLine) {
     EXPECT_NE(world_error("AttributeBegin\n")
                   .find(at_body_line(1) + " AttributeBegin without AttributeEnd"),
               std::string::npos);
-    EXPECT_NE(world_error("ObjectBegin \"x\"\n").find("instancing is not supported yet"),
-              std::string::npos);
+    EXPECT_NE(
+        world_error("ObjectBegin \"x\"\n").find(at_body_line(1) + " ObjectBegin without ObjectEnd"),
+        std::string::npos);
     EXPECT_NE(world_error("Translate 1 2\nShape \"sphere\"\n")
                   .find(at_body_line(2) + " \"Translate\": \"Shape\" is not a number"),
               std::string::npos);

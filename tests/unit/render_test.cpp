@@ -243,8 +243,9 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
             EXPECT_GT(total, 0.0);  // every shipped scene shows some light at 24x24
         }
     }
-    // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures, materials
-    EXPECT_EQ(surface_scenes, 12);
+    // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures, materials,
+    // instances, instances-flat and normalmap
+    EXPECT_EQ(surface_scenes, 15);
     EXPECT_EQ(media_scenes, 6);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame
 }
 

@@ -7,7 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -157,9 +161,91 @@ TEST(SpectrumInScenes, BadListsAreLocatedErrors) {
     EXPECT_NE(error("400:0.1, 500:x").find("<string>:4: spectrum \"reflectance\" value"),
               std::string::npos);
     EXPECT_NE(error("0.1 0.2 0.3").find("use <rgb> for colours"), std::string::npos);
-    EXPECT_EQ(load_error(bsdf + "<spectrum name=\"reflectance\" filename=\"a.spd\"/></bsdf>"),
-              "<string>:4: spectrum \"reflectance\": spectrum files (filename) are not supported "
-              "yet; give the wavelength:value pairs in value=\"...\"");
+}
+
+// --- spectrum files (.spd) -------------------------------------------------------------------
+
+class SpectrumFileTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = std::filesystem::temp_directory_path() /
+               ("spectrum_file_test_" + std::to_string(::getpid()) + "_" +
+                ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        std::filesystem::create_directories(dir_ / "scene");
+    }
+    void TearDown() override { std::filesystem::remove_all(dir_); }
+    void write(const std::string& name, const std::string& text) {
+        std::ofstream(dir_ / name, std::ios::binary) << text;
+    }
+    std::unique_ptr<Scene> load(const std::string& body) {
+        write("scene/scene.xml",
+              "<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><float name=\"fov\" "
+              "value=\"45\"/></sensor>\n" +
+                  body + "\n</scene>");
+        return load_scene(dir_ / "scene/scene.xml", {}, dir_ / "scene");
+    }
+    std::string error(const std::string& body) {
+        try {
+            load(body);
+        } catch (const SceneError& e) {
+            return e.what();
+        }
+        return "loaded";
+    }
+    std::filesystem::path dir_;
+};
+
+// A file gives exactly what the same pairs give in value="...": for a reflectance (D65
+// weighted, clamped to [0, 1]) and for an emitter (unweighted).
+TEST_F(SpectrumFileTest, FilesConvertAsWavelengthLists) {
+    write("scene/green.spd",
+          "# a greenish reflectance\n\n400 0.1\n500, 0.6   # comment\n\t600 0.3\n700 0.05\n");
+    auto reflectance = [&](const std::string& spectrum) {
+        auto scene = load("<shape type=\"rectangle\"><bsdf type=\"diffuse\">" + spectrum +
+                          "</bsdf></shape>");
+        return dynamic_cast<const DiffuseBsdf&>(*scene->shapes()[0]->bsdf).reflectance();
+    };
+    const Rgb from_file = reflectance("<spectrum name=\"reflectance\" filename=\"green.spd\"/>");
+    EXPECT_EQ(from_file, reflectance("<spectrum name=\"reflectance\" "
+                                     "value=\"400:0.1, 500:0.6, 600:0.3, 700:0.05\"/>"));
+    EXPECT_GT(from_file.g, from_file.r);
+    auto intensity = [&](const std::string& spectrum) {
+        return load("<shape type=\"rectangle\"/><emitter type=\"point\">" + spectrum + "</emitter>")
+            ->lights()[0]
+            ->power();
+    };
+    EXPECT_EQ(intensity("<spectrum name=\"intensity\" filename=\"green.spd\"/>"),
+              intensity("<spectrum name=\"intensity\" value=\"400:0.1, 500:0.6, 600:0.3, "
+                        "700:0.05\"/>"));
+}
+
+TEST_F(SpectrumFileTest, BadFilesAreLocatedErrors) {
+    const std::string bsdf = "<shape type=\"rectangle\"><bsdf type=\"diffuse\">\n";
+    auto with = [&](const std::string& file) {
+        return error(bsdf + "<spectrum name=\"reflectance\" filename=\"" + file +
+                     "\"/></bsdf></shape>");
+    };
+    const std::string spd = (dir_ / "scene/bad.spd").string();
+    write("scene/bad.spd", "400 0.1\n# two numbers a line\n500 0.2 0.3\n");
+    EXPECT_EQ(with("bad.spd"), spd +
+                                   ":3: spectrum \"reflectance\": a line of a spectrum file is "
+                                   "\"wavelength value\", got 3 numbers");
+    write("scene/bad.spd", "500 0.1\n400 0.2\n");
+    EXPECT_NE(with("bad.spd").find(spd + ":2: spectrum \"reflectance\": wavelengths must increase"),
+              std::string::npos);
+    write("scene/bad.spd", "500 0.1\n600 x\n");
+    EXPECT_NE(with("bad.spd").find(spd + ":2:"), std::string::npos) << with("bad.spd");
+    write("scene/bad.spd", "# only one\n500 0.1\n");
+    EXPECT_NE(with("bad.spd").find("scene.xml:4: spectrum \"reflectance\": the spectrum file"),
+              std::string::npos)
+        << with("bad.spd");
+    EXPECT_NE(with("missing.spd").find("scene.xml:4: <spectrum>: file not found"),
+              std::string::npos)
+        << with("missing.spd");
+    // Confined to the scene's folder, as every file a job reads.
+    write("outside.spd", "400 0.1\n500 0.2\n");
+    EXPECT_NE(with("../outside.spd").find("is outside"), std::string::npos)
+        << with("../outside.spd");
 }
 
 }  // namespace

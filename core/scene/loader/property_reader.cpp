@@ -123,17 +123,36 @@ bool is_unbounded_spectrum(const std::string& name) {
            name == "sigma_t";
 }
 
-// <spectrum name="n" value="v"/> or value="w1:v1, w2:v2, ...", converted as Mitsuba 3's RGB
-// variants do (docs/scene-format.md, "Spectra"): a single value is grey, but directly inside an
-// <emitter> it is v times the sRGB colour of XYZ (1, 1, 1); a list is integrated against the
-// CIE 1931 curves (weighted by D65 unless emitted) and converted to linear sRGB.
+// A wavelength:value spectrum converted as Mitsuba 3's RGB variants do (docs/scene-format.md,
+// "Spectra"): integrated against the CIE 1931 curves (weighted by D65 unless emitted) and
+// converted to linear sRGB; clamped colours print a warning.
+void set_spectrum(const std::string& name, const std::string& field, const SourceLocation& where,
+                  const std::vector<double>& wavelengths, const std::vector<double>& values,
+                  Properties& props) {
+    const bool emitted = props.plugin_class() == "emitter" && !is_unbounded_spectrum(name);
+    const SpectrumToRgb rgb = spectrum_to_linear_srgb(wavelengths, values, !emitted,
+                                                      !emitted && !is_unbounded_spectrum(name));
+    if (rgb.clamped) {
+        std::ostringstream message;
+        message << "warning: " << where.to_string() << ": " << field
+                << ": the spectrum's colour is outside the "
+                << (emitted || is_unbounded_spectrum(name) ? "non-negative" : "[0, 1]")
+                << " range of linear sRGB and was clamped to " << rgb.rgb << " (as Mitsuba does)\n";
+        std::cerr << message.str();
+    }
+    props.set(name, rgb.rgb, where);
+}
+
+// <spectrum name="n" value="v"/> or value="w1:v1, w2:v2, ...": a single value is grey, but
+// directly inside an <emitter> it is v times the sRGB colour of XYZ (1, 1, 1); a list goes
+// through set_spectrum.
 void read_spectrum(const XmlElement& e, const std::string& name, const std::string& field,
                    Properties& props) {
     const SourceLocation where = e.where();
     if (e.has("filename"))
         throw SceneError(where, field +
-                                    ": spectrum files (filename) are not supported yet; give "
-                                    "the wavelength:value pairs in value=\"...\"");
+                                    ": a spectrum file (filename) needs the scene loader, which "
+                                    "resolves it");
     e.check_attributes({"name", "value"});
     const std::string value = e.required("value");
     const bool emitted = props.plugin_class() == "emitter" && !is_unbounded_spectrum(name);
@@ -178,17 +197,7 @@ void read_spectrum(const XmlElement& e, const std::string& name, const std::stri
     add_pair();
     if (wavelengths.size() < 2)
         throw SceneError(where, field + ": a wavelength:value spectrum needs at least two pairs");
-    const SpectrumToRgb rgb = spectrum_to_linear_srgb(wavelengths, values, !emitted,
-                                                      !emitted && !is_unbounded_spectrum(name));
-    if (rgb.clamped) {
-        std::ostringstream message;
-        message << "warning: " << where.to_string() << ": " << field
-                << ": the spectrum's colour is outside the "
-                << (emitted || is_unbounded_spectrum(name) ? "non-negative" : "[0, 1]")
-                << " range of linear sRGB and was clamped to " << rgb.rgb << " (as Mitsuba does)\n";
-        std::cerr << message.str();
-    }
-    props.set(name, rgb.rgb, where);
+    set_spectrum(name, field, where, wavelengths, values, props);
 }
 
 }  // namespace
@@ -248,6 +257,56 @@ void read_property(const XmlElement& e, Properties& props) {
     } else {
         throw SceneError(where, "<" + tag + "> is not a property tag");
     }
+}
+
+void read_spectrum_file(const XmlElement& e, const std::string& text, const std::string& file_name,
+                        Properties& props) {
+    e.check_attributes({"name", "filename"});
+    const std::string name = e.required("name");
+    const std::string field = "spectrum \"" + name + "\"";
+    std::vector<double> wavelengths, values;
+    size_t line_number = 0, begin = 0;
+    while (begin < text.size()) {
+        size_t end = text.find('\n', begin);
+        if (end == std::string::npos) end = text.size();
+        std::string_view line(text.data() + begin, end - begin);
+        begin = end + 1;
+        ++line_number;
+        if (const size_t hash = line.find('#'); hash != std::string_view::npos)
+            line = line.substr(0, hash);
+        const SourceLocation at{file_name, int(line_number)};
+        std::vector<double> numbers;
+        std::string token;
+        auto flush = [&] {
+            if (!token.empty()) numbers.push_back(parse_number(token, at, field));
+            token.clear();
+        };
+        for (char c : line) {
+            if (c == ',' || std::isspace(static_cast<unsigned char>(c)))
+                flush();
+            else
+                token += c;
+        }
+        flush();
+        if (numbers.empty()) continue;
+        if (numbers.size() != 2)
+            throw SceneError(at, field +
+                                     ": a line of a spectrum file is \"wavelength value\", "
+                                     "got " +
+                                     std::to_string(numbers.size()) + " numbers");
+        if (!wavelengths.empty() && !(numbers[0] > wavelengths.back()))
+            throw SceneError(at, field + ": wavelengths must increase (" +
+                                     std::to_string(numbers[0]) + " after " +
+                                     std::to_string(wavelengths.back()) + ")");
+        wavelengths.push_back(numbers[0]);
+        values.push_back(numbers[1]);
+        if (wavelengths.size() > 100000)
+            throw SceneError(at, field + ": more than 100000 wavelengths");
+    }
+    if (wavelengths.size() < 2)
+        throw SceneError(e.where(), field + ": the spectrum file " + file_name +
+                                        " needs at least two \"wavelength value\" lines");
+    set_spectrum(name, field, e.where(), wavelengths, values, props);
 }
 
 }  // namespace render

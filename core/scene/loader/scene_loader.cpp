@@ -14,6 +14,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium_factory.h"
 #include "core/media/volume_factory.h"
+#include "core/mesh_io/file_bytes.h"
 #include "core/scene/loader/file_resolver.h"
 #include "core/scene/loader/property_reader.h"
 #include "core/scene/loader/shape_factory.h"
@@ -21,12 +22,14 @@
 #include "core/scene/loader/xml_element.h"
 #include "core/scene/loader/xml_file.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "core/shapes/instance.h"
 #include "core/textures/texture_factory.h"
 
 namespace render {
 namespace {
 
 constexpr int kMaxIncludeDepth = 32;
+constexpr uintmax_t kMaxSpectrumFileBytes = 16 << 20;
 
 // Mitsuba tags this renderer knows but does not support yet.
 struct Unsupported {
@@ -158,7 +161,9 @@ class Loader {
             props.id = *id;
         }
         for (const XmlElement& child : e.children()) {
-            if (is_property_tag(child.tag())) {
+            if (child.tag() == "spectrum" && child.has("filename")) {
+                read_spectrum_file_property(child, props);
+            } else if (is_property_tag(child.tag())) {
                 read_property(child, props);
             } else if (!on_child(child, props)) {
                 unknown_tag(child, e.describe());
@@ -173,6 +178,23 @@ class Loader {
             props.replace_string("filename", std::filesystem::absolute(path).string());
         }
         return props;
+    }
+
+    // <spectrum name="n" filename="f.spd"/>: the file resolves and is confined as every file.
+    void read_spectrum_file_property(const XmlElement& e, Properties& props) {
+        const std::string name = e.required("filename");
+        if (name.empty()) throw SceneError(e.where(), "<spectrum>: empty filename");
+        const std::filesystem::path path = resolve_file(name, e.file().dir());
+        if (outside_scene_folder(path))
+            throw SceneError(e.where(), "<spectrum>: " + outside_message(path));
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec))
+            throw SceneError(e.where(), "<spectrum>: file not found: " + path.string() +
+                                            searched(name, e.file().dir()));
+        if (std::filesystem::file_size(path, ec) > kMaxSpectrumFileBytes)
+            throw SceneError(e.where(), "<spectrum>: " + path.string() + " is larger than " +
+                                            std::to_string(kMaxSpectrumFileBytes) + " bytes");
+        read_spectrum_file(e, read_file_bytes(path), path.string(), props);
     }
 
     Properties read_plain_object(const XmlElement& e, const std::string& plugin_class) {
@@ -536,6 +558,7 @@ class Loader {
             }
             return false;
         });
+        refuse_nested_normal_maps(props);
         std::shared_ptr<const Bsdf> bsdf = build(props, [&] { return make_bsdf(props); });
         if (!bsdf) throw SceneError(e.where(), "bsdf \"" + props.type() + "\" was not built");
         if (!props.id.empty()) {
@@ -546,6 +569,17 @@ class Loader {
     }
 
     void read_bsdf(const XmlElement& e) { keep(read_bsdf_object(e)); }
+
+    // A wrapper resolves its children at a hit without their shading frame, so a normal map
+    // must be the outermost bsdf (Mitsuba's examples write it so: normalmap around twosided).
+    static void refuse_nested_normal_maps(const Properties& props) {
+        if (props.type() == "normalmap") return;  // normalmap refuses a nested one itself
+        for (const auto& nested : props.nested_bsdfs)
+            if (nested->changes_shading_frame())
+                throw SceneError(props.where(), "bsdf \"" + props.type() +
+                                                    "\" cannot wrap a normalmap: write the "
+                                                    "normalmap around it instead");
+    }
 
     // ----- textures -----
 
@@ -697,6 +731,10 @@ class Loader {
     }
 
     void read_shape(const XmlElement& e) {
+        if (const std::optional<std::string> type = e.optional("type")) {
+            if (*type == "shapegroup") return read_shapegroup(e);
+            if (*type == "instance") return read_instance(e);
+        }
         const Medium* interior = nullptr;
         const Medium* exterior = nullptr;
         bool has_interface = false;
@@ -758,6 +796,10 @@ class Loader {
             return false;
         });
         if (!props.id.empty()) register_id(props.id, e.where());
+        if (open_group_ && emitter)
+            throw SceneError(emitter->where(),
+                             "an emitter inside a shapegroup is not supported (instances cannot "
+                             "emit, as in Mitsuba)");
         std::unique_ptr<Shape> shape =
             build(props, [&] { return make_shape(props, e.file().dir()); });
         check_shape_extent(*shape, e);
@@ -775,8 +817,81 @@ class Loader {
         const Bsdf* b = bsdf            ? keep(bsdf)
                         : has_interface ? null_bsdf(e.where())
                                         : default_bsdf(e.where());
+        if (open_group_) return open_group_->add(std::move(shape), b);
         scene_.add_shape(std::move(shape), b);
         if (light) scene_.add_light(std::move(light));
+    }
+
+    // <shape type="shapegroup" id="..."> with <shape> children: defined once, placed by
+    // instances (core/shapes/instance.h). Its shapes are in the group's own space.
+    void read_shapegroup(const XmlElement& e) {
+        if (open_group_)
+            throw SceneError(e.where(), "a shapegroup cannot be nested in another shapegroup");
+        e.check_attributes({"type", "id", "name"});
+        const std::optional<std::string> id = e.optional("id");
+        if (!id || id->empty())
+            throw SceneError(e.where(), "a shapegroup needs an id (instances refer to it)");
+        // (A failed load discards the loader, so open_group_ needs no reset on errors.)
+        auto group = std::make_shared<ShapeGroup>(*id);
+        open_group_ = group.get();
+        for (const XmlElement& c : e.children()) {
+            if (c.tag() != "shape") {
+                if (is_property_tag(c.tag()))
+                    throw SceneError(c.where(), "shapegroup \"" + *id +
+                                                    "\": a shapegroup takes no parameters (only "
+                                                    "<shape> children)");
+                unknown_tag(c, e.describe());
+            }
+            const std::optional<std::string> type = c.optional("type");
+            if (type && (*type == "shapegroup" || *type == "instance"))
+                throw SceneError(c.where(), "a " + *type +
+                                                " inside a shapegroup is not supported (nested "
+                                                "instancing)");
+            read_shape(c);
+        }
+        open_group_ = nullptr;
+        if (group->empty()) throw SceneError(e.where(), "shapegroup \"" + *id + "\" has no shapes");
+        register_id(*id, e.where());
+        groups_[*id] = std::move(group);
+    }
+
+    // <shape type="instance"> with a <ref id="group"/> and an optional to_world.
+    void read_instance(const XmlElement& e) {
+        std::shared_ptr<const ShapeGroup> group;
+        Properties props = read_object(e, "shape", [&](const XmlElement& c, Properties&) {
+            if (c.tag() != "ref") return false;
+            c.check_attributes({"id", "name"});
+            if (!c.children().empty())
+                throw SceneError(c.where(), "<ref> cannot have child elements");
+            if (group) throw SceneError(c.where(), "an instance refers to one shapegroup");
+            const std::string id = c.required("id");
+            auto it = groups_.find(id);
+            if (it == groups_.end())
+                throw SceneError(c.where(), ids_.count(id)
+                                                ? "<ref id=\"" + id + "\">: \"" + id +
+                                                      "\" is not a shapegroup (an instance "
+                                                      "takes no bsdf, emitter or medium)"
+                                                : "<ref>: unknown shapegroup \"" + id +
+                                                      "\" (it must be defined before its "
+                                                      "instances)");
+            group = it->second;
+            return true;
+        });
+        if (!group)
+            throw SceneError(e.where(), "an instance needs <ref id=\"...\"/> to a shapegroup");
+        if (!props.id.empty()) register_id(props.id, e.where());
+        std::unique_ptr<Instance> instance = build(props, [&] {
+            const Transform to_world = props.get_transform("to_world", Transform());
+            if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+            return std::make_unique<Instance>(
+                group, to_world,
+                props.id.empty() ? "instance (" + e.where().to_string() + ")" : props.id);
+        });
+        if (!within_scene_limits(*instance))
+            throw SceneError(e.where(), e.describe() +
+                                            ": its geometry reaches beyond 1e12 from the origin "
+                                            "or is not finite (check its to_world transform)");
+        scene_.add_instance(std::move(instance));
     }
 
     // Refuses geometry beyond the scene's limits (within_scene_limits, core/scene/scene.h).
@@ -800,6 +915,8 @@ class Loader {
     const Bsdf* default_bsdf_ = nullptr;
     const Bsdf* null_bsdf_ = nullptr;
     std::map<std::string, const Medium*> media_;
+    std::map<std::string, std::shared_ptr<const ShapeGroup>> groups_;
+    ShapeGroup* open_group_ = nullptr;  // the shapegroup whose shapes are being read
     bool have_sensor_ = false, have_integrator_ = false, warned_rfilter_ = false;
     SourceLocation sensor_where_, integrator_where_;
 };

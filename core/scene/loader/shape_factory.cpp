@@ -7,6 +7,7 @@
 
 #include "core/mesh_io/obj_reader.h"
 #include "core/mesh_io/ply_reader.h"
+#include "core/mesh_io/serialized_reader.h"
 #include "core/shapes/disk.h"
 #include "core/shapes/sphere.h"
 #include "core/shapes/triangle_mesh.h"
@@ -18,11 +19,13 @@ std::string shape_name(const Properties& props) {
     return props.id.empty() ? props.type() + " (" + props.where().to_string() + ")" : props.id;
 }
 
+// `file_face_normals`: the mesh file asks for flat shading (a serialized file's flag).
 std::unique_ptr<Shape> make_mesh_shape(const Properties& props, MeshData data,
-                                       bool allow_face_normals) {
+                                       bool allow_face_normals, bool file_face_normals = false) {
     Transform to_world = props.get_transform("to_world", Transform());
     bool flip = props.get_bool("flip_normals", false);
-    bool face_normals = allow_face_normals ? props.get_bool("face_normals", false) : false;
+    bool face_normals =
+        (allow_face_normals && props.get_bool("face_normals", false)) || file_face_normals;
     if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
     if (data.indices.empty()) throw props.error("filename", "the mesh has no faces");
     if (data.normals.empty() && !face_normals) compute_vertex_normals(data, to_world);
@@ -48,6 +51,25 @@ std::unique_ptr<Shape> make_file_mesh(const Properties& props,
     if (props.get_bool("flip_tex_coords", true))
         for (Vec2& uv : data.uvs) uv.y = 1.0f - uv.y;
     return make_mesh_shape(props, std::move(data), true);
+}
+
+// Mitsuba's `serialized`: mesh `shape_index` of a compressed file. Its uv are used as stored
+// (Mitsuba 3 takes no flip_tex_coords here); the file's face-normal flag acts as face_normals.
+std::unique_ptr<Shape> make_serialized_mesh(const Properties& props) {
+    const std::filesystem::path path = props.get_string("filename");
+    if (path.empty()) throw props.error("filename", "empty file name");
+    const int64_t index = props.get_int("shape_index", 0);
+    if (index < 0) throw props.error("shape_index", "must be 0 or more");
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw props.error("filename", "mesh file not found: " + path.string());
+    SerializedMesh mesh;
+    try {
+        mesh = read_serialized(path, size_t(index));
+    } catch (const SceneError& e) {
+        throw props.error("filename", e.what());
+    }
+    return make_mesh_shape(props, std::move(mesh.data), true, mesh.face_normals);
 }
 
 std::unique_ptr<Shape> make_sphere(const Properties& props) {
@@ -143,6 +165,7 @@ std::unique_ptr<Shape> make_shape(const Properties& props, const std::filesystem
          }},
         {"obj", make_file_mesh},
         {"ply", make_file_mesh},
+        {"serialized", [](const Properties& p, const Path&) { return make_serialized_mesh(p); }},
     };
     return find_plugin(kShapes, props, "shape").create(props, scene_dir);
 }

@@ -39,10 +39,12 @@ std::optional<Rgb> get_rgb(const ParamList& params, const std::string& name);
 // [1667, 25000] K, where the chromaticity approximation holds.
 std::optional<Rgb> blackbody_rgb(double kelvin);
 
-// `Material "type"` / MakeNamedMaterial's "string type". `named` resolves `mix`'s materials.
+// `Material "type"` / MakeNamedMaterial's "string type". `named` resolves `mix`'s materials;
+// `resolve` a "string normalmap" file name.
 std::shared_ptr<const Bsdf> make_material(
     const std::string& type, const ParamList& params, const TextureTable& textures,
-    const std::map<std::string, std::shared_ptr<const Bsdf>>& named);
+    const std::map<std::string, std::shared_ptr<const Bsdf>>& named,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
 // `Shape "type"` with the current transform. `resolve` maps a file name to the file to open.
 std::unique_ptr<Shape> make_shape(

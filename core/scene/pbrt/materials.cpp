@@ -8,6 +8,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/materials/ior.h"
 #include "core/scene/pbrt/builders.h"
+#include "core/textures/texture_factory.h"
 
 namespace render::pbrt {
 namespace {
@@ -205,11 +206,31 @@ std::shared_ptr<const Bsdf> two_sided(std::shared_ptr<const Bsdf> bsdf, const So
     return make_bsdf(props);
 }
 
+// pbrt-v4's "string normalmap": an image (read linearly, bilinear, repeated, looked up at
+// (u, 1 - t), which is our uv) whose 2 rgb - 1 is the normal in the tangent frame along dp/du:
+// Mitsuba's normalmap with a raw bitmap, around the whole material.
+std::shared_ptr<const Bsdf> normal_mapped(
+    std::shared_ptr<const Bsdf> bsdf, const ParamList& params,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
+    const SourceLocation at = params.find("normalmap")->where;
+    if (params.get_string("normalmap", "").empty())
+        throw params.error("normalmap", "a file name is required");
+    Properties texture("texture", "bitmap", at);
+    texture.set("filename", std::filesystem::absolute(resolve(params, "normalmap")).string(), at);
+    texture.set("raw", true, at);
+    Properties props("bsdf", "normalmap", at);
+    props.set("normalmap", render::make_texture(texture), at);
+    texture.check_all_used();
+    props.nested_bsdfs.push_back(std::move(bsdf));
+    return make_bsdf(props);
+}
+
 }  // namespace
 
 std::shared_ptr<const Bsdf> make_material(
     const std::string& type, const ParamList& params, const TextureTable& textures,
-    const std::map<std::string, std::shared_ptr<const Bsdf>>& named) {
+    const std::map<std::string, std::shared_ptr<const Bsdf>>& named,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
     const SourceLocation at = params.where;
     std::shared_ptr<const Bsdf> bsdf;
     if (type == "diffuse") {
@@ -241,6 +262,10 @@ std::shared_ptr<const Bsdf> make_material(
                 throw params.error("materials",
                                    "unknown named material \"" + m->strings[size_t(i)] + "\"");
             pair[i] = it->second;
+            if (pair[i]->changes_shading_frame())
+                throw params.error("materials", "mixing \"" + m->strings[size_t(i)] +
+                                                    "\", a material with a normal map, is not "
+                                                    "supported");
         }
         Properties props("bsdf", "blendbsdf", at);
         props.nested_bsdfs = {pair[0], pair[1]};
@@ -270,6 +295,8 @@ std::shared_ptr<const Bsdf> make_material(
     } else {
         throw SceneError(at, params.context() + ": unknown material \"" + type + "\"");
     }
+    if (params.has("normalmap") && type != "mix" && type != "interface" && !type.empty())
+        bsdf = normal_mapped(bsdf, params, resolve);
     params.check_all_used();
     return bsdf;
 }

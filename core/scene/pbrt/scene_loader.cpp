@@ -17,6 +17,7 @@
 #include "core/scene/pbrt/graphics_state.h"
 #include "core/scene/pbrt/tokenizer.h"
 #include "core/scene/pbrt/transforms.h"
+#include "core/shapes/instance.h"
 
 namespace render::pbrt {
 namespace {
@@ -68,6 +69,7 @@ class Loader {
 
     void finish(const std::string& file) {
         if (!world_) throw SceneError(SourceLocation{file, 0}, "the file has no WorldBegin");
+        if (object_) throw SceneError(object_where_, "ObjectBegin without ObjectEnd");
         if (!attributes_.empty())
             throw SceneError(attributes_.back().second, "AttributeBegin without AttributeEnd");
     }
@@ -281,7 +283,7 @@ class Loader {
                 const std::string type = need_string(tokens, d, "material type");
                 ParamList p = ParamList::parse(tokens, "Material \"" + type + "\"");
                 p.where = d.where;
-                state_.material = make_material(type, p, textures_, named_materials_);
+                state_.material = make_material(type, p, textures_, named_materials_, resolver());
             } else if (n == "MakeNamedMaterial") {
                 need_world(d);
                 const std::string name = need_string(tokens, d, "material name");
@@ -290,8 +292,8 @@ class Loader {
                 if (named_materials_.count(name))
                     throw SceneError(d.where, "named material \"" + name + "\" redefined");
                 if (!p.has("type")) throw p.error("type", "\"string type\" is required");
-                named_materials_[name] =
-                    make_material(p.get_string("type", ""), p, textures_, named_materials_);
+                named_materials_[name] = make_material(p.get_string("type", ""), p, textures_,
+                                                       named_materials_, resolver());
             } else if (n == "NamedMaterial") {
                 need_world(d);
                 const std::string name = need_string(tokens, d, "material name");
@@ -318,8 +320,14 @@ class Loader {
                     ParamList::parse(tokens, "AreaLightSource \"" + type + "\""));
                 p->where = d.where;
                 state_.area_light = AreaLightState{type, p};
-            } else if (n == "ObjectBegin" || n == "ObjectEnd" || n == "ObjectInstance") {
-                throw SceneError(d.where, n + ": object instancing is not supported yet");
+            } else if (n == "ObjectBegin") {
+                need_world(d);
+                begin_object(need_string(tokens, d, "object name"), d);
+            } else if (n == "ObjectEnd") {
+                end_object(d);
+            } else if (n == "ObjectInstance") {
+                need_world(d);
+                instantiate(need_string(tokens, d, "object name"), d);
             } else if (n == "Attribute") {
                 throw SceneError(d.where, "Attribute: default parameters are not supported yet");
             } else if (n == "WorldEnd") {
@@ -493,6 +501,10 @@ class Loader {
         const std::string type = need_string(tokens, d, "shape type");
         ParamList p = ParamList::parse(tokens, "Shape \"" + type + "\"");
         p.where = d.where;
+        if (object_ && state_.area_light)
+            throw SceneError(d.where, "Shape inside ObjectBegin \"" + object_->name() +
+                                          "\": area lights in object instances are not "
+                                          "supported (nor are they in pbrt-v4)");
         std::unique_ptr<Shape> shape =
             make_shape(type, p, state_.ctm, state_.reverse_orientation, resolver());
         check_extent(*shape, d);
@@ -512,10 +524,65 @@ class Loader {
             // pbrt-v4's default material: diffuse, reflectance 0.5.
             ParamList none;
             none.where = d.where;
-            state_.material = make_material("diffuse", none, textures_, named_materials_);
+            state_.material =
+                make_material("diffuse", none, textures_, named_materials_, resolver());
         }
+        if (object_) return object_->add(std::move(shape), keep(state_.material));
         scene_.add_shape(std::move(shape), keep(state_.material));
         if (light) scene_.add_light(std::move(light));
+    }
+
+    // ----- object instancing (core/shapes/instance.h) -----
+
+    // ObjectBegin "name": an attribute block whose shapes, each with the transform current at
+    // it, form the object.
+    void begin_object(const std::string& name, const Token& d) {
+        if (object_)
+            throw SceneError(d.where, "ObjectBegin \"" + name + "\" inside ObjectBegin \"" +
+                                          object_->name() + "\" (objects cannot nest)");
+        if (objects_.count(name))
+            throw SceneError(d.where, "ObjectBegin: object \"" + name + "\" redefined");
+        attributes_.emplace_back(state_, d.where);
+        object_ = std::make_shared<ShapeGroup>(name);
+        object_where_ = d.where;
+        object_depth_ = attributes_.size();
+    }
+
+    void end_object(const Token& d) {
+        if (!object_) throw SceneError(d.where, "ObjectEnd without ObjectBegin");
+        if (attributes_.size() != object_depth_)
+            throw SceneError(d.where,
+                             "ObjectEnd: AttributeBegin and AttributeEnd inside the "
+                             "object do not balance");
+        state_ = attributes_.back().first;
+        attributes_.pop_back();
+        objects_[object_->name()] = std::move(object_);
+        object_.reset();
+    }
+
+    // ObjectInstance "name": the object's shapes placed with the current transform (which
+    // applies after each shape's own).
+    void instantiate(const std::string& name, const Token& d) {
+        if (object_)
+            throw SceneError(d.where, "ObjectInstance inside ObjectBegin \"" + object_->name() +
+                                          "\" (objects cannot nest)");
+        auto it = objects_.find(name);
+        if (it == objects_.end())
+            throw SceneError(d.where, "ObjectInstance: unknown object \"" + name +
+                                          "\" (ObjectBegin must come first)");
+        if (state_.ctm.is_singular())
+            throw SceneError(d.where, "ObjectInstance: the current transform is singular");
+        if (it->second->empty()) {
+            warn(d.where, "ObjectInstance: object \"" + name + "\" has no shapes");
+            return;
+        }
+        auto instance = std::make_unique<Instance>(
+            it->second, state_.ctm, "object \"" + name + "\" (" + d.where.to_string() + ")");
+        if (!within_scene_limits(*instance))
+            throw SceneError(d.where,
+                             "ObjectInstance: its geometry reaches beyond 1e12 from the "
+                             "origin or is not finite (check the transform)");
+        scene_.add_instance(std::move(instance));
     }
 
     // Refuses geometry beyond the scene's limits (within_scene_limits, core/scene/scene.h).
@@ -549,6 +616,10 @@ class Loader {
     std::set<std::string> open_files_;
     GraphicsState state_;
     std::vector<std::pair<GraphicsState, SourceLocation>> attributes_;
+    std::map<std::string, std::shared_ptr<const ShapeGroup>> objects_;
+    std::shared_ptr<ShapeGroup> object_;  // the object being defined (ObjectBegin)
+    SourceLocation object_where_;
+    size_t object_depth_ = 0;  // attributes_.size() just after its ObjectBegin
     std::vector<Transform> transforms_;
     std::map<std::string, Transform> coordinate_systems_;
     std::map<std::string, std::shared_ptr<const Bsdf>> named_materials_;
