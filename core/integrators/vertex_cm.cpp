@@ -437,6 +437,13 @@ class Iteration {
     // to be traced along `ray`, over every piece in a medium up to the first surface that is
     // not a null boundary (the long query), each gathered at its projection on the segment.
     Rgb query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // The pieces of an eye segment along `ray`, walked as sample_segment does without sampling
+    // a distance, up to the first surface that is not a null boundary: visit(medium, piece,
+    // t_end, before, transmittance) for each piece in a medium, with the MIS densities and the
+    // transmittance of the pieces before it. The walk of query_beams and photon_beams.
+    template <typename Visit>
+    void for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
+                                   RenderStats& stats, Visit&& visit) const;
     // Photon beams (B-B1D). Light subpaths: the beams of the segment just sampled along `ray`
     // from the subpath `from` (its state before the segment), appended to the thread's staging
     // buffer; `piece` counts the path's pieces so far.
@@ -1376,18 +1383,10 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
     Rgb sum(0.0f);
     if (medium_positions_.empty()) return sum;
     const PointsAlongRay& lookup = *storage_.beam_lookup;
-    // Walks the pieces as sample_segment does, without sampling a distance: the densities and
-    // the transmittance of the pieces before the current one.
-    SegmentDensityBuilder before(state.in_medium);
-    Rgb transmittance(1.0f);
-    const Medium* medium = state.medium;
-    Ray piece = ray;
-    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
-        SurfaceInteraction si;
-        ++stats.rays;
-        const bool hit = scene_.intersect(piece, si);
-        const float t_end = hit ? si.t : kInfinity;
-        if (medium) {
+    for_each_eye_medium_piece(
+        ray, state, rng, stats,
+        [&](const Medium* medium, const Ray& piece, float t_end,
+            const SegmentDensityBuilder& before, const Rgb& transmittance) {
             // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
             // medium, whose look-ups are skipped.
             const bool homogeneous = medium->is_homogeneous();
@@ -1429,6 +1428,24 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                 const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
                 sum += tr * photon * (p * weight);
             });
+        });
+    return sum * beam_normalization_;
+}
+
+template <typename Visit>
+void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
+                                          RenderStats& stats, Visit&& visit) const {
+    SegmentDensityBuilder before(state.in_medium);
+    Rgb transmittance(1.0f);
+    const Medium* medium = state.medium;
+    Ray piece = ray;
+    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
+        SurfaceInteraction si;
+        ++stats.rays;
+        const bool hit = scene_.intersect(piece, si);
+        const float t_end = hit ? si.t : kInfinity;
+        if (medium) {
+            visit(medium, piece, t_end, before, transmittance);
             transmittance *= medium->transmittance(piece, t_end, rng);
         }
         if (!hit || !si.bsdf->is_null() || transmittance.is_black()) break;
@@ -1436,7 +1453,6 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
         medium = medium_after_transmission(si, piece.direction);
         piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
     }
-    return sum * beam_normalization_;
 }
 
 // --- photon beams (B-B1D) ---------------------------------------------------------------------
@@ -1539,72 +1555,62 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
     if (beams.empty()) return sum;
     const BeamsAlongRay& lookup = *storage_.photon_beam_lookup;
     const bool short_beams = config_.short_photon_beams;
-    // Walks the pieces as query_beams does: the densities and the transmittance of the pieces
-    // before the current one.
-    SegmentDensityBuilder before(state.in_medium);
-    Rgb transmittance(1.0f);
-    const Medium* medium = state.medium;
-    Ray piece = ray;
-    for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
-        SurfaceInteraction si;
-        ++stats.rays;
-        const bool hit = scene_.intersect(piece, si);
-        const float t_end = hit ? si.t : kInfinity;
-        if (medium && medium->is_homogeneous()) {
-            Ray query = piece;
-            query.t_max = t_end;
-            lookup.for_each_near(query, [&](uint32_t i, const BeamApproach& a) {
-                const PhotonBeam& b = beams[i];
-                if (b.medium != medium) return;  // a beam of another medium
-                if (b.path_length + state.path_length > max_length_) return;
-                const Vec3 x = piece.at(a.t_ray);
-                const float sigma_t = medium->sigma_t(x).average();
-                if (!(sigma_t > 0)) return;
-                // The eye scatters the beam's light toward the camera at x.
-                const float p = medium->phase().p(-ray.direction, -b.line.direction);
-                if (!(p > 0)) return;
-                // Both subpaths as if they had arrived at the closest approach, their distance
-                // densities left to the weight (vcm_mis.h, weight_photon_beam).
-                const Ray beam_ray(b.line.origin, b.line.direction);
-                SegmentDensityBuilder light_pieces = b.before;
-                light_pieces.add_piece(medium, beam_ray, a.t_beam);
-                const SegmentDensities dl = light_pieces.finish(true);
-                MisQuantities light = b.mis;
-                const float light_distance = b.offset + a.t_beam;
-                mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f, 1.0f,
-                            dl.toward_start);
-                mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
-                mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f, dl.toward_start,
-                                          false, true);
-                SegmentDensityBuilder eye_pieces = before;
-                eye_pieces.add_piece(medium, piece, a.t_ray);
-                const SegmentDensities dc = eye_pieces.finish(true);
-                MisQuantities eye = state.mis;
-                mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, dc.toward_start);
-                mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                          dc.toward_start, true, dc.homogeneous);
-                const float weight = mis_.weight_photon_beam(
-                    light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
-                    {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
-                if (!(weight > 0)) return;
-                // The beam's transmittance to the closest approach (over the probability that
-                // a short beam reaches it), the query's, sigma_s and the phase function at x,
-                // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
-                // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-                Rgb beam_tr = medium->transmittance(beam_ray, a.t_beam, rng);  // draws nothing
-                if (short_beams)
-                    beam_tr =
-                        beam_tr / std::max(medium->probability_pass(beam_ray, a.t_beam), 1e-35f);
-                const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
-                sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
-            });
-        }
-        if (medium) transmittance *= medium->transmittance(piece, t_end, rng);
-        if (!hit || !si.bsdf->is_null() || transmittance.is_black()) break;
-        before.add_piece(medium, piece, si.t);
-        medium = medium_after_transmission(si, piece.direction);
-        piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
-    }
+    for_each_eye_medium_piece(
+        ray, state, rng, stats,
+        [&](const Medium* medium, const Ray& piece, float t_end,
+            const SegmentDensityBuilder& before, const Rgb& transmittance) {
+            if (medium->is_homogeneous()) {
+                Ray query = piece;
+                query.t_max = t_end;
+                lookup.for_each_near(query, [&](uint32_t i, const BeamApproach& a) {
+                    const PhotonBeam& b = beams[i];
+                    if (b.medium != medium) return;  // a beam of another medium
+                    if (b.path_length + state.path_length > max_length_) return;
+                    const Vec3 x = piece.at(a.t_ray);
+                    const float sigma_t = medium->sigma_t(x).average();
+                    if (!(sigma_t > 0)) return;
+                    // The eye scatters the beam's light toward the camera at x.
+                    const float p = medium->phase().p(-ray.direction, -b.line.direction);
+                    if (!(p > 0)) return;
+                    // Both subpaths as if they had arrived at the closest approach, their distance
+                    // densities left to the weight (vcm_mis.h, weight_photon_beam).
+                    const Ray beam_ray(b.line.origin, b.line.direction);
+                    SegmentDensityBuilder light_pieces = b.before;
+                    light_pieces.add_piece(medium, beam_ray, a.t_beam);
+                    const SegmentDensities dl = light_pieces.finish(true);
+                    MisQuantities light = b.mis;
+                    const float light_distance = b.offset + a.t_beam;
+                    mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f,
+                                1.0f, dl.toward_start);
+                    mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
+                    mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f,
+                                              dl.toward_start, false, true);
+                    SegmentDensityBuilder eye_pieces = before;
+                    eye_pieces.add_piece(medium, piece, a.t_ray);
+                    const SegmentDensities dc = eye_pieces.finish(true);
+                    MisQuantities eye = state.mis;
+                    mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f,
+                                dc.toward_start);
+                    mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
+                                              dc.toward_start, true, dc.homogeneous);
+                    const float weight = mis_.weight_photon_beam(
+                        light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
+                        {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+                    if (!(weight > 0)) return;
+                    // The beam's transmittance to the closest approach (over the probability that
+                    // a short beam reaches it), the query's, sigma_s and the phase function at x,
+                    // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
+                    // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
+                    Rgb beam_tr = medium->transmittance(beam_ray, a.t_beam, rng);  // draws nothing
+                    if (short_beams)
+                        beam_tr = beam_tr /
+                                  std::max(medium->probability_pass(beam_ray, a.t_beam), 1e-35f);
+                    const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
+                    sum +=
+                        tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
+                });
+            }
+        });
     return sum * photon_beam_normalization_;
 }
 
