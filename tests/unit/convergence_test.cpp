@@ -283,6 +283,29 @@ TEST(Convergence, QueryBeamsMatchBptOnTheFogBox) {
                        "upbp (query beams only), max_depth 6", "bpt");
 }
 
+// The image mean (the channels' average) of each of `batches` consecutive batches of
+// `iterations` iterations from iteration 1: the samples of the kernel-bias tests.
+std::vector<double> batch_image_means(const Scene& scene, const RenderSettings& settings,
+                                      int batches, int iterations) {
+    std::vector<double> means;
+    for (int b = 0; b < batches; ++b) {
+        const uint64_t first = 1 + uint64_t(b) * uint64_t(iterations);
+        const IterationResult r =
+            render_iterations(scene, settings, 0, IterationRange{first, first + iterations});
+        double sum = 0;
+        for (int channel = 0; channel < 3; ++channel)
+            sum += testing::pixel_statistics(r, channel).mean;
+        means.push_back(sum / 3);
+    }
+    return means;
+}
+
+testing::MeanAccumulator accumulate(const std::vector<double>& values) {
+    testing::MeanAccumulator m;
+    for (double v : values) m.add(v);
+    return m;
+}
+
 // The query beams' kernel bias vanishes with the radius (ALGORITHMS-NEXT.md 4.6 a2): the fog box
 // with paths of up to 6 segments, query beams as the only medium estimator, volume radii of 16,
 // 8, 4 and 1 % of the scene radius kept fixed (alpha 1), against bpt; image means over 16
@@ -298,18 +321,7 @@ TEST(Convergence, QueryBeamsBiasShrinksWithTheRadius) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
         settings.max_depth = 6;
-        testing::MeanAccumulator m;
-        constexpr int kBatchIterations = 16;
-        for (int b = 0; b < 16; ++b) {
-            const uint64_t first = 1 + uint64_t(b) * kBatchIterations;
-            const IterationResult r = render_iterations(
-                *scene, settings, 0, IterationRange{first, first + kBatchIterations});
-            double sum = 0;
-            for (int channel = 0; channel < 3; ++channel)
-                sum += testing::pixel_statistics(r, channel).mean;
-            m.add(sum / 3);
-        }
-        return m;
+        return accumulate(batch_image_means(*scene, settings, 16, 16));
     };
     const testing::MeanAccumulator reference = image_mean("bpt", {});
     std::vector<double> bias, se;
@@ -374,26 +386,11 @@ TEST(Convergence, PhotonBeamsMatchBptOnTheSmallUpbpBoxes) {
 // 5.1 paired standard errors there, so still resolvable).
 TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     auto scene = shipped("smallupbp/isosph.xml");
-    constexpr int kBatches16 = 16, kBatchIterations = 8;
+    constexpr int kBatches = 16, kBatchIterations = 8;
     auto batch_means = [&](const std::string& algorithm, const OptionMap& options) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
-        std::vector<double> means;
-        for (int b = 0; b < kBatches16; ++b) {
-            const uint64_t first = 1 + uint64_t(b) * kBatchIterations;
-            const IterationResult r = render_iterations(
-                *scene, settings, 0, IterationRange{first, first + kBatchIterations});
-            double sum = 0;
-            for (int channel = 0; channel < 3; ++channel)
-                sum += testing::pixel_statistics(r, channel).mean;
-            means.push_back(sum / 3);
-        }
-        return means;
-    };
-    auto accumulate = [](const std::vector<double>& values) {
-        testing::MeanAccumulator m;
-        for (double v : values) m.add(v);
-        return m;
+        return batch_image_means(*scene, settings, kBatches, kBatchIterations);
     };
     const std::vector<double> reference_batches = batch_means("bpt", {});
     const testing::MeanAccumulator reference = accumulate(reference_batches);
@@ -405,7 +402,7 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
                                                                  {"volume_radius_factor", radius},
                                                                  {"volume_alpha", "1"}});
         std::vector<double> differences;
-        for (int b = 0; b < kBatches16; ++b)
+        for (int b = 0; b < kBatches; ++b)
             differences.push_back(batches[size_t(b)] - reference_batches[size_t(b)]);
         const testing::MeanAccumulator d = accumulate(differences);
         bias.push_back(d.mean());
