@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <string>
+
 #include "core/render/render_iterations.h"
 #include "tests/support/statistics.h"
 
@@ -37,6 +40,23 @@ BlockEstimate render_block_estimate(const Scene& scene, const RenderSettings& se
         e.standard_error[i] = m.standard_error();
     }
     return e;
+}
+
+std::vector<std::string> differing_blocks(const BlockEstimate& a, const BlockEstimate& b,
+                                          double scale, double k,
+                                          double noiseless_relative_tolerance) {
+    std::vector<std::string> out;
+    for (size_t i = 0; i < a.mean.size(); ++i) {
+        const double se = std::hypot(a.standard_error[i], b.standard_error[i] * scale);
+        const double d = a.mean[i] - b.mean[i] * scale;
+        if (!(std::abs(d) <= k * se) &&
+            !(se == 0 && std::abs(d) <= noiseless_relative_tolerance * std::abs(a.mean[i])))
+            out.push_back("block " + std::to_string(i / 3) + " channel " + std::to_string(i % 3) +
+                          ": " + std::to_string(a.mean[i]) + " vs " +
+                          std::to_string(b.mean[i] * scale) + " (" + std::to_string(d / se) +
+                          " standard errors)");
+    }
+    return out;
 }
 
 }  // namespace render::testing

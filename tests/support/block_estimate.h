@@ -5,6 +5,7 @@
 // blocks; per block and channel the mean over the batches and its standard error from the
 // spread of the batch means (batches - 1 degrees of freedom).
 
+#include <string>
 #include <vector>
 
 #include "core/render/render_settings.h"
@@ -22,5 +23,13 @@ struct BlockEstimate {
 // with a side divisible by blocks_per_side. Non-finite samples fail the calling test.
 BlockEstimate render_block_estimate(const Scene& scene, const RenderSettings& settings, int batches,
                                     int iterations_per_batch, int blocks_per_side);
+
+// The blocks and channels where a and b * scale differ by more than k combined standard errors,
+// each described for a failure message ("block 3 channel 1: ... (6.2 standard errors)"). A block
+// whose combined standard error is 0 (it sees no noise, e.g. only a constant environment) may
+// differ by at most noiseless_relative_tolerance of a's mean there.
+std::vector<std::string> differing_blocks(const BlockEstimate& a, const BlockEstimate& b,
+                                          double scale, double k,
+                                          double noiseless_relative_tolerance = 0.0);
 
 }  // namespace render::testing

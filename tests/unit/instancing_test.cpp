@@ -96,22 +96,6 @@ BlockEstimate render_blocks(const Scene& scene, uint64_t seed) {
     return testing::render_block_estimate(scene, settings, 16, 8, 4);
 }
 
-std::vector<std::string> differing_blocks(const BlockEstimate& a, const BlockEstimate& b,
-                                          double scale) {
-    std::vector<std::string> out;
-    for (size_t i = 0; i < a.mean.size(); ++i) {
-        const double se = std::hypot(a.standard_error[i], b.standard_error[i] * scale);
-        const double d = a.mean[i] - b.mean[i] * scale;
-        // A block that sees only the constant environment has no noise: it must be equal.
-        if (!(std::abs(d) <= 5.0 * se) && !(se == 0 && std::abs(d) <= 1e-6 * std::abs(a.mean[i])))
-            out.push_back("block " + std::to_string(i / 3) + " channel " + std::to_string(i % 3) +
-                          ": " + std::to_string(a.mean[i]) + " vs " +
-                          std::to_string(b.mean[i] * scale) + " (" + std::to_string(d / se) +
-                          " standard errors)");
-    }
-    return out;
-}
-
 TEST(Instancing, MitsubaInstancesConvergeToTheWrittenOutImage) {
     auto instanced = load_scene(kTests + "instances.xml");
     auto flat = load_scene(kTests + "instances-flat.xml");
@@ -122,9 +106,11 @@ TEST(Instancing, MitsubaInstancesConvergeToTheWrittenOutImage) {
     size_t noisy = 0;
     for (size_t i = 0; i < a.mean.size(); ++i) noisy += a.standard_error[i] > 0;
     EXPECT_GT(noisy, a.mean.size() / 2);
-    const std::vector<std::string> differ = differing_blocks(a, b, 1.0);
+    // k = 5 combined standard errors; a block that sees only the constant environment has no
+    // noise: there the two must be equal (to 1e-6).
+    const std::vector<std::string> differ = testing::differing_blocks(a, b, 1.0, 5.0, 1e-6);
     EXPECT_TRUE(differ.empty()) << differ.size() << " block values differ, first: " << differ[0];
-    EXPECT_FALSE(differing_blocks(a, b, 1.03).empty());
+    EXPECT_FALSE(testing::differing_blocks(a, b, 1.03, 5.0, 1e-6).empty());
 }
 
 // A pbrt scene with an object (a box mesh and a sphere, each with its own transform inside the

@@ -54,21 +54,6 @@ BlockEstimate render_blocks(const Scene& scene, uint64_t seed) {
                                           kBlocksPerSide);
 }
 
-std::vector<std::string> differing_blocks(const BlockEstimate& a, const BlockEstimate& b,
-                                          double scale) {
-    std::vector<std::string> out;
-    for (size_t i = 0; i < a.mean.size(); ++i) {
-        const double se = std::hypot(a.standard_error[i], b.standard_error[i] * scale);
-        const double d = a.mean[i] - b.mean[i] * scale;
-        if (!(std::abs(d) <= kStandardErrors * se))
-            out.push_back("block " + std::to_string(i / 3) + " channel " + std::to_string(i % 3) +
-                          ": " + std::to_string(a.mean[i]) + " vs " +
-                          std::to_string(b.mean[i] * scale) + " (" + std::to_string(d / se) +
-                          " standard errors)");
-    }
-    return out;
-}
-
 TEST(PbrtScenes, CornellBoxConvergesToTheMitsubaImage) {
     auto pbrt_scene = load_small("bitterli-pbrt/cornell-box/scene-v4.pbrt", kResolution);
     auto mitsuba_scene = load_small("bitterli/cornell-box/scene_v3.xml", kResolution);
@@ -80,10 +65,11 @@ TEST(PbrtScenes, CornellBoxConvergesToTheMitsubaImage) {
     for (size_t i = 0; i < pbrt.mean.size(); ++i) {
         ASSERT_GT(pbrt.standard_error[i], 0.0) << "block value " << i << " has no noise";
     }
-    const std::vector<std::string> differ = differing_blocks(pbrt, mitsuba, 1.0);
+    const std::vector<std::string> differ =
+        testing::differing_blocks(pbrt, mitsuba, 1.0, kStandardErrors);
     EXPECT_TRUE(differ.empty()) << differ.size() << " block values differ, first: " << differ[0];
     // The comparison can fail: a 3 % brighter Mitsuba image differs in some block.
-    EXPECT_FALSE(differing_blocks(pbrt, mitsuba, 1.03).empty());
+    EXPECT_FALSE(testing::differing_blocks(pbrt, mitsuba, 1.03, kStandardErrors).empty());
 }
 
 // Each shipped pbrt scene loads and renders 2 iterations at 16 x 16 with pt and vcm: finite
