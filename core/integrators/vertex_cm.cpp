@@ -338,8 +338,10 @@ class Iteration {
                                    ? std::min<uint64_t>(config.ic_light_paths, light_path_count_)
                                    : light_path_count_),
           ic_connection_scale_(float(1.0 / double(ic_light_path_count_))),
-          joint_(config.mode == BidirectionalMode::Bpt && config.joint_connections &&
-                 !ic_connections_ && scene.has_media()),
+          // bpt and vcm; not beside upbp's beams, whose weights have no J1 factors.
+          joint_((config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm) &&
+                 config.joint_connections && use_vc_ && !ic_connections_ && !query_beams_ &&
+                 !photon_beams_ && scene.has_media()),
           storage_(storage),
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
@@ -433,6 +435,10 @@ class Iteration {
                                                     const MisQuantities& eye_mis, Rng& rng,
                                                     RenderStats& stats, bool joint = false) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
+    // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
+    // previous vertex toward the light vertex's predecessor) over its plain connection; 0
+    // without joint connections or where that junction has none (vcm_mis.h, weight_merge).
+    float merge_joint_ratio(const LightVertex& light_vertex, const Vertex& v) const;
     // Query beams (P-B2D): the photon points within the beam radius of the eye segment about
     // to be traced along `ray`, over every piece in a medium up to the first surface that is
     // not a null boundary (the long query), each gathered at its projection on the segment.
@@ -525,7 +531,7 @@ class Iteration {
     // those vertices (a prefix of light_vertices_, set by build_importance_cache).
     uint64_t ic_light_path_count_;
     float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
-    bool joint_;                 // joint (J1) connections (bpt in a scene with media)
+    bool joint_;                 // joint (J1) connections (bpt, vcm in a scene with media)
     size_t ic_vertex_count_ = 0;
 
     IterationStorage& storage_;
@@ -1340,6 +1346,12 @@ void Iteration::draw_from_importance_caches(const Vertex& v, int eye_length, Rng
     }
 }
 
+float Iteration::merge_joint_ratio(const LightVertex& lv, const Vertex& v) const {
+    // The light-side vertex of that junction must scatter (not be the light's own point).
+    if (!joint_ || !(v.joint_distance_pdf > 0) || lv.path_length < 2) return 0.0f;
+    return joint_pdf_l(v.previous, v.p, lv.vertex.previous) / v.joint_distance_pdf;
+}
+
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
@@ -1364,7 +1376,8 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
                                     ? mis_.photon_beam_merge_term(length(cross(wo, lv.wo)),
                                                                   lv.vertex.arrival_distance,
                                                                   v.arrival_distance, v.sigma_t)
-                                    : 0.0f});
+                                    : 0.0f,
+                 .light_joint_ratio = merge_joint_ratio(lv, v)});
         }
         Rgb photon = lv.throughput;
         if (medium) {

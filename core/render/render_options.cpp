@@ -248,9 +248,9 @@ const std::vector<RenderOption>& table() {
          .type = OptionType::Choice,
          .help = "joint (J1, vertex-segment) connections in homogeneous media: each eye segment "
                  "in a medium also joins the vertices of the pixel's light path through a "
-                 "medium vertex sampled toward each, combined by MIS (off by default: on the fog "
-                 "box it lowers the equal-time error of double scattering 1.05-1.14x but not "
-                 "that of all orders, 0.90-0.97x; docs/joint-sampling.md)",
+                 "medium vertex sampled toward each, combined by MIS (bpt, vcm; off by default: "
+                 "on the fog box bpt's equal-time error of double scattering is 1.05-1.14x lower "
+                 "but not that of all orders, 0.90-0.97x; docs/joint-sampling.md)",
          .choices = {"off", "on"},
          .default_text = "off",
          .apply = [](RenderSettings& s, const std::string& v) { s.joint_connections = v == "on"; },

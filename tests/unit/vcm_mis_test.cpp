@@ -30,6 +30,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -597,7 +598,9 @@ class MisSumTest : public ::testing::Test {
                          vertices_[i].in_medium()
                              ? mis.photon_beam_merge_term(beam_sin(i), light_distance(i),
                                                           camera_distance(i), beam_sigma_t(i))
-                             : 0.0f});
+                             : 0.0f,
+                     // J1 of the junction whose eye-side vertex is i, sampled from i + 1.
+                     .light_joint_ratio = joint_ratio(int(i), int(i) + 1)});
             }
             case TechniqueKind::QueryBeam: {  // vertex_cm.cpp, query_beams
                 // The eye subpath as if it had arrived at the photon's projection on the query
@@ -774,8 +777,12 @@ class MisSumTest : public ::testing::Test {
         const std::vector<double> w = weights(mis, list);
         const std::vector<double> reference = reference_weights(
             list, power, eta_surface, eta_volume, eta_beam, eta_photon_beam, short_beams);
+        const bool merges = std::any_of(list.begin(), list.end(), [](const Technique& t) {
+            return t.kind == TechniqueKind::Merge;
+        });
         for (const Technique& t : list) {
             joint_checked_ += t.kind == TechniqueKind::JointConnection;
+            joint_with_merges_checked_ += merges && t.kind == TechniqueKind::JointConnection;
             query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
             photon_beams_checked_ += t.kind == TechniqueKind::PhotonBeam;
         }
@@ -802,12 +809,13 @@ class MisSumTest : public ::testing::Test {
     ConductorBsdf mirror_;
     TriangleMesh rectangle_;
     HomogeneousMedium fog_medium_;
-    const Medium* fog_ = nullptr;   // the medium filling the scene; null: vacuum
-    bool joint_ = false;            // the J1 techniques are enabled (bpt --joint-connections on)
-    int joint_checked_ = 0;         // J1 weights checked so far
-    int query_beams_checked_ = 0;   // P-B2D weights checked so far
-    int photon_beams_checked_ = 0;  // B-B1D weights checked so far
-    float fog_exit_ = 0;            // from the first vertex toward an infinite light
+    const Medium* fog_ = nullptr;  // the medium filling the scene; null: vacuum
+    bool joint_ = false;           // the J1 techniques are enabled (bpt --joint-connections on)
+    int joint_checked_ = 0;        // J1 weights checked so far
+    int joint_with_merges_checked_ = 0;  // of which beside merges (vcm)
+    int query_beams_checked_ = 0;        // P-B2D weights checked so far
+    int photon_beams_checked_ = 0;       // B-B1D weights checked so far
+    float fog_exit_ = 0;                 // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
     LightKind kind_ = LightKind::Area;
@@ -851,7 +859,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOne) {
 }
 
 // Paths in fog: medium vertices, surface vertices, and both, as a path in fog bouncing off walls;
-// BPT with J1 connections, and query beams (UPBP's long camera query) beside each family.
+// BPT and VCM with J1 connections, and query beams (UPBP's long camera query) beside each family.
 TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     using M = Material;
     const std::vector<std::vector<Material>> paths = {
@@ -889,6 +897,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                         check_family(power, true, false, eta_surface, eta_volume, "BPT");
                         check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", true);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM+J1", true);
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
                         // Query beams (P-B2D) beside BPT, VCM, BPM and alone: the merge factor
                         // of a medium vertex is then per vertex, added at the next arrival on
@@ -924,7 +933,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
             }
     EXPECT_GT(checked, 500);
     EXPECT_GT(with_medium_vertex, 400);
-    EXPECT_GT(joint_checked_, 400);
+    EXPECT_GT(joint_checked_, 800);
+    EXPECT_GT(joint_with_merges_checked_, 400);
     EXPECT_GT(query_beams_checked_, 1500);
     EXPECT_GT(photon_beams_checked_, 10000);
 }
