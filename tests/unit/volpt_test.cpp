@@ -58,7 +58,7 @@ struct FurnaceCase {
     // (256 light paths) need a larger ball than surface photons to find any neighbours.
     double radius_factor = 0;
     uint64_t iterations = 64;
-    bool jis = true;                            // joint sampling (volpt: J3; bpt: J1 connections)
+    bool jis = true;  // joint sampling (volpt: J3; bpt, vcm: J1 connections)
     void (*adjust)(RenderSettings&) = nullptr;  // other settings (upbp's estimators)
 };
 
@@ -103,8 +103,8 @@ INSTANTIATE_TEST_SUITE_P(
 
 // The bidirectional family through the same media: light subpaths start in the emitter's
 // medium, vertices in the medium are connected and (ppm, bpm, vcm) merged as photon points.
-// bpt runs its joint (J1) connections (--joint-connections on), also with g = +-0.99 where the
-// equi-angular densities ignore the phase function's lobe.
+// bpt and vcm run their joint (J1) connections (--joint-connections on), also with g = +-0.99
+// where the equi-angular densities ignore the phase function's lobe; vcm also without them.
 INSTANTIATE_TEST_SUITE_P(Bidirectional, MediumFurnace,
                          ::testing::Values(FurnaceCase{"lt", "1", kIsotropic, true},
                                            FurnaceCase{"bpt", "1", kIsotropic, true},
@@ -115,7 +115,12 @@ INSTANTIATE_TEST_SUITE_P(Bidirectional, MediumFurnace,
                                            FurnaceCase{"bpm", "1", kIsotropic, true, 0.02, 256},
                                            FurnaceCase{"vcm", "1", kIsotropic, true},
                                            FurnaceCase{"vcm", "0.3, 1, 3", kForward, true},
-                                           FurnaceCase{"vcm", "4", kBackward, true}));
+                                           FurnaceCase{"vcm", "4", kBackward, true},
+                                           FurnaceCase{"vcm", "1", kPeakedForward, true},
+                                           FurnaceCase{"vcm", "1", kPeakedBackward, true},
+                                           FurnaceCase{"vcm", "1", kIsotropic, true, 0, 64, false},
+                                           FurnaceCase{"vcm", "0.3, 1, 3", kForward, true, 0, 64,
+                                                       false}));
 
 // upbp's query beams (P-B2D): with every estimator, and as the only one in the medium (no
 // connections, no photon points: every path with a medium vertex is gathered along a camera
@@ -335,8 +340,8 @@ TEST(HardCases, JointSamplingAtExtremeThicknessAndAnisotropyStaysFinite) {
         const char* sigma_t;
         const char* g;
         bool dark;
-        // bpt samples medium vertices by distance only (its J1 needs a light vertex in the
-        // medium): in 8 iterations of the thin box it finds none, and its image is black.
+        // bpt and vcm sample medium vertices by distance only (J1 needs a light vertex in the
+        // medium): in 8 iterations of the thin box they find none, and their image is black.
         bool thin = false;
     };
     for (const Case& k : {Case{"2.5e-7", "0", false, true}, Case{"250", "0", true},
@@ -344,10 +349,11 @@ TEST(HardCases, JointSamplingAtExtremeThicknessAndAnisotropyStaysFinite) {
         auto scene =
             load_scene(std::string(RENDER_SOURCE_DIR) + "/scenes/tests/fog-box.xml",
                        {{"resx", "16"}, {"resy", "16"}, {"g", k.g}, {"sigma_t", k.sigma_t}});
-        for (const char* algorithm : {"volpt", "bpt"}) {
+        for (const char* algorithm : {"volpt", "bpt", "vcm"}) {
             SCOPED_TRACE(::testing::Message()
                          << algorithm << " sigma_t " << k.sigma_t << " g " << k.g);
-            const std::string joint = std::string(algorithm) == "bpt" ? "joint_connections" : "jis";
+            const bool volpt = std::string(algorithm) == "volpt";
+            const std::string joint = volpt ? "jis" : "joint_connections";
             RenderSettings settings =
                 resolve_render_settings(algorithm, {{joint, "on"}}, scene->settings);
             settings.seed = 1234;
@@ -358,7 +364,7 @@ TEST(HardCases, JointSamplingAtExtremeThicknessAndAnisotropyStaysFinite) {
                 ASSERT_TRUE(std::isfinite(mean));
                 if (k.dark) {
                     EXPECT_LT(mean, 1e-30);
-                } else if (!(std::string(algorithm) == "bpt" && k.thin)) {
+                } else if (volpt || !k.thin) {
                     EXPECT_GT(mean, 0.0);
                 }
             }
