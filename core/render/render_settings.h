@@ -34,8 +34,8 @@ struct RenderSettings {
     // volpt: joint path sampling (Georgiev et al. 2013) of double scattering on the camera ray in
     // homogeneous media, combined by MIS with the other techniques (docs/media.md).
     bool jis = true;
-    // bpt: joint (J1, vertex-segment) connections from eye segments in homogeneous media, one
-    // more technique in the MIS (docs/media.md, "Joint connections in bpt").
+    // bpt, vcm: joint (J1, vertex-segment) connections from eye segments in homogeneous media,
+    // one more technique in the MIS (docs/media.md, "Joint connections in bpt and vcm").
     bool joint_connections = false;
     // upbp: whether connections are made, which merges join them (surfaces, photon points P-P3D,
     // query beams P-B2D) and the volume estimators' radius schedule (0: the surfaces' radius_factor

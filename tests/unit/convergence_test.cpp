@@ -422,7 +422,7 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     EXPECT_LT(std::abs(bias[4]), 0.005 * reference.mean()) << "biased at the smallest radius";
 }
 
-// bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt") add one technique
+// bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt and vcm") add one technique
 // per junction whose eye-side vertex is in a medium; with them on, bpt must converge to bpt
 // without them. The fog box with max_depth 3 holds the double-scattering paths, where the J1
 // of the junction at the camera ray's vertex is the only change; with max_depth 6 the light
