@@ -62,6 +62,10 @@ struct DirectTechnique {
     // B-B1D at the receiver, the light's emission segment as the photon beam:
     // VcmMis::photon_beam_eye_term (0: none).
     float eye_photon_beam = 0;
+    // J1 at s = 1 (the receiver, a medium vertex, sampled from the eye's previous vertex toward
+    // the light point instead of by distance sampling): its density over this technique's; 0
+    // where there is none (ConnectionTechnique::joint_ratio).
+    float joint_ratio = 0;
 };
 
 // Eqs. (40) and (41): connecting an eye vertex to a light vertex.
@@ -399,10 +403,13 @@ class VcmMis {
     }
 
     // Eq. (43): the eye subpath hit an emitter. direct_pdf_a and emission_pdf_w include the
-    // light selection probability.
-    float weight_emission(const MisQuantities& eye, float direct_pdf_a,
-                          float emission_pdf_w) const {
-        const float w_camera = mis(direct_pdf_a) * eye.dVCM + mis(emission_pdf_w) * eye.dVC;
+    // light selection probability. joint_ratio: J1 at s = 1 of the eye vertex before the hit
+    // point (DirectTechnique::joint_ratio; 0: none), which multiplies next-event estimation's
+    // term as J1 multiplies every connection term.
+    float weight_emission(const MisQuantities& eye, float direct_pdf_a, float emission_pdf_w,
+                          float joint_ratio = 0) const {
+        const float w_camera = mis(direct_pdf_a) * eye.dVCM * (1.0f + mis(joint_ratio)) +
+                               mis(emission_pdf_w) * eye.dVC;
         return 1.0f / (1.0f + w_camera);
     }
 
@@ -418,7 +425,12 @@ class VcmMis {
                                               eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w)) +
                                          t.eye_photon_beam
                                    : 0.0f;
-        return 1.0f / (w_light + 1.0f + w_camera);
+        return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
+    }
+
+    // J1 at s = 1: the receiver sampled toward the light point (next-event estimation's sibling).
+    float weight_joint_direct(const MisQuantities& eye, const DirectTechnique& t) const {
+        return mis(t.joint_ratio) * weight_direct(eye, t);
     }
 
     // Eqs. (40) and (41): connecting an eye vertex to a light vertex (ConnectionTechnique).
