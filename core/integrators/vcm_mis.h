@@ -374,14 +374,15 @@ class VcmMis {
     }
 
     // Joint (J1) connections. A J1 technique samples the eye-side vertex x_j of junction j (a
-    // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1}
-    // instead of by distance sampling; its density is the connection's times
-    // r_j = p_eq(x_j) / p_distance(x_j), so every connection term of the recursion is
-    // multiplied by (1 + mis(r_j)). Eye subpaths know r_j of the junction toward the camera
-    // when they arrive at a vertex (include_joint_junction); light subpaths know it one vertex
-    // later, so the term a scatter adds (carried_connection_term) is kept aside and completed
-    // at the next arrival (add_joint_term). With merging (vcm) the J1 terms count in the merge
-    // weights like the connection terms they multiply: dVM holds the same connection terms as
+    // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1} (a
+    // scattering vertex, or at j = 1 a finite light's point: next-event estimation's sibling,
+    // DirectTechnique::joint_ratio) instead of by distance sampling; its density is the
+    // connection's times r_j = p_eq(x_j) / p_distance(x_j), so every connection term of the
+    // recursion is multiplied by (1 + mis(r_j)). Eye subpaths know r_j of the junction toward the
+    // camera when they arrive at a vertex (include_joint_junction); light subpaths know it one
+    // vertex later, so the term a scatter adds (carried_connection_term) is kept aside and
+    // completed at the next arrival (add_joint_term). With merging (vcm) the J1 terms count in the
+    // merge weights like the connection terms they multiply: dVM holds the same connection terms as
     // dVC (add_joint_term adds to both), and weight_merge takes the one junction's factor that
     // neither subpath holds (MergeTechnique::light_joint_ratio; docs/media.md).
     void include_joint_junction(MisQuantities& q, float joint_ratio) const {

@@ -5,8 +5,10 @@
 // recursions of vcm_mis.h along the path from both ends, exactly as the integrator
 // (vertex_cm.cpp) does while tracing, and evaluates the weight of every technique that can
 // produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
-// (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex. For BPT
-// (connections only), BPM (merges only) and VCM (both), with the power and the balance heuristic:
+// (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex, and in fog the
+// J1 joint connections (every junction with a medium vertex on the eye side, s = 1 included)
+// and upbp's beams. For BPT (connections only), BPM (merges only) and VCM (both), with the power
+// and the balance heuristic:
 //   - the weights must sum to one: any density, cosine or distance that the recursion gets
 //     wrong for some techniques and not for others breaks it;
 //   - each weight must equal p_k^beta / sum_j p_j^beta, with every technique's density p_k of
