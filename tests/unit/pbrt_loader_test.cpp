@@ -768,6 +768,14 @@ TEST_F(PbrtTest, Media) {
         "MediumInterface \"b\" \"\"\nMaterial \"interface\"\n"
         "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
     EXPECT_FALSE(scene->shapes()[0]->interior->is_emissive());
+    // A blackbody Le is its unit-luminance colour (as for lights), times Lescale.
+    scene = load_world(
+        "MakeNamedMedium \"c\" \"string type\" \"homogeneous\" \"blackbody Le\" 3000 "
+        "\"float Lescale\" 2\nMediumInterface \"c\" \"\"\nMaterial \"interface\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    const Rgb warm = *pbrt::blackbody_rgb(3000);
+    EXPECT_NEAR(scene->shapes()[0]->interior->radiance(Vec3(0.0f)).r, 2 * warm.r, 1e-5);
+    EXPECT_NEAR(scene->shapes()[0]->interior->radiance(Vec3(0.0f)).b, 2 * warm.b, 1e-5);
     EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"rgb Le\" "
                           "[1 -1 1]\n")
                   .find("Le"),
