@@ -69,10 +69,10 @@ const std::vector<Algorithm>& table() {
              "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
              "media)",
          .support = {.homogeneous_media = true, .grid_media = true, .emissive_media = true},
-         .options = {"max_depth", "rr_depth", "equiangular", "jis"},
+         .options = {"max_depth", "rr_depth", "equiangular", "jis", "volpt_technique"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
-                                                           s.jis);
+                                                           s.jis, s.volpt_technique);
          }},
         {.name = "lt",
          .description = "light tracing (homogeneous and grid media)",

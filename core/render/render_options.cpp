@@ -242,6 +242,34 @@ const std::vector<RenderOption>& table() {
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.jis = v == "on"; },
          .format = [](const RenderSettings& s) -> std::string { return s.jis ? "on" : "off"; }},
+        {.name = "volpt_technique",
+         .flag = "--volpt-technique",
+         .metavar = "all|dl|j3",
+         .type = OptionType::Choice,
+         .help = "diagnostic: the techniques that sample double scattering (volpt). all: the "
+                 "MIS of every technique; dl: distance and light sampling only, unweighted (no "
+                 "equi-angular or joint sampling); j3: joint sampling alone, unweighted, for the "
+                 "paths it can produce. Each is unbiased; dl and j3 are for measuring "
+                 "convergence rates (docs/media.md, \"Joint path sampling\")",
+         .choices = {"all", "dl", "j3"},
+         .default_text = "all",
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.volpt_technique = v == "dl"   ? VolptTechnique::DistanceLight
+                                     : v == "j3" ? VolptTechnique::Joint
+                                                 : VolptTechnique::All;
+             },
+         .format = [](const RenderSettings& s) -> std::string {
+             switch (s.volpt_technique) {
+                 case VolptTechnique::DistanceLight:
+                     return "dl";
+                 case VolptTechnique::Joint:
+                     return "j3";
+                 case VolptTechnique::All:
+                     break;
+             }
+             return "all";
+         }},
         {.name = "joint_connections",
          .flag = "--joint-connections",
          .metavar = "off|on",

@@ -57,6 +57,21 @@ QUICK = {"width": 32, "runs": 4, "iterations": 2, "groups": 2, "timing_repeats":
 CLAIM_RATIO = 5.0  # ALGORITHMS-NEXT.md 3.8 (b1): >= 5x lower RMSE at equal time
 
 
+# The pictures of these arms and the convergence slopes come from another benchmark
+# (scripts/benchlib/joint_figures.py); this document shows them.
+PICTURE_LINES = [
+    "## Pictures and convergence slopes", "",
+    "Written by `scripts/bench --only joint-figures` into [joint-figures.md](joint-figures.md) "
+    "(commands, machine, iteration counts, errors): each arm at equal time beside a reference "
+    "and false-colour images of its absolute error, for double scattering alone and the whole "
+    "image; and the mean absolute error of the unweighted 0-connection and of unweighted joint "
+    "sampling against N.", "",
+    "![volpt, isotropic fog box](img/joint-sampling/fog-box-isotropic-volpt.png)", "",
+    "![volpt, fog box with g = 0.9](img/joint-sampling/fog-box-g09-volpt.png)", "",
+    "![bpt with and without J1, isotropic fog box](img/joint-sampling/fog-box-isotropic-bpt.png)",
+    "", "![convergence slopes](img/joint-sampling/slopes.png)", ""]
+
+
 def read_layer(path: Path, layer: str):
     """The RGB channels of one EXR layer (float64, H x W x 3) and the file's attributes."""
     import OpenImageIO as oiio
@@ -222,6 +237,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
               "- vcm's J1 connections: " + "; ".join(
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
                   for case, (r, se) in vcm_verdicts.items()) + ".", ""]
+    lines += PICTURE_LINES
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "joint-sampling.md"
     out_doc.write_text("\n".join(lines) + "\n")

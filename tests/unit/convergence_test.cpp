@@ -233,6 +233,36 @@ TEST(Convergence, JointSamplingMatchesVolptWithoutItOnIsosph) {
                        "volpt jis off");
 }
 
+// The single unweighted techniques of `--volpt-technique` (volpt_technique.h; the convergence
+// rates of scripts/bench --only joint-figures rest on them) are each unbiased: they converge to
+// the MIS image. j3 (J3 alone for the double-scattering paths it produces, every other path by
+// MIS) is tested on the fog box (point light in the medium, max_depth 3): its estimate has no
+// geometric singularity left (bounded up to U3's log-growing constant), so block standard errors
+// are sound. dl (distance and light sampling only, unweighted) carries the unsampled
+// 1/|b - a|^2 of the shadow connection: near the fog box's point light its variance is infinite
+// and batch standard errors are meaningless there, so it is tested on isosph, whose area light
+// lies outside the medium sphere (every medium vertex at least 0.9 from it: a bounded
+// geometry term, finite variance) and which also covers surface vertices and emission found by
+// phase and BSDF sampling (weight 0 in dl). The technique arm runs with its own seed, so the
+// arms are independent. Tolerance: the file's k = 5 combined standard errors.
+void other_seed(RenderSettings& settings) {
+    settings.seed = 4321;
+}
+
+TEST(Convergence, UnweightedJointSamplingMatchesTheMisImageOnTheFogBox) {
+    auto scene = fog_box("0");
+    expect_same_blocks(render_blocks(*scene, "volpt", 4),
+                       render_blocks(*scene, "volpt", 4, {{"volpt_technique", "j3"}}, other_seed),
+                       "volpt --volpt-technique j3", "volpt");
+}
+
+TEST(Convergence, UnweightedDistanceAndLightSamplingMatchesTheMisImageOnIsosph) {
+    auto scene = shipped("smallupbp/isosph.xml");
+    expect_same_blocks(render_blocks(*scene, "volpt", 8),
+                       render_blocks(*scene, "volpt", 8, {{"volpt_technique", "dl"}}, other_seed),
+                       "volpt --volpt-technique dl", "volpt");
+}
+
 // upbp's query beams (P-B2D, docs/media.md "Points, beams and paths"): photon points gathered
 // along whole camera segments in media, combined by MIS with connections, surface merges and
 // photon points through per-vertex merge factors (vcm_mis.h). With every estimator, and with
