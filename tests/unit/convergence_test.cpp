@@ -452,11 +452,12 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     EXPECT_LT(std::abs(bias[4]), 0.005 * reference.mean()) << "biased at the smallest radius";
 }
 
-// bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt and vcm") add one technique
-// per junction whose eye-side vertex is in a medium; with them on, bpt must converge to bpt
-// without them. The fog box with max_depth 3 holds the double-scattering paths, where the J1
-// of the junction at the camera ray's vertex is the only change; with max_depth 6 the light
-// subpaths' deferred J1 terms (one vertex late, vcm_mis.h) take part as well. isosph: area
+// bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt and vcm") add one
+// technique per junction whose eye-side vertex is in a medium; with them on, bpt must converge to
+// bpt without them (J1 at s = 1, toward a light point, included). The fog box with max_depth 3
+// holds the single- and double-scattering paths (J1 samples and the J1 ratios of the connections);
+// with max_depth 6 the light subpaths' deferred J1 terms (one vertex late, vcm_mis.h) take part
+// as well. isosph: area
 // light, the camera ray entering the medium through a null boundary (which J1's first-piece
 // rule must respect), all orders. Tolerance: the file's k = 5 combined standard errors.
 TEST(Convergence, JointConnectionsMatchBptWithoutThemOnTheFogBox) {
