@@ -46,8 +46,8 @@ class TriangleMesh final : public Shape {
   private:
     // uv at barycentrics (b1, b2) of triangle `tri`, as a hit reports it.
     Vec2 uv_of(size_t tri, float b1, float b2) const;
-    // dp/du of triangle `tri` (constant over it; zero for degenerate uv).
-    Vec3 dpdu_of(size_t tri) const;
+    // dp/du and dp/dv of triangle `tri` (constant over it; zero for degenerate uv).
+    void tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const;
 
     std::vector<Vec3> positions_;
     // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate
