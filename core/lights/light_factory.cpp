@@ -104,7 +104,9 @@ std::unique_ptr<Light> make_area(const Properties& props, const Shape* shape,
             throw props.error("radiance", "a radiance texture must be finite and non-negative (" +
                                               texture->to_string() + ")");
         try {
-            return std::make_unique<AreaLight>(shape, RgbParam{Rgb(), texture});
+            // Ours, not Mitsuba's: uniform area sampling of a textured mesh, for comparisons.
+            const bool uniform = props.get_bool("uniform_sampling", false);
+            return std::make_unique<AreaLight>(shape, RgbParam{Rgb(), texture}, !uniform);
         } catch (const std::invalid_argument& e) {
             throw props.error("radiance", e.what() + std::string(", not ") +
                                               (shape ? shape->to_string() : "no shape"));
