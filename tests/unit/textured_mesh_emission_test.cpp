@@ -20,14 +20,17 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 #include <vector>
 
+#include "core/base/error.h"
 #include "core/lights/area_light.h"
 #include "core/lights/textured_mesh_emission.h"
 #include "core/render/render_options.h"
 #include "core/sampling/rng.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/pbrt/scene_loader.h"
 #include "core/shapes/triangle_mesh.h"
 #include "tests/support/block_estimate.h"
 #include "tests/support/chi_square.h"
@@ -256,6 +259,60 @@ TEST(TexturedMeshEmission, LargeMeshesTakeARadianceTexture) {
         ++checked;
     }
     EXPECT_GT(checked, 390);
+}
+
+// pbrt-v4's image area light ("string filename") is the Mitsuba area emitter with a bitmap
+// radiance (clamped at the edges, as pbrt's): a pbrt quad and a Mitsuba rectangle with the same
+// uv emit the same radiance at the same points; "L" with "filename" and a scale are refused at
+// their line.
+TEST(TexturedMeshEmission, PbrtImageAreaLightsMatchMitsubas) {
+    const std::string dir = std::string(RENDER_SOURCE_DIR) + "/scenes/tests";
+    auto mitsuba = load_scene_from_string(
+        "<scene version=\"3.0.0\"><sensor type=\"perspective\"/>"
+        "<shape type=\"rectangle\"><emitter type=\"area\">"
+        "<texture type=\"bitmap\" name=\"radiance\"><string name=\"filename\" "
+        "value=\"textures/tiles.png\"/><string name=\"wrap_mode\" value=\"clamp\"/>"
+        "</texture></emitter></shape></scene>",
+        dir);
+    const std::string quad =
+        "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]\n"
+        "  \"integer indices\" [0 1 2 0 2 3] \"point2 uv\" [0 1 1 1 1 0 0 0]\n";
+    auto pbrt = pbrt::load_scene_from_string(
+        "Camera \"perspective\"\nWorldBegin\n"
+        "AreaLightSource \"diffuse\" \"string filename\" \"textures/tiles.png\"\n" +
+            quad,
+        dir);
+    std::set<float> values;
+    for (int i = 0; i < 100; ++i) {
+        const Ray down(Vec3(-0.95f + 0.019f * i, 0.37f - 0.013f * i, 2), Vec3(0, 0, -1));
+        SurfaceInteraction a, b;
+        ASSERT_TRUE(mitsuba->intersect(down, a));
+        ASSERT_TRUE(pbrt->intersect(down, b));
+        ASSERT_TRUE(a.emitter && b.emitter);
+        const Rgb la = a.emitter->radiance(a.p, a.geometric_normal, down.direction).radiance;
+        const Rgb lb = b.emitter->radiance(b.p, b.geometric_normal, down.direction).radiance;
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(la[c], lb[c], 1e-5f) << i;
+        values.insert(la.r);
+    }
+    EXPECT_GT(values.size(), 3u);  // tiles.png is no constant
+    auto error = [&](const std::string& light) {
+        try {
+            pbrt::load_scene_from_string("Camera \"perspective\"\nWorldBegin\n" + light + quad,
+                                         dir);
+        } catch (const SceneError& e) {
+            return std::string(e.what());
+        }
+        return std::string("loaded");
+    };
+    const std::string both = error(
+        "AreaLightSource \"diffuse\" \"string filename\" \"textures/tiles.png\" \"rgb L\" [1 1 "
+        "1]\n");
+    EXPECT_NE(both.find(":3"), std::string::npos) << both;
+    EXPECT_NE(both.find("not both"), std::string::npos) << both;
+    const std::string scaled = error(
+        "AreaLightSource \"diffuse\" \"string filename\" \"textures/tiles.png\" \"float scale\" "
+        "[2]\n");
+    EXPECT_NE(scaled.find("a scaled image area light"), std::string::npos) << scaled;
 }
 
 }  // namespace
