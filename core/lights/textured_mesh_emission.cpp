@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/base/memory_budget.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 #include "core/shapes/triangle_mesh.h"
@@ -27,6 +28,11 @@ TexturedMeshEmission::TexturedMeshEmission(const TriangleMesh& mesh, const Textu
     k_ = int(std::clamp(std::floor(std::sqrt(double(kMaxCells) / (2.0 * double(triangles)))), 1.0,
                         16.0));
     const size_t slots = 2 * size_t(k_) * size_t(k_);
+    // The worker's memory budget (issue 18): the cells' weights, pdf and cdf (16 bytes a slot)
+    // and the locator's grid (at most 4 cells a triangle, 4 bytes each, and its lists, a few
+    // entries a triangle), charged before they are allocated.
+    charge_scene_memory(saturating_product(triangles, slots * 16 + 64),
+                        "the textured emitter on " + mesh.to_string());
 
     // Luminance at each cell's centroid, then the defensive floor.
     std::vector<float> weights(triangles * slots, 0.0f);
@@ -60,8 +66,9 @@ TexturedMeshEmission::TexturedMeshEmission(const TriangleMesh& mesh, const Textu
     cells_ = Distribution1D(std::move(weights));
 
     // The locator: about one triangle per grid cell, at most 256 cells along an axis; thin
-    // axes (a flat light) get one cell, and the cell grows until there are at most 4 per
-    // triangle.
+    // axes (a flat light) get one cell. The cell grows until there are at most 4 grid cells
+    // per triangle and the lists hold at most 16 entries per triangle (long thin triangles
+    // would otherwise be listed in many cells).
     Aabb box = mesh.bounds();
     const Vec3 extent = box.hi - box.lo;
     auto max_abs = [](const Vec3& v) {
@@ -71,20 +78,7 @@ TexturedMeshEmission::TexturedMeshEmission(const TriangleMesh& mesh, const Textu
     box.lo = box.lo - Vec3(margin);
     box.hi = box.hi + Vec3(margin);
     const Vec3 size = box.hi - box.lo;
-    const double target = double(std::max<size_t>(triangles, 1));
-    double cell = std::cbrt(double(size.x) * size.y * size.z / target);
-    for (;;) {
-        double cells = 1;
-        for (int a = 0; a < 3; ++a) {
-            n_[a] = cell > 0 ? int(std::clamp(std::ceil(double(size[a]) / cell), 1.0, 256.0)) : 1;
-            cells *= n_[a];
-        }
-        if (cells <= 4 * target + 8 || !(cell > 0)) break;
-        cell *= 1.26;
-    }
     lo_ = box.lo;
-    cell_size_ = Vec3(size.x / float(n_[0]), size.y / float(n_[1]), size.z / float(n_[2]));
-    const size_t grid_cells = size_t(n_[0]) * size_t(n_[1]) * size_t(n_[2]);
     auto range = [&](size_t t, int lo[3], int hi[3]) {
         Aabb b;
         for (int v = 0; v < 3; ++v) b.expand(pos[idx[3 * t + v]]);
@@ -97,6 +91,31 @@ TexturedMeshEmission::TexturedMeshEmission(const TriangleMesh& mesh, const Textu
             hi[a] = at(b.hi[a] + margin);
         }
     };
+    const double target = double(std::max<size_t>(triangles, 1));
+    double cell = std::cbrt(double(size.x) * size.y * size.z / target);
+    for (;;) {
+        double cells = 1;
+        for (int a = 0; a < 3; ++a) {
+            n_[a] = cell > 0 ? int(std::clamp(std::ceil(double(size[a]) / cell), 1.0, 256.0)) : 1;
+            cells *= n_[a];
+        }
+        if (cell > 0 && cells > 4 * target + 8) {
+            cell *= 1.26;
+            continue;
+        }
+        cell_size_ = Vec3(size.x / float(n_[0]), size.y / float(n_[1]), size.z / float(n_[2]));
+        if (cells <= 1) break;
+        double entries = 0;
+        for (size_t t = 0; t < triangles; ++t) {
+            if (!(cell_area_[t] > 0)) continue;
+            int lo[3], hi[3];
+            range(t, lo, hi);
+            entries += double(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
+        }
+        if (entries <= 16 * target + 4096) break;
+        cell *= 2;
+    }
+    const size_t grid_cells = size_t(n_[0]) * size_t(n_[1]) * size_t(n_[2]);
     std::vector<uint32_t> counts(grid_cells + 1, 0);
     for (int pass = 0; pass < 2; ++pass) {
         if (pass == 1) {
