@@ -44,6 +44,8 @@ class TexturedMeshEmission {
     bool find(const Vec3& p, Vec2& uv, float& pdf_area, size_t* cell = nullptr) const;
 
     int subdivision() const { return k_; }  // K
+    // Entries of the locator's lists (at most 16 a triangle, + 4096).
+    size_t locator_entries() const { return grid_triangles_.size(); }
 
   private:
     // The cell of barycentrics (b1, b2) in a triangle: index within the triangle's 2 K^2 slots

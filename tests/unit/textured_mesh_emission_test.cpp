@@ -141,6 +141,37 @@ TEST(TexturedMeshEmission, PdfIntegratesToOne) {
     EXPECT_NEAR(sum * 4.0 / (double(m) * m), 1.0, 2e-3);
 }
 
+// Long thin triangles, each spanning the whole mesh along x: the locator's grid coarsens so that
+// its lists stay within 16 entries a triangle, and still finds every point.
+TEST(TexturedMeshEmission, ThinTrianglesKeepTheLocatorSmall) {
+    MeshData m;
+    const int n = 2000;
+    for (int i = 0; i <= n; ++i) {
+        const float y = -1 + 2.0f * i / n;
+        m.positions.push_back(Vec3(-1, y, 0));
+        m.positions.push_back(Vec3(1, y, 0));
+        m.uvs.push_back(Vec2(0, float(i) / n));
+        m.uvs.push_back(Vec2(1, float(i) / n));
+    }
+    for (uint32_t i = 0; i < uint32_t(n); ++i)
+        m.indices.insert(m.indices.end(),
+                         {2 * i, 2 * i + 1, 2 * i + 3, 2 * i, 2 * i + 3, 2 * i + 2});
+    const TriangleMesh mesh(std::move(m), Transform(), false, false, "stripes");
+    const TexturedMeshEmission emission(mesh, SpotTexture());
+    EXPECT_LE(emission.locator_entries(), 16 * mesh.triangle_count() + 4096);
+    Rng rng(StreamKey{23, 0, 1, 0});
+    for (int i = 0; i < 2000; ++i) {
+        const Vec2 u = rng.next_2d();
+        const Vec3 p(-1 + 2 * u.x, -1 + 2 * u.y, 0);
+        Vec2 uv;
+        float pdf;
+        ASSERT_TRUE(emission.find(p, uv, pdf)) << p;
+        EXPECT_NEAR(uv.x, 0.5f * (p.x + 1), 1e-4f);
+        EXPECT_NEAR(uv.y, 0.5f * (p.y + 1), 1e-4f);
+        EXPECT_GT(pdf, 0.0f);
+    }
+}
+
 TEST(TexturedMeshEmission, AreaLightPdfsMatchItsSamples) {
     const TriangleMesh mesh = grid_mesh(10);
     const AreaLight light(&mesh, RgbParam{Rgb(), std::make_shared<SpotTexture>()});
