@@ -17,9 +17,11 @@ struct SurfaceInteraction {
     Vec3 geometric_normal;  // unit; the side the shape's winding/orientation calls "outside"
     Frame shading;          // shading frame; shading.n is the interpolated (or geometric) normal
     Vec2 uv;
-    // dp/du of the shape's uv parametrisation (world space, not normalised; zero where the
-    // shape has none): orients tangent-space normal maps.
+    // dp/du and dp/dv of the shape's uv parametrisation (world space, not normalised; zero
+    // where the shape has none): orient tangent-space normal maps and give bump maps their
+    // surface.
     Vec3 dpdu;
+    Vec3 dpdv;
     float t = 0;  // ray distance
     const Shape* shape = nullptr;
     const Bsdf* bsdf = nullptr;      // never null for a hit (absorbing black if the file had none)

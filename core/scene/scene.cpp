@@ -144,7 +144,7 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, si);
     if (si.bsdf->varies()) {
-        si.shading = si.bsdf->shading_frame(si.uv, si.shading, si.dpdu);  // normal maps
+        si.shading = si.bsdf->shading_frame(si);  // normal and bump maps
         si.hit_bsdf = si.bsdf->at(si.uv);
         si.bsdf = si.hit_bsdf.get();
     } else if (si.hit_bsdf) {
