@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/base/error.h"
+#include "core/lights/area_light.h"
 #include "core/media/medium.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/loader/version_upgrade.h"
@@ -710,6 +711,66 @@ TEST_F(ParserTest, PerspectiveFocalLengthAndDiagonalFov) {
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><string "
                           "name=\"fov_axis\" value=\"y\"/></sensor></scene>"),
                     "unused parameter \"fov_axis\"");
+}
+
+// Constructs found in Mitsuba 3 scenes written by others (docs/scene-format.md, "Mitsuba 3
+// scenes written by others"): Mitsuba's docs Cornell box references a named area emitter
+// defined after the shapes; its material-preview scenes give a pinhole camera a
+// focus_distance; Blender exports write zero principal point offsets.
+TEST_F(ParserTest, NamedAreaEmitterReferencedBeforeItsDefinition) {
+    auto scene = load(with_camera(R"(
+        <shape type="rectangle"><ref id="lamp"/></shape>
+        <shape type="rectangle"><ref id="lamp"/><bsdf type="diffuse"/></shape>
+        <emitter type="area" id="lamp"><rgb name="radiance" value="1, 2, 3"/></emitter>
+        <shape type="rectangle"><ref id="lamp"/></shape>
+    )"));
+    ASSERT_EQ(scene->shapes().size(), 3u);
+    ASSERT_EQ(scene->lights().size(), 3u);  // one light per referencing shape
+    for (const auto& shape : scene->shapes()) {
+        ASSERT_NE(shape->emitter, nullptr);
+        auto* area = dynamic_cast<const AreaLight*>(shape->emitter);
+        ASSERT_NE(area, nullptr);
+        EXPECT_EQ(area->shape(), shape.get());
+        // Power = pi x area x radiance: the referenced radiance (1, 2, 3) on a 2 x 2 square.
+        const Rgb power = area->power();
+        EXPECT_NEAR(power.r, 3.14159265f * 4.0f * 1.0f, 1e-3f);
+        EXPECT_NEAR(power.g, 3.14159265f * 4.0f * 2.0f, 1e-3f);
+        EXPECT_NEAR(power.b, 3.14159265f * 4.0f * 3.0f, 1e-3f);
+    }
+    // Errors still name the line: an unknown id, a second emitter, a misspelt parameter, a
+    // duplicate id, an anonymous area emitter outside a shape.
+    EXPECT_CONTAINS(error(with_camera("<shape type=\"rectangle\"><ref id=\"lam\"/></shape>\n"
+                                      "<emitter type=\"area\" id=\"lamp\"/>")),
+                    "unknown id \"lam\"");
+    EXPECT_CONTAINS(error(with_camera("<emitter type=\"area\" id=\"lamp\"/>\n<shape "
+                                      "type=\"rectangle\"><ref id=\"lamp\"/><emitter "
+                                      "type=\"area\"/></shape>")),
+                    "at most one emitter");
+    EXPECT_CONTAINS(error(with_camera(
+                        "<shape type=\"rectangle\"><ref id=\"lamp\"/></shape>\n<emitter "
+                        "type=\"area\" id=\"lamp\"><rgb name=\"radiant\" value=\"1\"/></emitter>")),
+                    "<string>:4: unused parameter \"radiant\"");
+    EXPECT_CONTAINS(error(with_camera("<emitter type=\"area\" id=\"lamp\"/>\n<emitter "
+                                      "type=\"area\" id=\"lamp\"/>")),
+                    "duplicate id \"lamp\"");
+    EXPECT_CONTAINS(error(with_camera("<emitter type=\"area\"/>")),
+                    "an area emitter must be nested in a <shape>");
+}
+
+TEST_F(ParserTest, PerspectiveFocusDistanceAndZeroPrincipalPointAreAccepted) {
+    auto scene = load(
+        "<scene version=\"3.0.0\"><sensor type=\"perspective\"><float name=\"fov\" "
+        "value=\"45\"/><float name=\"focus_distance\" value=\"6\"/><float "
+        "name=\"principal_point_offset_x\" value=\"0\"/><float "
+        "name=\"principal_point_offset_y\" value=\"-0.0\"/></sensor></scene>");
+    ASSERT_NE(scene, nullptr);
+    EXPECT_NEAR(fov_x_of(*scene), 45.0f, 1e-3f);
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><float "
+                          "name=\"principal_point_offset_y\" value=\"0.1\"/></sensor></scene>"),
+                    "<string>:2: sensor \"perspective\", parameter \"principal_point_offset_y\"");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\"><string "
+                          "name=\"focus_distance\" value=\"near\"/></sensor></scene>"),
+                    "focus_distance");
 }
 
 TEST(MitsubaCompatibility, TestSceneLoads) {

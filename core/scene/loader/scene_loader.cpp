@@ -227,6 +227,13 @@ class Loader {
 
     void read_scene_element(const XmlFile& file) {
         XmlElement root(file.scene(), file, params_);
+        // Mitsuba resolves <ref>s after the whole file is parsed, so a shape may reference a
+        // named area emitter defined further down the same file (its Cornell boxes do).
+        std::vector<std::string> pending_here;
+        for (const XmlElement& e : root.children())
+            if (is_named_area_emitter(e) &&
+                pending_area_emitters_.emplace(*e.optional("id"), e).second)
+                pending_here.push_back(*e.optional("id"));
         for (const XmlElement& e : root.children()) {
             const std::string tag = e.tag();
             if (tag == "default")
@@ -256,6 +263,7 @@ class Loader {
             else
                 unknown_tag(e, "<scene>");
         }
+        for (const std::string& id : pending_here) pending_area_emitters_.erase(id);
     }
 
     void read_default(const XmlElement& e) {
@@ -449,6 +457,15 @@ class Loader {
             if (!(near_clip > 0)) throw props.error("near_clip", "must be positive");
             if (!(far_clip > near_clip))
                 throw props.error("far_clip", "must be larger than near_clip");
+            // Mitsuba's projective cameras all read `focus_distance`; a pinhole has no focus,
+            // so the value has no effect there (as in Mitsuba), but it must be a number.
+            props.get_float("focus_distance", far_clip);
+            // A shifted principal point (off-axis projection) is not implemented; the zero
+            // offsets exporters write are the identity.
+            for (const char* name : {"principal_point_offset_x", "principal_point_offset_y"})
+                if (props.get_float(name, 0.0f) != 0.0f)
+                    throw props.error(name,
+                                      "a non-zero principal point offset is not supported yet");
             Transform to_world = props.get_transform("to_world", Transform());
             if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
             PerspectiveCamera camera(to_world, fov, fov_axis, width, height);
@@ -711,7 +728,36 @@ class Loader {
 
     // ----- emitters and shapes -----
 
+    static bool is_named_area_emitter(const XmlElement& e) {
+        return e.tag() == "emitter" && e.optional("type") == "area" && e.has("id");
+    }
+
+    // `<emitter type="area" id="X">` outside a shape defines an emitter that shapes attach
+    // with `<ref id="X"/>`; each referencing shape builds its own light from these values.
+    const Properties& read_named_area_emitter(const XmlElement& e) {
+        Properties props = read_object(e, "emitter", [&](const XmlElement& t, Properties& p) {
+            return read_texture_child(t, p);
+        });
+        register_id(props.id, e.where());
+        return area_emitters_.emplace(props.id, std::move(props)).first->second;
+    }
+
+    // The named area emitter `id`, read now if it is defined later in an open file.
+    const Properties* find_area_emitter(const std::string& id) {
+        if (auto it = area_emitters_.find(id); it != area_emitters_.end()) return &it->second;
+        if (auto it = pending_area_emitters_.find(id); it != pending_area_emitters_.end()) {
+            read_ahead_.insert(id);
+            return &read_named_area_emitter(it->second);
+        }
+        return nullptr;
+    }
+
     void read_top_level_emitter(const XmlElement& e) {
+        if (is_named_area_emitter(e)) {
+            // Already read when a shape referenced it before its definition.
+            if (!read_ahead_.erase(*e.optional("id"))) read_named_area_emitter(e);
+            return;
+        }
         // A nested medium (or a reference to one) is the medium the light sits in.
         const Medium* medium = nullptr;
         Properties props = read_object(e, "emitter", [&](const XmlElement& c, Properties& p) {
@@ -772,10 +818,14 @@ class Loader {
                     throw SceneError(c.where(), "<ref> cannot have child elements");
                 c.check_attributes({"id", "name"});
                 std::optional<std::string> name = c.optional("name");
-                if (name && (*name == "interior" || *name == "exterior"))
+                if (name && (*name == "interior" || *name == "exterior")) {
                     set_medium(c, lookup_medium(c));
-                else
+                } else if (const Properties* named = find_area_emitter(c.required("id"))) {
+                    if (emitter) throw SceneError(c.where(), "a shape has at most one emitter");
+                    emitter = *named;
+                } else {
                     set_bsdf(lookup_bsdf(c), c);
+                }
                 return true;
             }
             if (c.tag() == "medium") {
@@ -913,6 +963,10 @@ class Loader {
     std::map<std::string, std::shared_ptr<const Bsdf>> bsdfs_;
     std::map<std::string, std::shared_ptr<const Texture>> textures_;
     std::map<std::string, SourceLocation> ids_;
+    // Named area emitters: read ones, and those of the files being read not read yet.
+    std::map<std::string, Properties> area_emitters_;
+    std::map<std::string, XmlElement> pending_area_emitters_;
+    std::set<std::string> read_ahead_;  // read before their position in the file
     std::set<const Bsdf*> kept_;
     const Bsdf* default_bsdf_ = nullptr;
     const Bsdf* null_bsdf_ = nullptr;
