@@ -23,6 +23,7 @@
 #include "server/job_store.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
+#include "server/validation.h"
 
 namespace render::server {
 
@@ -44,6 +45,10 @@ struct ServerOptions {
     // SubmitJob loads every frame's scene; an animation whose loads would take longer than this
     // (estimated from the frames loaded so far) is refused with RESOURCE_EXHAUSTED.
     double submit_validation_seconds = 120;
+    // The assets' limits: a job's bundle in all (and so any one asset), and every asset the
+    // store keeps (uploads reserve their size first). Past either, RESOURCE_EXHAUSTED naming it.
+    uint64_t max_job_assets = kDefaultMaxJobAssets;
+    uint64_t max_store_size = kDefaultMaxStoreSize;
 };
 
 class JobManager {

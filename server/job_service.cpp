@@ -1,9 +1,11 @@
 #include "server/job_service.h"
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <thread>
 
+#include "core/base/memory_budget.h"
 #include "core/util/log.h"
 #include "core/util/sha256.h"
 #include "server/validation.h"
@@ -51,7 +53,19 @@ Status JobServiceImpl::UploadAsset(grpc::ServerContext* context,
     if (size > kMaxAssetSize)
         return Status(StatusCode::RESOURCE_EXHAUSTED,
                       "asset of " + std::to_string(size) + " bytes exceeds the 4 GiB limit");
+    // No job could use an asset larger than a job's bundle may be.
+    const uint64_t job_limit = std::min(manager_.options().max_job_assets, kMaxBundleSize);
+    if (size > job_limit)
+        return Status(StatusCode::RESOURCE_EXHAUSTED,
+                      "asset of " + std::to_string(size) +
+                          " bytes exceeds the per-job size limit of " + std::to_string(job_limit) +
+                          " bytes (server --max-job-assets " + format_bytes(job_limit) + ")");
     AssetStore::Upload upload(manager_.assets(), sha, size);
+    // The store's total limit, reserved before a byte is written.
+    if (std::string e = upload.reserve(); !e.empty()) {
+        Log("warn", "upload_refused").kv("sha256", sha).kv("size", size).kv("error", e);
+        return Status(StatusCode::RESOURCE_EXHAUSTED, e);
+    }
     do {
         if (chunk.data().size() > kChunk + 1024)
             return Status(StatusCode::INVALID_ARGUMENT, "chunk larger than 1 MiB");
