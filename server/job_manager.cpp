@@ -140,6 +140,8 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
       clock_(clock),
       store_((fs::create_directories(options.store), options.store / "render.db")),
       assets_(options.store, options.max_store_size),
+      client_streams_(options.streams),
+      worker_streams_(options.streams),
       scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
                                   options.max_lease_seconds},
                  std::move(clock)) {

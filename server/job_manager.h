@@ -23,6 +23,7 @@
 #include "server/job_store.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
+#include "server/stream_guard.h"
 #include "server/validation.h"
 
 namespace render::server {
@@ -49,6 +50,9 @@ struct ServerOptions {
     // store keeps (uploads reserve their size first). Past either, RESOURCE_EXHAUSTED naming it.
     uint64_t max_job_assets = kDefaultMaxJobAssets;
     uint64_t max_store_size = kDefaultMaxStoreSize;
+    // The bulk streams: each of clients' (UploadAsset, FetchResult) and workers' (FetchAsset)
+    // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
+    StreamLimits streams;
 };
 
 class JobManager {
@@ -117,6 +121,10 @@ class JobManager {
     void checkpoint_all();
 
     AssetStore& assets() { return assets_; }
+    // Clients' UploadAsset and FetchResult streams; workers' FetchAsset streams (apart, so
+    // that clients cannot keep workers from their assets).
+    StreamGuards& client_streams() { return client_streams_; }
+    StreamGuards& worker_streams() { return worker_streams_; }
     const ServerOptions& options() const { return options_; }
 
   private:
@@ -198,6 +206,8 @@ class JobManager {
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;
+    StreamGuards client_streams_;
+    StreamGuards worker_streams_;
     mutable std::mutex mu_;
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;

@@ -2,6 +2,8 @@
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
 //          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--checkpoint-seconds SECONDS]
+//          [--max-job-assets SIZE] [--max-store-size SIZE] [--stream-idle-timeout SECONDS]
+//          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT]
 //
@@ -128,6 +130,20 @@ ArgumentParser make_parser(Options& o) {
             "RESOURCE_EXHAUSTED before a byte is written",
             [&](const std::string& v) {
                 o.server.max_store_size = parse_size_flag("--max-store-size", v);
+            });
+    p.value({"--stream-idle-timeout"}, "SECONDS",
+            "cancel an UploadAsset, FetchResult or FetchAsset stream that sends or takes no "
+            "chunk for this long, freeing its server thread (default 60)",
+            [&](const std::string& v) {
+                o.server.streams.idle_seconds = parse_seconds("--stream-idle-timeout", v);
+            });
+    p.value({"--max-transfer-streams"}, "N",
+            "at most N clients' UploadAsset and FetchResult streams open at once, and N "
+            "workers' FetchAsset streams; past it RESOURCE_EXHAUSTED (default 64)",
+            [&](const std::string& v) {
+                const int n = parse_number<int>("--max-transfer-streams", v);
+                if (n < 1) throw UsageError("--max-transfer-streams must be >= 1");
+                o.server.streams.max_streams = size_t(n);
             });
     p.value({"--metrics"}, "HOST:PORT",
             "serve Prometheus metrics at http://HOST:PORT/metrics (port 0: any free port)",
