@@ -52,7 +52,7 @@ struct ServerOptions {
     uint64_t max_store_size = kDefaultMaxStoreSize;
     // The bulk streams: each of clients' (UploadAsset, FetchResult) and workers' (FetchAsset)
     // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
-    StreamLimits streams;
+    StreamLimits streams{};
 };
 
 class JobManager {
