@@ -63,8 +63,9 @@ IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings
 
     IterationMemoryEstimate e;
     e.bytes = mul(thread_count, kPerThreadBytes);
-    std::string parts =
-        std::to_string(thread_count) + " threads x " + format_bytes(kPerThreadBytes);
+    std::string parts = std::to_string(thread_count) +
+                        (thread_count == 1 ? " thread x " : " threads x ") +
+                        format_bytes(kPerThreadBytes);
     auto part = [&](uint64_t bytes, const std::string& text) {
         e.bytes = add(e.bytes, bytes);
         parts += ", " + text;
