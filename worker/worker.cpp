@@ -307,7 +307,16 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         // buffers), estimated from the settings and charged with the scene's before the first
         // iteration allocates it.
         SceneMemoryBudget budget = scene_memory_budget(options_.max_memory);
-        budget.charge(scene_memory_, "the scene and film");
+        // Against --max-memory the whole job counts. Against the machine's available memory
+        // only what this lease allocates: the loaded scene is in use already, and no longer
+        // counted as available (charging it again would refuse a job that fits).
+        const bool whole_job = options_.max_memory > 0 && budget.limit() == options_.max_memory;
+        if (whole_job)
+            budget.charge(scene_memory_, "the scene and film");
+        else
+            budget.charge(film_memory_bytes(uint64_t(scene->camera().width()),
+                                            uint64_t(scene->camera().height()), kWorkerFilmBuffers),
+                          "the film");
         const IterationMemoryEstimate working =
             estimate_iteration_memory(settings, uint64_t(scene->camera().width()),
                                       uint64_t(scene->camera().height()), options_.threads);
