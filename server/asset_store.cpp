@@ -9,14 +9,38 @@
 #include <random>
 #include <stdexcept>
 
+#include "core/base/memory_budget.h"
+
 namespace render::server {
 
 namespace fs = std::filesystem;
 
-AssetStore::AssetStore(fs::path store_dir)
-    : assets_dir_(store_dir / "assets"), tmp_dir_(store_dir / "tmp") {
+AssetStore::AssetStore(fs::path store_dir, uint64_t max_bytes)
+    : assets_dir_(store_dir / "assets"), tmp_dir_(store_dir / "tmp"), max_bytes_(max_bytes) {
     fs::create_directories(assets_dir_);
     fs::create_directories(tmp_dir_);
+    for (const fs::directory_entry& entry : fs::directory_iterator(assets_dir_)) {
+        std::error_code ec;
+        if (entry.is_regular_file(ec)) {
+            const uint64_t n = entry.file_size(ec);
+            if (!ec) stored_ += n;
+        }
+    }
+}
+
+uint64_t AssetStore::stored_bytes() const {
+    std::lock_guard lock(mu_);
+    return stored_;
+}
+
+uint64_t AssetStore::reserved_bytes() const {
+    std::lock_guard lock(mu_);
+    return reserved_;
+}
+
+void AssetStore::release(uint64_t bytes) const {
+    std::lock_guard lock(mu_);
+    reserved_ -= bytes;
 }
 
 fs::path AssetStore::path(const std::string& sha256) const {
@@ -43,9 +67,27 @@ AssetStore::Upload::Upload(const AssetStore& store, std::string sha256, uint64_t
 }
 
 AssetStore::Upload::~Upload() {
+    if (reserved_) store_.release(size_);
     if (fd_ >= 0) ::close(fd_);
     std::error_code ec;
     fs::remove(tmp_, ec);
+}
+
+std::string AssetStore::Upload::reserve() {
+    if (reserved_) return {};
+    std::lock_guard lock(store_.mu_);
+    // An asset the store holds already only replaces itself: the store does not grow.
+    if (store_.has(sha256_)) return {};
+    const uint64_t used = store_.stored_ + store_.reserved_;
+    if (store_.max_bytes_ > 0 && (size_ > store_.max_bytes_ || used > store_.max_bytes_ - size_))
+        return "the asset store is full: an asset of " + format_bytes(size_) + " (" +
+               std::to_string(size_) + " bytes) does not fit beside the " +
+               format_bytes(store_.stored_) + " stored and " + format_bytes(store_.reserved_) +
+               " being uploaded, within the store's limit of " + format_bytes(store_.max_bytes_) +
+               " (server --max-store-size)";
+    store_.reserved_ += size_;
+    reserved_ = true;
+    return {};
 }
 
 std::string AssetStore::Upload::write(const std::string& data) {
@@ -76,9 +118,17 @@ std::string AssetStore::Upload::commit() {
     if (::fsync(fd_) != 0) return std::string("cannot sync asset: ") + std::strerror(errno);
     ::close(fd_);
     fd_ = -1;
+    // Under the store's lock, so that two uploads of the same new asset count it once.
+    std::lock_guard lock(store_.mu_);
+    const bool replaces = store_.has(sha256_);
     std::error_code ec;
     fs::rename(tmp_, store_.path(sha256_), ec);
     if (ec) return "cannot store asset: " + ec.message();
+    if (!replaces) store_.stored_ += size_;
+    if (reserved_) {
+        store_.reserved_ -= size_;
+        reserved_ = false;
+    }
     return {};
 }
 

@@ -1,10 +1,14 @@
 #pragma once
 
 // Content-addressed assets on disk: STORE/assets/<sha256>. Uploads go to a temporary file,
-// are hashed while written and renamed into place only when hash and size match.
+// are hashed while written and renamed into place only when hash and size match. The store
+// has a total size limit (server --max-store-size): an upload reserves its declared size
+// before anything is written, and is refused when the stored assets and the uploads in
+// progress would exceed the limit.
 
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <utility>
@@ -16,7 +20,14 @@ namespace render::server {
 
 class AssetStore {
   public:
-    explicit AssetStore(std::filesystem::path store_dir);
+    // `max_bytes`: the limit of the stored assets' total size, 0 for none. The assets already
+    // in the store count toward it.
+    explicit AssetStore(std::filesystem::path store_dir, uint64_t max_bytes = 0);
+
+    uint64_t max_bytes() const { return max_bytes_; }
+    // The stored assets' total size, and the declared sizes of the uploads in progress.
+    uint64_t stored_bytes() const;
+    uint64_t reserved_bytes() const;
 
     std::filesystem::path path(const std::string& sha256) const;
     // The asset's size when present.
@@ -29,6 +40,9 @@ class AssetStore {
         ~Upload();
         Upload(const Upload&) = delete;
         Upload& operator=(const Upload&) = delete;
+        // Reserves the declared size in the store's limit, before anything is written. Returns
+        // an error message when it does not fit (the server answers RESOURCE_EXHAUSTED).
+        std::string reserve();
         // Returns an error message when the data exceeds the declared size or cannot be written.
         std::string write(const std::string& data);
         // Checks size and hash and moves the file into place; returns an error message.
@@ -43,6 +57,7 @@ class AssetStore {
         Sha256 hash_;
         std::filesystem::path tmp_;
         int fd_ = -1;
+        bool reserved_ = false;
     };
 
     // Links (or copies) each (bundle path, sha256) under `dir`. Throws std::runtime_error.
@@ -52,8 +67,15 @@ class AssetStore {
     const std::filesystem::path& tmp_dir() const { return tmp_dir_; }
 
   private:
+    void release(uint64_t bytes) const;
+
     std::filesystem::path assets_dir_;
     std::filesystem::path tmp_dir_;
+    uint64_t max_bytes_;
+    mutable std::mutex mu_;
+    // Guarded by mu_ (mutable: uploads hold a const store).
+    mutable uint64_t stored_ = 0;
+    mutable uint64_t reserved_ = 0;
 };
 
 }  // namespace render::server

@@ -139,7 +139,9 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
       clock_(clock),
       store_((fs::create_directories(options.store), options.store / "render.db")),
-      assets_(options.store),
+      assets_(options.store, options.max_store_size),
+      client_streams_(options.streams),
+      worker_streams_(options.streams),
       scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
                                   options.max_lease_seconds},
                  std::move(clock)) {
@@ -238,7 +240,7 @@ void JobManager::has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsRe
 }
 
 Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
-    if (Status st = check_submit_request(in); !st.ok()) return st;
+    if (Status st = check_submit_request(in, options_.max_job_assets); !st.ok()) return st;
     v1::SubmitJobRequest request = in;
     for (const v1::BundleFile& f : request.bundle().files()) {
         auto size = assets_.size(f.sha256());

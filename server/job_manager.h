@@ -23,6 +23,8 @@
 #include "server/job_store.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
+#include "server/stream_guard.h"
+#include "server/validation.h"
 
 namespace render::server {
 
@@ -44,6 +46,13 @@ struct ServerOptions {
     // SubmitJob loads every frame's scene; an animation whose loads would take longer than this
     // (estimated from the frames loaded so far) is refused with RESOURCE_EXHAUSTED.
     double submit_validation_seconds = 120;
+    // The assets' limits: a job's bundle in all (and so any one asset), and every asset the
+    // store keeps (uploads reserve their size first). Past either, RESOURCE_EXHAUSTED naming it.
+    uint64_t max_job_assets = kDefaultMaxJobAssets;
+    uint64_t max_store_size = kDefaultMaxStoreSize;
+    // The bulk streams: each of clients' (UploadAsset, FetchResult) and workers' (FetchAsset)
+    // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
+    StreamLimits streams{};
 };
 
 class JobManager {
@@ -112,6 +121,10 @@ class JobManager {
     void checkpoint_all();
 
     AssetStore& assets() { return assets_; }
+    // Clients' UploadAsset and FetchResult streams; workers' FetchAsset streams (apart, so
+    // that clients cannot keep workers from their assets).
+    StreamGuards& client_streams() { return client_streams_; }
+    StreamGuards& worker_streams() { return worker_streams_; }
     const ServerOptions& options() const { return options_; }
 
   private:
@@ -193,6 +206,8 @@ class JobManager {
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;
+    StreamGuards client_streams_;
+    StreamGuards worker_streams_;
     mutable std::mutex mu_;
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;

@@ -1,9 +1,11 @@
 #include "server/job_service.h"
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <thread>
 
+#include "core/base/memory_budget.h"
 #include "core/util/log.h"
 #include "core/util/sha256.h"
 #include "server/validation.h"
@@ -40,9 +42,15 @@ Status JobServiceImpl::UploadAsset(grpc::ServerContext* context,
                                    grpc::ServerReader<v1::AssetChunk>* reader,
                                    v1::BundleFile* reply) {
     if (Status s = auth_.check(context); !s.ok()) return s;
+    Status refused;
+    auto guard = manager_.client_streams().admit(context, "UploadAsset", &refused);
+    if (!guard) return refused;
     v1::AssetChunk chunk;
-    if (!reader->Read(&chunk))
+    if (!reader->Read(&chunk)) {
+        if (guard->timed_out()) return guard->idle_status();
         return Status(StatusCode::INVALID_ARGUMENT, "empty upload: no chunk received");
+    }
+    guard->progress();
     const std::string sha = chunk.sha256();
     const uint64_t size = chunk.size();
     if (!is_sha256_hex(sha))
@@ -51,7 +59,19 @@ Status JobServiceImpl::UploadAsset(grpc::ServerContext* context,
     if (size > kMaxAssetSize)
         return Status(StatusCode::RESOURCE_EXHAUSTED,
                       "asset of " + std::to_string(size) + " bytes exceeds the 4 GiB limit");
+    // No job could use an asset larger than a job's bundle may be.
+    const uint64_t job_limit = std::min(manager_.options().max_job_assets, kMaxBundleSize);
+    if (size > job_limit)
+        return Status(StatusCode::RESOURCE_EXHAUSTED,
+                      "asset of " + std::to_string(size) +
+                          " bytes exceeds the per-job size limit of " + std::to_string(job_limit) +
+                          " bytes (server --max-job-assets " + format_bytes(job_limit) + ")");
     AssetStore::Upload upload(manager_.assets(), sha, size);
+    // The store's total limit, reserved before a byte is written.
+    if (std::string e = upload.reserve(); !e.empty()) {
+        Log("warn", "upload_refused").kv("sha256", sha).kv("size", size).kv("error", e);
+        return Status(StatusCode::RESOURCE_EXHAUSTED, e);
+    }
     do {
         if (chunk.data().size() > kChunk + 1024)
             return Status(StatusCode::INVALID_ARGUMENT, "chunk larger than 1 MiB");
@@ -59,7 +79,9 @@ Status JobServiceImpl::UploadAsset(grpc::ServerContext* context,
             return Status(StatusCode::INVALID_ARGUMENT, "chunks name different assets");
         if (std::string e = upload.write(chunk.data()); !e.empty())
             return Status(StatusCode::INVALID_ARGUMENT, e);
+        guard->progress();
     } while (reader->Read(&chunk));
+    if (guard->timed_out()) return guard->idle_status();
     if (context->IsCancelled()) return Status(StatusCode::CANCELLED, "upload cancelled");
     if (std::string e = upload.commit(); !e.empty()) {
         Log("warn", "upload_rejected").kv("sha256", sha).kv("error", e);
@@ -151,6 +173,9 @@ Status JobServiceImpl::FetchResult(grpc::ServerContext* context,
                                    const v1::FetchResultRequest* request,
                                    grpc::ServerWriter<v1::ResultChunk>* writer) {
     if (Status s = auth_.check(context); !s.ok()) return s;
+    Status refused;
+    auto guard = manager_.client_streams().admit(context, "FetchResult", &refused);
+    if (!guard) return refused;
     std::filesystem::path file;
     bool temporary = false;
     if (Status s = manager_.result_file(*request, &file, &temporary); !s.ok()) return s;
@@ -158,8 +183,11 @@ Status JobServiceImpl::FetchResult(grpc::ServerContext* context,
         v1::ResultChunk chunk;
         chunk.set_data(std::move(data));
         chunk.set_total_size(total);
-        return writer->Write(chunk);
+        if (!writer->Write(chunk)) return false;
+        guard->progress();
+        return true;
     });
+    if (!s.ok() && guard->timed_out()) s = guard->idle_status();
     if (temporary) {
         std::error_code ec;
         std::filesystem::remove(file, ec);

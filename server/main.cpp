@@ -2,6 +2,8 @@
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
 //          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--checkpoint-seconds SECONDS]
+//          [--max-job-assets SIZE] [--max-store-size SIZE] [--stream-idle-timeout SECONDS]
+//          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT]
 //
@@ -30,6 +32,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/base/memory_budget.h"
 #include "core/util/arguments.h"
 #include "core/util/log.h"
 #include "server/auth.h"
@@ -59,6 +62,17 @@ struct Options {
 double parse_seconds(const std::string& flag, const std::string& text) {
     const double v = parse_number<double>(flag, text);
     if (!(v > 0) || v > 1e6) throw UsageError(flag + " expects seconds in (0, 1e6], got " + text);
+    return v;
+}
+
+uint64_t parse_size_flag(const std::string& flag, const std::string& text) {
+    uint64_t v = 0;
+    try {
+        v = parse_byte_size(text);
+    } catch (const std::invalid_argument& e) {
+        throw UsageError(flag + ": " + e.what());
+    }
+    if (v == 0) throw UsageError(flag + " must be > 0");
     return v;
 }
 
@@ -100,6 +114,36 @@ ArgumentParser make_parser(Options& o) {
             [&](const std::string& v) {
                 o.server.submit_validation_seconds =
                     parse_seconds("--submit-validation-seconds", v);
+            });
+    p.value({"--max-job-assets"}, "SIZE",
+            "the largest a job's assets may be in all, and so any one asset (K, M, G or T "
+            "suffix; default and at most 16G); a larger bundle or upload is refused with "
+            "RESOURCE_EXHAUSTED",
+            [&](const std::string& v) {
+                o.server.max_job_assets = parse_size_flag("--max-job-assets", v);
+                if (o.server.max_job_assets > kMaxBundleSize)
+                    throw UsageError("--max-job-assets is at most 16G");
+            });
+    p.value({"--max-store-size"}, "SIZE",
+            "the largest the asset store may grow, every uploaded asset in all (K, M, G or T "
+            "suffix; default 100G); an upload that does not fit is refused with "
+            "RESOURCE_EXHAUSTED before a byte is written",
+            [&](const std::string& v) {
+                o.server.max_store_size = parse_size_flag("--max-store-size", v);
+            });
+    p.value({"--stream-idle-timeout"}, "SECONDS",
+            "cancel an UploadAsset, FetchResult or FetchAsset stream that sends or takes no "
+            "chunk for this long, freeing its server thread (default 60)",
+            [&](const std::string& v) {
+                o.server.streams.idle_seconds = parse_seconds("--stream-idle-timeout", v);
+            });
+    p.value({"--max-transfer-streams"}, "N",
+            "at most N clients' UploadAsset and FetchResult streams open at once, and N "
+            "workers' FetchAsset streams; past it RESOURCE_EXHAUSTED (default 64)",
+            [&](const std::string& v) {
+                const int n = parse_number<int>("--max-transfer-streams", v);
+                if (n < 1) throw UsageError("--max-transfer-streams must be >= 1");
+                o.server.streams.max_streams = size_t(n);
             });
     p.value({"--metrics"}, "HOST:PORT",
             "serve Prometheus metrics at http://HOST:PORT/metrics (port 0: any free port)",

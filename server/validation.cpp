@@ -1,8 +1,10 @@
 #include "server/validation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
+#include "core/base/memory_budget.h"
 #include "core/render/algorithms.h"
 #include "core/render/job_limits.h"
 #include "core/util/sha256.h"
@@ -63,8 +65,12 @@ Status check_defines(const google::protobuf::Map<std::string, std::string>& defi
 
 }  // namespace
 
-Status check_submit_request(const v1::SubmitJobRequest& r) {
+Status check_submit_request(const v1::SubmitJobRequest& r, uint64_t max_job_assets) {
     const v1::RenderSettings& s = r.settings();
+    // The server's limit, never above the protocol's.
+    const uint64_t job_assets_limit = std::min(max_job_assets, kMaxBundleSize);
+    const std::string job_assets_source =
+        "server --max-job-assets " + format_bytes(job_assets_limit);
     if (r.name().size() > 1024) return invalid("name is longer than 1024 characters");
     if (!s.algorithm().empty() && !find_algorithm(s.algorithm()))
         return invalid("settings.algorithm \"" + s.algorithm().substr(0, 64) + "\" is not one of " +
@@ -121,9 +127,15 @@ Status check_submit_request(const v1::SubmitJobRequest& r) {
                            "\": sha256 must be 64 lower-case hex digits");
         if (!paths.insert(f.path()).second)
             return invalid("bundle path \"" + f.path() + "\" appears twice");
+        if (f.size() > kMaxAssetSize)
+            return Status(StatusCode::RESOURCE_EXHAUSTED,
+                          "bundle file \"" + f.path() + "\" of " + std::to_string(f.size()) +
+                              " bytes exceeds the asset size limit of 4 GiB");
         total += f.size();
-        if (f.size() > kMaxAssetSize || total > kMaxBundleSize)
-            return Status(StatusCode::RESOURCE_EXHAUSTED, "bundle exceeds the size limit");
+        if (total > job_assets_limit)
+            return Status(StatusCode::RESOURCE_EXHAUSTED,
+                          "bundle.files total more than " + std::to_string(job_assets_limit) +
+                              " bytes, the per-job size limit (" + job_assets_source + ")");
     }
     if (std::string e = check_bundle_path(b.scene_path()); !e.empty())
         return invalid("bundle.scene_path " + e);

@@ -36,18 +36,25 @@ Status WorkerServiceImpl::FetchAsset(grpc::ServerContext* context,
         return Status(StatusCode::INVALID_ARGUMENT, "sha256 must be 64 lower-case hex digits");
     if (!manager_.assets().has(request->sha256()))
         return Status(StatusCode::NOT_FOUND, "asset " + request->sha256() + " not found");
+    Status refused;
+    auto guard = manager_.worker_streams().admit(context, "FetchAsset", &refused);
+    if (!guard) return refused;
     bool first = true;
-    return stream_file(manager_.assets().path(request->sha256()),
-                       [&](std::string&& data, uint64_t total) {
-                           v1::AssetChunk chunk;
-                           if (first) {
-                               chunk.set_sha256(request->sha256());
-                               chunk.set_size(total);
-                               first = false;
-                           }
-                           chunk.set_data(std::move(data));
-                           return writer->Write(chunk);
-                       });
+    Status s = stream_file(manager_.assets().path(request->sha256()),
+                           [&](std::string&& data, uint64_t total) {
+                               v1::AssetChunk chunk;
+                               if (first) {
+                                   chunk.set_sha256(request->sha256());
+                                   chunk.set_size(total);
+                                   first = false;
+                               }
+                               chunk.set_data(std::move(data));
+                               if (!writer->Write(chunk)) return false;
+                               guard->progress();
+                               return true;
+                           });
+    if (!s.ok() && guard->timed_out()) s = guard->idle_status();
+    return s;
 }
 
 Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,

@@ -14,10 +14,12 @@
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/image/exr_io.h"
 #include "core/image/metrics.h"
 #include "core/render/algorithms.h"
 #include "core/render/image_metadata.h"
+#include "core/render/iteration_memory.h"
 #include "core/render/job_limits.h"
 #include "core/render/job_options.h"
 #include "core/render/render_iterations.h"
@@ -31,13 +33,18 @@ namespace {
 using namespace render;
 using Clock = std::chrono::steady_clock;
 
+// Full-frame sums (3 doubles per pixel) `render` holds: the accumulated sum and odd sum, the
+// renderer's iteration image, and the averaged image written at the end.
+constexpr uint64_t kRenderFilmBuffers = 4;
+
 struct Options {
     std::string scene;
     std::string out;
     std::string png;
     JobOptions job;  // algorithm, iterations, time, film, defines, render options
     int threads = 0;
-    uint32_t frame = 0;  // the frame index of the random numbers (a service job's frame)
+    uint32_t frame = 0;       // the frame index of the random numbers (a service job's frame)
+    uint64_t max_memory = 0;  // 0: no limit
     bool help = false;
     bool describe = false;
 };
@@ -51,6 +58,19 @@ ArgumentParser make_parser(Options& o) {
             [&](const std::string& v) {
                 o.threads = parse_number<int>("--threads", v);
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
+            });
+    p.value({"--max-memory"}, "SIZE",
+            "refuse, before rendering, a scene whose estimated memory (its files, meshes, "
+            "grids and images, the film and the algorithm's working memory per iteration) "
+            "exceeds SIZE, as a worker's --max-memory does (K, M, G or T suffix; default: no "
+            "limit)",
+            [&](const std::string& v) {
+                try {
+                    o.max_memory = parse_byte_size(v);
+                } catch (const std::invalid_argument& e) {
+                    throw UsageError(std::string("--max-memory: ") + e.what());
+                }
+                if (o.max_memory == 0) throw UsageError("--max-memory must be > 0");
             });
     p.value({"--frame"}, "F",
             "render as frame F of a job (an animation's frame index, from 0, seeds the random "
@@ -159,6 +179,9 @@ class Progress {
 
 int render_scene(const Options& o) {
     auto t_load = Clock::now();
+    // Charged by the loaders, then with the film and the algorithm's working memory, before
+    // anything is rendered; without --max-memory it only counts.
+    SceneMemoryBudget budget(o.max_memory, "render --max-memory " + format_bytes(o.max_memory));
     std::unique_ptr<Scene> scene = load_scene(o.scene, o.job.defines);
     if (o.job.width > 0)
         scene->set_camera(scene->camera().with_resolution(o.job.width, o.job.height));
@@ -169,6 +192,18 @@ int render_scene(const Options& o) {
         job_algorithm(o.job.algorithm, scene->settings.integrator), o.job.options, scene->settings);
     settings.threads = o.threads;
     check_algorithm_supports_scene(settings.algorithm, *scene);
+    const uint64_t scene_bytes = budget.charged();
+    const uint64_t film_w = uint64_t(scene->camera().width()),
+                   film_h = uint64_t(scene->camera().height());
+    budget.charge(film_memory_bytes(film_w, film_h, kRenderFilmBuffers),
+                  "the film (" + std::to_string(film_w) + " x " + std::to_string(film_h) + ")");
+    const IterationMemoryEstimate working =
+        estimate_iteration_memory(settings, film_w, film_h, o.threads);
+    budget.charge(working.bytes, working.what);
+    std::fprintf(stderr, "render: memory estimate %s (scene %s, film %s, per iteration %s)\n",
+                 format_bytes(budget.charged()).c_str(), format_bytes(scene_bytes).c_str(),
+                 format_bytes(film_memory_bytes(film_w, film_h, kRenderFilmBuffers)).c_str(),
+                 format_bytes(working.bytes).c_str());
 
     std::optional<uint64_t> total = o.job.iterations;
     if (!total && !o.job.seconds) total = uint64_t(std::max(1, scene->settings.sample_count));

@@ -15,6 +15,7 @@
 
 #include "core/base/memory_budget.h"
 #include "core/render/algorithms.h"
+#include "core/render/iteration_memory.h"
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
@@ -216,6 +217,7 @@ const Scene& Worker::scene_for(const v1::Lease& lease, const std::filesystem::pa
                           "the film (" + std::to_string(s.width()) + " x " +
                               std::to_string(s.height()) + ")");
         scene = load_scene(scene_file, defines, job_dir);
+        scene_memory_ = budget.charged();
     }
     if (s.width() > 0 && s.height() > 0)
         scene->set_camera(scene->camera().with_resolution(int(s.width()), int(s.height())));
@@ -301,6 +303,24 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         settings = resolve_render_settings(job_algorithm(s.algorithm(), scene->settings.integrator),
                                            request_options(s), scene->settings);
         settings.threads = options_.threads;
+        // The algorithm's own memory (light vertices, merging grids, beams, per-thread
+        // buffers), estimated from the settings and charged with the scene's before the first
+        // iteration allocates it.
+        SceneMemoryBudget budget = scene_memory_budget(options_.max_memory);
+        // Against --max-memory the whole job counts. Against the machine's available memory
+        // only what this lease allocates: the loaded scene is in use already, and no longer
+        // counted as available (charging it again would refuse a job that fits).
+        const bool whole_job = options_.max_memory > 0 && budget.limit() == options_.max_memory;
+        if (whole_job)
+            budget.charge(scene_memory_, "the scene and film");
+        else
+            budget.charge(film_memory_bytes(uint64_t(scene->camera().width()),
+                                            uint64_t(scene->camera().height()), kWorkerFilmBuffers),
+                          "the film");
+        const IterationMemoryEstimate working =
+            estimate_iteration_memory(settings, uint64_t(scene->camera().width()),
+                                      uint64_t(scene->camera().height()), options_.threads);
+        budget.charge(working.bytes, working.what);
     } catch (const std::exception& e) {
         // Files named as in the client's bundle (as the server's submit errors do), not by
         // this worker's cache folder, which the job's owner cannot see.

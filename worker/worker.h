@@ -64,6 +64,9 @@ class Worker {
 
     std::string scene_key_;
     std::unique_ptr<Scene> scene_;
+    // What the scene and film were estimated to need when scene_ was loaded (the memory
+    // budget's charges), to which each lease adds its algorithm's working memory.
+    uint64_t scene_memory_ = 0;
 };
 
 }  // namespace render::service

@@ -23,6 +23,8 @@
 #include "core/render/job_limits.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "core/util/sha256.h"
+#include "server/asset_store.h"
 #include "server/validation.h"
 
 namespace render {
@@ -168,6 +170,82 @@ TEST(RequestLimits, AssetAndBundleSize) {
     f->set_sha256(std::string(64, 'd'));
     f->set_size(1);
     EXPECT_EQ(server::check_submit_request(r).error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+}
+
+TEST(RequestLimits, PerJobAssetsLimitOfTheServer) {
+    // server --max-job-assets 1000: a bundle of 1000 bytes in all is accepted, 1001 refused.
+    v1::SubmitJobRequest r = valid_request();
+    r.mutable_bundle()->mutable_files(0)->set_size(600);
+    v1::BundleFile* f = r.mutable_bundle()->add_files();
+    f->set_path("mesh.ply");
+    f->set_sha256(std::string(64, 'e'));
+    f->set_size(400);
+    EXPECT_TRUE(server::check_submit_request(r, 1000).ok());
+    f->set_size(401);
+    grpc::Status s = server::check_submit_request(r, 1000);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_CONTAINS(s.error_message(),
+                    "bundle.files total more than 1000 bytes, the per-job size limit (server "
+                    "--max-job-assets 1000 B)");
+    // The server's limit never goes above the protocol's.
+    r = valid_request();
+    r.mutable_bundle()->mutable_files(0)->set_size(server::kMaxAssetSize);
+    EXPECT_TRUE(server::check_submit_request(r, UINT64_MAX).ok());
+}
+
+// The asset store's total size limit (server --max-store-size): uploads reserve their declared
+// size before writing; the stored assets, those being uploaded and those already in the store
+// when it opens count.
+TEST(AssetStoreLimits, StoreSizeJustPastTheLimit) {
+    TempDir dir;
+    const fs::path store_dir = dir.write("unused", "").parent_path() / "store";
+    auto upload = [](server::AssetStore& store, const std::string& data) {
+        server::AssetStore::Upload u(store, sha256_hex(data), data.size());
+        if (std::string e = u.reserve(); !e.empty()) return e;
+        EXPECT_EQ(u.write(data), "");
+        EXPECT_EQ(u.commit(), "");
+        return std::string();
+    };
+    {
+        server::AssetStore store(store_dir, 10);
+        EXPECT_EQ(upload(store, "123456"), "");
+        EXPECT_EQ(store.stored_bytes(), 6u);
+        // The same asset again replaces itself: it counts once.
+        EXPECT_EQ(upload(store, "123456"), "");
+        EXPECT_EQ(store.stored_bytes(), 6u);
+        // 6 + 5 > 10: refused before anything is written; 6 + 4 = 10 fits.
+        const std::string refused = upload(store, "abcde");
+        EXPECT_CONTAINS(refused, "the asset store is full: an asset of 5 B (5 bytes) does not fit");
+        EXPECT_CONTAINS(refused, "within the store's limit of 10 B (server --max-store-size)");
+        EXPECT_EQ(store.reserved_bytes(), 0u);
+        EXPECT_FALSE(store.has(sha256_hex("abcde")));
+        EXPECT_EQ(upload(store, "abcd"), "");
+        EXPECT_EQ(store.stored_bytes(), 10u);
+    }
+    {
+        // Reopened: the 10 stored bytes count; not even 1 byte more fits.
+        server::AssetStore store(store_dir, 10);
+        EXPECT_EQ(store.stored_bytes(), 10u);
+        EXPECT_CONTAINS(upload(store, "x"), "10 B stored");
+    }
+    {
+        // Uploads in progress hold their reservation until they commit or fail.
+        server::AssetStore store(store_dir, 16);
+        server::AssetStore::Upload a(store, sha256_hex("abc"), 3);
+        EXPECT_EQ(a.reserve(), "");
+        EXPECT_EQ(store.reserved_bytes(), 3u);
+        server::AssetStore::Upload b(store, sha256_hex("wxyz"), 4);
+        EXPECT_CONTAINS(b.reserve(), "3 B being uploaded");
+        {
+            server::AssetStore::Upload c(store, sha256_hex("xyz"), 3);
+            EXPECT_EQ(c.reserve(), "");  // 10 + 3 + 3 = 16
+        }                                // abandoned: its reservation is released
+        EXPECT_EQ(store.reserved_bytes(), 3u);
+        EXPECT_EQ(a.write("abc"), "");
+        EXPECT_EQ(a.commit(), "");
+        EXPECT_EQ(store.reserved_bytes(), 0u);
+        EXPECT_EQ(store.stored_bytes(), 13u);
+    }
 }
 
 TEST(RequestLimits, Defines) {

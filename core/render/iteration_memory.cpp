@@ -1,0 +1,122 @@
+#include "core/render/iteration_memory.h"
+
+#include <algorithm>
+#include <thread>
+
+#include "core/base/memory_budget.h"
+#include "core/render/algorithms.h"
+
+namespace render {
+
+namespace {
+
+// Sizes of private types of core/integrators/vertex_cm.cpp (GCC 12, x86-64, read with a
+// compile-time probe in November 2026; the calibration in docs/reliability.md covers them).
+// A stored light vertex (LightVertex: the vertex, its direction, throughput and MIS values).
+constexpr uint64_t kLightVertexBytes = 208;
+// A photon beam (PhotonBeam) and its line for the lookup (BeamLine).
+constexpr uint64_t kPhotonBeamBytes = 128 + 32;
+// Merging modes, per stored vertex: its position and index (16 B) in vectors that grow by
+// doubling (x 2), and the hash grid's index and cell start.
+constexpr uint64_t kMergeIndexBytes = 48;
+// upbp, per stored vertex (any of them may lie in a medium): a photon beam, and the query
+// beams' Embree BVH over the medium vertices as balls (~128 B per primitive).
+constexpr uint64_t kVolumeEstimatorBytes = kPhotonBeamBytes + 128;
+// The light pass's chunks (vertex_cm.cpp: 256 light paths each, 4 in flight per thread), whose
+// vertices are copied into the iteration's arrays.
+constexpr uint64_t kLightPathsPerChunk = 256;
+constexpr uint64_t kChunksInFlightPerThread = 4;
+// Each thread's own buffers whatever the algorithm: tiles, sample arenas, Embree's ray
+// contexts and TBB's bookkeeping (too small to see in the peaks at 1 and 2 threads, where a
+// 128x128 pt render's whole growth above the process's base is 0.5 MiB; an allowance for
+// machines of many cores).
+constexpr uint64_t kPerThreadBytes = 1ull << 20;
+// ic and bpt's importance-cached connections: per record and light vertex, four cumulative
+// tables of doubles (importance_table.h).
+constexpr uint64_t kImportanceTableBytes = 4 * sizeof(double);
+
+uint64_t add(uint64_t a, uint64_t b) {
+    return a > UINT64_MAX - b ? UINT64_MAX : a + b;
+}
+
+uint64_t mul(uint64_t a, uint64_t b) {
+    return saturating_product(a, b);
+}
+
+}  // namespace
+
+uint64_t assumed_light_vertices_per_path(const RenderSettings& settings) {
+    const uint64_t roulette = uint64_t(std::max(settings.rr_depth, 0)) + kRouletteTailVertices;
+    // A light subpath stores its vertices 1 .. max_depth - 1 (the last segment goes to the eye).
+    if (settings.max_depth < 0) return roulette;
+    return std::min(uint64_t(std::max(settings.max_depth - 1, 0)), roulette);
+}
+
+IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings, uint64_t width,
+                                                  uint64_t height, int threads) {
+    const Algorithm* algorithm = find_algorithm(settings.algorithm);
+    const std::string name = algorithm ? algorithm->name : settings.algorithm;
+    const uint64_t pixels = mul(width, height);
+    const uint64_t thread_count =
+        threads > 0 ? uint64_t(threads) : std::max(1u, std::thread::hardware_concurrency());
+    const uint64_t vertices_per_path = assumed_light_vertices_per_path(settings);
+
+    IterationMemoryEstimate e;
+    e.bytes = mul(thread_count, kPerThreadBytes);
+    std::string parts = std::to_string(thread_count) +
+                        (thread_count == 1 ? " thread x " : " threads x ") +
+                        format_bytes(kPerThreadBytes);
+    auto part = [&](uint64_t bytes, const std::string& text) {
+        e.bytes = add(e.bytes, bytes);
+        parts += ", " + text;
+    };
+
+    // Technique layers: a sum per layer in the renderer's result and in its iteration image.
+    const uint64_t layers = TechniqueLayers::names(settings.layers).size();
+    if (layers > 0)
+        part(mul(layers, film_memory_bytes(width, height, 2)),
+             std::to_string(layers) + " technique layers");
+
+    const bool stores_light_paths =
+        name == "bpt" || name == "ppm" || name == "bpm" || name == "vcm" || name == "upbp";
+    const bool merges = name == "ppm" || name == "bpm" || name == "vcm" || name == "upbp";
+    if (stores_light_paths) {
+        const uint64_t paths = settings.light_path_count > 0 ? settings.light_path_count : pixels;
+        uint64_t per_vertex = kLightVertexBytes;
+        if (merges) per_vertex += kMergeIndexBytes;
+        if (name == "upbp") per_vertex += kVolumeEstimatorBytes;
+        part(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
+             std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
+                 " stored vertices x " + std::to_string(per_vertex) + " B");
+        const uint64_t chunk_paths =
+            std::min(paths, mul(mul(thread_count, kChunksInFlightPerThread), kLightPathsPerChunk));
+        part(mul(mul(chunk_paths, vertices_per_path), kLightVertexBytes),
+             "the light pass's chunks in flight");
+    }
+    const bool many_lights = name == "vpl" || name == "ic";
+    const uint64_t vpls = mul(settings.vpl_paths, vertices_per_path);
+    if (many_lights)
+        part(mul(vpls, kLightVertexBytes), std::to_string(settings.vpl_paths) +
+                                               " VPL paths x up to " +
+                                               std::to_string(vertices_per_path) + " VPLs");
+    if (name == "vpl" && settings.vpl_importance)
+        part(mul(mul(vpls, uint64_t(std::max(settings.importance_records, 0))), sizeof(double)),
+             "the VPL importance records");
+    const bool importance_caches = name == "ic" || (name == "bpt" && settings.ic_connections);
+    if (importance_caches) {
+        const uint64_t records =
+            uint64_t(double(pixels) * std::clamp(settings.ic_record_density, 0.0, 1.0)) + 1;
+        const uint64_t cached =
+            name == "ic" ? vpls : mul(settings.ic_light_paths, vertices_per_path);
+        part(mul(mul(records, cached), kImportanceTableBytes),
+             std::to_string(records) + " importance records x up to " + std::to_string(cached) +
+                 " light vertices");
+    }
+    if (stores_light_paths)
+        parts += "; fewer light paths (--light-paths) or a lower --max-depth need less";
+    e.what = name + "'s working memory per iteration (estimated " + format_bytes(e.bytes) + ": " +
+             parts + ")";
+    return e;
+}
+
+}  // namespace render

@@ -1,0 +1,92 @@
+// The up-front estimate of an algorithm's working memory per iteration
+// (core/render/iteration_memory.h). Its calibration against measured peaks is
+// scripts/memory-calibration (docs/reliability.md); these check what the estimate is made of.
+
+#include "core/render/iteration_memory.h"
+
+#include <gtest/gtest.h>
+
+#include "core/base/memory_budget.h"
+
+namespace render {
+namespace {
+
+RenderSettings settings_for(const std::string& algorithm, int max_depth = -1, int rr_depth = 5) {
+    RenderSettings s;
+    s.algorithm = algorithm;
+    s.max_depth = max_depth;
+    s.rr_depth = rr_depth;
+    return s;
+}
+
+TEST(IterationMemory, LightVerticesPerPathAreBoundedByTheDepthAndTheRoulette) {
+    // Vertices 1 .. max_depth - 1 of a light subpath are stored.
+    EXPECT_EQ(assumed_light_vertices_per_path(settings_for("vcm", 3)), 2u);
+    EXPECT_EQ(assumed_light_vertices_per_path(settings_for("vcm", 1)), 0u);
+    // Past rr_depth, Russian roulette's tail.
+    EXPECT_EQ(assumed_light_vertices_per_path(settings_for("vcm", -1, 5)),
+              5u + kRouletteTailVertices);
+    EXPECT_EQ(assumed_light_vertices_per_path(settings_for("vcm", 65, 5)),
+              5u + kRouletteTailVertices);
+    EXPECT_EQ(assumed_light_vertices_per_path(settings_for("vcm", -1, 20)),
+              20u + kRouletteTailVertices);
+}
+
+TEST(IterationMemory, StoredLightPathsGrowWithThePixelsOrTheLightPathCount) {
+    const RenderSettings vcm = settings_for("vcm");
+    const uint64_t small = estimate_iteration_memory(vcm, 256, 256, 2).bytes;
+    const uint64_t large = estimate_iteration_memory(vcm, 512, 512, 2).bytes;
+    // 3 x 65536 more light paths, each of up to 9 vertices of 256 B (and its 4-B end).
+    EXPECT_EQ(large - small, 3u * 65536u * (9u * 256u + 4u));
+    RenderSettings fixed = vcm;
+    fixed.light_path_count = 1000;
+    EXPECT_EQ(estimate_iteration_memory(fixed, 256, 256, 2).bytes,
+              estimate_iteration_memory(fixed, 512, 512, 2).bytes);
+    EXPECT_LT(estimate_iteration_memory(fixed, 512, 512, 2).bytes, small);
+}
+
+TEST(IterationMemory, EachAlgorithmChargesWhatItStores) {
+    const uint64_t w = 512, h = 512;
+    const uint64_t pt = estimate_iteration_memory(settings_for("pt"), w, h, 2).bytes;
+    // Path tracing keeps nothing per pixel besides the film (charged apart): its threads only.
+    EXPECT_EQ(pt, 2u << 20);
+    EXPECT_EQ(estimate_iteration_memory(settings_for("volpt"), w, h, 2).bytes, pt);
+    EXPECT_EQ(estimate_iteration_memory(settings_for("lt"), w, h, 2).bytes, pt);
+    // Connections store light vertices; merges add their grids; upbp its beams.
+    const uint64_t bpt = estimate_iteration_memory(settings_for("bpt"), w, h, 2).bytes;
+    const uint64_t vcm = estimate_iteration_memory(settings_for("vcm"), w, h, 2).bytes;
+    const uint64_t upbp = estimate_iteration_memory(settings_for("upbp"), w, h, 2).bytes;
+    EXPECT_GT(bpt, 200u * w * h);
+    EXPECT_GT(vcm, bpt);
+    EXPECT_GT(upbp, vcm);
+    EXPECT_EQ(estimate_iteration_memory(settings_for("path"), w, h, 2).bytes, pt);  // an alias
+    // ic's importance records: a table entry per record and VPL.
+    EXPECT_GT(estimate_iteration_memory(settings_for("ic"), w, h, 2).bytes,
+              estimate_iteration_memory(settings_for("vpl"), w, h, 2).bytes + (w * h / 16) * 64);
+}
+
+TEST(IterationMemory, TheMessageNamesTheAlgorithmTheEstimateAndWhatLowersIt) {
+    const IterationMemoryEstimate e = estimate_iteration_memory(settings_for("vcm", 10), 64, 64, 1);
+    EXPECT_NE(e.what.find("vcm's working memory per iteration (estimated " + format_bytes(e.bytes)),
+              std::string::npos)
+        << e.what;
+    EXPECT_NE(e.what.find("4096 light paths x up to 9 stored vertices x 256 B"), std::string::npos)
+        << e.what;
+    EXPECT_NE(e.what.find("--light-paths"), std::string::npos) << e.what;
+    SceneMemoryBudget budget(e.bytes - 1, "test --max-memory");
+    try {
+        budget.charge(e.bytes, e.what);
+        FAIL() << "charged past the limit";
+    } catch (const MemoryLimitExceeded& error) {
+        EXPECT_NE(std::string(error.what()).find("more than the"), std::string::npos);
+    }
+}
+
+TEST(IterationMemory, HugeSettingsSaturateInsteadOfWrapping) {
+    RenderSettings s = settings_for("vcm");
+    s.light_path_count = UINT64_MAX / 2;
+    EXPECT_EQ(estimate_iteration_memory(s, 65536, 65536, 1).bytes, UINT64_MAX);
+}
+
+}  // namespace
+}  // namespace render
