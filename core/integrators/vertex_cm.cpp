@@ -153,6 +153,8 @@ struct LightVertex {
     MisQuantities mis;
     bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
 };
+static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
+              "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
 
 // Visibility and distance-sampling densities of a connection segment. Without media the
 // segment is only tested for occlusion, and only once its contribution is known to be non-zero.
@@ -195,6 +197,8 @@ struct PhotonBeam {
     int path_length = 0;  // segments of the light path with the beam's
     bool apply_distance = true;
 };
+static_assert(sizeof(PhotonBeam) <= kPhotonBeamBytesBound,
+              "PhotonBeam grew: raise kPhotonBeamBytesBound (the memory estimate uses it)");
 
 // The squared distance clamp of VPL connections in (1-based, global) iteration i; 0 unclamped.
 double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,

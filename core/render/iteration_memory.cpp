@@ -4,18 +4,18 @@
 #include <thread>
 
 #include "core/base/memory_budget.h"
+#include "core/integrators/vertex_cm.h"
 #include "core/render/algorithms.h"
 
 namespace render {
 
 namespace {
 
-// Sizes of private types of core/integrators/vertex_cm.cpp (GCC 12, x86-64, read with a
-// compile-time probe in November 2026; the calibration in docs/reliability.md covers them).
+// Sizes of vertex_cm.cpp's stored records: bounds that file checks with static_assert.
 // A stored light vertex (LightVertex: the vertex, its direction, throughput and MIS values).
-constexpr uint64_t kLightVertexBytes = 208;
+constexpr uint64_t kLightVertexBytes = kLightVertexBytesBound;
 // A photon beam (PhotonBeam) and its line for the lookup (BeamLine).
-constexpr uint64_t kPhotonBeamBytes = 128 + 32;
+constexpr uint64_t kPhotonBeamBytes = kPhotonBeamBytesBound + 32;
 // Merging modes, per stored vertex: its position and index (16 B) in vectors that grow by
 // doubling (x 2), and the hash grid's index and cell start.
 constexpr uint64_t kMergeIndexBytes = 48;
