@@ -144,7 +144,7 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) 
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, detail, si);
     // Materials that vary over the surface: the shapes filled si.uv and si.dpdu for them
-    // (Shape::uv_wanted), which the shading-frame hook and at() read.
+    // (uv_wanted, core/shapes/uv_wanted.h), which the shading-frame hook and at() read.
     if (si.bsdf->varies()) {
         si.shading = si.bsdf->shading_frame(si.uv, si.shading, si.dpdu);  // normal maps
         si.hit_bsdf = si.bsdf->at(si.uv);
