@@ -27,7 +27,7 @@ class Shape {
     // Creates, commits and attaches this shape's Embree geometry; returns its geometry id.
     virtual unsigned attach(RTCDevice device, RTCScene scene) const = 0;
     // Completes an interaction from Embree's hit record (primitive id and barycentrics u, v);
-    // si.uv and si.dpdu only if uv_wanted(*this, detail) (core/shapes/uv_wanted.h), else zero.
+    // si.uv, dpdu and dpdv only if uv_wanted(*this, detail) (core/shapes/uv_wanted.h), else zero.
     virtual void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                                   HitDetail detail, SurfaceInteraction& si) const = 0;
 

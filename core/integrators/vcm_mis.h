@@ -62,6 +62,10 @@ struct DirectTechnique {
     // B-B1D at the receiver, the light's emission segment as the photon beam:
     // VcmMis::photon_beam_eye_term (0: none).
     float eye_photon_beam = 0;
+    // J1 at s = 1 (the receiver, a medium vertex, sampled from the eye's previous vertex toward
+    // the light point instead of by distance sampling): its density over this technique's; 0
+    // where there is none (ConnectionTechnique::joint_ratio).
+    float joint_ratio = 0;
 };
 
 // Eqs. (40) and (41): connecting an eye vertex to a light vertex.
@@ -124,6 +128,11 @@ struct MergeTechnique {
     // photon_beam_light_term(sin, 1, ...) (the factor times the camera side's distance density)
     // for a query beam. 0 without photon beams.
     float photon_beam = 0;
+    // J1 (vcm --joint-connections on) of the junction whose eye-side vertex is the merge vertex:
+    // its density over the plain connection's there, the vertex sampled from the eye's previous
+    // vertex toward the light vertex's predecessor (ConnectionTechnique::light_joint_ratio);
+    // 0 where that junction has no J1 technique.
+    float light_joint_ratio = 0;
 };
 
 // Which techniques a VcmMis combines, by their merging ratios (0: the technique is off).
@@ -365,13 +374,17 @@ class VcmMis {
     }
 
     // Joint (J1) connections. A J1 technique samples the eye-side vertex x_j of junction j (a
-    // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1}
-    // instead of by distance sampling; its density is the connection's times
-    // r_j = p_eq(x_j) / p_distance(x_j), so every connection term of the recursion is
-    // multiplied by (1 + mis(r_j)). Eye subpaths know r_j of the junction toward the camera
-    // when they arrive at a vertex (include_joint_junction); light subpaths know it one vertex
-    // later, so the term a scatter adds (carried_connection_term) is kept aside and completed
-    // at the next arrival (add_joint_term). Merging is not combined with J1 (bpt only).
+    // medium vertex) by half-line equi-angular sampling toward the light-side vertex x_{j-1} (a
+    // scattering vertex, or at j = 1 a finite light's point: next-event estimation's sibling,
+    // DirectTechnique::joint_ratio) instead of by distance sampling; its density is the
+    // connection's times r_j = p_eq(x_j) / p_distance(x_j), so every connection term of the
+    // recursion is multiplied by (1 + mis(r_j)). Eye subpaths know r_j of the junction toward the
+    // camera when they arrive at a vertex (include_joint_junction); light subpaths know it one
+    // vertex later, so the term a scatter adds (carried_connection_term) is kept aside and
+    // completed at the next arrival (add_joint_term). With merging (vcm) the J1 terms count in the
+    // merge weights like the connection terms they multiply: dVM holds the same connection terms as
+    // dVC (add_joint_term adds to both), and weight_merge takes the one junction's factor that
+    // neither subpath holds (MergeTechnique::light_joint_ratio; docs/media.md).
     void include_joint_junction(MisQuantities& q, float joint_ratio) const {
         q.dVCM *= 1.0f + mis(joint_ratio);
     }
@@ -385,14 +398,19 @@ class VcmMis {
     // plain connection the reverse distance density instead).
     void add_joint_term(MisQuantities& q, float carried, float joint_pdf_l, float cos_in,
                         float forward_distance) const {
-        q.dVC += carried * mis(joint_pdf_l) / mis(cos_in * forward_distance);
+        const float term = carried * mis(joint_pdf_l) / mis(cos_in * forward_distance);
+        q.dVC += term;
+        if (use_vc_) q.dVM += term;  // connection terms count in merge weights (scatter())
     }
 
     // Eq. (43): the eye subpath hit an emitter. direct_pdf_a and emission_pdf_w include the
-    // light selection probability.
-    float weight_emission(const MisQuantities& eye, float direct_pdf_a,
-                          float emission_pdf_w) const {
-        const float w_camera = mis(direct_pdf_a) * eye.dVCM + mis(emission_pdf_w) * eye.dVC;
+    // light selection probability. joint_ratio: J1 at s = 1 of the eye vertex before the hit
+    // point (DirectTechnique::joint_ratio; 0: none), which multiplies next-event estimation's
+    // term as J1 multiplies every connection term.
+    float weight_emission(const MisQuantities& eye, float direct_pdf_a, float emission_pdf_w,
+                          float joint_ratio = 0) const {
+        const float w_camera = mis(direct_pdf_a) * eye.dVCM * (1.0f + mis(joint_ratio)) +
+                               mis(emission_pdf_w) * eye.dVC;
         return 1.0f / (1.0f + w_camera);
     }
 
@@ -408,7 +426,12 @@ class VcmMis {
                                               eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w)) +
                                          t.eye_photon_beam
                                    : 0.0f;
-        return 1.0f / (w_light + 1.0f + w_camera);
+        return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
+    }
+
+    // J1 at s = 1: the receiver sampled toward the light point (next-event estimation's sibling).
+    float weight_joint_direct(const MisQuantities& eye, const DirectTechnique& t) const {
+        return mis(t.joint_ratio) * weight_direct(eye, t);
     }
 
     // Eqs. (40) and (41): connecting an eye vertex to a light vertex (ConnectionTechnique).
@@ -445,7 +468,8 @@ class VcmMis {
     float weight_merge(const MisQuantities& light, const MisQuantities& eye,
                        const MergeTechnique& t) const {
         const float vc = vc_weight_factor_[t.medium], inverse_eta = inverse_eta_[t.medium];
-        const float w_light = light.dVCM * vc + light.dVM * inverse_eta * mis(t.eye_forward_w);
+        const float w_light = light.dVCM * vc * (1.0f + mis(t.light_joint_ratio)) +
+                              light.dVM * inverse_eta * mis(t.eye_forward_w);
         const float w_camera = eye.dVCM * vc + eye.dVM * inverse_eta * mis(t.eye_reverse_w);
         return 1.0f / (w_light + 1.0f + t.query_beam * inverse_eta + t.photon_beam * inverse_eta +
                        w_camera);

@@ -151,6 +151,7 @@ struct LightVertex {
     Rgb throughput;
     int path_length;
     MisQuantities mis;
+    bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
 };
 
 // Visibility and distance-sampling densities of a connection segment. Without media the
@@ -338,8 +339,10 @@ class Iteration {
                                    ? std::min<uint64_t>(config.ic_light_paths, light_path_count_)
                                    : light_path_count_),
           ic_connection_scale_(float(1.0 / double(ic_light_path_count_))),
-          joint_(config.mode == BidirectionalMode::Bpt && config.joint_connections &&
-                 !ic_connections_ && scene.has_media()),
+          // bpt and vcm; not beside upbp's beams, whose weights have no J1 factors.
+          joint_((config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm) &&
+                 config.joint_connections && use_vc_ && !ic_connections_ && !query_beams_ &&
+                 !photon_beams_ && scene.has_media()),
           storage_(storage),
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
@@ -406,6 +409,12 @@ class Iteration {
                  const Vec3& hit_normal, const Vec3& ray_direction) const;
     Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
                             RenderStats& stats) const;
+    // Next-event estimation's MIS-weighted contribution at v (without the eye throughput) for
+    // the light sample dl, visibility included; joint: v was sampled by J1 at s = 1 toward the
+    // light point (the weight is that technique's).
+    Rgb direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
+                            const DirectLightSample& dl, Rng& rng, RenderStats& stats,
+                            bool joint = false) const;
     Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
                          const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const;
     // Joint connections for the eye segment about to be traced along `ray` from the eye
@@ -433,6 +442,16 @@ class Iteration {
                                                     const MisQuantities& eye_mis, Rng& rng,
                                                     RenderStats& stats, bool joint = false) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
+    // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
+    // previous vertex toward the light vertex's predecessor) over its plain connection; 0
+    // without joint connections or where that junction has none (vcm_mis.h, weight_merge).
+    float merge_joint_ratio(const LightVertex& light_vertex, const Vertex& v) const;
+    // Whether the predecessor of a light subpath's vertex (reached after path_length segments)
+    // can be the light-side vertex of a J1 junction: a scattering vertex, or the light's own
+    // point when the light is finite (J1 at s = 1).
+    static bool joint_light_side(int path_length, bool finite_light) {
+        return path_length >= 2 || (path_length == 1 && finite_light);
+    }
     // Query beams (P-B2D): the photon points within the beam radius of the eye segment about
     // to be traced along `ray`, over every piece in a medium up to the first surface that is
     // not a null boundary (the long query), each gathered at its projection on the segment.
@@ -525,7 +544,7 @@ class Iteration {
     // those vertices (a prefix of light_vertices_, set by build_importance_cache).
     uint64_t ic_light_path_count_;
     float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
-    bool joint_;                 // joint (J1) connections (bpt in a scene with media)
+    bool joint_;                 // joint (J1) connections (bpt, vcm in a scene with media)
     size_t ic_vertex_count_ = 0;
 
     IterationStorage& storage_;
@@ -588,10 +607,11 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
                 state.path_length > 1 || state.is_finite_light, cos_in, seg.densities.toward_end,
                 seg.densities.toward_start);
     // Light subpaths: the J1 technique of the junction whose eye-side vertex is the one this
-    // segment left (a medium vertex past the first, so that its light-side neighbour scatters),
-    // sampled from here.
+    // segment left (a medium vertex whose light-side neighbour scatters, or is a finite light's
+    // point: J1 at s = 1), sampled from here.
     if (joint_ && mode == TransportMode::Importance && state.carried_connection > 0 &&
-        state.origin_in_medium && state.path_length >= 3 && seg.one_piece)
+        state.origin_in_medium && joint_light_side(state.path_length - 1, state.is_finite_light) &&
+        seg.one_piece)
         mis_.add_joint_term(state.mis, state.carried_connection,
                             joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in,
                             seg.densities.toward_end);
@@ -690,8 +710,8 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
             if (use_vc_ || use_vm_ || many_lights_)
-                vertices.push_back(
-                    LightVertex{*v, wo, state.throughput, state.path_length, state.mis});
+                vertices.push_back(LightVertex{*v, wo, state.throughput, state.path_length,
+                                               state.mis, state.is_finite_light});
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
                 connect_to_camera(state, *v, wo, rng, splats, stats);
         }
@@ -844,8 +864,8 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
     // J1 of the junction whose eye-side vertex is this one, sampled along the camera ray.
     float light_joint_ratio = 0;
-    if (joint_ && v.in_medium() && state.path_length >= 2 && l.one_piece &&
-        l.densities.toward_start > 0)
+    if (joint_ && v.in_medium() && joint_light_side(state.path_length, state.is_finite_light) &&
+        l.one_piece && l.densities.toward_start > 0)
         light_joint_ratio =
             joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
     // P-B2D at this vertex with the camera ray as the query.
@@ -889,14 +909,26 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // subpaths (connections to the camera, or merging).
     if (!use_vc_) return state.specular_path ? le.radiance : Rgb(0.0f);
     const float pick_probability = scene_.light_pick_probability(light);
+    // J1 at s = 1 of the eye vertex before the hit point (sampled toward it): it multiplies
+    // next-event estimation's term.
+    float joint_ratio = 0;
+    if (joint_ && light->is_finite() && state.origin_joint_pdf > 0)
+        joint_ratio =
+            joint_pdf_l(state.origin_previous, state.origin, hit_point) / state.origin_joint_pdf;
     return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
-                                              le.pdf_emission_w * pick_probability);
+                                              le.pdf_emission_w * pick_probability, joint_ratio);
 }
 
 Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
                                    Rng& rng, RenderStats& stats) const {
     DirectLightSample dl;
     if (!sample_direct_light(scene_, v.p, rng, dl)) return Rgb(0.0f);
+    return direct_contribution(state.mis, v, wo, dl, rng, stats);
+}
+
+Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
+                                   const DirectLightSample& dl, Rng& rng, RenderStats& stats,
+                                   bool joint) const {
     const LightIlluminateSample& ls = dl.ls;
     const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
@@ -914,23 +946,29 @@ Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, c
                                                     v.sigma_t, emission * l.densities.toward_start,
                                                     emission, l.densities.homogeneous);
     }
+    // J1 at s = 1 (v sampled from its predecessor toward the light point).
+    float joint_ratio = 0;
+    if (joint_ && v.joint_distance_pdf > 0 && std::isfinite(ls.distance))
+        joint_ratio =
+            joint_pdf_l(v.previous, v.p, v.p + ls.wi * ls.distance) / v.joint_distance_pdf;
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
-    const float weight =
-        many_lights_
-            ? 1.0f
-            : mis_.weight_direct(state.mis, {.bsdf_forward_w = pdf_w.forward,
-                                             .bsdf_reverse_w = pdf_w.reverse,
-                                             .light_pdf_w = dl.pdf_w(),
-                                             .emission_pdf_w = ls.pdf_emission_w,
-                                             .direct_pdf_w = ls.pdf_direct_w,
-                                             .cos_here = v.cos(ls.wi),
-                                             .cos_light = ls.cos_at_light,
-                                             .delta_light = dl.light->is_delta(),
-                                             .eye_medium = v.in_medium(),
-                                             .eye_query_beam = v.query_beam,
-                                             .pass_to_light_probability = l.densities.toward_end,
-                                             .distance_from_light = l.densities.toward_start,
-                                             .eye_photon_beam = eye_photon_beam});
+    const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
+                                    .bsdf_reverse_w = pdf_w.reverse,
+                                    .light_pdf_w = dl.pdf_w(),
+                                    .emission_pdf_w = ls.pdf_emission_w,
+                                    .direct_pdf_w = ls.pdf_direct_w,
+                                    .cos_here = v.cos(ls.wi),
+                                    .cos_light = ls.cos_at_light,
+                                    .delta_light = dl.light->is_delta(),
+                                    .eye_medium = v.in_medium(),
+                                    .eye_query_beam = v.query_beam,
+                                    .pass_to_light_probability = l.densities.toward_end,
+                                    .distance_from_light = l.densities.toward_start,
+                                    .eye_photon_beam = eye_photon_beam,
+                                    .joint_ratio = joint_ratio};
+    const float weight = many_lights_ ? 1.0f
+                         : joint      ? mis_.weight_joint_direct(eye_mis, technique)
+                                      : mis_.weight_direct(eye_mis, technique);
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);
@@ -973,7 +1011,8 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     if (joint_) {
         if (v.joint_distance_pdf > 0)
             joint_ratio = joint_pdf_l(v.previous, v.p, w.p) / v.joint_distance_pdf;
-        if (w.in_medium() && lv.path_length >= 2 && l.one_piece && l.densities.toward_end > 0)
+        if (w.in_medium() && joint_light_side(lv.path_length, lv.finite_light) && l.one_piece &&
+            l.densities.toward_end > 0)
             light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
     }
     // Eqs. (40) and (41).
@@ -1028,46 +1067,75 @@ template <class Add>
 void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uint32_t first,
                                   uint32_t end, Rng& rng, RenderStats& stats, Add&& add) const {
     const Medium* medium = state.medium;
-    if (!medium || first == end) return;
+    // J1 at s = 1 is next-event estimation's sibling: there whenever next-event estimation is.
+    const bool toward_light = 1 + state.path_length <= max_length_;
+    if (!medium || (first == end && !toward_light)) return;
     // The segment's first piece ends at the first surface, null or not: J1 samples past it
     // contribute nothing (the technique's density is over the whole half-line, so that every
     // other technique can evaluate it without tracing).
     ++stats.rays;
     const float first_piece = scene_.closest_hit_distance(ray);
     const Vec3 wo = -ray.direction;
-    for (uint32_t i = first; i < end; ++i) {
-        const LightVertex& lv = light_vertices_[i];
-        if (lv.path_length + 1 + state.path_length > max_length_) break;
-        const HalfLineEquiAngularSampler sampler(state.origin, ray.direction, lv.vertex.p);
+    // A medium vertex of the first piece sampled toward `target`: the eye throughput there
+    // (transmittance times sigma_s over J1's density), the vertex and the eye subpath's MIS
+    // quantities as distance sampling would have produced them (against which J1's weight is
+    // taken); nullopt if the sample lies past the first piece or carries nothing.
+    struct JointVertex {
+        Rgb eye_weight;
+        Vertex v;
+        MisQuantities mis;
+    };
+    auto sample_vertex = [&](const Vec3& target) -> std::optional<JointVertex> {
+        const HalfLineEquiAngularSampler sampler(state.origin, ray.direction, target);
         const float t = sampler.sample(rng.next_1d());
         const float pdf = sampler.pdf_l(t);
         const Vec3 z = state.origin + ray.direction * t;
         const float t_ray = dot(z - ray.origin, ray.direction);
-        if (!(t_ray > 0 && t_ray < first_piece && pdf > 0)) continue;
+        if (!(t_ray > 0 && t_ray < first_piece && pdf > 0)) return std::nullopt;
         const Rgb sigma_s = medium->sigma_s(z);
-        if (sigma_s.is_black()) continue;
-        const Rgb eye_weight =
+        if (sigma_s.is_black()) return std::nullopt;
+        JointVertex j;
+        j.eye_weight =
             state.throughput * medium->transmittance(ray, t_ray, rng) * sigma_s * (1.0f / pdf);
-        if (eye_weight.is_black() || !eye_weight.is_finite()) continue;
-        // The vertex as distance sampling would have produced it: its MIS quantities and the
-        // plain connection's density, against which J1's weight is taken.
+        if (j.eye_weight.is_black() || !j.eye_weight.is_finite()) return std::nullopt;
         SegmentDensityBuilder builder(state.in_medium);
         builder.add_piece(medium, ray, t_ray);
         const SegmentDensities densities = builder.finish(true);
-        Vertex v;
-        v.p = z;
-        v.medium = medium;
-        v.phase = &medium->phase();
-        v.previous = state.origin;
-        v.joint_distance_pdf = densities.toward_end;
-        MisQuantities mis = state.mis;
-        mis_.arrive(mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
-        include_joint_junction(mis, state, v);
+        j.v.p = z;
+        j.v.medium = medium;
+        j.v.phase = &medium->phase();
+        j.v.previous = state.origin;
+        j.v.joint_distance_pdf = densities.toward_end;
+        j.mis = state.mis;
+        mis_.arrive(j.mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
+        include_joint_junction(j.mis, state, j.v);
+        return j;
+    };
+    if (toward_light) {
+        // J1 at s = 1: a light and a point on it drawn as next-event estimation draws them (the
+        // point depends on the numbers alone, Light::sample_position), then the medium vertex
+        // sampled toward that point and connected to it with the same numbers.
+        DirectLightSample dl;
+        dl.light = scene_.sample_light(rng.next_1d(), &dl.pick_probability);
+        const Vec2 u = rng.next_2d();
+        Vec3 light_point;
+        if (dl.light && dl.pick_probability > 0 && dl.light->sample_position(u, light_point)) {
+            if (const std::optional<JointVertex> j = sample_vertex(light_point);
+                j && dl.light->illuminate(j->v.p, u, dl.ls) && dl.ls.pdf_direct_w > 0)
+                add(1, j->eye_weight *
+                           direct_contribution(j->mis, j->v, wo, dl, rng, stats, /*joint=*/true));
+        }
+    }
+    for (uint32_t i = first; i < end; ++i) {
+        const LightVertex& lv = light_vertices_[i];
+        if (lv.path_length + 1 + state.path_length > max_length_) break;
+        const std::optional<JointVertex> j = sample_vertex(lv.vertex.p);
+        if (!j) continue;
         const std::optional<ConnectionTerms> c =
-            connection_terms(lv, v, wo, mis, rng, stats, /*joint=*/true);
+            connection_terms(lv, j->v, wo, j->mis, rng, stats, /*joint=*/true);
         if (!c) continue;
         add(lv.path_length + 1,
-            eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
+            j->eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
     }
 }
 
@@ -1340,6 +1408,13 @@ void Iteration::draw_from_importance_caches(const Vertex& v, int eye_length, Rng
     }
 }
 
+float Iteration::merge_joint_ratio(const LightVertex& lv, const Vertex& v) const {
+    if (!joint_ || !(v.joint_distance_pdf > 0) ||
+        !joint_light_side(lv.path_length, lv.finite_light))
+        return 0.0f;
+    return joint_pdf_l(v.previous, v.p, lv.vertex.previous) / v.joint_distance_pdf;
+}
+
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
@@ -1364,7 +1439,8 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
                                     ? mis_.photon_beam_merge_term(length(cross(wo, lv.wo)),
                                                                   lv.vertex.arrival_distance,
                                                                   v.arrival_distance, v.sigma_t)
-                                    : 0.0f});
+                                    : 0.0f,
+                 .light_joint_ratio = merge_joint_ratio(lv, v)});
         }
         Rgb photon = lv.throughput;
         if (medium) {

@@ -52,8 +52,29 @@ struct ScatteringVertex {
 
 class Tracer {
   public:
-    Tracer(const Scene& scene, bool equiangular, Rng& rng, RenderStats& stats)
-        : scene_(scene), equiangular_(equiangular), rng_(rng), stats_(stats) {}
+    Tracer(const Scene& scene, bool equiangular, VolptTechnique technique, Rng& rng,
+           RenderStats& stats)
+        : scene_(scene),
+          equiangular_(equiangular),
+          technique_(technique),
+          rng_(rng),
+          stats_(stats) {}
+
+    // The weight of a technique other than J3 for a medium path that J3 produces with density
+    // (ratio) `joint`: the power heuristic over the four, or the single-technique weights of
+    // volpt_technique.h (`own` is the technique's own density, `others` those of DL, DP or EL).
+    float weight(double own, double other1, double other2, double joint) const {
+        switch (technique_) {
+            case VolptTechnique::DistanceLight:
+                return 1.0f;  // only DL runs and emission hits count 0 (emission_weight)
+            case VolptTechnique::Joint:
+                if (joint > 0) return 0.0f;  // J3 alone takes this path
+                break;
+            case VolptTechnique::All:
+                break;
+        }
+        return power_heuristic4(own, other1, other2, joint);
+    }
 
     // Density (per unit length) of equi-angular sampling of distance t on `segment` toward
     // `light_point` (zero on an unbounded segment or for an infinite light).
@@ -110,11 +131,11 @@ class Tracer {
         const float light_pdf_w = dl.pdf_w();
         const Vec3 light_point = v.p + ls.wi * ls.distance;
         const float equiangular = equiangular_pdf_l(v.segment, dl.light, light_point, v.t);
-        const float w = power_heuristic4(
-            double(v.distance_pdf_l) * light_pdf_w,
-            dl.light->is_delta() ? 0.0 : double(v.distance_pdf_l) * phase,
-            double(equiangular) * light_pdf_w,
-            joint_pdf_ratio(v.joint, v.segment, v.t, dl.light, light_point, light_pdf_w));
+        const float w =
+            weight(double(v.distance_pdf_l) * light_pdf_w,
+                   dl.light->is_delta() ? 0.0 : double(v.distance_pdf_l) * phase,
+                   double(equiangular) * light_pdf_w,
+                   joint_pdf_ratio(v.joint, v.segment, v.t, dl.light, light_point, light_pdf_w));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr = light_visibility(v.p, Vec3(0.0f), dl, v.segment.medium);
         return ls.radiance * tr * (phase * w / light_pdf_w);
@@ -145,10 +166,9 @@ class Tracer {
         if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
         const float light_pdf_w = pick_probability * ls.pdf_direct_w;
         const float distance = medium.pdf_scatter_l(segment.ray, t);
-        const float w =
-            power_heuristic4(double(equiangular) * light_pdf_w, double(distance) * light_pdf_w,
-                             light->is_delta() ? 0.0 : double(distance) * phase,
-                             joint_pdf_ratio(joint, segment, t, light, light_point, light_pdf_w));
+        const float w = weight(double(equiangular) * light_pdf_w, double(distance) * light_pdf_w,
+                               light->is_delta() ? 0.0 : double(distance) * phase,
+                               joint_pdf_ratio(joint, segment, t, light, light_point, light_pdf_w));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
@@ -211,9 +231,11 @@ class Tracer {
         const double joint = pdf_dc * pdf_w_cb * pdf_cb * light_pdf_w;
         const double shared = double(medium.pdf_scatter_l(segment.ray, t_dc)) * phase_c;
         const double distance_cb = shared * medium.pdf_scatter_l(ray_cb, t_cb);
-        const float w = power_heuristic4(joint, distance_cb * light_pdf_w,
-                                         light->is_delta() ? 0.0 : distance_cb * phase_b,
-                                         equiangular_ ? shared * pdf_cb * light_pdf_w : 0.0);
+        const float w = technique_ == VolptTechnique::Joint
+                            ? 1.0f
+                            : power_heuristic4(joint, distance_cb * light_pdf_w,
+                                               light->is_delta() ? 0.0 : distance_cb * phase_b,
+                                               equiangular_ ? shared * pdf_cb * light_pdf_w : 0.0);
         if (!(w > 0) || !(joint > 0) || !std::isfinite(joint)) return Rgb(0.0f);
 
         const Rgb tr = medium.transmittance(segment.ray, t_dc, rng_) *
@@ -234,7 +256,9 @@ class Tracer {
         const auto [f, pdf_w] = bsdf.evaluate(wo, ls.wi);
         if (f.is_black()) return Rgb(0.0f);
         const float light_pdf_w = dl.pdf_w();
-        const float w = dl.light->is_delta() ? 1.0f : power_heuristic(light_pdf_w, pdf_w.forward);
+        const float w = dl.light->is_delta() || technique_ == VolptTechnique::DistanceLight
+                            ? 1.0f
+                            : power_heuristic(light_pdf_w, pdf_w.forward);
         // The shadow ray starts in the medium on the light's side of the surface.
         const bool same_side = dot(ls.wi, si.geometric_normal) * dot(wo, si.geometric_normal) > 0;
         const Medium* start = same_side ? medium : medium_after_transmission(si, ls.wi);
@@ -248,6 +272,7 @@ class Tracer {
     float emission_weight(const ScatteringVertex& v, const Light* light, const Vec3& light_point,
                           float pdf_direct_a, float cos_light, bool solid_angle) const {
         if (v.delta) return 1.0f;
+        if (technique_ == VolptTechnique::DistanceLight) return 0.0f;  // light sampling took it
         float light_pdf_w = scene_.light_pick_probability(light) * pdf_direct_a;
         if (!solid_angle) {  // area density so far: convert it to solid angle
             if (!(cos_light > 0)) return 0.0f;
@@ -259,14 +284,15 @@ class Tracer {
         const double joint =
             solid_angle ? 0.0
                         : joint_pdf_ratio(v.joint, v.segment, v.t, light, light_point, light_pdf_w);
-        return power_heuristic4(double(v.distance_pdf_l) * v.direction_pdf_w,
-                                double(v.distance_pdf_l) * light_pdf_w,
-                                double(equiangular) * light_pdf_w, joint);
+        return weight(double(v.distance_pdf_l) * v.direction_pdf_w,
+                      double(v.distance_pdf_l) * light_pdf_w, double(equiangular) * light_pdf_w,
+                      joint);
     }
 
   private:
     const Scene& scene_;
     bool equiangular_;
+    VolptTechnique technique_;
     Rng& rng_;
     RenderStats& stats_;
 };
@@ -290,7 +316,7 @@ bool VolumetricPathTracer::survives_roulette(int depth, Rgb& beta, Rng& rng) con
 
 Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng,
                              RenderStats& stats, const LayerSink& sink) const {
-    Tracer tracer(scene, equiangular_, rng, stats);
+    Tracer tracer(scene, equiangular_, technique_, rng, stats);
     Rgb L(0.0f), beta(1.0f);
     Ray ray = camera_ray;
     const Medium* medium = scene.camera_medium();

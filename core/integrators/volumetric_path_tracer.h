@@ -1,6 +1,7 @@
 #pragma once
 
 #include "core/integrators/integrator.h"
+#include "core/integrators/volpt_technique.h"
 
 namespace render {
 
@@ -19,12 +20,20 @@ namespace render {
 //   the light point are sampled together so that the geometry terms cancel; combined with the
 //   three techniques above by the power heuristic over four (the weights of every path
 //   camera -> c -> b -> light include J3's density). docs/media.md, "Joint path sampling".
+// `technique` replaces this MIS by single unweighted techniques, for measuring convergence rates
+// (volpt_technique.h).
 // max_depth counts segments as Mitsuba does (medium vertices count, null crossings do not).
 // Russian roulette acts on throughput below 1 only (see survives_roulette).
 class VolumetricPathTracer final : public PixelIntegrator {
   public:
-    VolumetricPathTracer(int max_depth, int rr_depth, bool equiangular, bool jis)
-        : max_depth_(max_depth), rr_depth_(rr_depth), equiangular_(equiangular), jis_(jis) {}
+    VolumetricPathTracer(int max_depth, int rr_depth, bool equiangular, bool jis,
+                         VolptTechnique technique = VolptTechnique::All)
+        : max_depth_(max_depth),
+          rr_depth_(rr_depth),
+          equiangular_(equiangular && technique != VolptTechnique::DistanceLight),
+          jis_((jis || technique == VolptTechnique::Joint) &&
+               technique != VolptTechnique::DistanceLight),
+          technique_(technique) {}
 
   protected:
     Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
@@ -39,6 +48,7 @@ class VolumetricPathTracer final : public PixelIntegrator {
     int rr_depth_;
     bool equiangular_;
     bool jis_;
+    VolptTechnique technique_;
 };
 
 }  // namespace render

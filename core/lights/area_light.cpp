@@ -11,16 +11,21 @@
 
 namespace render {
 
-AreaLight::AreaLight(const Shape* shape, const RgbParam& radiance)
+AreaLight::AreaLight(const Shape* shape, const RgbParam& radiance, bool importance_sampled)
     : AreaLight(shape, radiance.mean()) {
     if (!radiance.varies()) return;
-    if (!shape || !shape->has_uv_lookup())
+    const auto* mesh = dynamic_cast<const TriangleMesh*>(shape);
+    if (!shape || (!mesh && !shape->has_uv_lookup()))
         throw std::invalid_argument(
             "a textured radiance needs a shape whose uv can be found from a point (sphere, "
-            "disk, rectangle, cube, or a mesh of at most " +
-            std::to_string(TriangleMesh::kMaxUvLookupTriangles) + " triangles)");
+            "disk, rectangle, cube or a triangle mesh)");
     radiance_param_ = radiance;
     textured_ = true;
+    // Also when uniform: the point lookup of meshes too large for TriangleMesh::uv_at.
+    if (mesh && inv_area_ > 0) {
+        mesh_emission_ = std::make_unique<TexturedMeshEmission>(*mesh, *radiance.texture);
+        uniform_mesh_ = !importance_sampled;
+    }
 }
 
 AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
@@ -33,7 +38,7 @@ AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
 
 bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const {
     if (inv_area_ == 0 || radiance_.is_black()) return false;
-    ShapeSample s = shape_->sample_area(u);
+    ShapeSample s = sample_point(u);
     if (!(s.pdf_area > 0) || !std::isfinite(s.pdf_area)) return false;
     Vec3 to_light = s.p - ref;
     float d2 = length_squared(to_light);
@@ -56,14 +61,14 @@ bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) 
 
 bool AreaLight::sample_position(Vec2 u, Vec3& position) const {
     if (inv_area_ == 0 || radiance_.is_black()) return false;
-    const ShapeSample s = shape_->sample_area(u);
+    const ShapeSample s = sample_point(u);
     position = s.p;
     return s.pdf_area > 0 && std::isfinite(s.pdf_area);
 }
 
 bool AreaLight::emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const {
     if (inv_area_ == 0 || radiance_.is_black()) return false;
-    ShapeSample s = shape_->sample_area(u_position);
+    ShapeSample s = sample_point(u_position);
     if (!(s.pdf_area > 0) || !std::isfinite(s.pdf_area)) return false;
     Vec3 local = warp::square_to_cosine_hemisphere(u_direction);
     // Malley's method reaches cos = 0 only on the disk's rim; such a ray carries nothing.
@@ -83,9 +88,19 @@ LightRadiance AreaLight::radiance(const Vec3& hit_point, const Vec3& hit_normal,
     float cos_light = dot(hit_normal, -ray_direction);
     if (!(cos_light > 0) || inv_area_ == 0) return {};
     LightRadiance r;
-    r.radiance = textured_ ? radiance_param_.texture->eval(shape_->uv_at(hit_point)) : radiance_;
-    r.pdf_direct_a = inv_area_;
-    r.pdf_emission_w = inv_area_ * cos_light * kInvPi;
+    float pdf_area = inv_area_;
+    if (mesh_emission_) {
+        Vec2 uv;
+        float pdf;
+        if (!mesh_emission_->find(hit_point, uv, pdf)) return {};  // not on the mesh
+        r.radiance = radiance_param_.texture->eval(uv);
+        if (!uniform_mesh_) pdf_area = pdf;
+    } else {
+        r.radiance =
+            textured_ ? radiance_param_.texture->eval(shape_->uv_at(hit_point)) : radiance_;
+    }
+    r.pdf_direct_a = pdf_area;
+    r.pdf_emission_w = pdf_area * cos_light * kInvPi;
     return r;
 }
 

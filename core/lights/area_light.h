@@ -16,12 +16,15 @@
 // A zero-area shape emits nothing (every sampling routine fails, pdfs are 0).
 //
 // A textured radiance (Mitsuba's `radiance` texture) is looked up at the uv of the emitting
-// point: the sampled one (illuminate, emit) or the hit one (radiance(), through the shape's
-// uv lookup, so the shape must have one). Points are still sampled uniformly by area; power()
-// uses the texture's mean.
+// point: the sampled one (illuminate, emit) or the hit one (radiance(), through a point
+// lookup). On a triangle mesh of any size, points are sampled by radiance x area and the same
+// density is found back from a hit (textured_mesh_emission.h): pdf_area above is then that
+// density, in every routine alike. On a sphere or disk they are sampled uniformly by area and
+// uv comes from the shape's uv_at. power() uses the texture's mean.
 
 #include "core/base/shape.h"
 #include "core/lights/light.h"
+#include "core/lights/textured_mesh_emission.h"
 #include "core/textures/texture_param.h"
 
 namespace render {
@@ -30,8 +33,10 @@ class AreaLight final : public Light {
   public:
     // `shape` must outlive the light (the scene owns both).
     AreaLight(const Shape* shape, const Rgb& radiance);
-    // A textured radiance needs shape->has_uv_lookup() (throws std::invalid_argument).
-    AreaLight(const Shape* shape, const RgbParam& radiance);
+    // A textured radiance needs a triangle mesh or shape->has_uv_lookup() (throws
+    // std::invalid_argument). `importance_sampled` false samples a mesh uniformly by area
+    // too (tests compare the two).
+    AreaLight(const Shape* shape, const RgbParam& radiance, bool importance_sampled = true);
 
     bool illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const override;
     bool sample_position(Vec2 u, Vec3& position) const override;
@@ -45,8 +50,18 @@ class AreaLight final : public Light {
     std::string to_string() const override;
 
     const Shape* shape() const { return shape_; }
+    // The textured mesh's sampler, or null (uniform by area).
+    const TexturedMeshEmission* textured_mesh() const {
+        return uniform_mesh_ ? nullptr : mesh_emission_.get();
+    }
 
   private:
+    // A point by area (uniformly, or by radiance x area on a textured mesh).
+    ShapeSample sample_point(Vec2 u) const {
+        return mesh_emission_ && !uniform_mesh_ ? mesh_emission_->sample(u)
+                                                : shape_->sample_area(u);
+    }
+
     // Le at a sampled or hit point.
     Rgb radiance_at(Vec2 uv) const {
         return textured_ ? radiance_param_.texture->eval(uv) : radiance_;
@@ -56,6 +71,8 @@ class AreaLight final : public Light {
     Rgb radiance_;  // the constant, or the texture's mean
     RgbParam radiance_param_;
     bool textured_ = false;
+    std::unique_ptr<TexturedMeshEmission> mesh_emission_;  // textured meshes: the point lookup
+    bool uniform_mesh_ = false;  // ... but sampled uniformly by area all the same
     float area_;
     float inv_area_;  // 0 for a zero-area shape
 };

@@ -60,9 +60,24 @@ std::unique_ptr<Light> make_spot(const Properties& props) {
     const float beam = props.get_float("beam_width", cutoff * 0.75f);
     if (!(beam >= 0 && beam <= cutoff))
         throw props.error("beam_width", "must be in [0, cutoff_angle] degrees");
-    return std::make_unique<SpotLight>(position, *frame,
-                                       get_emission(props, "intensity", Rgb(1.0f)),
-                                       cutoff * kPi / 180.0f, beam * kPi / 180.0f);
+    // Mitsuba 3's projected texture; a constant `texture` has no effect in Mitsuba (it uses
+    // only a spatially varying one), so it is read and ignored.
+    std::shared_ptr<const Texture> texture = props.get_texture("texture");
+    if (texture) {
+        const float lo = texture->min_value(), hi = texture->max_value();
+        if (!std::isfinite(lo) || !std::isfinite(hi) || lo < 0)
+            throw props.error("texture", "the texture must be finite and non-negative (" +
+                                             texture->to_string() + ")");
+        if (!(cutoff < 90))
+            throw props.error("texture",
+                              "a projected texture needs cutoff_angle below 90 degrees (it "
+                              "spans the cone's tangent plane)");
+    } else if (props.has("texture")) {
+        props.get_rgb("texture");
+    }
+    return std::make_unique<SpotLight>(
+        position, *frame, get_emission(props, "intensity", Rgb(1.0f)), cutoff * kPi / 180.0f,
+        beam * kPi / 180.0f, std::move(texture));
 }
 
 std::unique_ptr<Light> make_directional(const Properties& props) {
@@ -104,7 +119,9 @@ std::unique_ptr<Light> make_area(const Properties& props, const Shape* shape,
             throw props.error("radiance", "a radiance texture must be finite and non-negative (" +
                                               texture->to_string() + ")");
         try {
-            return std::make_unique<AreaLight>(shape, RgbParam{Rgb(), texture});
+            // Ours, not Mitsuba's: uniform area sampling of a textured mesh, for comparisons.
+            const bool uniform = props.get_bool("uniform_sampling", false);
+            return std::make_unique<AreaLight>(shape, RgbParam{Rgb(), texture}, !uniform);
         } catch (const std::invalid_argument& e) {
             throw props.error("radiance", e.what() + std::string(", not ") +
                                               (shape ? shape->to_string() : "no shape"));

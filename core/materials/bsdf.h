@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "core/base/interaction.h"
 #include "core/math/frame.h"
 #include "core/math/vec.h"
 
@@ -77,12 +78,10 @@ class Bsdf : public std::enable_shared_from_this<Bsdf> {
     // interaction (SurfaceBsdf) shares its ownership.
     bool built_for_hit() const { return built_for_hit_; }
 
-    // The shading frame at a hit of this material, given the shape's shading frame and dp/du
-    // (world space): the same frame but for a normal map (normal_map.h). Asked only of
-    // materials that vary, before at() (Scene::intersect).
-    virtual Frame shading_frame(Vec2 /*uv*/, const Frame& shading, const Vec3& /*dpdu*/) const {
-        return shading;
-    }
+    // The shading frame at a hit of this material, given the shape's shading frame, uv and
+    // dp/du, dp/dv (world space): the same frame but for a normal or bump map (normal_map.h,
+    // bump_map.h). Asked only of materials that vary, before at() (Scene::intersect).
+    virtual Frame shading_frame(const SurfaceInteraction& si) const { return si.shading; }
     // True for materials whose shading_frame changes the frame: they must be outermost (a
     // wrapper resolves its children with at(), which drops the frame).
     virtual bool changes_shading_frame() const { return false; }

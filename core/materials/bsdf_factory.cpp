@@ -3,6 +3,7 @@
 #include "core/base/plugin_table.h"
 
 #include "core/materials/blend.h"
+#include "core/materials/bump_map.h"
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
@@ -34,6 +35,7 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"blendbsdf", &BlendBsdf::create},
     {"mask", &BlendBsdf::create_mask},
     {"normalmap", &NormalMapBsdf::create},
+    {"bumpmap", &BumpMapBsdf::create},
 };
 
 }  // namespace

@@ -17,13 +17,13 @@ bool tangent_along(const Vec3& dpdu, const Vec3& n, Vec3& s) {
     return true;
 }
 
+}  // namespace
+
 Frame frame_with_tangent(const Vec3& n, const Vec3& dpdu) {
     Vec3 s;
     if (!tangent_along(dpdu, n, s)) return Frame::from_normal(n);
     return Frame(s, cross(n, s), n);
 }
-
-}  // namespace
 
 Frame normal_mapped_frame(const Vec3& local, const Frame& shading, const Vec3& dpdu) {
     // A flat texel (the map's (0.5, 0.5, 1)) leaves the frame exactly as it is.
@@ -63,9 +63,9 @@ std::shared_ptr<const Bsdf> NormalMapBsdf::create(const Properties& props) {
     return std::make_shared<NormalMapBsdf>(nested, std::move(map), constant);
 }
 
-Frame NormalMapBsdf::shading_frame(Vec2 uv, const Frame& shading, const Vec3& dpdu) const {
-    const Rgb c = map_ ? map_->eval(uv) : constant_;
-    return normal_mapped_frame(Vec3(2 * c.r - 1, 2 * c.g - 1, 2 * c.b - 1), shading, dpdu);
+Frame NormalMapBsdf::shading_frame(const SurfaceInteraction& si) const {
+    const Rgb c = map_ ? map_->eval(si.uv) : constant_;
+    return normal_mapped_frame(Vec3(2 * c.r - 1, 2 * c.g - 1, 2 * c.b - 1), si.shading, si.dpdu);
 }
 
 std::shared_ptr<const Bsdf> NormalMapBsdf::at(Vec2 uv) const {

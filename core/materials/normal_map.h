@@ -23,8 +23,8 @@ class NormalMapBsdf final : public Bsdf {
     // One nested BSDF and the `normalmap` texture (or an rgb constant).
     static std::shared_ptr<const Bsdf> create(const Properties& props);
 
-    // The normal map's frame at uv, from the hit's shading frame and dp/du (world space).
-    Frame shading_frame(Vec2 uv, const Frame& shading, const Vec3& dpdu) const override;
+    // The normal map's frame at the hit's uv, from its shading frame and dp/du (world space).
+    Frame shading_frame(const SurfaceInteraction& si) const override;
     bool changes_shading_frame() const override { return true; }
     std::shared_ptr<const Bsdf> at(Vec2 uv) const override;
 
@@ -51,5 +51,9 @@ class NormalMapBsdf final : public Bsdf {
 // orthogonal s when dp/du is zero or parallel to it). A flat normal (0, 0, z > 0) returns
 // `shading` unchanged; a zero one too.
 Frame normal_mapped_frame(const Vec3& local, const Frame& shading, const Vec3& dpdu);
+
+// The frame of unit normal `n` with s along dp/du made orthogonal to it (any orthogonal s when
+// dp/du is zero or parallel to n): Mitsuba's Gram-Schmidt step, shared with bump maps.
+Frame frame_with_tangent(const Vec3& n, const Vec3& dpdu);
 
 }  // namespace render

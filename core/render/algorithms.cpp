@@ -69,10 +69,10 @@ const std::vector<Algorithm>& table() {
              "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
              "media)",
          .support = {.homogeneous_media = true, .grid_media = true, .emissive_media = true},
-         .options = {"max_depth", "rr_depth", "equiangular", "jis"},
+         .options = {"max_depth", "rr_depth", "equiangular", "jis", "volpt_technique"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
-                                                           s.jis);
+                                                           s.jis, s.volpt_technique);
          }},
         {.name = "lt",
          .description = "light tracing (homogeneous and grid media)",
@@ -111,8 +111,14 @@ const std::vector<Algorithm>& table() {
         {.name = "vcm",
          .description = "vertex connection and merging (homogeneous and grid media)",
          .support = {.homogeneous_media = true, .grid_media = true},
-         .options = kMerging,
-         .create = make_bidirectional<BidirectionalMode::Vcm>},
+         .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
+                     "joint_connections"},
+         .variants = {{{"joint_connections", "on"}}},
+         .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
+             config.joint_connections = s.joint_connections;
+             return std::make_unique<VertexConnectionMerging>(config);
+         }},
         {.name = "upbp",
          .description =
              "unified points, beams and paths (homogeneous and grid media): vcm's connections "

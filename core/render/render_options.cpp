@@ -242,15 +242,44 @@ const std::vector<RenderOption>& table() {
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.jis = v == "on"; },
          .format = [](const RenderSettings& s) -> std::string { return s.jis ? "on" : "off"; }},
+        {.name = "volpt_technique",
+         .flag = "--volpt-technique",
+         .metavar = "all|dl|j3",
+         .type = OptionType::Choice,
+         .help = "diagnostic: the techniques that sample double scattering (volpt). all: the "
+                 "MIS of every technique; dl: distance and light sampling only, unweighted (no "
+                 "equi-angular or joint sampling); j3: joint sampling alone, unweighted, for the "
+                 "paths it can produce. Each is unbiased; dl and j3 are for measuring "
+                 "convergence rates (docs/media.md, \"Joint path sampling\")",
+         .choices = {"all", "dl", "j3"},
+         .default_text = "all",
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.volpt_technique = v == "dl"   ? VolptTechnique::DistanceLight
+                                     : v == "j3" ? VolptTechnique::Joint
+                                                 : VolptTechnique::All;
+             },
+         .format = [](const RenderSettings& s) -> std::string {
+             switch (s.volpt_technique) {
+                 case VolptTechnique::DistanceLight:
+                     return "dl";
+                 case VolptTechnique::Joint:
+                     return "j3";
+                 case VolptTechnique::All:
+                     break;
+             }
+             return "all";
+         }},
         {.name = "joint_connections",
          .flag = "--joint-connections",
          .metavar = "off|on",
          .type = OptionType::Choice,
          .help = "joint (J1, vertex-segment) connections in homogeneous media: each eye segment "
                  "in a medium also joins the vertices of the pixel's light path through a "
-                 "medium vertex sampled toward each, combined by MIS (off by default: on the fog "
-                 "box it lowers the equal-time error of double scattering 1.05-1.14x but not "
-                 "that of all orders, 0.90-0.97x; docs/joint-sampling.md)",
+                 "medium vertex sampled toward each, and to a light point (equi-angular "
+                 "next-event estimation), combined by MIS (bpt, vcm; off by default: on the fog "
+                 "box they halve the variance but double the time per iteration, equal-time "
+                 "error 0.96-1.05x; docs/joint-sampling.md)",
          .choices = {"off", "on"},
          .default_text = "off",
          .apply = [](RenderSettings& s, const std::string& v) { s.joint_connections = v == "on"; },

@@ -6,6 +6,7 @@
 #include "core/base/render_stats.h"
 #include "core/image/technique_layers.h"
 #include "core/integrators/importance_weights.h"
+#include "core/integrators/volpt_technique.h"
 
 namespace render {
 
@@ -34,8 +35,10 @@ struct RenderSettings {
     // volpt: joint path sampling (Georgiev et al. 2013) of double scattering on the camera ray in
     // homogeneous media, combined by MIS with the other techniques (docs/media.md).
     bool jis = true;
-    // bpt: joint (J1, vertex-segment) connections from eye segments in homogeneous media, one
-    // more technique in the MIS (docs/media.md, "Joint connections in bpt").
+    // volpt: which techniques sample double scattering (a diagnostic; All = the MIS above).
+    VolptTechnique volpt_technique = VolptTechnique::All;
+    // bpt, vcm: joint (J1, vertex-segment) connections from eye segments in homogeneous media,
+    // one more technique in the MIS (docs/media.md, "Joint connections in bpt and vcm").
     bool joint_connections = false;
     // upbp: whether connections are made, which merges join them (surfaces, photon points P-P3D,
     // query beams P-B2D) and the volume estimators' radius schedule (0: the surfaces' radius_factor

@@ -143,10 +143,10 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) 
     else
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, detail, si);
-    // Materials that vary over the surface: the shapes filled si.uv and si.dpdu for them
+    // Materials that vary over the surface: the shapes filled si.uv, dpdu and dpdv for them
     // (uv_wanted, core/shapes/uv_wanted.h), which the shading-frame hook and at() read.
     if (si.bsdf->varies()) {
-        si.shading = si.bsdf->shading_frame(si.uv, si.shading, si.dpdu);  // normal maps
+        si.shading = si.bsdf->shading_frame(si);  // normal and bump maps
         si.hit_bsdf = si.bsdf->at(si.uv);
         si.bsdf = si.hit_bsdf.get();
     } else if (si.hit_bsdf) {

@@ -63,9 +63,11 @@ void Disk::fill_interaction(const Ray& ray, float t, unsigned, float, float, Hit
         // u = r: dp/du is the radial direction (zero at the centre).
         const float r = std::sqrt(local.x * local.x + local.y * local.y);
         si.dpdu = r > 0 ? to_world_.apply_vector(Vec3(local.x / r, local.y / r, 0)) : Vec3(0.0f);
+        // v = phi / 2 pi: dp/dv = 2 pi (-y, x, 0), zero at the centre.
+        si.dpdv = to_world_.apply_vector(Vec3(-local.y, local.x, 0) * (2 * kPi));
     } else {
         si.uv = Vec2();
-        si.dpdu = Vec3(0.0f);
+        si.dpdu = si.dpdv = Vec3(0.0f);
     }
     si.shape = this;
     si.bsdf = bsdf;

@@ -80,6 +80,7 @@ void Instance::fill_interaction(const Ray& ray, float t, unsigned geometry_id, u
     si.geometric_normal = normalize(to_world_.apply_normal(si.geometric_normal));
     si.shading = Frame::from_normal(normalize(to_world_.apply_normal(si.shading.n)));
     si.dpdu = to_world_.apply_vector(si.dpdu);
+    si.dpdv = to_world_.apply_vector(si.dpdv);
 }
 
 Aabb Instance::bounds() const {

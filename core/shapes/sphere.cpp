@@ -64,9 +64,15 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float, H
         // dp/du = 2 pi z x (p - c); zero at the poles.
         const float handedness = dot(cross(axes_.s, axes_.t), axes_.n) < 0 ? -1.0f : 1.0f;
         si.dpdu = cross(axes_.n, n * radius_) * (2 * kPi * handedness);
+        // v = theta / pi from the object's +z: dp/dv = pi r (cos(theta) n - z) / sin(theta)
+        // (unit dp/dtheta times pi r); zero at the poles.
+        const float cos_theta = dot(n, axes_.n);
+        const float sin_theta = std::sqrt(std::max(0.0f, 1 - cos_theta * cos_theta));
+        si.dpdv =
+            sin_theta > 0 ? (n * cos_theta - axes_.n) * (kPi * radius_ / sin_theta) : Vec3(0.0f);
     } else {
         si.uv = Vec2();
-        si.dpdu = Vec3(0.0f);
+        si.dpdu = si.dpdv = Vec3(0.0f);
     }
     if (flip_normals_) n = -n;
     si.geometric_normal = n;

@@ -114,26 +114,32 @@ void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, f
     si.shading = Frame::from_normal(ns);
     if (uv_wanted(*this, detail)) {
         si.uv = uv_of(prim_id, u, v);
-        si.dpdu = dpdu_of(prim_id);
+        tangents_of(prim_id, si.dpdu, si.dpdv);
     } else {
         si.uv = Vec2();
-        si.dpdu = Vec3(0.0f);
+        si.dpdu = si.dpdv = Vec3(0.0f);
     }
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;
 }
 
-Vec3 TriangleMesh::dpdu_of(size_t tri) const {
+void TriangleMesh::tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const {
     const uint32_t* i = &indices_[3 * tri];
     const Vec3 e1 = positions_[i[1]] - positions_[i[0]], e2 = positions_[i[2]] - positions_[i[0]];
-    if (uvs_.empty()) return e1;  // uv = (b1, b2): p = p0 + u e1 + v e2
-    // Solve e1 = dpdu du1 + dpdv dv1, e2 = dpdu du2 + dpdv dv2 for dpdu.
+    if (uvs_.empty()) {  // uv = (b1, b2): p = p0 + u e1 + v e2
+        dpdu = e1;
+        dpdv = e2;
+        return;
+    }
+    // Solve e1 = dpdu du1 + dpdv dv1, e2 = dpdu du2 + dpdv dv2.
     const Vec2 d1 = uvs_[i[1]] - uvs_[i[0]], d2 = uvs_[i[2]] - uvs_[i[0]];
     const float det = d1.x * d2.y - d1.y * d2.x;
-    if (!(std::abs(det) > 0)) return Vec3(0.0f);  // degenerate uv: no tangent
-    const Vec3 dpdu = (e1 * d2.y - e2 * d1.y) / det;
-    return is_finite(dpdu) ? dpdu : Vec3(0.0f);
+    dpdu = dpdv = Vec3(0.0f);
+    if (!(std::abs(det) > 0)) return;  // degenerate uv: no tangents
+    const Vec3 u = (e1 * d2.y - e2 * d1.y) / det, v = (e2 * d1.x - e1 * d2.x) / det;
+    if (is_finite(u)) dpdu = u;
+    if (is_finite(v)) dpdv = v;
 }
 
 Vec2 TriangleMesh::uv_of(size_t tri, float b1, float b2) const {

@@ -43,11 +43,15 @@ class TriangleMesh final : public Shape {
     size_t triangle_count() const { return indices_.size() / 3; }
     const std::vector<Vec3>& positions() const { return positions_; }
 
-  private:
+    const std::vector<uint32_t>& indices() const { return indices_; }
+    // Unit geometric normal of triangle `tri` as hits report it (zero when degenerate).
+    const Vec3& face_normal(size_t tri) const { return face_normals_[tri]; }
     // uv at barycentrics (b1, b2) of triangle `tri`, as a hit reports it.
     Vec2 uv_of(size_t tri, float b1, float b2) const;
-    // dp/du of triangle `tri` (constant over it; zero for degenerate uv).
-    Vec3 dpdu_of(size_t tri) const;
+
+  private:
+    // dp/du and dp/dv of triangle `tri` (constant over it; zero for degenerate uv).
+    void tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const;
 
     std::vector<Vec3> positions_;
     // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate

@@ -62,22 +62,33 @@ def memory_gib() -> Optional[float]:
 
 
 def source_revision() -> str:
-    """The checked-out commit, read from .git without running git ("unknown" otherwise)."""
+    """The checked-out commit, read from .git without running git ("unknown" otherwise).
+
+    In a linked worktree .git is a file naming the worktree's own git folder (which holds HEAD)
+    and that folder's `commondir` names the repository's (which holds the refs)."""
     git = REPO_ROOT / ".git"
     try:
-        head = (git / "HEAD").read_text().strip()
+        git_dir = git
+        if git.is_file():
+            git_dir = (git.parent / git.read_text().strip().split(None, 1)[1]).resolve()
+        common_dir = git_dir
+        commondir_file = git_dir / "commondir"
+        if commondir_file.exists():
+            common_dir = (git_dir / commondir_file.read_text().strip()).resolve()
+        head = (git_dir / "HEAD").read_text().strip()
         if not head.startswith("ref:"):
             return head[:12]
         ref = head.split(None, 1)[1]
-        ref_file = git / ref
-        if ref_file.exists():
-            return ref_file.read_text().strip()[:12]
-        packed = git / "packed-refs"
+        for folder in (git_dir, common_dir):
+            ref_file = folder / ref
+            if ref_file.exists():
+                return ref_file.read_text().strip()[:12]
+        packed = common_dir / "packed-refs"
         if packed.exists():
             for line in packed.read_text().splitlines():
                 if line.endswith(" " + ref):
                     return line.split()[0][:12]
-    except OSError:
+    except (OSError, IndexError):
         pass
     return "unknown"
 

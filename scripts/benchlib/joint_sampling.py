@@ -25,8 +25,13 @@ technique samples), so its v, and the ratio, are far less certain than the stand
 
 bpt's joint (J1) connections (`bpt --joint-connections on` against `off`) are measured the same way on
 the isotropic fog box: the double-scattering paths (max_depth 3; the layers with s + t = 4,
-summed: bpt samples them with (s, t) = (1, 3), (2, 2) and (3, 1), and J1 adds one technique at
-the (2, 2) junction) and the whole image with every order (max_depth -1).
+summed: bpt samples them with (s, t) = (1, 3), (2, 2) and (3, 1); J1 adds one technique at
+the (2, 2) junction and, as equi-angular next-event estimation, one at the (1, 3) junction) and
+the whole image with every order (max_depth -1).
+
+vcm's (`vcm --joint-connections on` against `off`) on the whole image only: merges are not in
+the (s, t) layers, and J1 moves weight between merges and connections, so a path class of the
+layers is not the same estimand in both arms. Both arms use the default merge radius.
 """
 
 import math
@@ -50,6 +55,21 @@ TIMING_SECONDS = 3.0
 QUICK = {"width": 32, "runs": 4, "iterations": 2, "groups": 2, "timing_repeats": 1,
          "timing_seconds": 0.3}
 CLAIM_RATIO = 5.0  # ALGORITHMS-NEXT.md 3.8 (b1): >= 5x lower RMSE at equal time
+
+
+# The pictures of these arms and the convergence slopes come from another benchmark
+# (scripts/benchlib/joint_figures.py); this document shows them.
+PICTURE_LINES = [
+    "## Pictures and convergence slopes", "",
+    "Written by `scripts/bench --only joint-figures` into [joint-figures.md](joint-figures.md) "
+    "(commands, machine, iteration counts, errors): each arm at equal time beside a reference "
+    "and false-colour images of its absolute error, for double scattering alone and the whole "
+    "image; and the mean absolute error of the unweighted 0-connection and of unweighted joint "
+    "sampling against N.", "",
+    "![volpt, isotropic fog box](img/joint-sampling/fog-box-isotropic-volpt.png)", "",
+    "![volpt, fog box with g = 0.9](img/joint-sampling/fog-box-g09-volpt.png)", "",
+    "![bpt with and without J1, isotropic fog box](img/joint-sampling/fog-box-isotropic-bpt.png)",
+    "", "![convergence slopes](img/joint-sampling/slopes.png)", ""]
 
 
 def read_layer(path: Path, layer: str):
@@ -131,6 +151,10 @@ def measure_arm(binary, flags, resolution, threads, workdir, cfg, algo="volpt", 
             "mean": float(np.stack(m["images"]).mean()), "command": commands[-1]}
 
 
+VCM_ARMS = {"vcm": ["--joint-connections", "off"], "vcm + J1": ["--joint-connections", "on"]}
+VCM_CASES = {"all orders (max_depth -1)": (["-D", "max_depth=-1"], None)}
+
+
 def compare_arms(lines, title, what, arms, off_name, on_name, of_what, technique):
     """Appends a section comparing two measured arms (their table and the equal-time RMSE
     ratio sqrt((v t)_off / (v t)_on)) to `lines`; returns the ratio and its standard error."""
@@ -190,6 +214,15 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                               algo="bpt", vertices=vertices)
              for arm, flags in BPT_ARMS.items()},
             "bpt", "bpt + J1", "", "J1")
+    vcm_verdicts = {}
+    for case, (defines, vertices) in VCM_CASES.items():
+        vcm_verdicts[case] = compare_arms(
+            lines, f"vcm with and without J1 connections, isotropic fog box, {case}",
+            "the image",
+            {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg,
+                              algo="vcm", vertices=vertices)
+             for arm, flags in VCM_ARMS.items()},
+            "vcm", "vcm + J1", "", "J1")
     ratio, ratio_se = verdicts["isotropic"]
     lines += ["## The claim", "",
               f"- Isotropic fog box: {ratio:.2f} ± {ratio_se:.2f}× lower double-scattering RMSE "
@@ -200,7 +233,11 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     lines += ["- bpt's J1 connections (the issue asks what they give; no claim of the paper "
               "covers them): " + "; ".join(
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
-                  for case, (r, se) in bpt_verdicts.items()) + ".", ""]
+                  for case, (r, se) in bpt_verdicts.items()) + ".",
+              "- vcm's J1 connections: " + "; ".join(
+                  f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
+                  for case, (r, se) in vcm_verdicts.items()) + ".", ""]
+    lines += PICTURE_LINES
     docs_dir.mkdir(parents=True, exist_ok=True)
     out_doc = docs_dir / "joint-sampling.md"
     out_doc.write_text("\n".join(lines) + "\n")

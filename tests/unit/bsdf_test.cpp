@@ -753,7 +753,7 @@ TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
     EXPECT_EQ(error_of(bsdf_props("velvet")),
               "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
               "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, "
-              "roughplastic, phong, null, blendbsdf, mask, normalmap)");
+              "roughplastic, phong, null, blendbsdf, mask, normalmap, bumpmap)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {

@@ -733,10 +733,61 @@ TEST_F(PbrtTest, Media) {
     EXPECT_NE(world_error("MediumInterface \"nope\" \"\"\n")
                   .find(at_body_line(1) + " MediumInterface: unknown medium \"nope\""),
               std::string::npos);
-    EXPECT_NE(
-        world_error("MakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"rgb Le\" [1 1 1]\n")
-            .find("emissive media are not supported yet"),
-        std::string::npos);
+    // Emission: Le times Lescale (a float, or for uniformgrid a grid on the density's lattice,
+    // not multiplied by the density), as `radiance`; sigma_a Le is the source term in both.
+    scene = load_world(
+        "MakeNamedMedium \"glow\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [1 1 1] "
+        "\"rgb Le\" [0.5 1 2] \"float Lescale\" 3\nMediumInterface \"glow\" \"\"\n"
+        "Material \"interface\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    const Medium* glow = scene->shapes()[0]->interior;
+    ASSERT_NE(glow, nullptr);
+    EXPECT_TRUE(glow->is_emissive());
+    EXPECT_NEAR(glow->radiance(Vec3(0.0f)).r, 1.5, 1e-6);
+    EXPECT_NEAR(glow->radiance(Vec3(0.0f)).b, 6, 1e-6);
+    scene = load_world(
+        "Translate 10 0 0\nMakeNamedMedium \"flame\" \"string type\" \"uniformgrid\" "
+        "\"integer nx\" 2 \"float density\" [1 3] \"float Lescale\" [2 4] \"rgb Le\" [1 0.5 0] "
+        "\"point3 p0\" [0 0 0] \"point3 p1\" [2 1 1]\nIdentity\n"
+        "MediumInterface \"flame\" \"\"\nMaterial \"interface\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    const Medium* flame = scene->shapes()[0]->interior;
+    ASSERT_NE(flame, nullptr);
+    EXPECT_TRUE(flame->is_emissive());
+    EXPECT_NEAR(flame->radiance(Vec3(10.5f, 0.5f, 0.5f)).r, 2, 1e-5);  // voxel 0's centre
+    EXPECT_NEAR(flame->radiance(Vec3(11.0f, 0.5f, 0.5f)).r, 3, 1e-5);  // halfway
+    EXPECT_NEAR(flame->radiance(Vec3(11.5f, 0.5f, 0.5f)).g, 2, 1e-5);  // voxel 1: 4 x 0.5
+    EXPECT_NEAR(flame->radiance(Vec3(11.5f, 0.5f, 0.5f)).b, 0, 1e-6);
+    // A constant Lescale on a grid; Le absent: no emission whatever Lescale says.
+    scene = load_world(
+        "MakeNamedMedium \"a\" \"string type\" \"uniformgrid\" \"float density\" [1] "
+        "\"rgb Le\" [1 1 1] \"float Lescale\" 0.5\nMediumInterface \"a\" \"\"\n"
+        "Material \"interface\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    EXPECT_NEAR(scene->shapes()[0]->interior->radiance(Vec3(0.5f)).g, 0.5, 1e-6);
+    scene = load_world(
+        "MakeNamedMedium \"b\" \"string type\" \"homogeneous\" \"float Lescale\" 4\n"
+        "MediumInterface \"b\" \"\"\nMaterial \"interface\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    EXPECT_FALSE(scene->shapes()[0]->interior->is_emissive());
+    // A blackbody Le is its unit-luminance colour (as for lights), times Lescale.
+    scene = load_world(
+        "MakeNamedMedium \"c\" \"string type\" \"homogeneous\" \"blackbody Le\" 3000 "
+        "\"float Lescale\" 2\nMediumInterface \"c\" \"\"\nMaterial \"interface\"\n"
+        "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    const Rgb warm = *pbrt::blackbody_rgb(3000);
+    EXPECT_NEAR(scene->shapes()[0]->interior->radiance(Vec3(0.0f)).r, 2 * warm.r, 1e-5);
+    EXPECT_NEAR(scene->shapes()[0]->interior->radiance(Vec3(0.0f)).b, 2 * warm.b, 1e-5);
+    EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"rgb Le\" "
+                          "[1 -1 1]\n")
+                  .find("Le"),
+              std::string::npos);
+    EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" "
+                          "2 \"float density\" [1 1] \"float Lescale\" [1 2 3]\n")
+                  .find("expects 1 or nx * ny * nz = 2 values, got 3"),
+              std::string::npos);
+    EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float "
+                          "density\" [1] \"float temperature\" [1000]\n")
+                  .find("temperature grids is not supported yet"),
+              std::string::npos);
     EXPECT_NE(world_error("MakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 "
                           "\"float density\" [1]\n")
                   .find("expects nx * ny * nz = 2 values, got 1"),

@@ -13,6 +13,11 @@
 #include "core/lights/light_factory.h"
 #include "core/math/constants.h"
 #include "core/math/transform.h"
+#include "core/render/render_iterations.h"
+#include "core/render/render_options.h"
+#include "core/sampling/rng.h"
+#include "core/scene/loader/scene_loader.h"
+#include "core/textures/texture_factory.h"
 #include "tests/support/chi_square.h"
 #include "tests/support/light_fixtures.h"
 #include "tests/support/statistics.h"
@@ -185,6 +190,137 @@ TEST(SpotLight, EmittedPowerIntegratesTheIntensity) {
                                                                   : 0.0);
         }
         EXPECT_NEAR(mean.mean(), power.b, 4 * mean.standard_error() + 1e-5 * power.b);
+    }
+}
+
+// Mitsuba 3's projected `texture`: a checkerboard (color0 where the fractional parts of 3 u and
+// 2 v are on the same side of 1/2) over the cone's square of half-angle cutoff. The intensity
+// toward the local direction (x, y, z) is I falloff texture(1/2 + x / (2 z tan cutoff), 1/2 + y /
+// (2 z tan cutoff)), from illuminate() and emit() alike; the densities are the untextured ones;
+// power() uses the mean.
+TEST(SpotLight, ProjectedTextureScalesTheIntensity) {
+    const Rgb color0(1.0f, 2.0f, 3.0f), color1(0.25f, 0.5f, 0.125f), intensity(2.0f, 3.0f, 4.0f);
+    auto make = [&](bool textured) {
+        Properties props("emitter", "spot", SourceLocation{"scene.xml", 3});
+        const SourceLocation at{"scene.xml", 4};
+        props.set("intensity", intensity, at);
+        props.set("cutoff_angle", 30.0f, at);
+        props.set("beam_width", 10.0f, at);
+        props.set("to_world", Transform::look_at(Vec3(1, 2, 3), Vec3(0.0f), Vec3(0, 1, 0)), at);
+        if (textured) {
+            Properties checker("texture", "checkerboard", at);
+            checker.set("color0", color0, at);
+            checker.set("color1", color1, at);
+            checker.set("to_uv", Transform::scale(Vec3(3, 2, 1)), at);
+            props.set("texture", make_texture(checker), at);
+        }
+        std::unique_ptr<Light> light = make_light(props, nullptr, ".");
+        props.check_all_used();
+        return light;
+    };
+    auto textured = make(true), plain = make(false);
+    const auto& spot = dynamic_cast<const SpotLight&>(*textured);
+    // The light's local axes: to_world's x, y and z (the axis), as Mitsuba's.
+    const Transform to_world = Transform::look_at(Vec3(1, 2, 3), Vec3(0.0f), Vec3(0, 1, 0));
+    const Vec3 x = normalize(to_world.apply_vector(Vec3(1, 0, 0)));
+    const Vec3 y = normalize(to_world.apply_vector(Vec3(0, 1, 0)));
+    const Vec3 z = normalize(to_world.apply_vector(Vec3(0, 0, 1)));
+    const float inv_tan = 1.0f / std::tan(30 * kDegree);
+    auto expected = [&](const Vec3& local) {
+        const float u = 0.5f + 0.5f * local.x / local.z * inv_tan;
+        const float v = 0.5f + 0.5f * local.y / local.z * inv_tan;
+        // The checkerboard's to_uv scales u by 3 and v by 2.
+        const float fu = 3 * u - std::floor(3 * u), fv = 2 * v - std::floor(2 * v);
+        const Rgb tex = (fu > 0.5f) == (fv > 0.5f) ? color0 : color1;
+        return intensity * tex * spot.falloff(x * local.x + y * local.y + z * local.z);
+    };
+    int seen[2] = {0, 0};
+    for (int i = 0; i < 400; ++i) {
+        // Local directions over the cone's square (tan up to 0.6 > tan 30 = 0.577).
+        const Vec3 local = normalize(Vec3(-0.6f + 1.2f * ((i * 37) % 400) / 400.0f + 0.001f,
+                                          -0.6f + 1.2f * float(i) / 400.0f + 0.001f, 1.0f));
+        const Vec3 dir = x * local.x + y * local.y + z * local.z;
+        const Rgb want = expected(local);
+        LightIlluminateSample s;
+        const bool lit = textured->illuminate(Vec3(1, 2, 3) + dir * 2.0f, Vec2(0.5f, 0.5f), s);
+        EXPECT_EQ(lit, !want.is_black()) << i;
+        if (!lit) continue;
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(s.radiance[c], want[c], 1e-4f * want[c]) << i;
+        ++seen[want.r == intensity.r * color0.r * spot.falloff(dir) ? 0 : 1];
+        LightIlluminateSample p;
+        ASSERT_TRUE(plain->illuminate(Vec3(1, 2, 3) + dir * 2.0f, Vec2(0.5f, 0.5f), p));
+        EXPECT_EQ(s.pdf_emission_w, p.pdf_emission_w);
+        EXPECT_EQ(s.pdf_direct_w, p.pdf_direct_w);
+    }
+    EXPECT_GT(seen[0], 50);
+    EXPECT_GT(seen[1], 50);
+    Rng rng(StreamKey{9, 0, 1, 0});
+    for (int i = 0; i < 1000; ++i) {
+        const Vec2 u_position = rng.next_2d(), u_direction = rng.next_2d();
+        LightEmitSample e, p;
+        const bool emitted = textured->emit(u_position, u_direction, e);
+        ASSERT_EQ(emitted, plain->emit(u_position, u_direction, p));
+        if (!emitted) continue;
+        EXPECT_EQ(e.direction, p.direction);
+        EXPECT_EQ(e.pdf_emission_w, p.pdf_emission_w);
+        const Vec3 local(dot(e.direction, x), dot(e.direction, y), dot(e.direction, z));
+        const Rgb want = expected(local);
+        // Absolute 1e-4 too: near the cone's edge the falloff is a small difference of angles.
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(e.energy[c], want[c], 1e-4f * want[c] + 1e-4f);
+    }
+    expect_close(textured->power(), plain->power() * ((color0 + color1) * 0.5f));
+}
+
+TEST(SpotLight, ProjectedTextureRefusals) {
+    auto error = [](float cutoff, Rgb color) {
+        Properties props("emitter", "spot", SourceLocation{"scene.xml", 7});
+        props.set("cutoff_angle", cutoff, SourceLocation{"scene.xml", 8});
+        Properties checker("texture", "checkerboard", SourceLocation{"scene.xml", 9});
+        checker.set("color0", color, SourceLocation{"scene.xml", 9});
+        props.set("texture", make_texture(checker), SourceLocation{"scene.xml", 9});
+        try {
+            make_light(props, nullptr, ".");
+        } catch (const SceneError& e) {
+            return std::string(e.what());
+        }
+        return std::string("(no error)");
+    };
+    EXPECT_NE(error(90.0f, Rgb(1))
+                  .find("scene.xml:9: emitter \"spot\", parameter \"texture\": a "
+                        "projected texture needs cutoff_angle below 90"),
+              std::string::npos)
+        << error(90.0f, Rgb(1));
+    EXPECT_NE(error(30.0f, Rgb(-1)).find("scene.xml:9:"), std::string::npos);
+    EXPECT_EQ(error(89.0f, Rgb(1)), "(no error)");
+}
+
+// A Mitsuba 3 file with a projected bitmap loads and renders: the floor is lit only where the
+// texture's cone reaches, and the image is finite.
+TEST(SpotLight, ProjectedTextureSceneRenders) {
+    auto scene = load_scene_from_string(R"(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0, 4, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
+  </sensor>
+  <shape type="rectangle"><transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform>
+    <bsdf type="diffuse"/></shape>
+  <emitter type="spot">
+    <transform name="to_world"><lookat origin="0, 3, 0" target="0, 0, 0" up="0, 0, 1"/></transform>
+    <rgb name="intensity" value="20"/>
+    <float name="cutoff_angle" value="25"/>
+    <texture type="bitmap" name="texture"><string name="filename" value="textures/tiles.png"/></texture>
+  </emitter>
+</scene>)",
+                                        std::string(RENDER_SOURCE_DIR) + "/scenes/tests");
+    ASSERT_NE(scene->lights()[0]->to_string().find("texture"), std::string::npos);
+    for (const std::string algorithm : {"pt", "lt", "vcm"}) {
+        RenderSettings settings = resolve_render_settings(algorithm, {}, scene->settings);
+        const IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 3});
+        double total = 0;
+        bool finite = true;
+        for (float v : r.sum.values()) total += v, finite = finite && std::isfinite(v);
+        EXPECT_TRUE(finite) << algorithm;
+        EXPECT_GT(total, 0.0) << algorithm;
     }
 }
 

@@ -246,9 +246,9 @@ TEST(TexturedMaterial, BadTextureInputIsALocatedError) {
                     "<string>:4: bsdf \"phong\", parameter \"exponent\": a texture is not "
                     "accepted here");
     // A plugin that has no use for a texture: an unused parameter at its own line.
-    EXPECT_CONTAINS(load_error("<emitter type=\"spot\">\n<texture type=\"checkerboard\" "
+    EXPECT_CONTAINS(load_error("<emitter type=\"point\">\n<texture type=\"checkerboard\" "
                                "name=\"texture\"/></emitter>"),
-                    "<string>:4: unused parameter \"texture\" in emitter \"spot\"");
+                    "<string>:4: unused parameter \"texture\" in emitter \"point\"");
 }
 
 }  // namespace

@@ -5,8 +5,10 @@
 // recursions of vcm_mis.h along the path from both ends, exactly as the integrator
 // (vertex_cm.cpp) does while tracing, and evaluates the weight of every technique that can
 // produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
-// (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex. For BPT
-// (connections only), BPM (merges only) and VCM (both), with the power and the balance heuristic:
+// (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex, and in fog the
+// J1 joint connections (every junction with a medium vertex on the eye side, s = 1 included)
+// and upbp's beams. For BPT (connections only), BPM (merges only) and VCM (both), with the power
+// and the balance heuristic:
 //   - the weights must sum to one: any density, cosine or distance that the recursion gets
 //     wrong for some techniques and not for others breaks it;
 //   - each weight must equal p_k^beta / sum_j p_j^beta, with every technique's density p_k of
@@ -30,6 +32,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -90,6 +93,7 @@ enum class TechniqueKind {
     Camera,
     Merge,
     JointConnection,
+    JointDirect,
     QueryBeam,
     PhotonBeam
 };
@@ -98,6 +102,8 @@ struct Technique {
     // Connection: light vertex `vertex` to eye vertex `vertex + 1`; Merge: the vertex merged at;
     // JointConnection: as Connection, with the eye vertex (in the medium) sampled by half-line
     // equi-angular sampling toward the light vertex instead of by distance sampling (J1);
+    // JointDirect: J1 at s = 1, next-event estimation with vertex 0 (in the medium) sampled
+    // toward the light point;
     // QueryBeam: the medium vertex `vertex` is a photon gathered along the camera segment
     // that reaches it (P-B2D, the long query beam: the eye side samples no distance there);
     // PhotonBeam: the medium vertex `vertex` is the closest approach of the light segment that
@@ -332,9 +338,10 @@ class MisSumTest : public ::testing::Test {
     }
     // Whether junction `eye_side` (its eye-side vertex; the light-side vertex is eye_side - 1)
     // has a J1 technique: the eye-side vertex is in the medium and the light-side one is a
-    // scattering vertex (not the light).
+    // scattering vertex, or (J1 at s = 1) a finite light's point.
     bool has_joint(int eye_side) const {
-        return joint_ && eye_side >= 1 && eye_side < int(vertices_.size()) &&
+        const int first = joint_light_ && end_.finite ? 0 : 1;
+        return joint_ && eye_side >= first && eye_side < int(vertices_.size()) &&
                vertices_[size_t(eye_side)].in_medium();
     }
     // r = p_J1 / p_connection of that junction when its eye-side vertex is sampled from `from`
@@ -459,6 +466,7 @@ class MisSumTest : public ::testing::Test {
         std::vector<Technique> list;
         if (use_vc && !end_.delta) list.push_back({TechniqueKind::Emission});
         if (use_vc && !vertices_[0].specular) list.push_back({TechniqueKind::Direct});
+        if (use_vc && has_joint(0)) list.push_back({TechniqueKind::JointDirect});
         for (size_t a = 0; use_vc && a + 1 < m; ++a)
             if (!vertices_[a].specular && !vertices_[a + 1].specular)
                 list.push_back({TechniqueKind::Connection, a});
@@ -481,8 +489,10 @@ class MisSumTest : public ::testing::Test {
         const size_t m = vertices_.size();
         switch (t.kind) {
             case TechniqueKind::Emission:  // eq. 43 (trace_eye_path, emission)
-                return mis.weight_emission(st.eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w);
-            case TechniqueKind::Direct: {  // eqs. 44-45 (direct_illumination)
+                return mis.weight_emission(st.eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w,
+                                           joint_ratio(0, 1));
+            case TechniqueKind::Direct:  // eqs. 44-45 (direct_illumination)
+            case TechniqueKind::JointDirect: {
                 const PathVertex& v = vertices_[0];
                 const Vec3 wo = toward_eye(0), wi = toward_light(0);
                 const BsdfPdf pdf_w = pdf_at(0, TransportMode::Radiance, wo, wi);
@@ -495,19 +505,22 @@ class MisSumTest : public ::testing::Test {
                                         beam_sin(0), camera_distance(0), beam_sigma_t(0),
                                         light_density * l.toward_start, light_density, true)
                                   : 0.0f;
-                return mis.weight_direct(st.eye[0], {.bsdf_forward_w = pdf_w.forward,
-                                                     .bsdf_reverse_w = pdf_w.reverse,
-                                                     .light_pdf_w = end_.direct_pdf_w,
-                                                     .emission_pdf_w = end_.emission_pdf_w,
-                                                     .direct_pdf_w = end_.direct_pdf_w,
-                                                     .cos_here = v.cos(wi),
-                                                     .cos_light = end_.cos_light,
-                                                     .delta_light = end_.delta,
-                                                     .eye_medium = v.in_medium(),
-                                                     .eye_query_beam = eye_query_beam(mis, 0),
-                                                     .pass_to_light_probability = l.toward_end,
-                                                     .distance_from_light = l.toward_start,
-                                                     .eye_photon_beam = eye_beam});
+                const DirectTechnique direct{.bsdf_forward_w = pdf_w.forward,
+                                             .bsdf_reverse_w = pdf_w.reverse,
+                                             .light_pdf_w = end_.direct_pdf_w,
+                                             .emission_pdf_w = end_.emission_pdf_w,
+                                             .direct_pdf_w = end_.direct_pdf_w,
+                                             .cos_here = v.cos(wi),
+                                             .cos_light = end_.cos_light,
+                                             .delta_light = end_.delta,
+                                             .eye_medium = v.in_medium(),
+                                             .eye_query_beam = eye_query_beam(mis, 0),
+                                             .pass_to_light_probability = l.toward_end,
+                                             .distance_from_light = l.toward_start,
+                                             .eye_photon_beam = eye_beam,
+                                             .joint_ratio = joint_ratio(0, 1)};
+                return t.kind == TechniqueKind::Direct ? mis.weight_direct(st.eye[0], direct)
+                                                       : mis.weight_joint_direct(st.eye[0], direct);
             }
             case TechniqueKind::Connection:  // eqs. 40-41 (connect_vertices)
             case TechniqueKind::JointConnection: {
@@ -597,7 +610,9 @@ class MisSumTest : public ::testing::Test {
                          vertices_[i].in_medium()
                              ? mis.photon_beam_merge_term(beam_sin(i), light_distance(i),
                                                           camera_distance(i), beam_sigma_t(i))
-                             : 0.0f});
+                             : 0.0f,
+                     // J1 of the junction whose eye-side vertex is i, sampled from i + 1.
+                     .light_joint_ratio = joint_ratio(int(i), int(i) + 1)});
             }
             case TechniqueKind::QueryBeam: {  // vertex_cm.cpp, query_beams
                 // The eye subpath as if it had arrived at the photon's projection on the query
@@ -713,6 +728,10 @@ class MisSumTest : public ::testing::Test {
                 case TechniqueKind::Direct:
                     p.push_back(end_.direct_pdf_a * eye_suffix(0));
                     break;
+                case TechniqueKind::JointDirect:  // vertex 0's distance density replaced by J1's
+                    p.push_back(end_.direct_pdf_a * eye_fwd[0] / segment(1, 0).toward_end *
+                                joint_pdf(1, 0, kLightEnd) * eye_suffix(1));
+                    break;
                 case TechniqueKind::Connection:
                     p.push_back(light_prefix(t.vertex + 1) * eye_suffix(t.vertex + 1));
                     break;
@@ -757,9 +776,10 @@ class MisSumTest : public ::testing::Test {
 
     // Checks both properties for one family (with the listed techniques' weights).
     void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
-                      const char* name, bool joint = false, double eta_beam = 0,
+                      const char* name, int joint = 0, double eta_beam = 0,
                       double eta_photon_beam = 0, bool short_beams = false) {
-        joint_ = joint;
+        joint_ = joint > 0;
+        joint_light_ = joint > 1;
         const std::vector<Technique> list =
             techniques(use_vc, use_vm, eta_beam > 0, eta_photon_beam > 0);
         if (list.empty()) return;
@@ -774,8 +794,13 @@ class MisSumTest : public ::testing::Test {
         const std::vector<double> w = weights(mis, list);
         const std::vector<double> reference = reference_weights(
             list, power, eta_surface, eta_volume, eta_beam, eta_photon_beam, short_beams);
+        const bool merges = std::any_of(list.begin(), list.end(), [](const Technique& t) {
+            return t.kind == TechniqueKind::Merge;
+        });
         for (const Technique& t : list) {
             joint_checked_ += t.kind == TechniqueKind::JointConnection;
+            joint_direct_checked_ += t.kind == TechniqueKind::JointDirect;
+            joint_with_merges_checked_ += merges && t.kind == TechniqueKind::JointConnection;
             query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
             photon_beams_checked_ += t.kind == TechniqueKind::PhotonBeam;
         }
@@ -804,10 +829,13 @@ class MisSumTest : public ::testing::Test {
     HomogeneousMedium fog_medium_;
     const Medium* fog_ = nullptr;   // the medium filling the scene; null: vacuum
     bool joint_ = false;            // the J1 techniques are enabled (bpt --joint-connections on)
+    bool joint_light_ = false;      // J1 at s = 1 as well (next-event estimation's sibling)
     int joint_checked_ = 0;         // J1 weights checked so far
-    int query_beams_checked_ = 0;   // P-B2D weights checked so far
-    int photon_beams_checked_ = 0;  // B-B1D weights checked so far
-    float fog_exit_ = 0;            // from the first vertex toward an infinite light
+    int joint_direct_checked_ = 0;  // J1 at s = 1 weights checked so far
+    int joint_with_merges_checked_ = 0;  // of which beside merges (vcm)
+    int query_beams_checked_ = 0;        // P-B2D weights checked so far
+    int photon_beams_checked_ = 0;       // B-B1D weights checked so far
+    float fog_exit_ = 0;                 // from the first vertex toward an infinite light
     PerspectiveCamera camera_;
     std::vector<PathVertex> vertices_;  // light order: vertices_[0] is next to the light
     LightKind kind_ = LightKind::Area;
@@ -851,7 +879,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOne) {
 }
 
 // Paths in fog: medium vertices, surface vertices, and both, as a path in fog bouncing off walls;
-// BPT with J1 connections, and query beams (UPBP's long camera query) beside each family.
+// BPT and VCM with J1 connections, and query beams (UPBP's long camera query) beside each family.
 TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     using M = Material;
     const std::vector<std::vector<Material>> paths = {
@@ -887,8 +915,11 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                                      << " vertices, light kind " << int(kind) << ", trial " << trial
                                      << ", radius " << radius << ", power " << power);
                         check_family(power, true, false, eta_surface, eta_volume, "BPT");
-                        check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", true);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", 1);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT+J1 s>=1", 2);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM+J1", 1);
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM+J1 s>=1", 2);
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
                         // Query beams (P-B2D) beside BPT, VCM, BPM and alone: the merge factor
                         // of a medium vertex is then per vertex, added at the next arrival on
@@ -899,8 +930,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                                                            std::tuple{true, true, "VCM+PB2D"},
                                                            std::tuple{false, true, "BPM+PB2D"},
                                                            std::tuple{false, false, "PB2D"}})
-                            check_family(power, vc, vm, eta_surface, eta_volume, name, false,
-                                         eta_beam);
+                            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
                         // Photon beams (B-B1D) beside BPT, beside everything (UPBP), beside
                         // BPM and alone; long and short beams; both constants eta_1 of the
                         // spec (SmallUPBP's r / 2 and the kernel's support 2 r).
@@ -915,8 +945,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                                     SCOPED_TRACE(::testing::Message()
                                                  << "eta_1 " << eta_1 << ", "
                                                  << (short_beams ? "short" : "long") << " beams");
-                                    check_family(power, vc, vm, eta_surface, eta_volume, name,
-                                                 false, qb, eta_1 * kLightPaths, short_beams);
+                                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0,
+                                                 qb, eta_1 * kLightPaths, short_beams);
                                 }
                         ++checked;
                         with_medium_vertex += medium_vertex;
@@ -924,7 +954,9 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
             }
     EXPECT_GT(checked, 500);
     EXPECT_GT(with_medium_vertex, 400);
-    EXPECT_GT(joint_checked_, 400);
+    EXPECT_GT(joint_checked_, 800);
+    EXPECT_GT(joint_with_merges_checked_, 400);
+    EXPECT_GT(joint_direct_checked_, 200);
     EXPECT_GT(query_beams_checked_, 1500);
     EXPECT_GT(photon_beams_checked_, 10000);
 }

@@ -23,6 +23,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/pbrt/scene_loader.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/test_scenes.h"
 
@@ -276,6 +277,55 @@ TEST(VolumeEmission, ConstantGridMatchesHomogeneous) {
             ASSERT_GT(se, 0.0);
             EXPECT_NEAR(sa.mean, sb.mean, 5 * se)
                 << (furnace ? "furnace" : "sphere") << " channel " << channel;
+        }
+    }
+}
+
+// The same sphere in a pbrt-v4 file: pbrt's medium emission `Le` (times `Lescale`; source term
+// sigma_a Le, as ours) maps onto `radiance`. Homogeneous: sigma_a (0.5, 1, 4), Le (0.5, 1,
+// 0.25), Lescale 2, i.e. the Mitsuba scene's L_e (1, 2, 0.5). uniformgrid: one voxel of
+// density 1 (sigma_t = sigma_a) and an Lescale grid of 2 x 2 x 2 values all 2 (a grid, not a
+// constant: the same radiance everywhere, read through the grid path). Both render like the
+// Mitsuba scene: the homogeneous one to rounding, the grid by tracking within 5 standard
+// errors.
+std::string pbrt_sphere_seen_from_outside(bool grid, double y) {
+    const std::string ys = std::to_string(y);
+    const std::string medium =
+        grid ? "\"string type\" \"uniformgrid\" \"integer nx\" 2 \"integer ny\" 2 "
+               "\"integer nz\" 2 \"float density\" [1 1 1 1 1 1 1 1] \"float Lescale\" [2 2 2 2 "
+               "2 2 2 2] \"point3 p0\" [-1.25 -1.25 -1.25] \"point3 p1\" [1.25 1.25 1.25] "
+             : "\"string type\" \"homogeneous\" \"float Lescale\" 2 ";
+    return "LookAt 0 " + ys + " -5  0 " + ys +
+           " 0  0 1 0\nCamera \"perspective\" \"float fov\" 0.02\n"
+           "Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\nWorldBegin\n"
+           "MakeNamedMedium \"glow\" " +
+           medium +
+           "\"rgb sigma_a\" [0.5 1 4] \"rgb sigma_s\" [0 0 0] \"rgb Le\" [0.5 1 0.25]\n"
+           "AttributeBegin\nMediumInterface \"glow\" \"\"\nMaterial \"interface\"\n"
+           "Shape \"sphere\" \"float radius\" 1\nAttributeEnd\n";
+}
+
+TEST(VolumeEmission, PbrtMediumEmissionRendersLikeTheMitsubaScene) {
+    for (const double y : {0.0, 0.8}) {
+        auto mitsuba = load_scene_from_string(sphere_seen_from_outside(false, y), ".");
+        const IterationResult reference = render_volpt(*mitsuba, 4);
+        auto homogeneous = pbrt::load_scene_from_string(pbrt_sphere_seen_from_outside(false, y),
+                                                        std::filesystem::path("."));
+        const IterationResult h = render_volpt(*homogeneous, 4);
+        auto grid = pbrt::load_scene_from_string(pbrt_sphere_seen_from_outside(true, y),
+                                                 std::filesystem::path("."));
+        ASSERT_TRUE(grid->media().size() == 1 && !grid->media()[0]->is_homogeneous());
+        const IterationResult g = render_volpt(*grid, 64);
+        EXPECT_EQ(h.stats.non_finite + g.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            SCOPED_TRACE("y " + std::to_string(y) + " channel " + std::to_string(channel));
+            const double expected = sphere_radiance(channel, y);
+            EXPECT_NEAR(pixel_statistics(reference, channel).mean, expected, 1e-5 * expected);
+            EXPECT_NEAR(pixel_statistics(h, channel).mean, expected, 1e-5 * expected);
+            const PixelStatistics s = pixel_statistics(g, channel);
+            ASSERT_GT(s.standard_error, 0.0);
+            EXPECT_NEAR(s.mean, expected, 5 * s.standard_error);
+            EXPECT_LT(s.standard_error, 0.02 * expected);
         }
     }
 }

@@ -570,15 +570,17 @@ class Loader {
 
     void read_bsdf(const XmlElement& e) { keep(read_bsdf_object(e)); }
 
-    // A wrapper resolves its children at a hit without their shading frame, so a normal map
-    // must be the outermost bsdf (Mitsuba's examples write it so: normalmap around twosided).
+    // A wrapper resolves its children at a hit without their shading frame, so a normal or bump
+    // map must be the outermost bsdf (Mitsuba's examples write it so: normalmap around
+    // twosided).
     static void refuse_nested_normal_maps(const Properties& props) {
-        if (props.type() == "normalmap") return;  // normalmap refuses a nested one itself
+        if (props.type() == "normalmap" || props.type() == "bumpmap")
+            return;  // they refuse a nested one themselves
         for (const auto& nested : props.nested_bsdfs)
             if (nested->changes_shading_frame())
                 throw SceneError(props.where(), "bsdf \"" + props.type() +
-                                                    "\" cannot wrap a normalmap: write the "
-                                                    "normalmap around it instead");
+                                                    "\" cannot wrap a normalmap or bumpmap: "
+                                                    "write the map around it instead");
     }
 
     // ----- textures -----

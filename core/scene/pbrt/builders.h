@@ -57,9 +57,10 @@ std::unique_ptr<Light> make_light(
     const std::string& type, const ParamList& params, const Transform& light_to_world,
     const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
-// `AreaLightSource "diffuse"` on `shape`.
-std::unique_ptr<Light> make_area_light(const std::string& type, const ParamList& params,
-                                       const Shape* shape);
+// `AreaLightSource "diffuse"` on `shape`; `resolve` its image ("string filename").
+std::unique_ptr<Light> make_area_light(
+    const std::string& type, const ParamList& params, const Shape* shape,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
 // `MakeNamedMedium` of "string type" homogeneous or uniformgrid, with the current transform.
 std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamList& params,

@@ -13,6 +13,7 @@
 #include "core/lights/light_factory.h"
 #include "core/math/constants.h"
 #include "core/scene/pbrt/builders.h"
+#include "core/textures/texture_factory.h"
 
 namespace render::pbrt {
 namespace {
@@ -191,17 +192,36 @@ std::unique_ptr<Light> make_light(
     return light;
 }
 
-std::unique_ptr<Light> make_area_light(const std::string& type, const ParamList& params,
-                                       const Shape* shape) {
+std::unique_ptr<Light> make_area_light(
+    const std::string& type, const ParamList& params, const Shape* shape,
+    const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
     if (type != "diffuse")
         throw SceneError(params.where, params.context() + ": unknown area light \"" + type +
                                            "\" (supported: diffuse)");
     if (params.get_bool("twosided", false))
         throw params.error("twosided", "two-sided area lights are not supported yet");
-    if (params.has("filename"))
-        throw params.error("filename", "image area lights are not supported yet");
     Properties props("emitter", "area", params.where);
-    props.set("radiance", emission(params, "L"), params.where);
+    if (params.has("filename")) {
+        // pbrt-v4: L = scale x the image's RGB (bilinear, clamped) at (u, 1 - v) of pbrt's uv,
+        // which is our uv (as for normal maps); our bitmap decodes 8-bit images as sRGB and reads
+        // float ones linearly, as pbrt reads PNG and EXR.
+        const SourceLocation at = params.find("filename")->where;
+        if (params.get_string("filename", "").empty())
+            throw params.error("filename", "a file name is required");
+        if (params.has("L")) throw params.error("L", "give either \"L\" or \"filename\", not both");
+        if (params.has("power"))
+            throw params.error("power", "lights given by their power are not supported yet");
+        if (params.get_float("scale", 1.0) != 1.0)
+            throw params.error("scale", "a scaled image area light is not supported yet");
+        Properties texture("texture", "bitmap", at);
+        texture.set("filename", std::filesystem::absolute(resolve(params, "filename")).string(),
+                    at);
+        texture.set("wrap_mode", std::string("clamp"), at);  // pbrt's Bilerp default
+        props.set("radiance", render::make_texture(texture), at);
+        texture.check_all_used();
+    } else {
+        props.set("radiance", emission(params, "L"), params.where);
+    }
     std::unique_ptr<Light> light = render::make_light(props, shape, {});
     params.check_all_used();
     return light;

@@ -225,6 +225,30 @@ std::shared_ptr<const Bsdf> normal_mapped(
     return make_bsdf(props);
 }
 
+// pbrt-v4's "texture displacement": a float texture, the height in scene units along the
+// shading normal. Mitsuba's bumpmap with scale 1 around the whole material (see
+// docs/scene-format.md for what differs from pbrt's BumpMap).
+std::shared_ptr<const Bsdf> bump_mapped(std::shared_ptr<const Bsdf> bsdf, const ParamList& params,
+                                        const TextureTable& textures) {
+    const Param* p = params.find("displacement");
+    p->used = true;
+    if (params.type_of("displacement") != "texture")
+        throw params.error("displacement", "expects \"texture displacement\" (a float texture)");
+    if (p->strings.size() != 1) throw params.error("displacement", "expects one texture name");
+    if (params.has("normalmap"))
+        throw params.error("displacement",
+                           "a normalmap and a displacement together are not supported (pbrt-v4 "
+                           "would ignore the displacement)");
+    auto it = textures.floats.find(p->strings[0]);
+    if (it == textures.floats.end())
+        throw params.error("displacement", "unknown float texture \"" + p->strings[0] +
+                                               "\" (a texture must be defined before it is used)");
+    Properties props("bsdf", "bumpmap", p->where);
+    props.set("height", it->second, p->where);
+    props.nested_bsdfs.push_back(std::move(bsdf));
+    return make_bsdf(props);
+}
+
 }  // namespace
 
 std::shared_ptr<const Bsdf> make_material(
@@ -263,9 +287,10 @@ std::shared_ptr<const Bsdf> make_material(
                                    "unknown named material \"" + m->strings[size_t(i)] + "\"");
             pair[i] = it->second;
             if (pair[i]->changes_shading_frame())
-                throw params.error("materials", "mixing \"" + m->strings[size_t(i)] +
-                                                    "\", a material with a normal map, is not "
-                                                    "supported");
+                throw params.error("materials",
+                                   "mixing \"" + m->strings[size_t(i)] +
+                                       "\", a material with a normal or bump map, is not "
+                                       "supported");
         }
         Properties props("bsdf", "blendbsdf", at);
         props.nested_bsdfs = {pair[0], pair[1]};
@@ -295,8 +320,9 @@ std::shared_ptr<const Bsdf> make_material(
     } else {
         throw SceneError(at, params.context() + ": unknown material \"" + type + "\"");
     }
-    if (params.has("normalmap") && type != "mix" && type != "interface" && !type.empty())
-        bsdf = normal_mapped(bsdf, params, resolve);
+    const bool surface = type != "mix" && type != "interface" && !type.empty();
+    if (params.has("displacement") && surface) bsdf = bump_mapped(bsdf, params, textures);
+    if (params.has("normalmap") && surface) bsdf = normal_mapped(bsdf, params, resolve);
     params.check_all_used();
     return bsdf;
 }

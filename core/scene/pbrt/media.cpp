@@ -27,14 +27,38 @@ std::shared_ptr<const PhaseFunction> phase(const ParamList& params) {
     return make_phase(props);
 }
 
-void refuse_emission(const ParamList& params) {
+void refuse_unsupported(const ParamList& params) {
     for (const char* name :
-         {"Le", "Lescale", "temperature", "temperaturescale", "temperaturecutoff"})
-        if (params.has(name)) throw params.error(name, "emissive media are not supported yet");
+         {"temperature", "temperaturescale", "temperaturecutoff", "temperatureoffset"})
+        if (params.has(name))
+            throw params.error(name,
+                               "emission by temperature grids is not supported yet (give "
+                               "Le and Lescale)");
     if (params.has("preset"))
         throw params.error("preset",
                            "named measured media are not supported yet (give "
                            "sigma_a and sigma_s)");
+}
+
+// pbrt-v4's emitted radiance Le (an illuminant spectrum: an RGB, or a blackbody temperature),
+// without Lescale; black when absent. As for lights (lights.cpp), pbrt divides the scale by
+// the spectrum's photometric value, so an RGB renderer emits the RGB value itself and a
+// blackbody its unit-luminance colour. The source term is sigma_a Le in both renderers.
+Rgb emitted_radiance(const ParamList& params) {
+    if (!params.has("Le")) return Rgb(0.0f);
+    if (params.type_of("Le") == "blackbody") {
+        const Param* p = params.find("Le");
+        if (p->numbers.size() != 1) throw params.error("Le", "expects one temperature (kelvin)");
+        p->used = true;
+        const std::optional<Rgb> c = blackbody_rgb(p->numbers[0]);
+        if (!c) throw params.error("Le", "temperatures from 1667 to 25000 K are supported");
+        return *c;
+    }
+    const Rgb le = *get_rgb(params, "Le");
+    for (int c = 0; c < 3; ++c)
+        if (!(le[c] >= 0 && std::isfinite(le[c])))
+            throw params.error("Le", "must be finite and non-negative");
+    return le;
 }
 
 }  // namespace
@@ -42,7 +66,8 @@ void refuse_emission(const ParamList& params) {
 std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamList& params,
                                           const Transform& to_world) {
     const SourceLocation at = params.where;
-    refuse_emission(params);
+    refuse_unsupported(params);
+    const Rgb le = emitted_radiance(params);
     const Rgb sigma_a = coefficient(params, "sigma_a"), sigma_s = coefficient(params, "sigma_s");
     const double scale = params.get_float("scale", 1.0);
     if (!(scale >= 0)) throw params.error("scale", "must be non-negative");
@@ -52,6 +77,10 @@ std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamLi
         props.set("sigmaA", sigma_a, at);
         props.set("sigmaS", sigma_s, at);
         props.set("scale", float(scale), at);
+        const double le_scale = params.get_float("Lescale", 1.0);
+        if (!(le_scale >= 0 && std::isfinite(le_scale)))
+            throw params.error("Lescale", "must be finite and non-negative");
+        props.set("radiance", le * float(le_scale), at);
         medium = render::make_medium(props, phase(params), {});
     } else if (type == "uniformgrid") {
         const long long nx = params.get_int("nx", 1), ny = params.get_int("ny", 1),
@@ -85,7 +114,36 @@ std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamLi
         std::map<std::string, std::shared_ptr<const Volume>> volumes;
         volumes["sigma_t"] = std::make_shared<GridVolume>(
             std::move(data), grid_to_world, VolumeFilter::kTrilinear, params.context());
+        // Emission: Le times Lescale, which is one float or a grid of nx * ny * nz floats on
+        // the density's lattice (pbrt-v4's GridMedium; not multiplied by the density, whose
+        // sigma_a already is). Ours: an RGB radiance grid, or a constant.
+        if (params.has("Lescale") && params.find("Lescale")->numbers.size() > 1) {
+            const std::vector<double> le_scale = params.get_numbers("Lescale", {"float"}, 1);
+            if (le_scale.size() != size_t(nx * ny * nz))
+                throw params.error("Lescale",
+                                   "expects 1 or nx * ny * nz = " + std::to_string(nx * ny * nz) +
+                                       " values, got " + std::to_string(le_scale.size()));
+            VolumeGridData emission;
+            emission.xres = int(nx), emission.yres = int(ny), emission.zres = int(nz);
+            emission.channels = 3;
+            emission.bbox.expand(p0);
+            emission.bbox.expand(p1);
+            emission.values.reserve(le_scale.size() * 3);
+            for (double v : le_scale) {
+                if (!(v >= 0 && std::isfinite(v)))
+                    throw params.error("Lescale", "values must be finite and non-negative");
+                for (int c = 0; c < 3; ++c) emission.values.push_back(float(v) * le[c]);
+            }
+            volumes["radiance"] = std::make_shared<GridVolume>(
+                std::move(emission), grid_to_world, VolumeFilter::kTrilinear, params.context());
+        }
         Properties props("medium", "heterogeneous", at);
+        if (!volumes.count("radiance")) {
+            const double le_scale = params.get_float("Lescale", 1.0);
+            if (!(le_scale >= 0 && std::isfinite(le_scale)))
+                throw params.error("Lescale", "must be finite and non-negative");
+            if (le.max() > 0) props.set("radiance", le * float(le_scale), at);
+        }
         props.set("albedo", albedo, at);
         props.set("scale", float(scale), at);
         medium = render::make_medium(props, phase(params), volumes);

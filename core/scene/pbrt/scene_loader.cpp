@@ -510,8 +510,8 @@ class Loader {
         check_extent(*shape, d);
         std::unique_ptr<Light> light;
         if (state_.area_light) {
-            light =
-                make_area_light(state_.area_light->type, *state_.area_light->params, shape.get());
+            light = make_area_light(state_.area_light->type, *state_.area_light->params,
+                                    shape.get(), resolver());
             shape->emitter = light.get();
             light->medium = state_.outside;  // it emits on its outside
         }
