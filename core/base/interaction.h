@@ -11,11 +11,20 @@ class Bsdf;
 class Light;
 class Shape;
 
+// How much of a SurfaceInteraction Scene::intersect fills. The hit point, normals, shading
+// frame, materials and emitter always; uv, dp/du and dp/dv only where they are read: by materials
+// that vary over the surface (textures, normal and bump maps: the shading-frame hook and at() in
+// Scene::intersect) or when the caller asks for them (kWithUv). Filling them at every hit was
+// over a quarter of the wrapper's cost over bare Embree (docs/performance.md, "Closest hits
+// through Scene::intersect").
+enum class HitDetail { kShading, kWithUv };
+
 // A ray's hit on a surface, in world space.
 struct SurfaceInteraction {
     Vec3 p;                 // hit point
     Vec3 geometric_normal;  // unit; the side the shape's winding/orientation calls "outside"
     Frame shading;          // shading frame; shading.n is the interpolated (or geometric) normal
+    // uv, dp/du and dp/dv are zero unless the material varies or HitDetail::kWithUv was asked for.
     Vec2 uv;
     // dp/du and dp/dv of the shape's uv parametrisation (world space, not normalised; zero
     // where the shape has none): orient tangent-space normal maps and give bump maps their

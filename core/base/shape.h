@@ -26,9 +26,10 @@ class Shape {
 
     // Creates, commits and attaches this shape's Embree geometry; returns its geometry id.
     virtual unsigned attach(RTCDevice device, RTCScene scene) const = 0;
-    // Completes an interaction from Embree's hit record (primitive id and barycentrics u, v).
+    // Completes an interaction from Embree's hit record (primitive id and barycentrics u, v);
+    // si.uv, dpdu and dpdv only if uv_wanted(*this, detail) (core/shapes/uv_wanted.h), else zero.
     virtual void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
-                                  SurfaceInteraction& si) const = 0;
+                                  HitDetail detail, SurfaceInteraction& si) const = 0;
 
     virtual Aabb bounds() const = 0;
     virtual float surface_area() const = 0;

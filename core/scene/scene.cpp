@@ -131,7 +131,7 @@ bool within_scene_limits(const Instance& instance) {
     return within_scene_limits(instance.bounds());
 }
 
-bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
+bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh = to_rtc_ray_hit(ray);
@@ -139,10 +139,12 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID)
         geometry_to_instance_[rh.hit.instID[0]]->fill_interaction(
-            ray, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+            ray, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
     else
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
-                                                            rh.hit.u, rh.hit.v, si);
+                                                            rh.hit.u, rh.hit.v, detail, si);
+    // Materials that vary over the surface: the shapes filled si.uv, dpdu and dpdv for them
+    // (uv_wanted, core/shapes/uv_wanted.h), which the shading-frame hook and at() read.
     if (si.bsdf->varies()) {
         si.shading = si.bsdf->shading_frame(si);  // normal and bump maps
         si.hit_bsdf = si.bsdf->at(si.uv);

@@ -69,8 +69,10 @@ class Scene {
     void commit();
 
     // --- queries (thread-safe after commit) ---
-    // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit.
-    bool intersect(const Ray& ray, SurfaceInteraction& si) const;
+    // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit; its uv and
+    // dp/du only where the material varies or with HitDetail::kWithUv (interaction.h).
+    bool intersect(const Ray& ray, SurfaceInteraction& si,
+                   HitDetail detail = HitDetail::kShading) const;
     // The distance to the closest hit in (ray.t_min, ray.t_max), infinity if none: for callers
     // that need no interaction (no shading frame, uv or per-hit BSDF is built).
     float closest_hit_distance(const Ray& ray) const;

@@ -17,7 +17,7 @@ class Disk final : public AnalyticShape {
     std::optional<double> nearest_hit(const float org[3], const float dir[3], float t_min,
                                       float t_max) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
-                          SurfaceInteraction& si) const override;
+                          HitDetail detail, SurfaceInteraction& si) const override;
     Aabb bounds() const override;
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;

@@ -67,12 +67,12 @@ unsigned Instance::attach(RTCDevice device, RTCScene scene) const {
 }
 
 void Instance::fill_interaction(const Ray& ray, float t, unsigned geometry_id, unsigned prim_id,
-                                float u, float v, SurfaceInteraction& si) const {
+                                float u, float v, HitDetail detail, SurfaceInteraction& si) const {
     // Embree reports t along the ray carried into the group's space without normalising its
     // direction, so the same t locates the hit there.
     const Ray local(to_object_.apply_point(ray.origin), to_object_.apply_vector(ray.direction),
                     ray.t_min, ray.t_max);
-    group_->shape(geometry_id)->fill_interaction(local, t, prim_id, u, v, si);
+    group_->shape(geometry_id)->fill_interaction(local, t, prim_id, u, v, detail, si);
     si.p = to_world_.apply_point(si.p);
     si.t = t;
     // The inverse transpose keeps a normal on the side it faced (also under a mirroring

@@ -57,7 +57,7 @@ class Instance {
     // Completes the interaction of a hit on geometry `geometry_id` of the group's scene,
     // primitive `prim_id`, barycentrics (u, v), at distance t of the world ray.
     void fill_interaction(const Ray& ray, float t, unsigned geometry_id, unsigned prim_id, float u,
-                          float v, SurfaceInteraction& si) const;
+                          float v, HitDetail detail, SurfaceInteraction& si) const;
     Aabb bounds() const;  // world space: the group's box, transformed
     const ShapeGroup& group() const { return *group_; }
     const Transform& to_world() const { return to_world_; }

@@ -6,6 +6,7 @@
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 #include "core/shapes/user_geometry.h"
+#include "core/shapes/uv_wanted.h"
 
 namespace render {
 namespace {
@@ -48,7 +49,7 @@ std::optional<double> Sphere::nearest_hit(const float org[3], const float dir[3]
     return t;
 }
 
-void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
+void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float, HitDetail detail,
                               SurfaceInteraction& si) const {
     Vec3 p = ray.at(t);
     Vec3 n = p - center_;
@@ -57,16 +58,22 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float,
     // Re-project onto the surface: removes the error of origin + t * direction.
     si.p = center_ + n * radius_;
     si.t = t;
-    si.uv = uv_of_direction(n);
-    // u = phi / 2pi turns about the object's z axis (the other way in a mirrored frame):
-    // dp/du = 2 pi z x (p - c); zero at the poles.
-    const float handedness = dot(cross(axes_.s, axes_.t), axes_.n) < 0 ? -1.0f : 1.0f;
-    si.dpdu = cross(axes_.n, n * radius_) * (2 * kPi * handedness);
-    // v = theta / pi from the object's +z: dp/dv = pi r (cos(theta) n - z) / sin(theta) (unit
-    // dp/dtheta times pi r); zero at the poles.
-    const float cos_theta = dot(n, axes_.n);
-    const float sin_theta = std::sqrt(std::max(0.0f, 1 - cos_theta * cos_theta));
-    si.dpdv = sin_theta > 0 ? (n * cos_theta - axes_.n) * (kPi * radius_ / sin_theta) : Vec3(0.0f);
+    if (uv_wanted(*this, detail)) {
+        si.uv = uv_of_direction(n);
+        // u = phi / 2pi turns about the object's z axis (the other way in a mirrored frame):
+        // dp/du = 2 pi z x (p - c); zero at the poles.
+        const float handedness = dot(cross(axes_.s, axes_.t), axes_.n) < 0 ? -1.0f : 1.0f;
+        si.dpdu = cross(axes_.n, n * radius_) * (2 * kPi * handedness);
+        // v = theta / pi from the object's +z: dp/dv = pi r (cos(theta) n - z) / sin(theta)
+        // (unit dp/dtheta times pi r); zero at the poles.
+        const float cos_theta = dot(n, axes_.n);
+        const float sin_theta = std::sqrt(std::max(0.0f, 1 - cos_theta * cos_theta));
+        si.dpdv =
+            sin_theta > 0 ? (n * cos_theta - axes_.n) * (kPi * radius_ / sin_theta) : Vec3(0.0f);
+    } else {
+        si.uv = Vec2();
+        si.dpdu = si.dpdv = Vec3(0.0f);
+    }
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);

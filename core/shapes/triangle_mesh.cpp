@@ -5,6 +5,7 @@
 
 #include "core/base/error.h"
 #include "core/sampling/warp.h"
+#include "core/shapes/uv_wanted.h"
 
 namespace render {
 
@@ -85,7 +86,7 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
 }
 
 void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
-                                    SurfaceInteraction& si) const {
+                                    HitDetail detail, SurfaceInteraction& si) const {
     uint32_t i0 = indices_[3 * prim_id], i1 = indices_[3 * prim_id + 1],
              i2 = indices_[3 * prim_id + 2];
     const Vec3 &p0 = positions_[i0], &p1 = positions_[i1], &p2 = positions_[i2];
@@ -111,8 +112,13 @@ void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, f
         }
     }
     si.shading = Frame::from_normal(ns);
-    si.uv = uv_of(prim_id, u, v);
-    tangents_of(prim_id, si.dpdu, si.dpdv);
+    if (uv_wanted(*this, detail)) {
+        si.uv = uv_of(prim_id, u, v);
+        tangents_of(prim_id, si.dpdu, si.dpdv);
+    } else {
+        si.uv = Vec2();
+        si.dpdu = si.dpdv = Vec3(0.0f);
+    }
     si.shape = this;
     si.bsdf = bsdf;
     si.emitter = emitter;

@@ -30,7 +30,7 @@ class TriangleMesh final : public Shape {
 
     unsigned attach(RTCDevice device, RTCScene scene) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
-                          SurfaceInteraction& si) const override;
+                          HitDetail detail, SurfaceInteraction& si) const override;
     Aabb bounds() const override;
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;

@@ -42,7 +42,7 @@ class Parallelogram final : public Shape {
         n_ = area_ > 0 ? c / area_ : Vec3(0, 0, 1);
     }
     unsigned attach(RTCDevice, RTCScene) const override { return 0; }
-    void fill_interaction(const Ray&, float, unsigned, float, float,
+    void fill_interaction(const Ray&, float, unsigned, float, float, HitDetail,
                           SurfaceInteraction&) const override {}
     Aabb bounds() const override {
         Aabb b;
@@ -82,7 +82,7 @@ class TestSphere final : public Shape {
   public:
     TestSphere(const Vec3& c, float r, bool inward) : c_(c), r_(r), inward_(inward) {}
     unsigned attach(RTCDevice, RTCScene) const override { return 0; }
-    void fill_interaction(const Ray&, float, unsigned, float, float,
+    void fill_interaction(const Ray&, float, unsigned, float, float, HitDetail,
                           SurfaceInteraction&) const override {}
     Aabb bounds() const override {
         Aabb b;

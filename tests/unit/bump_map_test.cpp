@@ -92,14 +92,18 @@ TEST(BumpMap, EveryShapesDpdvFollowsItsUv) {
     for (int y = 0; y < 32; ++y)
         for (int x = 0; x < 48; ++x) {
             SurfaceInteraction si;
-            if (!scene->intersect(camera.generate_ray(Vec2(x + 0.5f, y + 0.5f)), si)) continue;
+            if (!scene->intersect(camera.generate_ray(Vec2(x + 0.5f, y + 0.5f)), si,
+                                  HitDetail::kWithUv))
+                continue;
             const float len = length(si.dpdv);
             if (!(len > 0)) continue;  // poles, the disk's centre
             const float step = 1e-3f / len;
             const Vec3 n = si.geometric_normal;
             const Vec3 q = si.p + si.dpdv * step;
             SurfaceInteraction sq;
-            if (!scene->intersect(Ray(q + n * 0.01f, -n), sq) || sq.shape != si.shape) continue;
+            if (!scene->intersect(Ray(q + n * 0.01f, -n), sq, HitDetail::kWithUv) ||
+                sq.shape != si.shape)
+                continue;
             const Vec2 d = (sq.uv - si.uv) * (1.0f / step);
             if (std::abs(d.y) > 10) continue;  // across a seam (the disk's v wraps) or an edge
             EXPECT_NEAR(d.x, 0.0f, 0.02f) << si.shape->to_string() << " at " << x << ", " << y;
@@ -163,7 +167,8 @@ TEST(BumpMap, ALinearRampTiltsByTheAnalyticAngle) {
     // dp/du = 6 (cos 20, 0, -sin 20). h = 0.7 u, scale 2: the displaced plane rises 1.4 per unit
     // of u, 1.4 / 6 per unit length.
     SurfaceInteraction si;
-    ASSERT_TRUE(plain->intersect(Ray(Vec3(-0.3f, 2, 0.5f), Vec3(0, -1, 0)), si));
+    ASSERT_TRUE(
+        plain->intersect(Ray(Vec3(-0.3f, 2, 0.5f), Vec3(0, -1, 0)), si, HitDetail::kWithUv));
     const float a20 = 20 * kPi / 180;
     const Vec3 along_u(std::cos(a20), 0, -std::sin(a20));
     for (const float a : {0.7f, -0.3f, 3.0f}) {
@@ -175,7 +180,8 @@ TEST(BumpMap, ALinearRampTiltsByTheAnalyticAngle) {
     const float b = -70 * kPi / 180;
     const Vec3 centre(-1.2f, 0.6f * std::cos(b), 0.6f * std::sin(b));
     const Vec3 axis(0, -std::sin(b), std::cos(b));
-    ASSERT_TRUE(plain->intersect(Ray(centre + Vec3(0.2f, 2, 0.3f), Vec3(0, -1, 0)), si));
+    ASSERT_TRUE(plain->intersect(Ray(centre + Vec3(0.2f, 2, 0.3f), Vec3(0, -1, 0)), si,
+                                 HitDetail::kWithUv));
     const Vec3 n = normalize(si.p - centre);
     const Vec3 along_v = normalize(n * dot(n, axis) - axis);  // away from the pole R(z)
     const BumpMapBsdf bump(diffuse, std::make_shared<RampTexture>(0.0f, 0.5f), 1.5f);

@@ -43,7 +43,8 @@ int expect_same_hits(const Scene& a, const Scene& b, int width, int height,
         for (int x = 0; x < width; ++x) {
             const Ray ray = camera.generate_ray(Vec2(x + 0.5f, y + 0.5f));
             SurfaceInteraction sa, sb;
-            const bool ha = a.intersect(ray, sa), hb = b.intersect(ray, sb);
+            const bool ha = a.intersect(ray, sa, HitDetail::kWithUv),
+                       hb = b.intersect(ray, sb, HitDetail::kWithUv);
             EXPECT_EQ(ha, hb) << "pixel " << x << ", " << y;
             if (!ha || !hb) continue;
             ++hits;

@@ -89,14 +89,18 @@ TEST(NormalMap, EveryShapesTangentFollowsItsUv) {
     for (int y = 0; y < 32; ++y)
         for (int x = 0; x < 48; ++x) {
             SurfaceInteraction si;
-            if (!scene->intersect(camera.generate_ray(Vec2(x + 0.5f, y + 0.5f)), si)) continue;
+            if (!scene->intersect(camera.generate_ray(Vec2(x + 0.5f, y + 0.5f)), si,
+                                  HitDetail::kWithUv))
+                continue;
             const float len = length(si.dpdu);
             if (!(len > 0)) continue;  // poles, the disk's centre
             const float step = 1e-3f / len;
             const Vec3 n = si.geometric_normal;
             const Vec3 q = si.p + si.dpdu * step;
             SurfaceInteraction sq;
-            if (!scene->intersect(Ray(q + n * 0.01f, -n), sq) || sq.shape != si.shape) continue;
+            if (!scene->intersect(Ray(q + n * 0.01f, -n), sq, HitDetail::kWithUv) ||
+                sq.shape != si.shape)
+                continue;
             const Vec2 d = (sq.uv - si.uv) * (1.0f / step);
             if (std::abs(d.x) > 10) continue;  // across a seam (u wraps) or a cube edge
             EXPECT_NEAR(d.x, 1.0f, 0.02f) << si.shape->to_string() << " at " << x << ", " << y;

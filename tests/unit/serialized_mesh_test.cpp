@@ -288,7 +288,8 @@ TEST_F(SerializedShapeTest, AppliesToWorldFlipNormalsAndShapeIndex) {
     // (0,0,1)) at barycentrics (b0, b1, b2) = (0.25, 0.5, 0.25) of the scaled square.
     SurfaceInteraction si;
     const Vec3 target = Vec3(1, 0, 0) + Vec3(2, 0, 0) * 0.5f + Vec3(2, 2, 0) * 0.25f;
-    ASSERT_TRUE(scene->intersect(Ray(target + Vec3(0, 0, 5), Vec3(0, 0, -1)), si));
+    ASSERT_TRUE(
+        scene->intersect(Ray(target + Vec3(0, 0, 5), Vec3(0, 0, -1)), si, HitDetail::kWithUv));
     EXPECT_NEAR(si.p.x, target.x, 1e-5f);
     EXPECT_NEAR(si.p.y, target.y, 1e-5f);
     const Vec3 n =

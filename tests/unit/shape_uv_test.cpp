@@ -43,7 +43,7 @@ class ShapeUv : public ::testing::Test {
     // uv where the ray from `origin` along `direction` first hits the scene.
     Vec2 uv_of(const Vec3& origin, const Vec3& direction) {
         SurfaceInteraction si;
-        EXPECT_TRUE(scene_->intersect(Ray(origin, normalize(direction)), si))
+        EXPECT_TRUE(scene_->intersect(Ray(origin, normalize(direction)), si, HitDetail::kWithUv))
             << "no hit from " << origin;
         return si.uv;
     }

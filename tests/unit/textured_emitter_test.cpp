@@ -132,7 +132,7 @@ TEST(TexturedAreaLight, ShapesFindTheUvOfAPoint) {
             // Hits: a ray from outside the bounds toward the sampled point.
             const Vec3 origin = centre + normalize(s.p - centre + s.n * 0.5f) * 20.0f;
             SurfaceInteraction si;
-            if (!scene->intersect(Ray(origin, normalize(s.p - origin)), si) ||
+            if (!scene->intersect(Ray(origin, normalize(s.p - origin)), si, HitDetail::kWithUv) ||
                 si.shape != shape.get())
                 continue;
             ++hits;

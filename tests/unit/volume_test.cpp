@@ -8,14 +8,17 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <string>
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/base/properties.h"
 #include "core/media/constant_volume.h"
 #include "core/media/grid_volume.h"
@@ -226,6 +229,55 @@ TEST(VdbFile, RoundTripAndAgreesWithVol) {
     expect_scene_error([&] { read_vdb_file((dir / "missing.vdb").string()); }, "missing.vdb");
     write_bytes(dir / "garbage.vdb", {'n', 'o', 't', ' ', 'v', 'd', 'b'});
     expect_scene_error([&] { read_vdb_file((dir / "garbage.vdb").string()); }, "garbage.vdb");
+}
+
+// The plugin's sink refuses a grid over the scene's memory budget before it is densified: the
+// budget's own error comes back through the C interface (core/media/vdb_file.cpp).
+TEST(VdbFile, GridOverTheMemoryBudgetIsRefusedBeforeDensifying) {
+    const fs::path dir = temp_dir();
+    VolumeGridData d = random_grid(6, 5, 4, 1, 12);
+    d.bbox.lo = Vec3(0.0f);
+    d.bbox.hi = Vec3(1.0f);
+    const fs::path p = dir / "budget.vdb";
+    write_vdb_file(p.string(), d);
+    SceneMemoryBudget budget(4 * 6 * 5 * 4 - 1, "the test");  // one byte short of the grid
+    try {
+        read_vdb_file(p.string());
+        ADD_FAILURE() << "read past the budget";
+    } catch (const MemoryLimitExceeded& e) {
+        EXPECT_NE(std::string(e.what()).find("budget.vdb: grid \"density\" densified"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+// Without the volume plugin (librender_volume_vdb.so, which links OpenVDB) a .vdb file is a
+// SceneError naming the file, the plugin and where it was looked for; .vol files need no plugin.
+TEST(VdbFile, MissingPluginIsASceneErrorNamingIt) {
+    const fs::path dir = temp_dir();
+    VolumeGridData d = random_grid(2, 2, 2, 1, 13);
+    d.bbox.lo = Vec3(0.0f);
+    d.bbox.hi = Vec3(1.0f);
+    write_vol_file((dir / "ok.vol").string(), d);
+    // Any bytes: without the plugin nothing parses the file.
+    write_bytes(dir / "ok.vdb", {'n', 'o', 't', ' ', 'v', 'd', 'b'});
+    // The plugin, once loaded, stays loaded for the process: the child must be a fresh one.
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    EXPECT_EXIT(
+        {
+            setenv("RENDER_VOLUME_PLUGIN", "/nonexistent/librender_volume_vdb.so", 1);
+            read_vol_file((dir / "ok.vol").string());
+            try {
+                read_vdb_file((dir / "ok.vdb").string());
+            } catch (const SceneError& e) {
+                std::cerr << e.what() << std::endl;
+                std::exit(3);
+            }
+            std::exit(0);
+        },
+        testing::ExitedWithCode(3),
+        "ok.vdb: the volume plugin librender_volume_vdb.so \\(OpenVDB\\), needed to read "
+        ".*ok.vdb, cannot be loaded.*/nonexistent/librender_volume_vdb.so");
 }
 
 // Mitsuba 3's convention (grid_volume.h): cell-centred values, clamped at the faces.
