@@ -65,17 +65,6 @@ double parse_seconds(const std::string& flag, const std::string& text) {
     return v;
 }
 
-uint64_t parse_size_flag(const std::string& flag, const std::string& text) {
-    uint64_t v = 0;
-    try {
-        v = parse_byte_size(text);
-    } catch (const std::invalid_argument& e) {
-        throw UsageError(flag + ": " + e.what());
-    }
-    if (v == 0) throw UsageError(flag + " must be > 0");
-    return v;
-}
-
 ArgumentParser make_parser(Options& o) {
     ArgumentParser p;
     p.value({"--listen"}, "HOST:PORT", "address to serve on (required; port 0: any free port)",

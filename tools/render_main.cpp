@@ -64,14 +64,7 @@ ArgumentParser make_parser(Options& o) {
             "grids and images, the film and the algorithm's working memory per iteration) "
             "exceeds SIZE, as a worker's --max-memory does (K, M, G or T suffix; default: no "
             "limit)",
-            [&](const std::string& v) {
-                try {
-                    o.max_memory = parse_byte_size(v);
-                } catch (const std::invalid_argument& e) {
-                    throw UsageError(std::string("--max-memory: ") + e.what());
-                }
-                if (o.max_memory == 0) throw UsageError("--max-memory must be > 0");
-            });
+            [&](const std::string& v) { o.max_memory = parse_size_flag("--max-memory", v); });
     p.value({"--frame"}, "F",
             "render as frame F of a job (an animation's frame index, from 0, seeds the random "
             "numbers with the seed); with that frame's -D defines the image equals the "

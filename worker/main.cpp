@@ -37,17 +37,10 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, 
                 if (o.threads < 0) throw UsageError("--threads must be >= 0");
             });
     p.value({"--max-memory"}, "SIZE",
-            "memory a job's scene and film may take, e.g. 4G (default: the memory available "
-            "when the scene is loaded); a job whose scene is estimated to need more fails with "
-            "that message",
-            [&](const std::string& v) {
-                try {
-                    o.max_memory = parse_byte_size(v);
-                } catch (const std::invalid_argument& e) {
-                    throw UsageError(std::string("--max-memory: ") + e.what());
-                }
-                if (o.max_memory == 0) throw UsageError("--max-memory must be > 0");
-            });
+            "memory a job's scene, film and the algorithm's working memory per iteration may "
+            "take, e.g. 4G (default: the memory available when the scene is loaded); a job "
+            "estimated to need more fails with that message",
+            [&](const std::string& v) { o.max_memory = parse_size_flag("--max-memory", v); });
     p.value({"--token"}, "T", "bearer token (default: env RENDER_TOKEN)",
             [&](const std::string& v) { token = v; });
     p.value({"--cache"}, "DIR",

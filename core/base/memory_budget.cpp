@@ -7,6 +7,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/util/arguments.h"
+
 namespace render {
 
 namespace {
@@ -98,6 +100,17 @@ uint64_t parse_byte_size(const std::string& text) {
     if (shift && value > (std::numeric_limits<uint64_t>::max() >> shift))
         throw std::invalid_argument("\"" + text + "\" is too large");
     return value << shift;
+}
+
+uint64_t parse_size_flag(const std::string& flag, const std::string& text) {
+    uint64_t v = 0;
+    try {
+        v = parse_byte_size(text);
+    } catch (const std::invalid_argument& e) {
+        throw UsageError(flag + ": " + e.what());
+    }
+    if (v == 0) throw UsageError(flag + " must be > 0");
+    return v;
 }
 
 }  // namespace render

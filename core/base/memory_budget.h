@@ -69,4 +69,8 @@ std::string format_bytes(uint64_t bytes);
 // (powers of 1024; "B" or "iB" may follow). Throws std::invalid_argument on anything else.
 uint64_t parse_byte_size(const std::string& text);
 
+// parse_byte_size for the value of option `flag` (--max-memory, ...), which must be > 0.
+// Throws UsageError naming the flag.
+uint64_t parse_size_flag(const std::string& flag, const std::string& text);
+
 }  // namespace render

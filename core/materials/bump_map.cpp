@@ -26,18 +26,10 @@ Frame bump_mapped_frame(Vec2 grad, const Frame& shading, const Vec3& dpdu, const
 
 BumpMapBsdf::BumpMapBsdf(std::shared_ptr<const Bsdf> nested, std::shared_ptr<const Texture> height,
                          float scale)
-    : nested_(std::move(nested)), height_(std::move(height)), scale_(scale) {
-    varies_ = true;  // resolved at every hit: the frame changes even for a plain nested BSDF
-}
+    : ShadingFrameBsdf(std::move(nested)), height_(std::move(height)), scale_(scale) {}
 
 std::shared_ptr<const Bsdf> BumpMapBsdf::create(const Properties& props) {
-    if (props.nested_bsdfs.size() != 1)
-        throw SceneError(props.where(), "bsdf \"bumpmap\" needs one nested bsdf, got " +
-                                            std::to_string(props.nested_bsdfs.size()));
-    const std::shared_ptr<const Bsdf>& nested = props.nested_bsdfs[0];
-    if (nested->changes_shading_frame())
-        throw SceneError(props.where(),
-                         "bsdf \"bumpmap\" cannot wrap another bumpmap or a normalmap");
+    const std::shared_ptr<const Bsdf>& nested = the_nested_bsdf(props, "bumpmap");
     const float scale = props.get_float("scale", 1.0f);
     if (!std::isfinite(scale)) throw props.error("scale", "must be finite");
     // Mitsuba takes its one texture whatever its name.
@@ -69,10 +61,6 @@ Vec2 BumpMapBsdf::gradient(Vec2 uv) const {
 
 Frame BumpMapBsdf::shading_frame(const SurfaceInteraction& si) const {
     return bump_mapped_frame(gradient(si.uv), si.shading, si.dpdu, si.dpdv);
-}
-
-std::shared_ptr<const Bsdf> BumpMapBsdf::at(Vec2 uv) const {
-    return nested_->varies() ? nested_->at(uv) : nested_;
 }
 
 std::string BumpMapBsdf::to_string() const {

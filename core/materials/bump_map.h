@@ -12,12 +12,12 @@
 #include <memory>
 
 #include "core/base/properties.h"
-#include "core/materials/bsdf.h"
+#include "core/materials/shading_frame_bsdf.h"
 #include "core/textures/texture.h"
 
 namespace render {
 
-class BumpMapBsdf final : public Bsdf {
+class BumpMapBsdf final : public ShadingFrameBsdf {
   public:
     // Step in u and v of the finite differences: a power of two, small against any texture's
     // features and large against float spacing at uv ~ 1 (2^-24), which leaves ~1e-4 relative.
@@ -33,23 +33,9 @@ class BumpMapBsdf final : public Bsdf {
     Vec2 gradient(Vec2 uv) const;
 
     Frame shading_frame(const SurfaceInteraction& si) const override;
-    bool changes_shading_frame() const override { return true; }
-    std::shared_ptr<const Bsdf> at(Vec2 uv) const override;
-
-    // Without a hit (nothing in the renderer evaluates it so): the nested BSDF.
-    Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const override {
-        return nested_->f(wo, wi, mode);
-    }
-    BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const override { return nested_->pdf_w(wo, wi); }
-    std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
-                                     TransportMode mode) const override {
-        return nested_->sample(wo, u_lobe, u, mode);
-    }
-    uint32_t lobes() const override { return nested_->lobes(); }
     std::string to_string() const override;
 
   private:
-    std::shared_ptr<const Bsdf> nested_;
     std::shared_ptr<const Texture> height_;
     float scale_;
 };

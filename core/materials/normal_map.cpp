@@ -37,17 +37,10 @@ Frame normal_mapped_frame(const Vec3& local, const Frame& shading, const Vec3& d
 
 NormalMapBsdf::NormalMapBsdf(std::shared_ptr<const Bsdf> nested, std::shared_ptr<const Texture> map,
                              Rgb constant)
-    : nested_(std::move(nested)), map_(std::move(map)), constant_(constant) {
-    varies_ = true;  // resolved at every hit: the frame changes even for a plain nested BSDF
-}
+    : ShadingFrameBsdf(std::move(nested)), map_(std::move(map)), constant_(constant) {}
 
 std::shared_ptr<const Bsdf> NormalMapBsdf::create(const Properties& props) {
-    if (props.nested_bsdfs.size() != 1)
-        throw SceneError(props.where(), "bsdf \"normalmap\" needs one nested bsdf, got " +
-                                            std::to_string(props.nested_bsdfs.size()));
-    const std::shared_ptr<const Bsdf>& nested = props.nested_bsdfs[0];
-    if (nested->changes_shading_frame())
-        throw SceneError(props.where(), "bsdf \"normalmap\" cannot wrap another normalmap");
+    const std::shared_ptr<const Bsdf>& nested = the_nested_bsdf(props, "normalmap");
     std::shared_ptr<const Texture> map = props.get_texture("normalmap");
     Rgb constant(0.5f, 0.5f, 1.0f);
     if (map) {
@@ -66,10 +59,6 @@ std::shared_ptr<const Bsdf> NormalMapBsdf::create(const Properties& props) {
 Frame NormalMapBsdf::shading_frame(const SurfaceInteraction& si) const {
     const Rgb c = map_ ? map_->eval(si.uv) : constant_;
     return normal_mapped_frame(Vec3(2 * c.r - 1, 2 * c.g - 1, 2 * c.b - 1), si.shading, si.dpdu);
-}
-
-std::shared_ptr<const Bsdf> NormalMapBsdf::at(Vec2 uv) const {
-    return nested_->varies() ? nested_->at(uv) : nested_;
 }
 
 std::string NormalMapBsdf::to_string() const {
