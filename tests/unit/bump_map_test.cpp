@@ -29,63 +29,19 @@
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
 #include "core/textures/texture.h"
+#include "tests/support/every_shape_scene.h"
 
 namespace render {
 namespace {
 
-const std::string kDir = std::string(RENDER_SOURCE_DIR) + "/scenes/tests";
-
-const std::string kHead =
-    "<scene version=\"3.0.0\">\n"
-    "<sensor type=\"perspective\"><float name=\"fov\" value=\"50\"/>"
-    "<transform name=\"to_world\"><lookat origin=\"0, 3, 6\" target=\"0, 0.3, 0\" "
-    "up=\"0, 1, 0\"/></transform>"
-    "<film type=\"hdrfilm\"><integer name=\"width\" value=\"48\"/>"
-    "<integer name=\"height\" value=\"32\"/></film></sensor>\n"
-    "<shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"0.5\"/>"
-    "<rotate x=\"1\" angle=\"90\"/><translate y=\"4\"/></transform>"
-    "<emitter type=\"area\"><rgb name=\"radiance\" value=\"10\"/></emitter></shape>\n"
-    "<emitter type=\"constant\"><rgb name=\"radiance\" value=\"0.2\"/></emitter>\n";
-
-// Every shape kind with material `bsdf` (a <bsdf> element or a <ref>).
-std::string shapes(const std::string& bsdf) {
-    return "<shape type=\"rectangle\">" + bsdf +
-           "<transform name=\"to_world\"><scale x=\"3\" y=\"2\"/><rotate x=\"1\" angle=\"-90\"/>"
-           "<rotate y=\"1\" angle=\"20\"/></transform></shape>\n"
-           "<shape type=\"sphere\">" +
-           bsdf +
-           "<point name=\"center\" x=\"-1.2\" y=\"0.6\" z=\"0\"/><float name=\"radius\" "
-           "value=\"0.6\"/>"
-           "<transform name=\"to_world\"><rotate x=\"1\" angle=\"-70\"/></transform></shape>\n"
-           "<shape type=\"cube\">" +
-           bsdf +
-           "<transform name=\"to_world\"><scale value=\"0.4\"/><rotate y=\"1\" angle=\"30\"/>"
-           "<translate x=\"1.2\" y=\"0.4\"/></transform></shape>\n"
-           "<shape type=\"disk\">" +
-           bsdf +
-           "<transform name=\"to_world\"><scale value=\"0.5\"/><rotate x=\"1\" angle=\"-60\"/>"
-           "<translate z=\"1.2\" y=\"0.5\"/></transform></shape>\n"
-           "<shape type=\"serialized\">" +
-           bsdf +
-           "<string name=\"filename\" value=\"meshes/pyramid.serialized\"/>"
-           "<transform name=\"to_world\"><scale value=\"0.5\"/><translate x=\"0.2\" z=\"-1\"/>"
-           "</transform></shape>\n"
-           "<shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\">" +
-           bsdf +
-           "<float name=\"radius\" value=\"0.3\"/></shape></shape>\n"
-           "<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\">"
-           "<scale x=\"1.5\" y=\"0.8\" z=\"1\"/><translate x=\"1.4\" y=\"0.3\" z=\"1.2\"/>"
-           "</transform></shape>\n";
-}
-
-std::unique_ptr<Scene> load(const std::string& bsdf_definition, const std::string& bsdf) {
-    return load_scene_from_string(kHead + bsdf_definition + shapes(bsdf) + "</scene>\n", kDir);
-}
+using testing::every_shape_load_error;
+using testing::kEveryShapeDir;
+using testing::load_every_shape_scene;
 
 const std::string kDiffuse = "<bsdf type=\"diffuse\" id=\"plain\"/>\n";
 
 TEST(BumpMap, EveryShapesDpdvFollowsItsUv) {
-    auto scene = load(kDiffuse, "<ref id=\"plain\"/>");
+    auto scene = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
     const PerspectiveCamera camera = scene->camera();
     int checked = 0;
     std::set<const Shape*> shapes_checked;
@@ -116,8 +72,8 @@ TEST(BumpMap, EveryShapesDpdvFollowsItsUv) {
 }
 
 TEST(BumpMap, AConstantHeightRendersAsNoBumpMap) {
-    auto plain = load(kDiffuse, "<ref id=\"plain\"/>");
-    auto bumped = load(
+    auto plain = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
+    auto bumped = load_every_shape_scene(
         "<bsdf type=\"bumpmap\" id=\"bumped\"><texture type=\"checkerboard\" name=\"h\">"
         "<rgb name=\"color0\" value=\"0.3\"/><rgb name=\"color1\" value=\"0.3\"/></texture>"
         "<float name=\"scale\" value=\"5\"/><bsdf type=\"diffuse\"/></bsdf>\n",
@@ -161,7 +117,7 @@ void expect_tilt(const Frame& f, const Vec3& n, const Vec3& away, float angle) {
 }
 
 TEST(BumpMap, ALinearRampTiltsByTheAnalyticAngle) {
-    auto plain = load(kDiffuse, "<ref id=\"plain\"/>");
+    auto plain = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
     auto diffuse = std::make_shared<DiffuseBsdf>(Rgb(0.5f));
     // The floor: a rectangle 6 wide along its object x axis (u), turned 20 degrees about y:
     // dp/du = 6 (cos 20, 0, -sin 20). h = 0.7 u, scale 2: the displaced plane rises 1.4 per unit
@@ -225,8 +181,8 @@ double tilted_floor_share(const Scene& scene) {
 }
 
 TEST(BumpMap, ShippedScenesLoadAndRenderInBothFormats) {
-    auto mitsuba = load_scene(kDir + "/bumpmap.xml");
-    auto pbrt = pbrt::load_scene(kDir + "/bumpmap.pbrt");
+    auto mitsuba = load_scene(kEveryShapeDir + "/bumpmap.xml");
+    auto pbrt = pbrt::load_scene(kEveryShapeDir + "/bumpmap.pbrt");
     for (const Scene* scene : {mitsuba.get(), pbrt.get()}) {
         for (const std::string algorithm : {"pt", "vcm"}) {
             const Rendered r = render_a_little(*scene, algorithm);
@@ -246,7 +202,7 @@ TEST(BumpMap, PbrtDisplacementMatchesMitsubasBumpMap) {
         "<texture type=\"bitmap\" name=\"h\"><string name=\"filename\" "
         "value=\"textures/tiles.png\"/><boolean name=\"raw\" value=\"true\"/></texture>"
         "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf></shape></scene>",
-        kDir);
+        kEveryShapeDir);
     auto pbrt = pbrt::load_scene_from_string(
         "Camera \"perspective\"\nWorldBegin\n"
         "Texture \"h\" \"float\" \"imagemap\" \"string filename\" \"textures/tiles.png\"\n"
@@ -254,7 +210,7 @@ TEST(BumpMap, PbrtDisplacementMatchesMitsubasBumpMap) {
         "Material \"diffuse\" \"texture displacement\" \"h\"\n"
         "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]\n"
         "  \"integer indices\" [0 1 2 0 2 3] \"point2 uv\" [0 1 1 1 1 0 0 0]\n",
-        kDir);
+        kEveryShapeDir);
     int tilted = 0;
     for (int i = 0; i < 100; ++i) {
         const Ray down(Vec3(-0.95f + 0.019f * i, 0.37f - 0.013f * i, 2), Vec3(0, 0, -1));
@@ -267,18 +223,10 @@ TEST(BumpMap, PbrtDisplacementMatchesMitsubasBumpMap) {
     EXPECT_GT(tilted, 50);
 }
 
-std::string load_error(const std::string& body) {
-    try {
-        load_scene_from_string(kHead + body + "</scene>\n", kDir);
-    } catch (const SceneError& e) {
-        return e.what();
-    }
-    return "loaded";
-}
-
 std::string pbrt_error(const std::string& world) {
     try {
-        pbrt::load_scene_from_string("Camera \"perspective\"\nWorldBegin\n" + world, kDir);
+        pbrt::load_scene_from_string("Camera \"perspective\"\nWorldBegin\n" + world,
+                                     kEveryShapeDir);
     } catch (const SceneError& e) {
         return e.what();
     }
@@ -289,35 +237,37 @@ const std::string kHeight =
     "<texture type=\"checkerboard\" name=\"h\"><rgb name=\"color0\" value=\"0.3\"/></texture>";
 
 TEST(BumpMap, RefusalsNameTheLine) {
-    // kHead is 4 lines; the body starts on line 5.
-    const std::string nested = load_error(
+    // kEveryShapeHead is 4 lines; the body starts on line 5.
+    const std::string nested = every_shape_load_error(
         "<bsdf type=\"twosided\" id=\"t\">\n  <bsdf "
         "type=\"bumpmap\">" +
         kHeight + "<bsdf type=\"diffuse\"/></bsdf>\n</bsdf>\n");
     EXPECT_NE(nested.find("<string>:5"), std::string::npos) << nested;
     EXPECT_NE(nested.find("cannot wrap a normalmap or bumpmap"), std::string::npos) << nested;
     const std::string no_height =
-        load_error("\n<bsdf type=\"bumpmap\"><bsdf type=\"diffuse\"/></bsdf>\n");
+        every_shape_load_error("\n<bsdf type=\"bumpmap\"><bsdf type=\"diffuse\"/></bsdf>\n");
     EXPECT_NE(no_height.find("<string>:6"), std::string::npos) << no_height;
     EXPECT_NE(no_height.find("needs a height <texture>"), std::string::npos) << no_height;
-    const std::string no_bsdf = load_error("<bsdf type=\"bumpmap\">" + kHeight + "</bsdf>\n");
+    const std::string no_bsdf =
+        every_shape_load_error("<bsdf type=\"bumpmap\">" + kHeight + "</bsdf>\n");
     EXPECT_NE(no_bsdf.find("needs one nested bsdf"), std::string::npos) << no_bsdf;
-    const std::string two = load_error("<bsdf type=\"bumpmap\">" + kHeight +
-                                       "\n<texture type=\"checkerboard\" name=\"k\"/>"
-                                       "<bsdf type=\"diffuse\"/></bsdf>\n");
+    const std::string two = every_shape_load_error("<bsdf type=\"bumpmap\">" + kHeight +
+                                                   "\n<texture type=\"checkerboard\" name=\"k\"/>"
+                                                   "<bsdf type=\"diffuse\"/></bsdf>\n");
     EXPECT_NE(two.find("<string>:6"), std::string::npos) << two;
     EXPECT_NE(two.find("takes one texture"), std::string::npos) << two;
-    const std::string bad_scale = load_error("<bsdf type=\"bumpmap\">" + kHeight +
-                                             "\n<float name=\"scale\" value=\"nan\"/>"
-                                             "<bsdf type=\"diffuse\"/></bsdf>\n");
+    const std::string bad_scale = every_shape_load_error("<bsdf type=\"bumpmap\">" + kHeight +
+                                                         "\n<float name=\"scale\" value=\"nan\"/>"
+                                                         "<bsdf type=\"diffuse\"/></bsdf>\n");
     EXPECT_NE(bad_scale.find("<string>:6"), std::string::npos) << bad_scale;
     const std::string in_bump =
-        load_error("<bsdf type=\"bumpmap\">" + kHeight + "<bsdf type=\"bumpmap\">\n" + kHeight +
-                   "<bsdf type=\"diffuse\"/></bsdf></bsdf>\n");
+        every_shape_load_error("<bsdf type=\"bumpmap\">" + kHeight + "<bsdf type=\"bumpmap\">\n" +
+                               kHeight + "<bsdf type=\"diffuse\"/></bsdf></bsdf>\n");
     EXPECT_NE(in_bump.find("cannot wrap another bumpmap"), std::string::npos) << in_bump;
-    EXPECT_EQ(load_error("<bsdf type=\"bumpmap\">" + kHeight +
-                         "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf>\n"),
-              "loaded");
+    EXPECT_EQ(
+        every_shape_load_error("<bsdf type=\"bumpmap\">" + kHeight +
+                               "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf>\n"),
+        "loaded");
 
     // pbrt: the material's line (3: after Camera and WorldBegin).
     const std::string unknown = pbrt_error("Material \"diffuse\" \"texture displacement\" \"x\"\n");

@@ -23,57 +23,13 @@
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "tests/support/every_shape_scene.h"
 
 namespace render {
 namespace {
 
-const std::string kHead =
-    "<scene version=\"3.0.0\">\n"
-    "<sensor type=\"perspective\"><float name=\"fov\" value=\"50\"/>"
-    "<transform name=\"to_world\"><lookat origin=\"0, 3, 6\" target=\"0, 0.3, 0\" "
-    "up=\"0, 1, 0\"/></transform>"
-    "<film type=\"hdrfilm\"><integer name=\"width\" value=\"48\"/>"
-    "<integer name=\"height\" value=\"32\"/></film></sensor>\n"
-    "<shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"0.5\"/>"
-    "<rotate x=\"1\" angle=\"90\"/><translate y=\"4\"/></transform>"
-    "<emitter type=\"area\"><rgb name=\"radiance\" value=\"10\"/></emitter></shape>\n"
-    "<emitter type=\"constant\"><rgb name=\"radiance\" value=\"0.2\"/></emitter>\n";
-
-// Every shape kind with material `bsdf` (a <bsdf> element or a <ref>).
-std::string shapes(const std::string& bsdf) {
-    return "<shape type=\"rectangle\">" + bsdf +
-           "<transform name=\"to_world\"><scale x=\"3\" y=\"2\"/><rotate x=\"1\" angle=\"-90\"/>"
-           "<rotate y=\"1\" angle=\"20\"/></transform></shape>\n"
-           "<shape type=\"sphere\">" +
-           bsdf +
-           "<point name=\"center\" x=\"-1.2\" y=\"0.6\" z=\"0\"/><float name=\"radius\" "
-           "value=\"0.6\"/>"
-           "<transform name=\"to_world\"><rotate x=\"1\" angle=\"-70\"/></transform></shape>\n"
-           "<shape type=\"cube\">" +
-           bsdf +
-           "<transform name=\"to_world\"><scale value=\"0.4\"/><rotate y=\"1\" angle=\"30\"/>"
-           "<translate x=\"1.2\" y=\"0.4\"/></transform></shape>\n"
-           "<shape type=\"disk\">" +
-           bsdf +
-           "<transform name=\"to_world\"><scale value=\"0.5\"/><rotate x=\"1\" angle=\"-60\"/>"
-           "<translate z=\"1.2\" y=\"0.5\"/></transform></shape>\n"
-           "<shape type=\"serialized\">" +
-           bsdf +
-           "<string name=\"filename\" value=\"meshes/pyramid.serialized\"/>"
-           "<transform name=\"to_world\"><scale value=\"0.5\"/><translate x=\"0.2\" z=\"-1\"/>"
-           "</transform></shape>\n"
-           "<shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\">" +
-           bsdf +
-           "<float name=\"radius\" value=\"0.3\"/></shape></shape>\n"
-           "<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\">"
-           "<scale x=\"1.5\" y=\"0.8\" z=\"1\"/><translate x=\"1.4\" y=\"0.3\" z=\"1.2\"/>"
-           "</transform></shape>\n";
-}
-
-std::unique_ptr<Scene> load(const std::string& bsdf_definition, const std::string& bsdf) {
-    return load_scene_from_string(kHead + bsdf_definition + shapes(bsdf) + "</scene>\n",
-                                  std::string(RENDER_SOURCE_DIR) + "/scenes/tests");
-}
+using testing::every_shape_load_error;
+using testing::load_every_shape_scene;
 
 const std::string kDiffuse = "<bsdf type=\"diffuse\" id=\"plain\"/>\n";
 std::string normal_mapped(const std::string& rgb) {
@@ -82,7 +38,7 @@ std::string normal_mapped(const std::string& rgb) {
 }
 
 TEST(NormalMap, EveryShapesTangentFollowsItsUv) {
-    auto scene = load(kDiffuse, "<ref id=\"plain\"/>");
+    auto scene = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
     const PerspectiveCamera camera = scene->camera();
     int checked = 0;
     std::set<const Shape*> shapes_checked;
@@ -114,8 +70,8 @@ TEST(NormalMap, EveryShapesTangentFollowsItsUv) {
 }
 
 TEST(NormalMap, AFlatMapRendersAsNoMap) {
-    auto plain = load(kDiffuse, "<ref id=\"plain\"/>");
-    auto mapped = load(normal_mapped("0.5, 0.5, 1"), "<ref id=\"mapped\"/>");
+    auto plain = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
+    auto mapped = load_every_shape_scene(normal_mapped("0.5, 0.5, 1"), "<ref id=\"mapped\"/>");
     for (const std::string algorithm : {"pt", "bpt"}) {
         RenderSettings settings = resolve_render_settings(algorithm, {}, plain->settings);
         settings.seed = 5;
@@ -132,8 +88,8 @@ TEST(NormalMap, AFlatMapRendersAsNoMap) {
 }
 
 TEST(NormalMap, ATiltedMapTurnsTheShadingNormalAlongTheTangent) {
-    auto scene = load(normal_mapped("0.75, 0.5, 0.8"), "<ref id=\"mapped\"/>");
-    auto plain = load(kDiffuse, "<ref id=\"plain\"/>");
+    auto scene = load_every_shape_scene(normal_mapped("0.75, 0.5, 0.8"), "<ref id=\"mapped\"/>");
+    auto plain = load_every_shape_scene(kDiffuse, "<ref id=\"plain\"/>");
     // The local normal (0.5, 0, 0.6): n' = normalize(0.5 s + 0.6 n).
     auto expect_tilt = [](const SurfaceInteraction& si, const Vec3& n, const Vec3& s) {
         const Vec3 want = normalize(s * 0.5f + n * 0.6f);
@@ -201,18 +157,9 @@ TEST(NormalMap, PbrtNormalMapsMatchMitsubas) {
     EXPECT_GT(tilted, 50);  // tiles.png is no flat map
 }
 
-std::string load_error(const std::string& body) {
-    try {
-        load_scene_from_string(kHead + body + "</scene>\n", ".");
-    } catch (const SceneError& e) {
-        return e.what();
-    }
-    return "loaded";
-}
-
 TEST(NormalMap, RefusalsNameTheLine) {
-    // kHead is 4 lines; the body starts on line 5.
-    const std::string nested = load_error(
+    // kEveryShapeHead is 4 lines; the body starts on line 5.
+    const std::string nested = every_shape_load_error(
         "<bsdf type=\"twosided\" id=\"t\">\n"
         "  <bsdf type=\"normalmap\"><rgb name=\"normalmap\" value=\"0.5, 0.5, 1\"/>"
         "<bsdf type=\"diffuse\"/></bsdf>\n"
@@ -220,13 +167,14 @@ TEST(NormalMap, RefusalsNameTheLine) {
     EXPECT_NE(nested.find("<string>:5"), std::string::npos) << nested;
     EXPECT_NE(nested.find("cannot wrap a normalmap"), std::string::npos) << nested;
     const std::string no_map =
-        load_error("<bsdf type=\"normalmap\"><bsdf type=\"diffuse\"/></bsdf>\n");
+        every_shape_load_error("<bsdf type=\"normalmap\"><bsdf type=\"diffuse\"/></bsdf>\n");
     EXPECT_NE(no_map.find("needs a \"normalmap\" texture"), std::string::npos) << no_map;
-    const std::string no_bsdf =
-        load_error("<bsdf type=\"normalmap\"><rgb name=\"normalmap\" value=\"0.5\"/></bsdf>\n");
+    const std::string no_bsdf = every_shape_load_error(
+        "<bsdf type=\"normalmap\"><rgb name=\"normalmap\" value=\"0.5\"/></bsdf>\n");
     EXPECT_NE(no_bsdf.find("needs one nested bsdf"), std::string::npos) << no_bsdf;
-    EXPECT_EQ(load_error("<bsdf type=\"normalmap\"><rgb name=\"normalmap\" value=\"0.5, 0.5, 1\"/>"
-                         "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf>\n"),
+    EXPECT_EQ(every_shape_load_error(
+                  "<bsdf type=\"normalmap\"><rgb name=\"normalmap\" value=\"0.5, 0.5, 1\"/>"
+                  "<bsdf type=\"twosided\"><bsdf type=\"diffuse\"/></bsdf></bsdf>\n"),
               "loaded");
 }
 
