@@ -5,10 +5,15 @@
 // tilt the shading frame (normal_map_test, bump_map_test): each shape's tangents and uv must
 // drive the tilt the same way. Header-only, so that RENDER_SOURCE_DIR is the test's.
 
+#include <gtest/gtest.h>
+
+#include <cmath>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "core/base/error.h"
+#include "core/camera/perspective_camera.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/scene.h"
 
@@ -76,6 +81,43 @@ inline std::string every_shape_load_error(const std::string& body) {
         return e.what();
     }
     return "loaded";
+}
+
+// Checks on every camera hit of the every-shape scene that the tangent dp/du (axis 0) or dp/dv
+// (axis 1) points where uv moves along that axis alone, at unit rate: a step of 1e-3 along it,
+// projected back onto the surface, changes uv by (1, 0) or (0, 1) times the step (within 0.02).
+// Hits whose step crosses a seam or an edge are skipped; at least 400 hits on all 6 shapes.
+inline void expect_tangent_follows_uv(const Scene& scene, int axis) {
+    const PerspectiveCamera camera = scene.camera();
+    int checked = 0;
+    std::set<const Shape*> shapes_checked;
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 48; ++x) {
+            SurfaceInteraction si;
+            if (!scene.intersect(camera.generate_ray(Vec2(x + 0.5f, y + 0.5f)), si,
+                                 HitDetail::kWithUv))
+                continue;
+            const Vec3 tangent = axis == 0 ? si.dpdu : si.dpdv;
+            const float len = length(tangent);
+            if (!(len > 0)) continue;  // poles, the disk's centre
+            const float step = 1e-3f / len;
+            const Vec3 n = si.geometric_normal;
+            const Vec3 q = si.p + tangent * step;
+            SurfaceInteraction sq;
+            if (!scene.intersect(Ray(q + n * 0.01f, -n), sq, HitDetail::kWithUv) ||
+                sq.shape != si.shape)
+                continue;
+            const Vec2 d = (sq.uv - si.uv) * (1.0f / step);
+            const float along = axis == 0 ? d.x : d.y, across = axis == 0 ? d.y : d.x;
+            if (std::abs(along) > 10) continue;  // across a seam (u or v wraps) or an edge
+            EXPECT_NEAR(along, 1.0f, 0.02f) << si.shape->to_string() << " at " << x << ", " << y;
+            EXPECT_NEAR(across, 0.0f, 0.02f) << si.shape->to_string() << " at " << x << ", " << y;
+            ++checked;
+            shapes_checked.insert(si.shape);
+        }
+    EXPECT_GT(checked, 400);
+    // The floor, the sphere, the cube, the disk, the serialized pyramid, the instance.
+    EXPECT_EQ(shapes_checked.size(), 6u);
 }
 
 }  // namespace render::testing
