@@ -5,28 +5,14 @@ end on tiny images (fixed iteration counts, no `--time`), and the document, its 
 verdicts and the four figures are written. Nothing is timed or compared here; the figures are
 the bench's."""
 
-import argparse
-import subprocess
 import sys
-import tempfile
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
-from benchlib import joint_figures  # noqa: E402
+from quick_bench import quick_bench
+from benchlib import joint_figures  # noqa: E402  (scripts/ is on the path through quick_bench)
 
 
 def main():
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--source-dir", type=Path, required=True)
-    parser.add_argument("--build-dir", type=Path, required=True)
-    args = parser.parse_args()
-    with tempfile.TemporaryDirectory(prefix="bench-joint-figures-quick-") as tmp:
-        cmd = ["/usr/bin/python3", str(args.source_dir / "scripts" / "bench"), "--quick",
-               "--only", "joint-figures", "--threads", "1", "--out", tmp, "--build-dir",
-               str(args.build_dir)]
-        print("running:", " ".join(cmd), flush=True)
-        subprocess.run(cmd, check=True)
-        text = (Path(tmp) / "joint-figures.md").read_text()
+    with quick_bench("joint-figures", "joint-figures.md") as (out, text):
         for name in joint_figures.TECHNIQUES:
             rows = [line for line in text.split("\n") if line.startswith(f"| {name} |")]
             assert len(rows) == 2, f"{name}: {len(rows)} table rows (errors and slope)"
@@ -34,7 +20,7 @@ def main():
         for section in ("### volpt, fog box, isotropic", "### volpt, fog box, g = 0.9",
                         "### bpt, fog box, isotropic"):
             assert section in text, f"no section {section}"
-        images = Path(tmp) / joint_figures.IMAGE_DIR
+        images = out / joint_figures.IMAGE_DIR
         for png in ("slopes.png", "fog-box-isotropic-volpt.png", "fog-box-g09-volpt.png",
                     "fog-box-isotropic-bpt.png"):
             assert (images / png).stat().st_size > 0, f"{png} empty"
