@@ -121,10 +121,18 @@ ArgumentParser make_parser(Options& o) {
                 o.server.max_store_size = parse_size_flag("--max-store-size", v);
             });
     p.value({"--stream-idle-timeout"}, "SECONDS",
-            "cancel an UploadAsset, FetchResult or FetchAsset stream that sends or takes no "
-            "chunk for this long, freeing its server thread (default 60)",
+            "cancel an UploadAsset, FetchResult, FetchAsset, Report or WatchJob stream that "
+            "sends or takes no chunk for this long, freeing its server thread; a cancelled "
+            "Report's lease is queued again at once (default 60)",
             [&](const std::string& v) {
                 o.server.streams.idle_seconds = parse_seconds("--stream-idle-timeout", v);
+            });
+    p.value({"--memory-wait"}, "SECONDS",
+            "a job that every live worker refused for memory (its estimate over the worker's "
+            "limit) waits this long for a worker with more memory, then FAILS with the "
+            "refusal's message (default 300); refusals never count toward the poison rule",
+            [&](const std::string& v) {
+                o.server.memory_wait_seconds = parse_seconds("--memory-wait", v);
             });
     p.value({"--max-transfer-streams"}, "N",
             "at most N clients' UploadAsset and FetchResult streams open at once, and N "

@@ -32,8 +32,9 @@ void SceneMemoryBudget::charge(uint64_t bytes, const std::string& what) {
                    : charged_ + bytes;
     if (limit_ > 0 && charged_ > limit_)
         throw MemoryLimitExceeded(what + ": the scene needs at least " + format_bytes(charged_) +
-                                  " of memory, more than the " + format_bytes(limit_) + " limit (" +
-                                  source_ + ")");
+                                      " of memory, more than the " + format_bytes(limit_) +
+                                      " limit (" + source_ + ")",
+                                  charged_, limit_);
 }
 
 void charge_scene_memory(uint64_t bytes, const std::string& what) {
