@@ -37,6 +37,12 @@ void SceneMemoryBudget::charge(uint64_t bytes, const std::string& what) {
                                   charged_, limit_);
 }
 
+void rethrow_scene_error(const SceneError& e, const SceneError& with_context) {
+    if (const auto* memory = dynamic_cast<const MemoryLimitExceeded*>(&e))
+        throw MemoryLimitExceeded(with_context.what(), memory->needed(), memory->limit());
+    throw with_context;
+}
+
 void charge_scene_memory(uint64_t bytes, const std::string& what) {
     if (t_budget) t_budget->charge(bytes, what);
 }

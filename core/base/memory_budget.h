@@ -32,6 +32,11 @@ class MemoryLimitExceeded : public SceneError {
     uint64_t needed_ = 0, limit_ = 0;
 };
 
+// Throws `with_context` (e with the caller's file, line or field added) in place of `e`: a
+// MemoryLimitExceeded stays one, with its numbers, so that a worker tells a refusal for memory
+// (which the server does not count against the job) from a scene that cannot load.
+[[noreturn]] void rethrow_scene_error(const SceneError& e, const SceneError& with_context);
+
 class SceneMemoryBudget {
   public:
     // `limit_bytes` 0 means no limit. `limit_source` says where the limit comes from, for the
