@@ -24,6 +24,7 @@
 #include "client/bundle.h"
 #include "client/frames.h"
 #include "client/progress.h"
+#include "core/base/memory_budget.h"
 #include "core/render/algorithms.h"
 #include "core/render/job_options.h"
 #include "core/render/render_options.h"
@@ -81,6 +82,8 @@ commands:
                                (frame numbers are the job's frame indices, from 0); a job
                                of several frames needs --out DIR or --frame F
   cancel JOB                   cancel a job
+  delete JOB                   delete a finished, failed or cancelled job: its results and the
+                               assets no other job uses
   list                         all jobs
   status                       workers and queue
   bundle SCENE.xml [-D k=v]    list the files `submit` would upload, with their SHA-256
@@ -542,6 +545,7 @@ int list(const Connection& c) {
                     state_name(job.state()), job.priority(), job.settings().algorithm().c_str(),
                     frames.c_str(), its.c_str(), format_time(job.submitted_unix_ms()).c_str(),
                     job.name().c_str());
+        if (!job.waiting().empty()) std::printf("%-24s %s\n", "", job.waiting().c_str());
     }
     return 0;
 }
@@ -580,6 +584,20 @@ int cancel(const Connection& c, const std::string& job_id) {
     grpc::Status s = c.stub->CancelJob(&context, request, &job);
     if (!s.ok()) throw RpcFailure("CancelJob", s);
     std::printf("job %s: %s\n", job.id().c_str(), state_name(job.state()));
+    return 0;
+}
+
+int delete_job(const Connection& c, const std::string& job_id) {
+    grpc::ClientContext context;
+    c.prepare(context);
+    v1::DeleteJobRequest request;
+    request.set_job_id(job_id);
+    v1::DeleteJobReply reply;
+    grpc::Status s = c.stub->DeleteJob(&context, request, &reply);
+    if (!s.ok()) throw RpcFailure("DeleteJob", s);
+    std::printf("job %s deleted: %llu asset(s) no other job uses removed, %s freed\n",
+                job_id.c_str(), (unsigned long long)reply.assets_removed(),
+                render::format_bytes(reply.bytes_freed()).c_str());
     return 0;
 }
 
@@ -685,6 +703,10 @@ int main(int argc, char** argv) {
         if (command == "cancel") {
             if (args.size() != 1) usage_error("cancel expects one job id");
             return cancel(c, job_arg("cancel"));
+        }
+        if (command == "delete") {
+            if (args.size() != 1) usage_error("delete expects one job id");
+            return delete_job(c, job_arg("delete"));
         }
         if (command == "list") return list(c);
         if (command == "status") return status(c);

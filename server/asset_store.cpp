@@ -43,6 +43,16 @@ void AssetStore::release(uint64_t bytes) const {
     reserved_ -= bytes;
 }
 
+uint64_t AssetStore::remove(const std::string& sha256) {
+    const std::optional<uint64_t> n = size(sha256);
+    if (!n) return 0;
+    std::error_code ec;
+    if (!fs::remove(path(sha256), ec) || ec) return 0;
+    std::lock_guard lock(mu_);
+    stored_ -= std::min(stored_, *n);
+    return *n;
+}
+
 fs::path AssetStore::path(const std::string& sha256) const {
     return assets_dir_ / sha256;
 }

@@ -60,6 +60,10 @@ class AssetStore {
         bool reserved_ = false;
     };
 
+    // Deletes an asset (no job references it any more) and takes its size off the store's
+    // total; returns the bytes freed (0 when it was not there).
+    uint64_t remove(const std::string& sha256);
+
     // Links (or copies) each (bundle path, sha256) under `dir`. Throws std::runtime_error.
     void materialize(const std::vector<std::pair<std::string, std::string>>& files,
                      const std::filesystem::path& dir) const;

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <random>
@@ -142,6 +143,7 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
       assets_(options.store, options.max_store_size),
       client_streams_(options.streams),
       worker_streams_(options.streams),
+      long_streams_(StreamLimits{options.streams.idle_seconds, SIZE_MAX}),
       scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
                                   options.max_lease_seconds},
                  std::move(clock)) {
@@ -387,6 +389,18 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     job->row.height = height;
     job->row.submitted_unix_ms = unix_ms();
     const uint32_t frame_count = frames_requested;
+    std::lock_guard lock(mu_);
+    // Checked again under mu_: a job deleted meanwhile (delete_job, under mu_) may have
+    // removed an asset this bundle shares, which workers could then not fetch.
+    for (const v1::BundleFile& f : request.bundle().files())
+        if (!assets_.has(f.sha256())) {
+            std::error_code ec;
+            fs::remove_all(job_dir, ec);
+            return Status(StatusCode::FAILED_PRECONDITION,
+                          "asset \"" + f.path() + "\" (sha256 " + f.sha256() +
+                              ") was deleted with another job while this one was submitted: "
+                              "upload it again");
+        }
     try {
         store_.insert_job(job->row, frame_count);
     } catch (const std::exception& e) {
@@ -399,7 +413,6 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         p.budget_seconds = request.settings().time_budget_seconds();
         job->frames.push_back(std::make_unique<FrameData>());
     }
-    std::lock_guard lock(mu_);
     scheduler_.add_job(id, job->row.priority, uint64_t(sequence), JobState::Queued,
                        std::move(plans));
     jobs_[id] = job;
@@ -427,6 +440,8 @@ void JobManager::fill_job(const JobData& job, v1::Job* out) const {
     *out->mutable_settings() = job.request.settings();
     out->set_error(job.row.error);
     out->set_submitted_unix_ms(job.row.submitted_unix_ms);
+    if (!is_terminal(scheduler_.state(job.row.id)) && memory_blocked(job))
+        out->set_waiting(memory_waiting(job));
     const v1::RenderSettings& s = job.request.settings();
     for (uint32_t i = 0; i < job.frames.size(); ++i) {
         FrameProgress p = scheduler_.progress(job.row.id, i);
@@ -507,6 +522,52 @@ Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
         Log("info", "job_cancelled").kv("job", job_id);
     }
     fill_job(*job, out);
+    return Status::OK;
+}
+
+Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply) {
+    // One frame finishes at a time (finish_mu_): none of this job's is being written now.
+    std::lock_guard finish_lock(finish_mu_);
+    std::vector<std::string> orphans;
+    {
+        std::lock_guard lock(mu_);
+        auto job = find(job_id);
+        if (!job) return job_not_found(job_id);
+        if (!is_terminal(scheduler_.state(job_id)))
+            return Status(StatusCode::FAILED_PRECONDITION,
+                          "job " + job_id + " is still queued or running: cancel it first");
+        std::set<std::string> mine;
+        for (const v1::BundleFile& f : job->request.bundle().files()) mine.insert(f.sha256());
+        for (const auto& [id, other] : jobs_)
+            if (id != job_id)
+                for (const v1::BundleFile& f : other->request.bundle().files())
+                    mine.erase(f.sha256());
+        orphans.assign(mine.begin(), mine.end());
+        scheduler_.remove_job(job_id);
+        jobs_.erase(job_id);
+        // The rows go while mu_ is held: a restart never sees a job whose files are gone.
+        store_or_log("job", job_id, [&] { store_.delete_job(job_id, orphans); });
+        // Removed under mu_ too: a submit checks its assets and materializes them before it
+        // takes mu_, so a submit racing this may find one gone and fail (the client uploads
+        // it again); one that has linked it keeps its own link.
+        uint64_t freed = 0, removed = 0;
+        for (const std::string& sha : orphans)
+            if (const uint64_t n = assets_.remove(sha); n > 0) {
+                freed += n;
+                ++removed;
+            }
+        reply->set_assets_removed(removed);
+        reply->set_bytes_freed(freed);
+    }
+    std::error_code ec;
+    for (const fs::path& dir :
+         {options_.store / "jobs" / job_id, options_.store / "checkpoints" / job_id,
+          options_.store / "results" / job_id})
+        fs::remove_all(dir, ec);
+    Log("info", "job_deleted")
+        .kv("job", job_id)
+        .kv("assets_removed", reply->assets_removed())
+        .kv("bytes_freed", reply->bytes_freed());
     return Status::OK;
 }
 
@@ -616,7 +677,10 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
     {
         std::lock_guard lock(mu_);
         touch_worker(request.worker_id());
-        grant = scheduler_.lease(request.worker_id());
+        grant = scheduler_.lease(request.worker_id(), [&](const std::string& job_id) {
+            auto job = find(job_id);
+            return job && lacks_memory_for(*job, request.worker_id());
+        });
         if (!grant) {
             reply->set_granted(false);
             return Status::OK;
@@ -675,6 +739,11 @@ constexpr size_t kMaxLostRenderingWorkers = 10;
 void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
     const std::optional<LeaseGrant> grant = scheduler_.release(worker_id, failure.lease_id());
     if (!grant) return;  // not this worker's active lease: nothing to count
+    if (failure.memory_needed() > 0 && failure.memory_limit() > 0) {
+        if (auto job = find(grant->job_id); job && !is_terminal(scheduler_.state(grant->job_id)))
+            lease_refused_for_memory(worker_id, *job, failure);
+        return;
+    }
     metrics_.lease_failed();
     const std::string error = failure.error().substr(0, 2000);
     Log("warn", "lease_failed")
@@ -687,6 +756,98 @@ void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailu
     job->progressed_leases.erase(grant->lease_id);
     job->failed_workers.insert(worker_id);
     job->last_failure = error;
+    fail_if_poison(*job, grant->job_id);
+}
+
+void JobManager::lease_refused_for_memory(const std::string& worker_id, JobData& job,
+                                          const v1::LeaseFailure& failure) {
+    metrics_.lease_refused_memory();
+    workers_[worker_id].memory_limit = failure.memory_limit();
+    job.memory_refusals[worker_id] = failure.memory_limit();
+    job.memory_needed = std::max(job.memory_needed, failure.memory_needed());
+    job.memory_error = failure.error().substr(0, 2000);
+    Log("warn", "lease_refused_memory")
+        .kv("lease", failure.lease_id())
+        .kv("worker", worker_id)
+        .kv("job", job.row.id)
+        .kv("needed", failure.memory_needed())
+        .kv("limit", failure.memory_limit());
+}
+
+bool JobManager::lacks_memory_for(const JobData& job, const std::string& worker_id) const {
+    if (job.memory_refusals.count(worker_id)) return true;
+    auto w = workers_.find(worker_id);
+    return job.memory_needed > 0 && w != workers_.end() && w->second.memory_limit > 0 &&
+           w->second.memory_limit < job.memory_needed;
+}
+
+bool JobManager::memory_blocked(const JobData& job) const {
+    if (job.memory_refusals.empty()) return false;
+    const int64_t now = unix_ms();
+    const auto live_ms = int64_t(options_.lease_timeout_seconds * 1000);
+    bool any_live = false;
+    for (const auto& [id, w] : workers_) {
+        if (now - w.last_seen_unix_ms > live_ms) continue;
+        any_live = true;
+        if (!lacks_memory_for(job, id)) return false;
+    }
+    return any_live;
+}
+
+std::string JobManager::memory_waiting(const JobData& job) const {
+    uint64_t largest_limit = 0;
+    for (const auto& [id, limit] : job.memory_refusals)
+        largest_limit = std::max(largest_limit, limit);
+    const size_t n = job.memory_refusals.size();
+    char wait[32];
+    std::snprintf(wait, sizeof wait, "%g", options_.memory_wait_seconds);
+    return "waiting for a worker with more than " + format_bytes(largest_limit) +
+           " of memory: the job needs at least " + format_bytes(job.memory_needed) +
+           " (refused for memory by " + std::to_string(n) + " worker" + (n == 1 ? "" : "s") +
+           "; it fails if none joins within " + wait + " s, server --memory-wait)";
+}
+
+void JobManager::fail_memory_blocked() {
+    const TimePoint now = clock_();
+    for (auto& [id, job] : jobs_) {
+        if (job->memory_refusals.empty() || is_terminal(scheduler_.state(id))) continue;
+        if (!memory_blocked(*job)) {
+            job->memory_blocked_since.reset();
+            continue;
+        }
+        if (!job->memory_blocked_since) job->memory_blocked_since = now;
+        const double waited =
+            std::chrono::duration<double>(now - *job->memory_blocked_since).count();
+        if (waited < options_.memory_wait_seconds) continue;
+        const size_t n = job->memory_refusals.size();
+        char wait[32];
+        std::snprintf(wait, sizeof wait, "%g", options_.memory_wait_seconds);
+        const std::string why = "no worker has the memory for this job: refused for memory by " +
+                                std::to_string(n) + " worker" + (n == 1 ? "" : "s") +
+                                " and no live worker with more joined within " + wait +
+                                " s (server --memory-wait); last refusal: " + job->memory_error;
+        Log("error", "job_failed").kv("job", id).kv("error", why);
+        set_state(*job, JobState::Failed, why);
+    }
+}
+
+void JobManager::report_stream_idle(const std::string& lease_id) {
+    std::lock_guard lock(mu_);
+    const std::optional<LeaseGrant> found = scheduler_.find_lease(lease_id);
+    if (!found) return;  // expired meanwhile (queued again by expiry) or already merged
+    const std::optional<LeaseGrant> grant = scheduler_.release(found->worker_id, lease_id);
+    if (!grant) return;
+    store_or_log("lease", lease_id, [&] { store_.delete_lease(lease_id); });
+    Log("warn", "report_stream_idle")
+        .kv("lease", lease_id)
+        .kv("worker", grant->worker_id)
+        .kv("job", grant->job_id)
+        .kv("first", grant->range.first)
+        .kv("end", grant->range.end);
+    auto job = find(grant->job_id);
+    if (!job || is_terminal(scheduler_.state(grant->job_id))) return;
+    job->progressed_leases.erase(lease_id);
+    job->lost_rendering_workers.insert(grant->worker_id);
     fail_if_poison(*job, grant->job_id);
 }
 
@@ -924,6 +1085,7 @@ void JobManager::advance() {
         std::lock_guard lock(mu_);
         complete = scheduler_.tick();
         for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
+        fail_memory_blocked();
     }
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
 }
@@ -1133,6 +1295,7 @@ std::string JobManager::metrics_text() {
             JobSnapshot js;
             js.id = id;
             js.relative_error = 0;
+            if (memory_blocked(*job)) js.memory_wanted_bytes = double(job->memory_needed);
             for (uint32_t i = 0; i < job->frames.size(); ++i) {
                 const FrameProgress p = scheduler_.progress(id, i);
                 if (!p.done && p.elapsed_seconds > 0)
@@ -1143,6 +1306,7 @@ std::string JobManager::metrics_text() {
             s.jobs.push_back(std::move(js));
         }
         s.queued_iterations = scheduler_.queued_iterations();
+        s.asset_store_bytes = assets_.stored_bytes();
         s.active_leases = scheduler_.active_lease_count();
         s.leases = scheduler_.lease_counters();
     }

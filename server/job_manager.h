@@ -53,6 +53,9 @@ struct ServerOptions {
     // The bulk streams: each of clients' (UploadAsset, FetchResult) and workers' (FetchAsset)
     // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
     StreamLimits streams{};
+    // A job refused for memory by every live worker (each refused it, or is known to have a
+    // smaller limit than it needs) FAILS once that has lasted this long (docs/service.md).
+    double memory_wait_seconds = 300;
 };
 
 class JobManager {
@@ -65,6 +68,11 @@ class JobManager {
     grpc::Status get(const std::string& job_id, v1::Job* job);
     void list(v1::ListJobsReply* reply);
     grpc::Status cancel(const std::string& job_id, v1::Job* job);
+    // Deletes a finished, failed or cancelled job (FAILED_PRECONDITION otherwise: cancel it
+    // first): its rows, scene folder, checkpoints and results, and the assets of its bundle
+    // that no other job references (the store's size goes down by theirs). An asset uploaded
+    // but not yet in any submitted job is kept.
+    grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply);
     // The EXR to stream for FetchResult; `temporary` files (previews) are deleted by the caller.
     grpc::Status result_file(const v1::FetchResultRequest& request, std::filesystem::path* file,
                              bool* temporary);
@@ -112,6 +120,11 @@ class JobManager {
     // other report in progress; the slot is released when the returned handle is destroyed
     // (null for a lease the server does not know: such a report is dropped unread).
     std::shared_ptr<void> report_slot(const std::string& lease_id);
+    // The report stream of `lease_id` was cancelled for being idle (the worker stalled or went
+    // away mid-report): the lease is voided and its range queued again at once, for another
+    // worker; a later report of it is dropped (unknown lease), so nothing merges twice. Counted
+    // as a lost lease of a worker that rendered (toward kMaxLostRenderingWorkers).
+    void report_stream_idle(const std::string& lease_id);
 
     // Expires leases, closes time budgets, finishes complete frames and writes the checkpoints
     // that are due. Called periodically (a report does all but the checkpoints).
@@ -125,6 +138,9 @@ class JobManager {
     // that clients cannot keep workers from their assets).
     StreamGuards& client_streams() { return client_streams_; }
     StreamGuards& worker_streams() { return worker_streams_; }
+    // Workers' Report and clients' WatchJob streams: the same idle timeout, no count limit (a
+    // report is one lease's; watchers have their own limit in JobServiceImpl).
+    StreamGuards& long_streams() { return long_streams_; }
     const ServerOptions& options() const { return options_; }
 
   private:
@@ -160,13 +176,22 @@ class JobManager {
         std::set<std::string> progressed_leases;
         std::set<std::string> lost_rendering_workers;
         std::mutex report_mu;  // held by the report being received and merged (report_slot)
+        // Workers that refused a lease of this job for memory, with their limits; the largest
+        // estimate a refusal reported, and its message (in memory, like the failures above).
+        // Such refusals are not failures: the job waits for a worker with more memory.
+        std::map<std::string, uint64_t> memory_refusals;
+        uint64_t memory_needed = 0;
+        std::string memory_error;
+        // Since when no live worker could take the job (memory_blocked), for memory_wait.
+        std::optional<TimePoint> memory_blocked_since;
     };
     struct WorkerInfo {
         std::string host;
         uint32_t threads = 0;
         std::string version;
         int64_t last_seen_unix_ms = 0;
-        v1::WorkerRates rates;  // from the latest heartbeat with rates or merged report
+        v1::WorkerRates rates;      // from the latest heartbeat with rates or merged report
+        uint64_t memory_limit = 0;  // from its latest refusal for memory; 0 = unknown
     };
 
     void restore();
@@ -197,6 +222,19 @@ class JobManager {
                              const google::protobuf::RepeatedPtrField<std::string>& lease_ids);
     // FAILS `job` if its failed and lost workers reach the limits above.
     void fail_if_poison(JobData& job, const std::string& job_id);  // mu_ held
+    // A worker refused a lease for memory: recorded, not counted as a failure (mu_ held).
+    void lease_refused_for_memory(const std::string& worker_id, JobData& job,
+                                  const v1::LeaseFailure& failure);
+    // The worker cannot take the job for memory: it refused it, or its limit (known from a
+    // refusal) is below what the job needs (mu_ held).
+    bool lacks_memory_for(const JobData& job, const std::string& worker_id) const;
+    // The job was refused for memory and no live worker (seen within the lease timeout) can
+    // take it; false without live workers (mu_ held).
+    bool memory_blocked(const JobData& job) const;
+    // Job.waiting for a memory-blocked job (mu_ held).
+    std::string memory_waiting(const JobData& job) const;
+    // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).
+    void fail_memory_blocked();
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);
@@ -208,6 +246,7 @@ class JobManager {
     AssetStore assets_;
     StreamGuards client_streams_;
     StreamGuards worker_streams_;
+    StreamGuards long_streams_;
     mutable std::mutex mu_;
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;

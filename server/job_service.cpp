@@ -143,13 +143,22 @@ Status JobServiceImpl::WatchJob(grpc::ServerContext* context, const v1::WatchJob
         std::atomic<size_t>& open;
         ~Release() { open.fetch_sub(1); }
     } release{watch_streams_};
+    // A watcher that stops reading blocks Write once the transport's window is full: it is
+    // cancelled after --stream-idle-timeout seconds. Waiting for the job to change is the
+    // server's doing and not idle: every poll counts as progress.
+    Status refused;
+    auto guard = manager_.long_streams().admit(context, "WatchJob", &refused);
+    if (!guard) return refused;
     std::string last;
     while (!context->IsCancelled()) {
+        guard->progress();
         v1::JobEvent event;
         if (Status s = manager_.get(request->job_id(), event.mutable_job()); !s.ok()) return s;
         std::string now = event.job().SerializeAsString();
         if (now != last) {
-            if (!writer->Write(event)) return Status(StatusCode::CANCELLED, "watcher went away");
+            if (!writer->Write(event))
+                return guard->timed_out() ? guard->idle_status()
+                                          : Status(StatusCode::CANCELLED, "watcher went away");
             last = std::move(now);
         }
         auto state = event.job().state();
@@ -161,6 +170,12 @@ Status JobServiceImpl::WatchJob(grpc::ServerContext* context, const v1::WatchJob
         if (stopping_) return Status(StatusCode::UNAVAILABLE, "the server is shutting down");
     }
     return Status(StatusCode::CANCELLED, "watcher went away");
+}
+
+Status JobServiceImpl::DeleteJob(grpc::ServerContext* context, const v1::DeleteJobRequest* request,
+                                 v1::DeleteJobReply* reply) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    return manager_.delete_job(request->job_id(), reply);
 }
 
 Status JobServiceImpl::CancelJob(grpc::ServerContext* context, const v1::CancelJobRequest* request,

@@ -28,6 +28,8 @@ class JobServiceImpl final : public v1::JobService::Service {
                           v1::ListJobsReply* reply) override;
     grpc::Status WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
                           grpc::ServerWriter<v1::JobEvent>* writer) override;
+    grpc::Status DeleteJob(grpc::ServerContext* context, const v1::DeleteJobRequest* request,
+                           v1::DeleteJobReply* reply) override;
     grpc::Status CancelJob(grpc::ServerContext* context, const v1::CancelJobRequest* request,
                            v1::Job* reply) override;
     grpc::Status FetchResult(grpc::ServerContext* context, const v1::FetchResultRequest* request,

@@ -290,6 +290,30 @@ void JobStore::add_asset(const std::string& sha256, uint64_t size) {
     s.run();
 }
 
+void JobStore::delete_job(const std::string& job_id, const std::vector<std::string>& assets) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        for (const char* sql :
+             {"DELETE FROM jobs WHERE id = ?1", "DELETE FROM frames WHERE job_id = ?1",
+              "DELETE FROM merged_ranges WHERE job_id = ?1",
+              "DELETE FROM leases WHERE job_id = ?1"}) {
+            Statement s(db_, sql);
+            s.text(1, job_id);
+            s.run();
+        }
+        for (const std::string& sha : assets) {
+            Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
+            s.text(1, sha);
+            s.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
 void JobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
                             const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);

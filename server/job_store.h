@@ -61,6 +61,9 @@ class JobStore {
                     bool done, double elapsed);
 
     void add_asset(const std::string& sha256, uint64_t size);
+    // In one transaction: the job's row, its frames, merged ranges and leases, and the rows of
+    // `assets` (those the job alone referenced, removed from the asset store).
+    void delete_job(const std::string& job_id, const std::vector<std::string>& assets);
 
     void insert_lease(const std::string& lease_id, const std::string& worker_id,
                       const std::string& job_id, uint32_t frame, Range range);

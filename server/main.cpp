@@ -50,11 +50,12 @@ using namespace render::server;
 struct Options {
     std::string listen;
     std::string token;
-    std::string metrics;            // HOST:PORT for /metrics alone
-    std::string http;               // HOST:PORT for the dashboard, /api/ and /metrics
-    std::string tls_cert, tls_key;  // PEM files; both empty: plaintext
-    bool insecure = false;          // a token over plaintext (loopback only)
-    std::string health;             // HOST:PORT for grpc.health.v1 (no render API), plaintext
+    std::string metrics;               // HOST:PORT for /metrics alone
+    std::string http;                  // HOST:PORT for the dashboard, /api/ and /metrics
+    std::string tls_cert, tls_key;     // PEM files; both empty: plaintext
+    bool insecure = false;             // a token over plaintext (loopback only)
+    std::string health;                // HOST:PORT for grpc.health.v1 (no render API), plaintext
+    bool fixed_stream_window = false;  // gRPC's bandwidth-delay probe off
     ServerOptions server;
     bool help = false;
 };
@@ -121,10 +122,18 @@ ArgumentParser make_parser(Options& o) {
                 o.server.max_store_size = parse_size_flag("--max-store-size", v);
             });
     p.value({"--stream-idle-timeout"}, "SECONDS",
-            "cancel an UploadAsset, FetchResult or FetchAsset stream that sends or takes no "
-            "chunk for this long, freeing its server thread (default 60)",
+            "cancel an UploadAsset, FetchResult, FetchAsset, Report or WatchJob stream that "
+            "sends or takes no chunk for this long, freeing its server thread; a cancelled "
+            "Report's lease is queued again at once (default 60)",
             [&](const std::string& v) {
                 o.server.streams.idle_seconds = parse_seconds("--stream-idle-timeout", v);
+            });
+    p.value({"--memory-wait"}, "SECONDS",
+            "a job that every live worker refused for memory (its estimate over the worker's "
+            "limit) waits this long for a worker with more memory, then FAILS with the "
+            "refusal's message (default 300); refusals never count toward the poison rule",
+            [&](const std::string& v) {
+                o.server.memory_wait_seconds = parse_seconds("--memory-wait", v);
             });
     p.value({"--max-transfer-streams"}, "N",
             "at most N clients' UploadAsset and FetchResult streams open at once, and N "
@@ -156,6 +165,12 @@ ArgumentParser make_parser(Options& o) {
             "plaintext at HOST:PORT: for probes that cannot speak TLS, e.g. Kubernetes' gRPC "
             "probes",
             [&](const std::string& v) { o.health = v; });
+    p.flag({"--fixed-stream-window"},
+           "keep every stream's receive window at gRPC's 64 KiB (its bandwidth-delay probe "
+           "off): reports waiting for their job's turn then buffer 64 KiB each instead of "
+           "megabytes (server memory with many workers reporting large frames); slower "
+           "transfers over links with latency",
+           [&] { o.fixed_stream_window = true; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
 }
@@ -287,6 +302,11 @@ int main(int argc, char** argv) {
     // the server's CPU per lease (farm_sim, docs/service.md "How many workers one server
     // carries"). Eight idle threads cost nothing and keep them.
     builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 8);
+    // Reports of one job are received one at a time (JobManager::report_slot), but gRPC keeps
+    // reading the waiting ones into memory as far as their window allows, and its
+    // bandwidth-delay probe grows that window to megabytes on a fast link: with 16 workers
+    // reporting 1024x1024 frames, tens of MB each (docs/service.md).
+    if (options.fixed_stream_window) builder.AddChannelArgument(GRPC_ARG_HTTP2_BDP_PROBE, 0);
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) {
         std::cerr << "server: cannot listen on " << options.listen

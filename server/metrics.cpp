@@ -45,6 +45,13 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
         &BuildGauge().Name("render_jobs").Help("Jobs known to the server, by state").Register(r);
     for (size_t s = 1; s < jobs_by_state_.size(); ++s)
         jobs_by_state_[s] = &jobs_->Add({{"state", state_label(s)}});
+    asset_store_bytes_ = &BuildGauge()
+                              .Name("render_asset_store_bytes")
+                              .Help(
+                                  "The stored assets' total size (server --max-store-size); "
+                                  "down when DeleteJob removes assets no other job uses")
+                              .Register(r)
+                              .Add({});
     queued_iterations_ = &BuildGauge()
                               .Name("render_queue_iterations")
                               .Help("Iterations of unfinished jobs not handed out to a worker yet")
@@ -82,6 +89,13 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                           .Help("Leases a worker reported it could not render")
                           .Register(r)
                           .Add({});
+    leases_refused_memory_ = &BuildCounter()
+                                  .Name("render_leases_refused_memory_total")
+                                  .Help(
+                                      "Leases a worker refused for memory (its estimate over its "
+                                      "limit); not failures: the job waits for a larger worker")
+                                  .Register(r)
+                                  .Add({});
     reports_merged_ = &BuildCounter()
                            .Name("render_reports_merged_total")
                            .Help("Worker reports whose sums were merged into a frame")
@@ -127,6 +141,12 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                           "Estimated relative error (odd/even) of an unfinished job's worst "
                           "frame; 1 before anything merged")
                       .Register(r);
+    job_memory_ = &BuildGauge()
+                       .Name("render_job_waiting_for_memory_bytes")
+                       .Help(
+                           "The memory an unfinished job needs while every live worker refused "
+                           "it for memory (server --memory-wait); 0 when a worker can take it")
+                       .Register(r);
     worker_iterations_ = &BuildGauge()
                               .Name("render_worker_iterations_per_second")
                               .Help(
@@ -180,6 +200,7 @@ std::string ServerMetrics::exposition(const MetricsSnapshot& s) {
     for (size_t i = 1; i < jobs_by_state_.size(); ++i)
         jobs_by_state_[i]->Set(double(s.jobs_by_state[i]));
     queued_iterations_->Set(double(s.queued_iterations));
+    asset_store_bytes_->Set(double(s.asset_store_bytes));
     workers_connected_->Set(double(s.workers.size()));
     leases_active_->Set(double(s.active_leases));
     set_counter(*leases_granted_, s.leases.granted);
@@ -191,9 +212,11 @@ std::string ServerMetrics::exposition(const MetricsSnapshot& s) {
         jobs_seen.insert(j.id);
         auto& children = job_children_[j.id];
         if (children.empty())
-            children = {&job_rate_->Add({{"job", j.id}}), &job_error_->Add({{"job", j.id}})};
+            children = {&job_rate_->Add({{"job", j.id}}), &job_error_->Add({{"job", j.id}}),
+                        &job_memory_->Add({{"job", j.id}})};
         children[0]->Set(j.iterations_per_second);
         children[1]->Set(j.relative_error);
+        children[2]->Set(j.memory_wanted_bytes);
     }
     for (auto it = job_children_.begin(); it != job_children_.end();) {
         if (jobs_seen.count(it->first)) {
@@ -202,6 +225,7 @@ std::string ServerMetrics::exposition(const MetricsSnapshot& s) {
         }
         job_rate_->Remove(it->second[0]);
         job_error_->Remove(it->second[1]);
+        job_memory_->Remove(it->second[2]);
         it = job_children_.erase(it);
     }
     for (const WorkerSnapshot& w : s.workers) {

@@ -34,11 +34,14 @@ struct JobSnapshot {
     std::string id;
     double iterations_per_second = 0;  // summed over the job's unfinished frames
     double relative_error = 1;         // the largest of its frames'
+    // The memory it needs while no live worker can take it (refused for memory), else 0.
+    double memory_wanted_bytes = 0;
 };
 
 struct MetricsSnapshot {
     std::array<uint64_t, 6> jobs_by_state{};  // indexed by JobState (1..5)
     uint64_t queued_iterations = 0;
+    uint64_t asset_store_bytes = 0;  // what --max-store-size counts
     uint64_t active_leases = 0;
     LeaseCounters leases;
     std::vector<WorkerSnapshot> workers;  // connected ones
@@ -51,6 +54,8 @@ class ServerMetrics {
 
     // A worker reported a lease it could not render.
     void lease_failed() { leases_failed_->Increment(); }
+    // A worker refused a lease for memory (not a failure: the job waits for a larger one).
+    void lease_refused_memory() { leases_refused_memory_->Increment(); }
     // A report's sums were added (merge) and checkpointed and stored (store).
     void report_merged(double merge_seconds, double store_seconds);
     // A report was dropped; reason as MergeDecision's to_string or "unknown_lease".
@@ -71,12 +76,14 @@ class ServerMetrics {
     prometheus::Family<prometheus::Gauge>* jobs_;
     std::array<prometheus::Gauge*, 6> jobs_by_state_{};
     prometheus::Gauge* queued_iterations_;
+    prometheus::Gauge* asset_store_bytes_;
     prometheus::Gauge* workers_connected_;
     prometheus::Gauge* leases_active_;
     prometheus::Counter* leases_granted_;
     prometheus::Counter* leases_expired_;
     prometheus::Counter* leases_requeued_;
     prometheus::Counter* leases_failed_;
+    prometheus::Counter* leases_refused_memory_;
     prometheus::Counter* reports_merged_;
     prometheus::Family<prometheus::Counter>* reports_dropped_;
     prometheus::Counter* bytes_reports_;
@@ -86,6 +93,7 @@ class ServerMetrics {
     prometheus::Histogram* report_bytes_;
     prometheus::Family<prometheus::Gauge>* job_rate_;
     prometheus::Family<prometheus::Gauge>* job_error_;
+    prometheus::Family<prometheus::Gauge>* job_memory_;
     prometheus::Family<prometheus::Gauge>* worker_iterations_;
     prometheus::Family<prometheus::Gauge>* worker_samples_;
     prometheus::Family<prometheus::Gauge>* worker_rays_;

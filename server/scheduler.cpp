@@ -72,6 +72,15 @@ bool Scheduler::set_priority(const std::string& job_id, int priority) {
     return true;
 }
 
+bool Scheduler::remove_job(const std::string& job_id) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || !is_terminal(it->second.state)) return false;
+    for (auto r = rates_.begin(); r != rates_.end();)
+        r = r->first.second == job_id ? rates_.erase(r) : std::next(r);
+    jobs_.erase(it);
+    return true;
+}
+
 void Scheduler::set_state(const std::string& job_id, JobState state) {
     auto it = jobs_.find(job_id);
     if (it == jobs_.end()) return;
@@ -213,11 +222,13 @@ std::string Scheduler::new_lease_id() {
     return lease_prefix_ + buf;
 }
 
-std::optional<LeaseGrant> Scheduler::lease(const std::string& worker_id) {
+std::optional<LeaseGrant> Scheduler::lease(const std::string& worker_id,
+                                           const std::function<bool(const std::string&)>& skip) {
     TimePoint now = clock_();
     expire(now);
     close_budgets(now);
     for (Job* job : ordered_jobs()) {
+        if (skip && skip(job->id)) continue;
         uint64_t size = lease_size(worker_id, job->id);
         for (uint32_t index = 0; index < job->frames.size(); ++index) {
             Frame& f = job->frames[index];

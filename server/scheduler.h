@@ -87,6 +87,8 @@ class Scheduler {
     JobState state(const std::string& job_id) const;
     // Changes a job's priority (higher is leased first); false for an unknown job.
     bool set_priority(const std::string& job_id, int priority);
+    // Forgets a job in a terminal state (its leases are void already); false otherwise.
+    bool remove_job(const std::string& job_id);
     // Sets a job's state; a terminal state voids its leases (heartbeats report them cancelled).
     void set_state(const std::string& job_id, JobState state);
 
@@ -97,8 +99,10 @@ class Scheduler {
     // frame's target and time budget cap it): 1 until the worker's rate for the job is known.
     uint64_t lease_size(const std::string& worker_id, const std::string& job_id) const;
 
-    // The next range for this worker, or nothing when no job needs iterations now.
-    std::optional<LeaseGrant> lease(const std::string& worker_id);
+    // The next range for this worker, or nothing when no job needs iterations now. Jobs for
+    // which `skip(job_id)` is true are passed over (a job this worker refused for memory).
+    std::optional<LeaseGrant> lease(const std::string& worker_id,
+                                    const std::function<bool(const std::string&)>& skip = {});
 
     // Extends the worker's leases; returns those of `lease_ids` the worker must stop.
     std::vector<std::string> heartbeat(const std::string& worker_id,

@@ -64,7 +64,7 @@ void StreamGuards::watch() {
         wake_.wait_for(lock, period);
         const auto now = Clock::now();
         for (Entry& e : entries_)
-            if (!e.timed_out && now - e.last_progress > idle) {
+            if (!e.timed_out && !e.paused && now - e.last_progress > idle) {
                 e.timed_out = true;
                 // Thread-safe; the handler's blocked Read or Write returns false. The entry
                 // (and so the context) lives until the handler's Guard is destroyed, which
@@ -88,6 +88,17 @@ StreamGuards::Guard::~Guard() {
 void StreamGuards::Guard::progress() {
     std::lock_guard lock(owner_.mu_);
     entry_->last_progress = Clock::now();
+}
+
+StreamGuards::Guard::Pause::Pause(Guard& guard) : guard_(guard) {
+    std::lock_guard lock(guard_.owner_.mu_);
+    guard_.entry_->paused = true;
+}
+
+StreamGuards::Guard::Pause::~Pause() {
+    std::lock_guard lock(guard_.owner_.mu_);
+    guard_.entry_->paused = false;
+    guard_.entry_->last_progress = Clock::now();
 }
 
 bool StreamGuards::Guard::timed_out() const {

@@ -5,7 +5,11 @@
 // sends nor reads would hold that thread for ever (issue 18). A StreamGuards admits at most
 // `max_streams` such streams at once (the next is refused with RESOURCE_EXHAUSTED), and a
 // watchdog thread cancels a stream that made no progress (no chunk received or sent) for
-// `idle_seconds`: the handler's blocked Read or Write then returns false.
+// `idle_seconds`: the handler's blocked Read or Write then returns false. The workers' Report
+// streams and the clients' WatchJob streams are guarded the same way, without a count limit
+// (JobManager::report_streams): a report idle between its chunks, or a watcher that stopped
+// reading its events, is cancelled; the time a report waits for its job's report slot (the
+// server's doing, not the worker's) does not count (Guard::Pause).
 
 #include <grpcpp/grpcpp.h>
 
@@ -47,6 +51,19 @@ class StreamGuards {
         // The status a handler returns when its stream was cancelled for being idle.
         grpc::Status idle_status() const;
 
+        // While a Pause lives the stream is not idle (the server, not the peer, is waiting);
+        // the idle clock restarts when it ends.
+        class Pause {
+          public:
+            explicit Pause(Guard& guard);
+            ~Pause();
+            Pause(const Pause&) = delete;
+            Pause& operator=(const Pause&) = delete;
+
+          private:
+            Guard& guard_;
+        };
+
       private:
         StreamGuards& owner_;
         std::list<Entry>::iterator entry_;
@@ -66,6 +83,7 @@ class StreamGuards {
         std::string what;
         std::chrono::steady_clock::time_point last_progress;
         bool timed_out = false;
+        bool paused = false;
     };
     void watch();
 

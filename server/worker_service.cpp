@@ -68,9 +68,19 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
                                  grpc::ServerReader<v1::ReportChunk>* reader,
                                  v1::ReportReply* reply) {
     if (Status s = auth_.check(context); !s.ok()) return s;
+    // A worker that stalls mid-report (or opens the stream and sends nothing) would hold this
+    // thread, and its lease, for ever: the stream is cancelled after --stream-idle-timeout
+    // seconds without a chunk, and its lease's range is queued again at once.
+    Status refused;
+    std::unique_ptr<StreamGuards::Guard> guard =
+        manager_.long_streams().admit(context, "Report", &refused);
+    if (!guard) return refused;
     v1::ReportChunk chunk;
-    if (!reader->Read(&chunk) || !chunk.has_header())
+    if (!reader->Read(&chunk) || !chunk.has_header()) {
+        if (guard->timed_out()) return guard->idle_status();
         return Status(StatusCode::INVALID_ARGUMENT, "a report must start with its header");
+    }
+    guard->progress();
     const v1::ReportHeader header = chunk.header();
     size_t n = 0, layers = 0;
     bool drop = false;
@@ -82,7 +92,11 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     }
     if (drop) {
         uint64_t bytes = header.ByteSizeLong();
-        while (reader->Read(&chunk)) bytes += chunk.values().size();
+        while (reader->Read(&chunk)) {
+            guard->progress();
+            bytes += chunk.values().size();
+        }
+        if (guard->timed_out()) return guard->idle_status();
         manager_.metrics().report_received(bytes);
         manager_.metrics().report_dropped("unknown_lease");
         Log("warn", "report_dropped").kv("lease", header.lease_id()).kv("reason", "unknown_lease");
@@ -92,7 +106,12 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     // One report of a job at a time holds its values (JobManager::report_slot): the wait is
     // logged. A lease unknown by now is read and dropped by report() as before.
     const auto wait_start = std::chrono::steady_clock::now();
-    const std::shared_ptr<void> slot = manager_.report_slot(header.lease_id());
+    std::shared_ptr<void> slot;
+    {
+        // Waiting for another report of the job is not the worker being idle.
+        StreamGuards::Guard::Pause paused(*guard);
+        slot = manager_.report_slot(header.lease_id());
+    }
     const auto receiving = std::chrono::steady_clock::now();
     const auto waited = receiving - wait_start;
     // sum, odd_sum (unless omitted), then the layers' sums: one float64 sequence, split after
@@ -102,6 +121,7 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     const size_t expected = values.size() * sizeof(double);
     size_t received = 0;
     while (reader->Read(&chunk)) {
+        guard->progress();
         if (chunk.has_header())
             return Status(StatusCode::INVALID_ARGUMENT, "a report has exactly one header");
         const std::string& data = chunk.values();
@@ -112,6 +132,12 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         std::memcpy(reinterpret_cast<char*>(values.data()) + received, data.data(), data.size());
         received += data.size();
     }
+    if (guard->timed_out()) {
+        manager_.report_stream_idle(header.lease_id());
+        return guard->idle_status();
+    }
+    // Received: the merge below may take longer than the idle timeout and must not be cut.
+    guard.reset();
     if (context->IsCancelled()) return Status(StatusCode::CANCELLED, "report cancelled");
     if (received != expected)
         return Status(StatusCode::INVALID_ARGUMENT,

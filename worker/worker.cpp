@@ -250,7 +250,8 @@ bool Worker::heartbeat(const std::string& lease_id, const v1::WorkerRates* rates
     return true;
 }
 
-void Worker::report_failure(const std::string& lease_id, const std::string& error) {
+void Worker::report_failure(const std::string& lease_id, const std::string& error,
+                            uint64_t memory_needed, uint64_t memory_limit) {
     grpc::ClientContext context;
     prepare_context(context, options_.token, kRpcTimeout);
     v1::HeartbeatRequest request;
@@ -258,6 +259,8 @@ void Worker::report_failure(const std::string& lease_id, const std::string& erro
     v1::LeaseFailure* failure = request.add_failed_leases();
     failure->set_lease_id(lease_id);
     failure->set_error(error);
+    failure->set_memory_needed(memory_needed);
+    failure->set_memory_limit(memory_limit);
     v1::HeartbeatReply reply;
     grpc::Status status = stub_->Heartbeat(&context, request, &reply);
     if (!status.ok())
@@ -273,10 +276,11 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         .kv("first", first)
         .kv("end", end)
         .kv("algorithm", lease.settings().algorithm());
-    auto fail = [&](const std::string& why) {
-        // The server queues the range again and fails the job if it fails on several workers.
+    auto fail = [&](const std::string& why, uint64_t memory_needed = 0, uint64_t memory_limit = 0) {
+        // The server queues the range again and fails the job if it fails on several workers
+        // (a refusal for memory excepted: the job waits for a worker with more).
         log_error("lease_failed").kv("lease", lease.lease_id()).kv("error", why);
-        report_failure(lease.lease_id(), why);
+        report_failure(lease.lease_id(), why, memory_needed, memory_limit);
         return Outcome::Failed;
     };
     if (first < 1 || end <= first) return fail("empty or invalid iteration range");
@@ -324,8 +328,10 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     } catch (const std::exception& e) {
         // Files named as in the client's bundle (as the server's submit errors do), not by
         // this worker's cache folder, which the job's owner cannot see.
-        return fail(job_folder.empty() ? std::string(e.what())
-                                       : with_bundle_paths(e.what(), job_folder));
+        const auto* memory = dynamic_cast<const MemoryLimitExceeded*>(&e);
+        return fail(
+            job_folder.empty() ? std::string(e.what()) : with_bundle_paths(e.what(), job_folder),
+            memory ? memory->needed() : 0, memory ? memory->limit() : 0);
     }
 
     // Render in a thread, one iteration per call (the sum equals one call over the range, and

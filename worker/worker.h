@@ -49,7 +49,10 @@ class Worker {
     bool heartbeat(const std::string& lease_id, const v1::WorkerRates* rates);
     // Tells the server that this worker cannot render the lease (best effort: if the server
     // does not hear it, the lease expires as before).
-    void report_failure(const std::string& lease_id, const std::string& error);
+    // memory_needed/memory_limit: set for a refusal for memory (MemoryLimitExceeded), which the
+    // server does not count toward failing the job.
+    void report_failure(const std::string& lease_id, const std::string& error,
+                        uint64_t memory_needed = 0, uint64_t memory_limit = 0);
     Outcome report(const v1::Lease& lease, const struct RangeResult& result);
     // Sleeps up to `seconds`, waking early when a stop is requested.
     static void nap(double seconds);

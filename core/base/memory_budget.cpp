@@ -32,8 +32,15 @@ void SceneMemoryBudget::charge(uint64_t bytes, const std::string& what) {
                    : charged_ + bytes;
     if (limit_ > 0 && charged_ > limit_)
         throw MemoryLimitExceeded(what + ": the scene needs at least " + format_bytes(charged_) +
-                                  " of memory, more than the " + format_bytes(limit_) + " limit (" +
-                                  source_ + ")");
+                                      " of memory, more than the " + format_bytes(limit_) +
+                                      " limit (" + source_ + ")",
+                                  charged_, limit_);
+}
+
+void rethrow_scene_error(const SceneError& e, const SceneError& with_context) {
+    if (const auto* memory = dynamic_cast<const MemoryLimitExceeded*>(&e))
+        throw MemoryLimitExceeded(with_context.what(), memory->needed(), memory->limit());
+    throw with_context;
 }
 
 void charge_scene_memory(uint64_t bytes, const std::string& what) {

@@ -21,7 +21,21 @@ namespace render {
 class MemoryLimitExceeded : public SceneError {
   public:
     using SceneError::SceneError;
+    MemoryLimitExceeded(const std::string& message, uint64_t needed, uint64_t limit)
+        : SceneError(message), needed_(needed), limit_(limit) {}
+    // The estimate when the limit was passed (a lower bound of what the scene needs) and the
+    // limit; 0 when thrown without them.
+    uint64_t needed() const { return needed_; }
+    uint64_t limit() const { return limit_; }
+
+  private:
+    uint64_t needed_ = 0, limit_ = 0;
 };
+
+// Throws `with_context` (e with the caller's file, line or field added) in place of `e`: a
+// MemoryLimitExceeded stays one, with its numbers, so that a worker tells a refusal for memory
+// (which the server does not count against the job) from a scene that cannot load.
+[[noreturn]] void rethrow_scene_error(const SceneError& e, const SceneError& with_context);
 
 class SceneMemoryBudget {
   public:

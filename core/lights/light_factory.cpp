@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/base/plugin_table.h"
 #include "core/base/scene_limits.h"
 #include "core/lights/area_light.h"
@@ -107,7 +108,7 @@ std::unique_ptr<Light> make_envmap(const Properties& props,
     try {
         return EnvmapLight::load(filename, scale, *frame);
     } catch (const SceneError& e) {
-        throw props.error("filename", e.what());
+        rethrow_scene_error(e, props.error("filename", e.what()));
     }
 }
 

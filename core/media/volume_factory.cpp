@@ -1,5 +1,6 @@
 #include "core/media/volume_factory.h"
 
+#include "core/base/memory_budget.h"
 #include "core/base/plugin_table.h"
 
 #include <algorithm>
@@ -58,7 +59,7 @@ std::shared_ptr<const Volume> make_grid_volume(const Properties& props,
                              "\" (supported: .vol, .vdb)");
         check_volume_values(data, path.string());
     } catch (const SceneError& e) {
-        throw props.error("filename", e.what());
+        rethrow_scene_error(e, props.error("filename", e.what()));
     }
     if (use_grid_bbox) {
         const Vec3 extent = data.bbox.hi - data.bbox.lo;

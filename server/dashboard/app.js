@@ -136,6 +136,7 @@ function drawJobs(jobs) {
     if (!ended) ops.append(button("Cancel", "cancel", job.id,
                                   () => action(`/api/jobs/${job.id}/cancel`)));
     if (job.error) ops.append(document.createTextNode(" " + job.error));
+    if (job.waiting) ops.append(document.createTextNode(" " + job.waiting));
     tr.append(prio, ops);
     tr.addEventListener("click", () => select(job.id));
     body.append(tr);

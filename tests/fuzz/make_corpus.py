@@ -188,6 +188,11 @@ def request_seeds():
         "report": (8, pb.ReportHeader(lease_id="l-1", count=2, odd_count=1, width=16,
                                       height=16)),
         "cluster": (9, pb.ClusterStatusRequest()),
+        "delete": (10, pb.DeleteJobRequest(job_id="job-1")),
+        "heartbeat-memory": (7, pb.HeartbeatRequest(
+            worker_id="w-1", failed_leases=[pb.LeaseFailure(lease_id="l-2", error="e",
+                                                            memory_needed=2 << 20,
+                                                            memory_limit=1 << 20)])),
     }
     for name, (kind, message) in seeds.items():
         write("request", name, bytes([kind]) + message.SerializeToString())

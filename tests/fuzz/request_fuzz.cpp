@@ -92,7 +92,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const uint8_t kind = data[0];
     ++data, --size;
     grpc::ServerContext context;
-    switch (kind % 10) {
+    switch (kind % 11) {
         case 0: {
             v1::SubmitJobRequest r;
             if (!parse(r, data, size)) return 0;
@@ -162,6 +162,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             size_t values = 0, layers = 0;
             bool drop = false;
             note("check_report", s.manager.check_report(r, &values, &layers, &drop));
+            break;
+        }
+        case 10: {
+            v1::DeleteJobRequest r;
+            if (!parse(r, data, size)) return 0;
+            v1::DeleteJobReply reply;
+            note("DeleteJob", s.jobs.DeleteJob(&context, &r, &reply));
             break;
         }
         default: {

@@ -512,6 +512,83 @@ uint64_t iterations_done(JobManager& m, const std::string& id) {
 
 }  // namespace
 
+namespace {
+
+// Worker `worker` refuses `lease` for memory: its estimate of 10 MiB over its limit.
+void refuse_for_memory(JobManager& m, const std::string& worker, const v1::LeaseReply& lease,
+                       uint64_t limit) {
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id(worker);
+    v1::LeaseFailure* f = hb.add_failed_leases();
+    f->set_lease_id(lease.lease().lease_id());
+    f->set_error("the film (512 x 512): the scene needs at least 10.0 MiB of memory");
+    f->set_memory_needed(10 << 20);
+    f->set_memory_limit(limit);
+    v1::HeartbeatReply reply;
+    EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
+}
+
+}  // namespace
+
+// A refusal for memory is not a failure (issue 18): on the only worker it does not fail the
+// job (a failure would: ALeaseFailedOnTheOnlyWorkerFailsTheJob); the job is not offered to
+// that worker again, says what it waits for, and FAILS once every live worker refused it for
+// --memory-wait seconds (of the injected clock).
+TEST_F(ManagerTest, AJobRefusedForMemoryByEveryWorkerFailsAfterTheMemoryWait) {
+    FakeClock clock;
+    options.memory_wait_seconds = 60;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    const v1::LeaseReply a = lease_for(m, "w-small");
+    ASSERT_TRUE(a.granted());
+    refuse_for_memory(m, "w-small", a, 4 << 20);
+    EXPECT_FALSE(lease_for(m, "w-small").granted());
+    m.tick();
+    clock.advance(59);
+    m.tick();
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_RUNNING) << job.error();
+    EXPECT_NE(job.waiting().find("waiting for a worker with more than 4.0 MiB of memory: the "
+                                 "job needs at least 10.0 MiB (refused for memory by 1 worker;"),
+              std::string::npos)
+        << job.waiting();
+    clock.advance(2);
+    m.tick();
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(job.error().find("no worker has the memory for this job: refused for memory by 1 "
+                               "worker and no live worker with more joined within 60 s"),
+              std::string::npos)
+        << job.error();
+    EXPECT_NE(job.error().find("the film (512 x 512)"), std::string::npos) << job.error();
+}
+
+// A worker that has not refused the job stops the wait, gets the refused range and renders it.
+TEST_F(ManagerTest, AJobRefusedForMemoryGoesToALargerWorker) {
+    FakeClock clock;
+    options.memory_wait_seconds = 60;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    const v1::LeaseReply a = lease_for(m, "w-small");
+    ASSERT_TRUE(a.granted());
+    refuse_for_memory(m, "w-small", a, 4 << 20);
+    m.tick();
+    clock.advance(50);
+    m.tick();
+    const v1::LeaseReply b = lease_for(m, "w-large");
+    ASSERT_TRUE(b.granted());
+    EXPECT_EQ(b.lease().first_iteration(), a.lease().first_iteration());
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.waiting(), "");
+    clock.advance(20);  // past the wait since the refusal, not blocked: still running
+    m.tick();
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_RUNNING) << job.error();
+    EXPECT_TRUE(render_and_report(m, b.lease()));
+}
+
 // Checkpoints every 10 s (of an injected clock): the store records only what the checkpoint
 // holds, so after a crash exactly the ranges merged since the last checkpoint are leased
 // again (a gap below merged ranges included), none is counted twice, and the image is

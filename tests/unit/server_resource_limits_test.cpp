@@ -416,6 +416,30 @@ TEST(MemoryBudget, ChargesUpToTheLimitAndRefusesPastIt) {
         EXPECT_STREQ(e.what(),
                      "the last byte: the scene needs at least 1001 B of memory, more than the "
                      "1000 B limit (test --max-memory)");
+        EXPECT_EQ(e.needed(), 1001u);
+        EXPECT_EQ(e.limit(), 1000u);
+    }
+}
+
+// A mesh over the budget reaches the loader's caller as a MemoryLimitExceeded with its numbers,
+// though the shape factory adds the element's line to the message: the worker reports it as a
+// refusal for memory, which the server does not count against the job (docs/service.md).
+TEST(MemoryBudget, AMeshOverTheBudgetStaysAMemoryRefusalThroughTheLoader) {
+    TempDir dir;
+    dir.write("m.ply", ply_header(3, 1) + std::string(3 * 12, '\0') +
+                           std::string(1, char(3)) + std::string(12, '\0'));
+    const std::string scene =
+        "<scene version=\"3.0.0\"><shape type=\"ply\"><string name=\"filename\" "
+        "value=\"m.ply\"/></shape></scene>";
+    SceneMemoryBudget budget(16, "test --max-memory");
+    try {
+        load_scene_from_string(scene, dir.path());
+        ADD_FAILURE() << "no MemoryLimitExceeded";
+    } catch (const MemoryLimitExceeded& e) {
+        EXPECT_CONTAINS(e.what(), "filename");
+        EXPECT_CONTAINS(e.what(), "more than the 16 B limit (test --max-memory)");
+        EXPECT_GT(e.needed(), 16u);
+        EXPECT_EQ(e.limit(), 16u);
     }
 }
 

@@ -3,6 +3,7 @@
 // plugins and parameters are documented in docs/scene-format.md; keep the two in step.
 
 #include "core/scene/loader/scene_loader.h"
+#include "core/base/memory_budget.h"
 
 #include <cctype>
 #include <cmath>
@@ -300,8 +301,8 @@ class Loader {
         try {
             included = XmlFile::load(path);
         } catch (const SceneError& ex) {
-            throw SceneError(std::string(ex.what()) + " (included from " + e.where().to_string() +
-                             ")");
+            rethrow_scene_error(ex, SceneError(std::string(ex.what()) + " (included from " +
+                                               e.where().to_string() + ")"));
         }
         std::string name = canonical_name(*included);
         for (const std::string& open : include_stack_)

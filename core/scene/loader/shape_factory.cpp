@@ -1,5 +1,6 @@
 #include "core/scene/loader/shape_factory.h"
 
+#include "core/base/memory_budget.h"
 #include "core/base/plugin_table.h"
 
 #include <cmath>
@@ -45,7 +46,7 @@ std::unique_ptr<Shape> make_file_mesh(const Properties& props,
     try {
         data = props.type() == "ply" ? read_ply(path) : read_obj(path);
     } catch (const SceneError& e) {
-        throw props.error("filename", e.what());
+        rethrow_scene_error(e, props.error("filename", e.what()));
     }
     // Mitsuba's default: files store v upwards, textures are looked up with v = 0 at the top.
     if (props.get_bool("flip_tex_coords", true))
@@ -67,7 +68,7 @@ std::unique_ptr<Shape> make_serialized_mesh(const Properties& props) {
     try {
         mesh = read_serialized(path, size_t(index));
     } catch (const SceneError& e) {
-        throw props.error("filename", e.what());
+        rethrow_scene_error(e, props.error("filename", e.what()));
     }
     return make_mesh_shape(props, std::move(mesh.data), true, mesh.face_normals);
 }

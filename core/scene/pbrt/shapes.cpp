@@ -56,7 +56,7 @@ std::unique_ptr<Shape> finish_mesh(MeshData mesh, const ParamList& params,
             std::move(mesh), to_world, reverse_orientation, flat,
             params.context() + " (" + params.where.to_string() + ")");
     } catch (const SceneError& e) {
-        throw SceneError(params.where, e.what());
+        rethrow_scene_error(e, SceneError(params.where, e.what()));
     }
 }
 
@@ -68,7 +68,7 @@ void check_inline_mesh(const ParamList& params, uint64_t vertices, uint64_t tria
         charge_scene_memory(
             mesh_vertex_bytes(vertices, true, true) + mesh_triangle_bytes(triangles), "the mesh");
     } catch (const SceneError& e) {
-        throw params.error("P", e.what());
+        rethrow_scene_error(e, params.error("P", e.what()));
     }
 }
 
@@ -149,7 +149,7 @@ std::unique_ptr<Shape> make_shape(
         try {
             mesh = read_ply(path);
         } catch (const SceneError& e) {
-            throw params.error("filename", e.what());
+            rethrow_scene_error(e, params.error("filename", e.what()));
         }
         if (params.has("displacement"))
             throw params.error("displacement", "displacement is not supported");
