@@ -47,6 +47,7 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
         const float t_end = hit ? si.t : kInfinity;
         if (medium) {
             const MediumSample ms = medium->sample(ray, t_end, rng);
+            if (ms.scattered) out.source_weight = out.weight * ms.source_weight;
             out.weight *= ms.weight;
             if (ms.scattered) {
                 densities.add_piece(medium, ray, ms.t);

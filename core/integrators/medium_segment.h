@@ -63,6 +63,9 @@ struct SampledSegment {
     Vec3 position;                   // the vertex (surface hit or medium scattering point)
     const Medium* medium = nullptr;  // the medium the segment ended in
     Rgb weight{1.0f};                // product of the pieces' distance-sampling weights
+    // end == Medium: `weight` with the last piece's sigma_s left out (MediumSample::
+    // source_weight), for the collision estimator of emission at the vertex.
+    Rgb source_weight{0.0f};
     SegmentDensities densities;
     float distance = 0;      // from the ray's origin to the vertex
     bool one_piece = false;  // no boundary crossed on the way (joint connections need it)

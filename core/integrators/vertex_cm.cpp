@@ -28,7 +28,9 @@
 #include "core/integrators/pixel_loop.h"
 #include "core/integrators/points_along_ray.h"
 #include "core/integrators/vcm_mis.h"
+#include "core/integrators/volume_light_sampling.h"
 #include "core/integrators/vpl_distribution.h"
+#include "core/lights/volume_emitter.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
@@ -86,6 +88,11 @@ struct SubpathState {
     // With photon beams (either subpath): the B-B1D term of the vertex the next segment starts
     // at, added at the next arrival (vcm_mis.h, add_photon_beam_term).
     float carried_photon_beam = 0;
+    // Eye subpaths in scenes with emitting media: after a segment that ended at a vertex in an
+    // emitting medium, the throughput before the segment times its source weight
+    // (SampledSegment::source_weight); times sigma_a L_e there, the collision estimate of the
+    // emission (medium_emission).
+    Rgb source_throughput;
 };
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
@@ -346,7 +353,7 @@ class Iteration {
           // bpt and vcm; not beside upbp's beams, whose weights have no J1 factors.
           joint_((config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm) &&
                  config.joint_connections && use_vc_ && !ic_connections_ && !query_beams_ &&
-                 !photon_beams_ && scene.has_media()),
+                 !photon_beams_ && scene.has_media() && scene.volume_lights().empty()),
           storage_(storage),
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
@@ -395,6 +402,10 @@ class Iteration {
     }
 
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;
+    // A light subpath starting at a point of an emitting medium (docs/media.md, "Emitting media
+    // as lights"), picked with probability pick_probability.
+    bool generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
+                                      Rng& rng, SubpathState& state, Ray& ray) const;
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                           std::vector<Splat>& splats, RenderStats& stats) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
@@ -411,6 +422,10 @@ class Iteration {
                            std::vector<Splat>& splats, RenderStats& stats) const;
     Rgb emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
                  const Vec3& hit_normal, const Vec3& ray_direction) const;
+    // The eye subpath's collision estimate of the emission at v, a vertex in an emitting medium
+    // just reached (s = 0 with the medium as the light), MIS-weighted, without the throughput
+    // before the segment (state.source_throughput holds it).
+    Rgb medium_emission(const SubpathState& state, const Vertex& v) const;
     Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
                             RenderStats& stats) const;
     // Next-event estimation's MIS-weighted contribution at v (without the eye throughput) for
@@ -585,8 +600,15 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         seg.distance = seg.si.t;
     } else {
         seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+        // The eye collects emission at vertices of emitting media even where nothing scatters
+        // (albedo 0); trace_eye_path ends the path after it.
+        const bool collects_emission = mode == TransportMode::Radiance &&
+                                       seg.end == SegmentEnd::Medium && seg.medium->is_emissive() &&
+                                       !scene_.volume_lights().empty();
+        if (collects_emission) state.source_throughput = state.throughput * seg.source_weight;
         state.throughput *= seg.weight;
-        if (seg.end == SegmentEnd::Escaped || state.throughput.is_black()) return std::nullopt;
+        if (seg.end == SegmentEnd::Escaped || (state.throughput.is_black() && !collects_emission))
+            return std::nullopt;
     }
     Vertex v;
     v.p = seg.position;
@@ -668,7 +690,9 @@ Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) con
 
 bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const {
     float pick_probability = 0;
-    const Light* light = scene_.sample_light(rng.next_1d(), &pick_probability);
+    const Light* light = scene_.sample_emitter(rng.next_1d(), &pick_probability);
+    if (light && light->as_volume())
+        return generate_volume_light_sample(*light->as_volume(), pick_probability, rng, state, ray);
     Vec2 u_position = rng.next_2d(), u_direction = rng.next_2d();
     LightEmitSample e;
     if (!light || !(pick_probability > 0) || !light->emit(u_position, u_direction, e)) return false;
@@ -690,6 +714,24 @@ bool Iteration::generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) c
     // Offsetting along the direction keeps the ray off the emitting surface.
     ray = light->is_finite() ? scene_.spawn_ray(e.origin, e.direction, e.direction)
                              : Ray(e.origin, e.direction);
+    return state.throughput.is_finite();
+}
+
+bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
+                                             Rng& rng, SubpathState& state, Ray& ray) const {
+    const VolumeLightSample y = sample_volume_light_start(emitter, pick_probability, rng);
+    if (!y.valid) return false;
+    state.throughput = y.source / y.emission_pdf_w;
+    state.initial_luminance = std::max(state.throughput.max(), 1e-30f);
+    state.path_length = 1;
+    state.is_finite_light = true;
+    // y_0 is a medium vertex: the first segment starts inside the medium, without an offset.
+    state.medium = emitter.medium;
+    state.in_medium = true;
+    // Eqs. (31)-(33) with cos = 1 and the volume density (docs/media.md).
+    state.mis = start_volume_light_mis(mis_, y.direct_pdf_a);
+    state.origin = y.p;
+    ray = Ray(y.p, y.direction);
     return state.throughput.is_finite();
 }
 
@@ -912,7 +954,7 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // specular chains, which nothing else can sample; every other path is left to the light
     // subpaths (connections to the camera, or merging).
     if (!use_vc_) return state.specular_path ? le.radiance : Rgb(0.0f);
-    const float pick_probability = scene_.light_pick_probability(light);
+    const float pick_probability = scene_.emitter_pick_probability(light);
     // J1 at s = 1 of the eye vertex before the hit point (sampled toward it): it multiplies
     // next-event estimation's term.
     float joint_ratio = 0;
@@ -923,10 +965,25 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
                                               le.pdf_emission_w * pick_probability, joint_ratio);
 }
 
+Rgb Iteration::medium_emission(const SubpathState& state, const Vertex& v) const {
+    const Light* light = scene_.volume_light_of(v.medium);
+    if (!light) return Rgb(0.0f);
+    const VolumeEmitter& emitter = *light->as_volume();
+    const Rgb le = state.source_throughput * emitter.source_in_medium(v.p);
+    if (le.is_black()) return Rgb(0.0f);
+    // As emission(): directly visible emission has no other technique, and without
+    // connections only purely specular chains count (light subpaths sample the rest).
+    if (state.path_length == 1) return le;
+    if (!use_vc_) return state.specular_path ? le : Rgb(0.0f);
+    // Next-event estimation's density of this point (volume measure) and the light subpath's.
+    const float direct_pdf_a = scene_.emitter_pick_probability(light) * emitter.pdf_volume(v.p);
+    return le * volume_emission_weight(mis_, state.mis, direct_pdf_a);
+}
+
 Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
                                    Rng& rng, RenderStats& stats) const {
     DirectLightSample dl;
-    if (!sample_direct_light(scene_, v.p, rng, dl)) return Rgb(0.0f);
+    if (!sample_direct_emitter(scene_, v.p, rng, dl)) return Rgb(0.0f);
     return direct_contribution(state.mis, v, wo, dl, rng, stats);
 }
 
@@ -937,7 +994,9 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
     const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
-    const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(), false, rng, stats);
+    // A volume light's point is a medium vertex: the eye would reach it by a scattering event.
+    const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(),
+                        dl.light->as_volume() != nullptr, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // B-B1D at v, the light's emission segment toward v as the photon beam: the emission's
     // density of v (relative to the light's direct density, as eq. 45 forms it) with and
@@ -1749,6 +1808,10 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         if (!v->in_medium() && seg.si.emitter)
             add(Technique::Connection, 0,
                 state.throughput * emission(seg.si.emitter, state, v->p, v->n, ray.direction));
+        if (v->in_medium() && v->medium->is_emissive() && !scene_.volume_lights().empty()) {
+            add(Technique::Connection, 0, medium_emission(state, *v));
+            if (state.throughput.is_black()) break;  // nothing scatters here (albedo 0)
+        }
         if (state.path_length >= max_length_) break;
         // Every technique below treats v as a scattering vertex (emission above: as the light).
         include_joint_junction(state.mis, state, *v);
@@ -1828,7 +1891,7 @@ void VertexConnectionMerging::render_iteration(const Scene& scene, const Iterati
                                                RenderStats& stats) const {
     std::lock_guard lock(storage_mutex_);
     Iteration iteration(config_, scene, key, *storage_);
-    if (!scene.lights().empty()) {
+    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
         // The light tracer's splats reach the image in chunk order and before the eye pass's
         // estimates, so that each pixel's sum is the same whatever the number of threads.
         iteration.trace_light_paths(stats, [&](std::span<const Splat> splats) {

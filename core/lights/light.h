@@ -21,6 +21,7 @@
 namespace render {
 
 class Medium;
+class VolumeEmitter;
 
 // The scene's bounding sphere: infinite and directional lights emit from a disk of this radius.
 struct SceneSphere {
@@ -85,6 +86,9 @@ class Light {
     virtual bool is_delta() const = 0;   // position or direction is a delta (point, directional)
     virtual bool is_finite() const = 0;  // false for directional, constant and envmap lights
     virtual bool is_infinite_background() const { return false; }  // seen by escaping rays
+    // An emitting medium as a light of the bidirectional family (volume_emitter.h); null for
+    // every other light.
+    virtual const VolumeEmitter* as_volume() const { return nullptr; }
 
     virtual std::string to_string() const = 0;
 

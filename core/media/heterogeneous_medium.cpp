@@ -71,6 +71,7 @@ MediumSample HeterogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) 
             s.scattered = true;
             s.t = t;
             s.weight = albedo_->eval(p);
+            s.source_weight = Rgb(1.0f / st.r);
             return false;
         }
         // sigma_n >= 0 when the majorant bounds the density (majorant_grid.h).
@@ -86,6 +87,7 @@ MediumSample HeterogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) 
             s.t = t;
             // w sigma_s / (mu P_r) with P_r = real / total.
             s.weight = w * st * albedo_->eval(p) * (total / (mu * real));
+            s.source_weight = w * (total / (mu * real));
             return false;
         }
         w = w * sn * (total / (mu * null));

@@ -50,6 +50,7 @@ MediumSample HomogeneousMedium::sample(const Ray&, float t_max, Rng& rng) const 
         const float pdf = (sigma_t_ * tr).average();
         s.scattered = true;
         s.t = t;
+        s.source_weight = pdf > 0 ? tr / pdf : Rgb(0.0f);
         s.weight = pdf > 0 ? sigma_s_ * tr / pdf : Rgb(0.0f);
     } else {
         const Rgb tr = transmittance(t_max);

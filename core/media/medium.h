@@ -37,6 +37,10 @@ struct MediumSample {
     //     integral_0^t_max T(0, s) sigma_a(s) L_e(s) ds,
     // to be multiplied by the throughput *before* `weight`. Zero unless is_emissive().
     Rgb emission{0.0f};
+    // For a scattering event: the factor of a source term at t, `weight` without sigma_s(t)
+    // (weight = source_weight * sigma_s(t)). The bidirectional family's collision estimator of
+    // emission multiplies it by sigma_a(t) L_e(t) (docs/media.md, "Emitting media as lights").
+    Rgb source_weight{0.0f};
 };
 
 class Medium {

@@ -75,15 +75,16 @@ const std::vector<Algorithm>& table() {
                                                            s.jis, s.volpt_technique);
          }},
         {.name = "lt",
-         .description = "light tracing (homogeneous and grid media)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+         .description =
+             "light tracing (homogeneous and grid media, emitting media in closed shapes)",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kConnecting,
          .create = make_bidirectional<BidirectionalMode::LightTracing>},
         {.name = "bpt",
          .description =
-             "bidirectional path tracing (homogeneous and grid media); --connections ic: "
-             "importance-cached connections",
-         .support = {.homogeneous_media = true, .grid_media = true},
+             "bidirectional path tracing (homogeneous and grid media, emitting media in closed "
+             "shapes); --connections ic: importance-cached connections",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections",
                      "joint_connections", "ic_light_paths", "connection_samples",
                      "ic_record_density", "ic_heuristic"},
@@ -99,18 +100,22 @@ const std::vector<Algorithm>& table() {
              return std::make_unique<VertexConnectionMerging>(config);
          }},
         {.name = "ppm",
-         .description = "progressive photon mapping (homogeneous and grid media: photon points)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+         .description = "progressive photon mapping (homogeneous and grid media: photon points; "
+                        "emitting media in closed shapes)",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
          .create = make_bidirectional<BidirectionalMode::Ppm>},
         {.name = "bpm",
-         .description = "bidirectional photon mapping (homogeneous and grid media)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+         .description =
+             "bidirectional photon mapping (homogeneous and grid media, emitting media in closed "
+             "shapes)",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
          .create = make_bidirectional<BidirectionalMode::Bpm>},
         {.name = "vcm",
-         .description = "vertex connection and merging (homogeneous and grid media)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+         .description = "vertex connection and merging (homogeneous and grid media, emitting "
+                        "media in closed shapes)",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
                      "joint_connections"},
          .variants = {{{"joint_connections", "on"}}},
@@ -272,11 +277,22 @@ void check_algorithm_supports_scene(const std::string& name, const Scene& scene)
             if (emissive.empty()) emissive = "a medium";
         }
     }
+    const bool unbounded = !scene.unbounded_emitting_media().empty();
     const auto supported = [&](const Algorithm& a) {
         return (!homogeneous || a.support.homogeneous_media) && (!grid || a.support.grid_media) &&
-               (emissive.empty() || a.support.emissive_media);
+               (emissive.empty() || a.support.emissive_media ||
+                (a.support.bounded_emissive_media && !unbounded));
     };
     if (supported(algorithm)) return;
+    if (unbounded && algorithm.support.bounded_emissive_media) {
+        std::string can;
+        for (const Algorithm& a : table())
+            if (a.support.emissive_media) can += (can.empty() ? "" : ", ") + a.name;
+        throw std::invalid_argument(
+            "the scene's " + scene.unbounded_emitting_media().front() + "; algorithm \"" +
+            algorithm.name +
+            "\" renders emitting media only inside closed shapes (as lights), use " + can);
+    }
     std::string can;
     for (const Algorithm& a : table())
         if (supported(a)) can += (can.empty() ? "" : ", ") + a.name;

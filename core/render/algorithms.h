@@ -25,6 +25,9 @@ struct SceneSupport {
     bool homogeneous_media = false;
     bool grid_media = false;      // heterogeneous (grid) media
     bool emissive_media = false;  // media that emit (`radiance`)
+    // Emitting media inside closed shapes only: they become lights (Scene::volume_lights,
+    // docs/media.md "Emitting media as lights"); an unbounded emitting medium is refused.
+    bool bounded_emissive_media = false;
 };
 
 struct Algorithm {

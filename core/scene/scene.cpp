@@ -5,6 +5,7 @@
 
 #include "core/base/error.h"
 #include "core/base/properties.h"
+#include "core/lights/volume_emitter.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
 #include "core/scene/embree_ray.h"
@@ -108,6 +109,7 @@ void Scene::commit() {
     light_distribution_ = Distribution1D(weights);
     for (size_t i = 0; i < lights_.size(); ++i)
         light_pick_probability_[lights_[i].get()] = light_distribution_.discrete_probability(i);
+    build_volume_lights();
     committed_ = true;
 }
 
@@ -211,6 +213,47 @@ const Light* Scene::sample_light(float u, float* pick_probability) const {
 float Scene::light_pick_probability(const Light* light) const {
     auto it = light_pick_probability_.find(light);
     return it == light_pick_probability_.end() ? 0.0f : it->second;
+}
+
+void Scene::build_volume_lights() {
+    for (size_t i = 0; i < media_.size(); ++i) {
+        const Medium* medium = media_[i].get();
+        if (!medium->is_emissive()) continue;
+        const std::string name = medium_names_[i].empty() ? "a medium" : medium_names_[i];
+        std::string why;
+        const Aabb box = volume_emitter_region(*this, medium, why);
+        if (box.empty()) {
+            unbounded_emitting_media_.push_back(name + ": " + why);
+            continue;
+        }
+        volume_lights_.push_back(std::make_unique<VolumeEmitter>(*this, *medium, box, name));
+    }
+    if (volume_lights_.empty()) return;
+    std::vector<float> weights;
+    for (const auto& light : lights_) emitters_.push_back(light.get());
+    for (const auto& light : volume_lights_) emitters_.push_back(light.get());
+    for (const Light* light : emitters_)
+        weights.push_back(std::max(0.0f, light->power().luminance()));
+    emitter_distribution_ = Distribution1D(weights);
+    for (size_t i = 0; i < emitters_.size(); ++i)
+        emitter_pick_probability_[emitters_[i]] = emitter_distribution_.discrete_probability(i);
+}
+
+const Light* Scene::volume_light_of(const Medium* medium) const {
+    for (const auto& light : volume_lights_)
+        if (light->medium == medium) return light.get();
+    return nullptr;
+}
+
+const Light* Scene::sample_emitter(float u, float* pick_probability) const {
+    if (volume_lights_.empty()) return sample_light(u, pick_probability);
+    return emitters_[emitter_distribution_.sample_discrete(u, pick_probability)];
+}
+
+float Scene::emitter_pick_probability(const Light* light) const {
+    if (volume_lights_.empty()) return light_pick_probability(light);
+    auto it = emitter_pick_probability_.find(light);
+    return it == emitter_pick_probability_.end() ? 0.0f : it->second;
 }
 
 }  // namespace render

@@ -108,6 +108,22 @@ class Scene {
     const Light* sample_light(float u, float* pick_probability) const;
     float light_pick_probability(const Light* light) const;
 
+    // Emitting media as lights (core/lights/volume_emitter.h), for the bidirectional family
+    // only: path tracers keep lights() and collect medium emission along their segments. Built
+    // at commit() for every emitting medium whose region is finite; the others are named by
+    // unbounded_emitting_media().
+    const std::vector<std::unique_ptr<Light>>& volume_lights() const { return volume_lights_; }
+    const Light* volume_light_of(const Medium* medium) const;
+    // "medium \"glow\" (scene.xml:3): the camera is in it ..." per emitting medium that cannot
+    // be a light; empty when there is none.
+    const std::vector<std::string>& unbounded_emitting_media() const {
+        return unbounded_emitting_media_;
+    }
+    // Selection by power over lights() and volume_lights() together: with no volume lights the
+    // same as sample_light / light_pick_probability (the same draws, the same probabilities).
+    const Light* sample_emitter(float u, float* pick_probability) const;
+    float emitter_pick_probability(const Light* light) const;
+
     const SceneSphere& bounding_sphere() const { return sphere_; }
     // The committed Embree scene, for benchmarks that compare against bare Embree queries.
     RTCScene embree_scene() const { return rtc_scene_; }
@@ -129,6 +145,12 @@ class Scene {
     bool has_media_ = false;
     Distribution1D light_distribution_;
     std::unordered_map<const Light*, float> light_pick_probability_;
+    std::vector<std::unique_ptr<Light>> volume_lights_;
+    std::vector<std::string> unbounded_emitting_media_;
+    std::vector<const Light*> emitters_;  // lights_ then volume_lights_
+    Distribution1D emitter_distribution_;
+    std::unordered_map<const Light*, float> emitter_pick_probability_;
+    void build_volume_lights();
     PerspectiveCamera camera_;
     SceneSphere sphere_;
     Aabb bounds_;

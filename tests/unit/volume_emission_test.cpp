@@ -5,7 +5,8 @@
 //   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit
 //     L_e too has L = L_e everywhere (sigma_a (L_e - L) = 0 in the transfer equation);
 //   - the same with grid (heterogeneous) media of constant data, tracked stochastically;
-//   - the scene format's validation and the bidirectional family's refusal.
+//   - the scene format's validation; which algorithms refuse emitting media (pt, vpl, ic, upbp;
+//     the bidirectional family an unbounded one: volume_emitter_test.cpp renders the others).
 // Every statistical check states its tolerance in standard errors.
 
 #include <gtest/gtest.h>
@@ -376,11 +377,19 @@ TEST(VolumeEmission, SceneFormatRefusesBadRadiance) {
         SceneError);
 }
 
-TEST(VolumeEmission, BidirectionalAlgorithmsRefuseEmissiveMedia) {
+// pt, vpl and ic refuse every emitting medium; the bidirectional family renders those inside
+// closed shapes (as lights, volume_emitter_test.cpp) and refuses an unbounded one by name.
+TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
+    const std::string infinite = R"(<scene version="3.0.0">
+  <medium type="homogeneous" id="glow"><float name="albedo" value="0.5"/><rgb name="radiance" value="1"/></medium>
+  <sensor type="perspective"><ref id="glow"/></sensor>
+</scene>)";
     for (const bool grid : {false, true}) {
         auto scene = load_scene_from_string(closed_furnace(grid, "0.6"), grid_folder().string());
         EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
-        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm", "pt"}) {
+        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm"})
+            EXPECT_NO_THROW(check_algorithm_supports_scene(algorithm, *scene)) << algorithm;
+        for (const char* algorithm : {"pt", "vpl", "ic", "upbp"}) {
             try {
                 check_algorithm_supports_scene(algorithm, *scene);
                 ADD_FAILURE() << algorithm << " accepted an emissive medium";
@@ -395,6 +404,19 @@ TEST(VolumeEmission, BidirectionalAlgorithmsRefuseEmissiveMedia) {
             EXPECT_THROW(render_iterations(*scene, settings, 0, IterationRange{1, 2}),
                          std::invalid_argument)
                 << algorithm;
+        }
+    }
+    auto scene = load_scene_from_string(infinite, ".");
+    EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
+    for (const char* algorithm : {"lt", "bpt", "vcm"}) {
+        try {
+            check_algorithm_supports_scene(algorithm, *scene);
+            ADD_FAILURE() << algorithm << " accepted an unbounded emitting medium";
+        } catch (const std::invalid_argument& e) {
+            const std::string what = e.what();
+            EXPECT_NE(what.find("medium \"glow\""), std::string::npos) << what;
+            EXPECT_NE(what.find("unbounded"), std::string::npos) << what;
+            EXPECT_NE(what.find("volpt"), std::string::npos) << what;
         }
     }
 }

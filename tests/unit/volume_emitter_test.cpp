@@ -1,0 +1,350 @@
+// Emitting media as lights of the bidirectional family (core/lights/volume_emitter.h,
+// docs/media.md "Emitting media as lights"):
+//   - the start-point sampler against its density p_V (chi-square over a histogram of the box
+//     that does not line up with the sampler's lattice, expected counts integrated exactly), and
+//     integral p_V = 1, for a homogeneous sphere and the flame's grid;
+//   - lt, bpt and vcm against volume_emission_test's closed forms: the absorbing sphere
+//     L = L_e (1 - exp(-sigma_t chord)) and the emitting furnace L = L_e (homogeneous and grid);
+//   - bpt and vcm against volpt on an emitting sphere lighting a floor and on the flame scene
+//     (block test);
+//   - the region: bounded media become lights, an unbounded one none;
+//   - the iteration contract (split ranges, thread counts bit for bit) on an emitting medium for
+//     every algorithm and variant that accepts it.
+// Standard errors come from batches of iterations (light paths splat into many pixels, so the
+// pixels of one iteration are not independent); every check states its k.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/lights/volume_emitter.h"
+#include "core/media/medium.h"
+#include "core/render/algorithms.h"
+#include "core/render/render_iterations.h"
+#include "core/render/render_settings.h"
+#include "core/scene/loader/scene_loader.h"
+#include "tests/support/algorithms.h"
+#include "tests/support/block_estimate.h"
+#include "tests/support/chi_square.h"
+
+namespace render {
+namespace {
+
+using testing::BlockEstimate;
+using testing::differing_blocks;
+using testing::render_block_estimate;
+
+testing::ChiSquareFamily family;
+
+constexpr double kSigmaT[3] = {0.5, 1.0, 4.0};
+constexpr double kRadiance[3] = {1.0, 2.0, 0.5};
+
+std::string glow(const std::string& albedo) {
+    return R"(<medium type="homogeneous" id="glow">
+    <rgb name="sigma_t" value="0.5, 1, 4"/>
+    <float name="albedo" value=")" +
+           albedo + R"("/>
+    <rgb name="radiance" value="1, 2, 0.5"/>
+  </medium>)";
+}
+
+// volume_emission_test's absorbing unit sphere seen from (0, y, -5) with a 0.02 degree field of
+// view: every pixel sees the chord 2 sqrt(1 - y^2).
+std::string absorbing_sphere(double y) {
+    const std::string ys = std::to_string(y);
+    return R"(<scene version="3.0.0">
+  )" + glow("0") +
+           R"(
+  <sensor type="perspective">
+    <float name="fov" value="0.02"/>
+    <transform name="to_world"><lookat origin="0, )" +
+           ys + R"(, -5" target="0, )" + ys + R"(, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="1"/>
+    <bsdf type="null"/>
+    <ref name="interior" id="glow"/>
+  </shape>
+</scene>)";
+}
+
+// The closed furnace: the medium inside black walls emitting L_e, the camera inside.
+std::string furnace(const std::string& medium_xml) {
+    return R"(<scene version="3.0.0">
+  )" + medium_xml +
+           R"(
+  <sensor type="perspective">
+    <float name="fov" value="70"/>
+    <transform name="to_world"><lookat origin="0, 0, 0" target="0.3, 0.2, 1" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    <ref id="glow"/>
+  </sensor>
+  <shape type="sphere">
+    <float name="radius" value="1"/>
+    <boolean name="flip_normals" value="true"/>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+    <emitter type="area"><rgb name="radiance" value="1, 2, 0.5"/></emitter>
+    <ref name="exterior" id="glow"/>
+  </shape>
+</scene>)";
+}
+
+// A small glowing sphere (scattering, albedo 0.5) above a grey floor, the only light.
+std::string sphere_over_floor() {
+    return R"(<scene version="3.0.0">
+  <medium type="homogeneous" id="glow">
+    <rgb name="sigma_t" value="2, 3, 5"/>
+    <float name="albedo" value="0.5"/>
+    <rgb name="radiance" value="6, 3, 1.5"/>
+  </medium>
+  <sensor type="perspective">
+    <float name="fov" value="45"/>
+    <transform name="to_world"><lookat origin="0, 1.5, 4" target="0, -0.3, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/><translate y="-1"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf>
+  </shape>
+  <shape type="sphere">
+    <float name="radius" value="0.4"/>
+    <point name="center" x="0" y="-0.2" z="0"/>
+    <bsdf type="null"/>
+    <ref name="interior" id="glow"/>
+  </shape>
+</scene>)";
+}
+
+std::unique_ptr<Scene> flame(int resolution) {
+    const std::string r = std::to_string(resolution);
+    return load_scene(std::filesystem::path(RENDER_SOURCE_DIR) / "scenes/tests/flame.xml",
+                      {{"resx", r}, {"resy", r}, {"max_depth", "6"}});
+}
+
+RenderSettings settings_for(const std::string& algorithm, uint64_t seed, int max_depth = -1) {
+    RenderSettings s;
+    s.algorithm = algorithm;
+    s.seed = seed;
+    s.max_depth = max_depth;
+    return s;
+}
+
+// --- the start-point sampler -------------------------------------------------------------------
+
+// Chi-square of VolumeEmitter::sample_point against pdf_volume over a 9^3 histogram of the box
+// (9 does not divide the sampler's 16 cells per axis, so cells straddle its steps); expected
+// counts are the exact integrals of the piecewise-constant density over each histogram cell
+// (the overlap of every lattice cell with it). Also integral p_V = 1 over the box, and p_V equals
+// the density sample_point reports.
+void check_sampler(const VolumeEmitter& emitter) {
+    constexpr int kHist = 9, kLattice = 64;  // the lattice: fine enough to hold the sampler's
+    const Aabb box = emitter.box();
+    const Vec3 size = box.hi - box.lo;
+    // p_V is constant on the sampler's cells (1 or 16 per axis); 64 sub-cells per axis resolve it
+    // exactly (64 is a multiple of 16) and their midpoints give its exact integral over them.
+    std::vector<double> expected(size_t(kHist * kHist * kHist), 0.0);
+    double integral = 0;
+    const Vec3 sub = size * (1.0f / kLattice);
+    const double sub_volume = double(sub.x) * sub.y * sub.z;
+    for (int k = 0; k < kLattice; ++k)
+        for (int j = 0; j < kLattice; ++j)
+            for (int i = 0; i < kLattice; ++i) {
+                const double lo[3] = {double(i) / kLattice, double(j) / kLattice,
+                                      double(k) / kLattice};
+                const Vec3 mid =
+                    box.lo + Vec3((i + 0.5f) * sub.x, (j + 0.5f) * sub.y, (k + 0.5f) * sub.z);
+                const double mass = double(emitter.pdf_volume(mid)) * sub_volume;
+                integral += mass;
+                // Spread the sub-cell's mass over the histogram cells it overlaps (exact: the
+                // density is constant on it).
+                int h0[3], h1[3];
+                for (int a = 0; a < 3; ++a) {
+                    h0[a] = int(std::floor(lo[a] * kHist));
+                    h1[a] = std::min(int(std::floor((lo[a] + 1.0 / kLattice) * kHist - 1e-12)),
+                                     kHist - 1);
+                }
+                for (int c = h0[2]; c <= h1[2]; ++c)
+                    for (int b = h0[1]; b <= h1[1]; ++b)
+                        for (int a = h0[0]; a <= h1[0]; ++a) {
+                            double f = 1;
+                            const int idx[3] = {a, b, c};
+                            for (int ax = 0; ax < 3; ++ax) {
+                                const double s0 = std::max(lo[ax], double(idx[ax]) / kHist);
+                                const double s1 =
+                                    std::min(lo[ax] + 1.0 / kLattice, double(idx[ax] + 1) / kHist);
+                                f *= std::max(0.0, s1 - s0) * kLattice;
+                            }
+                            expected[size_t(a + kHist * (b + kHist * c))] += mass * f;
+                        }
+            }
+    EXPECT_NEAR(integral, 1.0, 1e-4) << emitter.to_string();
+
+    constexpr int kSamples = 1000000;
+    std::vector<double> observed(expected.size(), 0.0);
+    Rng rng(StreamKey{7, 0, 1, 0});
+    int mismatched = 0;
+    for (int n = 0; n < kSamples; ++n) {
+        Vec3 u;
+        u.x = rng.next_1d();
+        u.y = rng.next_1d();
+        u.z = rng.next_1d();
+        const VolumePointSample s = emitter.sample_point(u);
+        if (std::abs(s.pdf_volume - emitter.pdf_volume(s.p)) > 1e-4f * s.pdf_volume) ++mismatched;
+        int idx[3];
+        for (int a = 0; a < 3; ++a)
+            idx[a] = std::clamp(int((s.p[a] - box.lo[a]) / size[a] * kHist), 0, kHist - 1);
+        observed[size_t(idx[0] + kHist * (idx[1] + kHist * idx[2]))] += 1;
+    }
+    EXPECT_LE(mismatched, kSamples / 10000) << "sample_point's density differs from pdf_volume";
+    for (double& e : expected) e *= kSamples;
+    const testing::ChiSquareResult r = testing::chi_square_from_counts(
+        family, observed, expected, [](size_t i) { return "histogram cell " + std::to_string(i); });
+    EXPECT_TRUE(r.passed) << emitter.to_string();
+}
+
+CHI_SQUARE_TEST(family, VolumeEmitter, StartPointsFollowTheirDensity, 2) {
+    auto sphere = load_scene_from_string(absorbing_sphere(0), ".");
+    ASSERT_EQ(sphere->volume_lights().size(), 1u);
+    check_sampler(*sphere->volume_lights()[0]->as_volume());
+    auto grid = flame(16);
+    ASSERT_EQ(grid->volume_lights().size(), 1u);
+    check_sampler(*grid->volume_lights()[0]->as_volume());
+}
+
+// Points of the box outside the sphere carry no emission; inside they carry sigma_a L_e.
+TEST(VolumeEmitter, SourceIsTheMediumsInsideItsShapeOnly) {
+    auto scene = load_scene_from_string(absorbing_sphere(0), ".");
+    const VolumeEmitter& e = *scene->volume_lights()[0]->as_volume();
+    EXPECT_TRUE(e.source(Vec3(0.95f, 0.9f, 0.9f)).is_black());
+    const Rgb inside = e.source(Vec3(0.1f, -0.2f, 0.3f));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(inside[c], kSigmaT[c] * kRadiance[c], 1e-5);
+    // The camera in a bounded furnace: still a light; fog around a ball with the camera in it
+    // outside the ball: none.
+    auto f = load_scene_from_string(furnace(glow("0.6")), ".");
+    EXPECT_EQ(f->volume_lights().size(), 1u);
+    auto infinite = load_scene_from_string(R"(<scene version="3.0.0">
+  <medium type="homogeneous" id="glow"><rgb name="radiance" value="1"/><float name="albedo" value="0.5"/></medium>
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <ref id="glow"/>
+  </sensor>
+  <shape type="sphere"><bsdf type="diffuse"/><ref name="exterior" id="glow"/></shape>
+</scene>)",
+                                           ".");
+    EXPECT_TRUE(infinite->volume_lights().empty());
+    ASSERT_EQ(infinite->unbounded_emitting_media().size(), 1u);
+    EXPECT_NE(infinite->unbounded_emitting_media()[0].find("medium \"glow\""), std::string::npos);
+}
+
+// --- closed forms ------------------------------------------------------------------------------
+
+// Whole-image mean per channel over `batches` batches (blocks_per_side 1), against `expected`
+// within k = 5 standard errors of the batch means (a false failure < 1e-6 per check under
+// normality), and the standard error below max_relative of the value (the check has power).
+void expect_closed_form(const Scene& scene, const std::string& algorithm, const double* expected,
+                        int batches, int per_batch, double max_relative, const std::string& what) {
+    const BlockEstimate e =
+        render_block_estimate(scene, settings_for(algorithm, 31), batches, per_batch, 1);
+    for (int c = 0; c < 3; ++c) {
+        SCOPED_TRACE(what + " " + algorithm + " channel " + std::to_string(c));
+        ASSERT_GT(e.standard_error[size_t(c)], 0.0);
+        EXPECT_NEAR(e.mean[size_t(c)], expected[c], 5 * e.standard_error[size_t(c)]);
+        EXPECT_LT(e.standard_error[size_t(c)], max_relative * expected[c]);
+    }
+}
+
+TEST(VolumeEmitter, AbsorbingSphereMatchesTheClosedFormInTheBidirectionalFamily) {
+    for (const double y : {0.0, 0.8}) {
+        auto scene = load_scene_from_string(absorbing_sphere(y), ".");
+        double expected[3];
+        for (int c = 0; c < 3; ++c)
+            expected[c] = kRadiance[c] * (1.0 - std::exp(-kSigmaT[c] * 2.0 * std::sqrt(1 - y * y)));
+        for (const char* algorithm : {"lt", "bpt", "vcm"})
+            expect_closed_form(*scene, algorithm, expected, 16, 4, 0.03,
+                               "sphere y " + std::to_string(y));
+    }
+}
+
+TEST(VolumeEmitter, EmittingFurnaceIsTheEmittedRadianceInTheBidirectionalFamily) {
+    auto scene = load_scene_from_string(furnace(glow("0.6")), ".");
+    ASSERT_EQ(scene->volume_lights().size(), 1u);
+    for (const char* algorithm : {"bpt", "vcm"})
+        expect_closed_form(*scene, algorithm, kRadiance, 16, 8, 0.05, "homogeneous furnace");
+    // lt's camera connections from medium vertices next to the camera (inside the medium) are
+    // heavy-tailed, as in volpt_test's medium furnace without emission: its standard error
+    // hardly falls with iterations (about 5-8 % here), so its cap is looser.
+    expect_closed_form(*scene, "lt", kRadiance, 16, 8, 0.12, "homogeneous furnace");
+}
+
+// --- against volpt -----------------------------------------------------------------------------
+
+// Block test: 4 x 4 blocks, 3 channels, 16 batches each side; k = 5 combined standard errors.
+void expect_matches_volpt(const Scene& scene, const std::vector<const char*>& algorithms,
+                          int per_batch, const std::string& what) {
+    const BlockEstimate reference =
+        render_block_estimate(scene, settings_for("volpt", 101), 16, per_batch, 4);
+    for (const char* algorithm : algorithms) {
+        const BlockEstimate e =
+            render_block_estimate(scene, settings_for(algorithm, 202), 16, per_batch, 4);
+        const std::vector<std::string> bad = differing_blocks(reference, e, 1.0, 5.0);
+        EXPECT_TRUE(bad.empty()) << what << " " << algorithm << ": " << bad.size()
+                                 << " blocks differ, first: " << bad.front();
+    }
+}
+
+TEST(VolumeEmitter, EmittingSphereLightingAFloorMatchesVolpt) {
+    auto scene = load_scene_from_string(sphere_over_floor(), ".");
+    expect_matches_volpt(*scene, {"bpt", "vcm"}, 8, "sphere over floor");
+}
+
+TEST(VolumeEmitter, FlameMatchesVolpt) {
+    auto scene = flame(32);
+    expect_matches_volpt(*scene, {"bpt", "vcm"}, 8, "flame");
+}
+
+// --- the iteration contract ----------------------------------------------------------------------
+
+class EmittingIterationContract : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EmittingIterationContract, SplitRangesAndThreadCountsOnAnEmittingMedium) {
+    auto scene = load_scene_from_string(sphere_over_floor(), ".");
+    RenderSettings settings = testing::algorithm_settings(GetParam());
+    try {
+        check_algorithm_supports_scene(settings.algorithm, *scene);
+    } catch (const std::invalid_argument&) {
+        GTEST_SKIP() << GetParam() << " refuses emitting media";
+    }
+    settings.seed = 7;
+    const IterationResult whole = render_iterations(*scene, settings, 0, IterationRange{1, 7});
+    const IterationResult a = render_iterations(*scene, settings, 0, IterationRange{1, 4});
+    const IterationResult b = render_iterations(*scene, settings, 0, IterationRange{4, 7});
+    EXPECT_EQ(whole.stats.non_finite, 0u);
+    double total = 0;
+    for (size_t i = 0; i < whole.sum.values().size(); ++i) {
+        const double split = a.sum.values()[i] + b.sum.values()[i];
+        total += whole.sum.values()[i];
+        // Only the order of double additions differs (as render_test's contract).
+        ASSERT_NEAR(whole.sum.values()[i], split, 1e-12 * std::abs(split) + 1e-300);
+    }
+    EXPECT_GT(total, 0.0) << "the emitting sphere lights nothing";
+    auto render_with = [&](int threads) {
+        settings.threads = threads;
+        IterationRenderer renderer(*scene, settings, 2);
+        IterationResult result = renderer.empty_result();
+        renderer.add(IterationRange{3, 5}, result);
+        return result;
+    };
+    const IterationResult one = render_with(1), two = render_with(2);
+    EXPECT_EQ(one.stats.rays, two.stats.rays);
+    EXPECT_TRUE(one.sum.values() == two.sum.values());
+}
+
+INSTANTIATE_TEST_SUITE_P(Algorithms, EmittingIterationContract,
+                         ::testing::ValuesIn(testing::physically_based_algorithms()));
+
+}  // namespace
+}  // namespace render
