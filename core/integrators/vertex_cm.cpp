@@ -96,7 +96,7 @@ struct Vertex {
     Vec3 n;  // geometric normal; zero in a medium
     const Shape* shape = nullptr;
     const Medium* medium = nullptr;  // the medium the path arrived in
-    std::optional<SurfaceBsdf> bsdf;
+    OptionalSurfaceBsdf bsdf;        // std::optional's interface, 8 bytes smaller
     const PhaseFunction* phase = nullptr;
     // Joint connections: the position the subpath reached this vertex from, and (a medium
     // vertex reached without crossing a boundary) the distance density of reaching it, with
