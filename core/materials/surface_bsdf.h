@@ -94,7 +94,7 @@ class OptionalSurfaceBsdf {
     }
 
   private:
-    SurfaceBsdf value_;
+    [[no_unique_address]] SurfaceBsdf value_;  // its tail padding is free for the owner
 };
 
 }  // namespace render
