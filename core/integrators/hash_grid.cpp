@@ -48,6 +48,12 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
     for (int a = 0; a < 3; ++a) lo_[a] = lo[a];
     table_size_ = std::max<uint64_t>(n, 1);
     cell_starts_.resize(table_size_ + 1);
+    // Grow with headroom and without copying: a vector that reallocates inside resize() holds
+    // the old entries and the new ones at once, at the iteration's peak of memory.
+    if (entries_.capacity() < n) {
+        entries_ = std::vector<Entry>();
+        entries_.reserve(n + n / 8);
+    }
     entries_.resize(n);
 
     auto bucket_at = [&](const Vec3& p) {
