@@ -28,7 +28,6 @@ constexpr size_t kGroupBuckets = 4096;
 // points are in increasing index order, as a serial counting sort leaves them, whatever the
 // number of threads.
 void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
-    positions_ = &positions;
     radius2_ = float(radius * radius);
     inv_cell_size_ = 1.0 / (2.0 * radius);
     const size_t n = positions.size();
@@ -49,12 +48,18 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
     for (int a = 0; a < 3; ++a) lo_[a] = lo[a];
     table_size_ = std::max<uint64_t>(n, 1);
     cell_starts_.resize(table_size_ + 1);
-    indices_.resize(n);
+    // Grow with headroom and without copying: a vector that reallocates inside resize() holds
+    // the old entries and the new ones at once, at the iteration's peak of memory.
+    if (entries_.capacity() < n) {
+        entries_ = std::vector<Entry>();
+        entries_.reserve(n + n / 8);
+    }
+    entries_.resize(n);
 
-    auto bucket_of = [&](size_t i) {
-        const Vec3& p = positions[i];
+    auto bucket_at = [&](const Vec3& p) {
         return hash(cell_coordinate(p.x, 0), cell_coordinate(p.y, 1), cell_coordinate(p.z, 2));
     };
+    auto bucket_of = [&](size_t i) { return bucket_at(positions[i]); };
     const size_t groups = (table_size_ + kGroupBuckets - 1) / kGroupBuckets;
     const size_t blocks = (n + kBlockPoints - 1) / kBlockPoints;
     // slots_[block * groups + group]: the block's count in the group, then its first slot.
@@ -75,28 +80,28 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
         }
     }
     group_starts_[groups] = slot;
-    // (bucket, point) pairs in group order; within a group in block order, then point order.
-    pairs_.resize(n);
+    // The points (position, index) in group order; within a group in block order, then point
+    // order.
     tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
         uint32_t* next = slots_.data() + b * groups;
-        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i) {
-            const uint32_t bucket = bucket_of(i);
-            pairs_[next[bucket / kGroupBuckets]++] = {bucket, uint32_t(i)};
-        }
+        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i)
+            entries_[next[bucket_of(i) / kGroupBuckets]++] = {positions[i], uint32_t(i)};
     });
+    // Each group sorted by bucket in place, through a copy of its entries (the bucket is
+    // recomputed from the same position, so it is the one counted above).
     tbb::parallel_for(size_t(0), groups, [&](size_t g) {
         const size_t first = g * kGroupBuckets, end = std::min(table_size_, first + kGroupBuckets);
+        const std::vector<Entry> group(entries_.begin() + group_starts_[g],
+                                       entries_.begin() + group_starts_[g + 1]);
         std::fill(cell_starts_.begin() + first, cell_starts_.begin() + end, 0);
-        for (uint32_t j = group_starts_[g]; j < group_starts_[g + 1]; ++j)
-            ++cell_starts_[pairs_[j].bucket];
+        for (const Entry& e : group) ++cell_starts_[bucket_at(e.p)];
         uint32_t start = group_starts_[g];
         for (size_t bucket = first; bucket < end; ++bucket) {
             const uint32_t count = cell_starts_[bucket];
             cell_starts_[bucket] = start;
             start += count;
         }
-        for (uint32_t j = group_starts_[g]; j < group_starts_[g + 1]; ++j)
-            indices_[cell_starts_[pairs_[j].bucket]++] = pairs_[j].point;
+        for (const Entry& e : group) entries_[cell_starts_[bucket_at(e.p)]++] = e;
         // cell_starts_[bucket] is now the next bucket's start: shift back by one bucket.
         for (size_t bucket = end; bucket-- > first + 1;)
             cell_starts_[bucket] = cell_starts_[bucket - 1];

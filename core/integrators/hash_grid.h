@@ -17,14 +17,14 @@ namespace render {
 
 class HashGrid {
   public:
-    // Indexes `positions` (kept by reference: it must outlive the queries). Runs in the
+    // Indexes `positions` (copied: the caller may change them after). Runs in the
     // calling TBB arena; the buffers are kept for the next build.
     void build(const std::vector<Vec3>& positions, double radius);
 
     // Calls visit(i) for every point i with |positions[i] - p| <= radius.
     template <typename Visit>
     void for_each_within_radius(const Vec3& p, Visit&& visit) const {
-        if (positions_ == nullptr || positions_->empty()) return;
+        if (entries_.empty()) return;
         double c[3], f[3];
         for (int a = 0; a < 3; ++a) {
             double x = (double(p[a]) - lo_[a]) * inv_cell_size_;
@@ -47,8 +47,8 @@ class HashGrid {
         }
         for (int k = 0; k < count; ++k)
             for (uint32_t j = cell_starts_[buckets[k]]; j < cell_starts_[buckets[k] + 1]; ++j) {
-                uint32_t index = indices_[j];
-                if (length_squared((*positions_)[index] - p) <= radius2_) visit(index);
+                const Entry& e = entries_[j];
+                if (length_squared(e.p - p) <= radius2_) visit(e.index);
             }
     }
 
@@ -63,20 +63,23 @@ class HashGrid {
         return int64_t(std::floor((value - lo_[axis]) * inv_cell_size_));
     }
 
-    const std::vector<Vec3>* positions_ = nullptr;
     double lo_[3] = {0, 0, 0};
     double inv_cell_size_ = 1;
     float radius2_ = 0;
     uint64_t table_size_ = 1;
     std::vector<uint32_t> cell_starts_;  // table_size_ + 1 prefix sums
-    std::vector<uint32_t> indices_;      // point indices sorted by bucket, then by index
-    // Scratch of the build (hash_grid.cpp): per block and group of buckets, a count and then
-    // a slot; the groups' starts; the points as (bucket, index) in group order.
-    struct BucketPoint {
-        uint32_t bucket, point;
+    // The points sorted by bucket, then by index, each with a copy of its position: a bucket's
+    // candidates are one sequential read, and a query touches nothing else of a point (the
+    // caller's records only for the points within the radius). Queries were bound by the
+    // cache misses of an index, then a position far from its neighbours' (docs/performance.md).
+    struct Entry {
+        Vec3 p;
+        uint32_t index;
     };
+    std::vector<Entry> entries_;
+    // Scratch of the build (hash_grid.cpp): per block and group of buckets, a count and then
+    // a slot; the groups' starts.
     std::vector<uint32_t> slots_, group_starts_;
-    std::vector<BucketPoint> pairs_;
 };
 
 }  // namespace render

@@ -103,16 +103,17 @@ struct Vertex {
     Vec3 n;  // geometric normal; zero in a medium
     const Shape* shape = nullptr;
     const Medium* medium = nullptr;  // the medium the path arrived in
-    std::optional<SurfaceBsdf> bsdf;
+    // std::optional's interface, 8 bytes smaller; the next float fills its tail padding.
+    [[no_unique_address]] OptionalSurfaceBsdf bsdf;
+    // Eye subpaths with query beams (P-B2D): this medium vertex's merge factor of that
+    // technique, VcmMis::query_beam_factor of the distance density that reached it.
+    float query_beam = 0;
     const PhaseFunction* phase = nullptr;
     // Joint connections: the position the subpath reached this vertex from, and (a medium
     // vertex reached without crossing a boundary) the distance density of reaching it, with
     // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
     Vec3 previous;
     float joint_distance_pdf = 0;
-    // Eye subpaths with query beams (P-B2D): this medium vertex's merge factor of that
-    // technique, VcmMis::query_beam_factor of the distance density that reached it.
-    float query_beam = 0;
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
@@ -153,8 +154,8 @@ struct Vertex {
 
 // A stored light-subpath vertex with a non-delta BSDF or in a medium.
 struct LightVertex {
-    Vertex vertex;
-    Vec3 wo;  // toward the previous vertex of the light subpath
+    [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
+    Vec3 wo;                              // toward the previous vertex of the light subpath
     Rgb throughput;
     int path_length;
     MisQuantities mis;

@@ -24,26 +24,26 @@ float SurfaceBsdf::shading_correction(const Vec3& wo, const Vec3& wi) const {
 Rgb SurfaceBsdf::f(const Vec3& wo, const Vec3& wi) const {
     Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return Rgb(0.0f);
-    return bsdf_.f(wo_local, wi_local, mode_) * shading_correction(wo, wi);
+    return bsdf_->f(wo_local, wi_local, mode_) * shading_correction(wo, wi);
 }
 
 BsdfPdf SurfaceBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return {};
-    return bsdf_.pdf_w(wo_local, wi_local);
+    return bsdf_->pdf_w(wo_local, wi_local);
 }
 
 BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
     const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return {};
-    return {bsdf_.f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
-            bsdf_.pdf_w(wo_local, wi_local)};
+    return {bsdf_->f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
+            bsdf_->pdf_w(wo_local, wi_local)};
 }
 
 std::optional<BsdfSample> SurfaceBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u) const {
     Vec3 wo_local = shading_.to_local(wo);
     if (wo_local.z == 0) return std::nullopt;
-    std::optional<BsdfSample> s = bsdf_.sample(wo_local, u_lobe, u, mode_);
+    std::optional<BsdfSample> s = bsdf_->sample(wo_local, u_lobe, u, mode_);
     if (!s) return std::nullopt;
     Vec3 wi_local = s->wi;
     s->wi = shading_.to_world(wi_local);

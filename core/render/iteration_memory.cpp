@@ -17,8 +17,8 @@ constexpr uint64_t kLightVertexBytes = kLightVertexBytesBound;
 // A photon beam (PhotonBeam) and its line for the lookup (BeamLine).
 constexpr uint64_t kPhotonBeamBytes = kPhotonBeamBytesBound + 32;
 // Merging modes, per stored vertex: its position and index (16 B) in vectors that grow by
-// doubling (x 2), and the hash grid's index and cell start.
-constexpr uint64_t kMergeIndexBytes = 48;
+// doubling (x 2), and the hash grid's entry (position and index, 16 B) and cell start.
+constexpr uint64_t kMergeIndexBytes = 52;
 // upbp, per stored vertex (any of them may lie in a medium): a photon beam, and the query
 // beams' Embree BVH over the medium vertices as balls (~128 B per primitive).
 constexpr uint64_t kVolumeEstimatorBytes = kPhotonBeamBytes + 128;
