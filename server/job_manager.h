@@ -53,6 +53,10 @@ struct ServerOptions {
     // The bulk streams: each of clients' (UploadAsset, FetchResult) and workers' (FetchAsset)
     // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
     StreamLimits streams{};
+    // For tests and measurements (--report-delay): a report whose values are received waits
+    // this long before it is merged, as over a slow network or on a busy server; a worker that
+    // disconnects meanwhile cancels it (it is not merged, and its lease expires).
+    double report_delay_seconds = 0;
 };
 
 class JobManager {
