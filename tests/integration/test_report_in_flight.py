@@ -52,7 +52,7 @@ class ReportInFlight(cluster.ClusterTestCase):
         worker = c.start_worker(threads=1)
         c.wait_workers_registered(1)
         scene = cluster.cornell_box()
-        iterations = 120
+        iterations = 60  # leases of >= 0.2 s, each report held 1 s: >= 3 reports
         job = c.api.submit(scene, algorithm=ALGO, iterations=iterations, resolution=RESOLUTION,
                            seed=SEED, name="report-in-flight")
         done = c.api.wait_job(job.id, timeout=300, procs=[c.server, worker])
