@@ -447,10 +447,10 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             line.kv("vpl_acceptance",
                     double(result.stats.vpl_accepted) / double(result.stats.vpl_candidates));
     }
-    // Sent while the next lease renders. The lease stays alive on the server meanwhile (its
+    // Sent while the next lease renders. The lease stays alive on the server meanwhile (the
     // heartbeats extend all of this worker's leases); a report that cannot be delivered is
-    // handled as a foreground one was: its lease expires (or is dropped by the server) and its
-    // range is leased again.
+    // given up as a foreground one was: its range is leased again once its lease expires
+    // (which this worker's heartbeats for later leases postpone, as before).
     const uint64_t bytes = film_memory_bytes(uint64_t(result.width), uint64_t(result.height),
                                              2 + result.layers.size());
     const auto wait_start = Clock::now();
