@@ -56,6 +56,10 @@ struct ServerOptions {
     // A job refused for memory by every live worker (each refused it, or is known to have a
     // smaller limit than it needs) FAILS once that has lasted this long (docs/service.md).
     double memory_wait_seconds = 300;
+    // For tests and measurements (--report-delay): a report whose values are received waits
+    // this long before it is merged, as over a slow network or on a busy server; a worker that
+    // disconnects meanwhile cancels it (it is not merged, and its lease expires).
+    double report_delay_seconds = 0;
 };
 
 class JobManager {

@@ -98,6 +98,12 @@ ArgumentParser make_parser(Options& o) {
                 o.server.checkpoint_seconds =
                     v == "0" ? 0.0 : parse_seconds("--checkpoint-seconds", v);
             });
+    p.value({"--report-delay"}, "SECONDS",
+            "for tests and measurements: hold each report this long after its values arrive, "
+            "before merging it, as a slow network or a busy server would (default 0)",
+            [&](const std::string& v) {
+                o.server.report_delay_seconds = parse_seconds("--report-delay", v);
+            });
     p.value({"--submit-validation-seconds"}, "SECONDS",
             "refuse an animation whose frames' scenes would take longer than this to load at "
             "submit (every frame is loaded to validate it; default 120)",

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <span>
+#include <thread>
 
 #include "core/util/log.h"
 #include "core/util/sha256.h"
@@ -138,7 +139,16 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     }
     // Received: the merge below may take longer than the idle timeout and must not be cut.
     guard.reset();
-    if (context->IsCancelled()) return Status(StatusCode::CANCELLED, "report cancelled");
+    if (const double delay = manager_.options().report_delay_seconds; delay > 0) {
+        Log("info", "report_delayed").kv("lease", header.lease_id()).kv("seconds", delay);
+        const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(delay);
+        while (std::chrono::steady_clock::now() < until && !context->IsCancelled())
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (context->IsCancelled()) {
+        Log("warn", "report_cancelled").kv("lease", header.lease_id());
+        return Status(StatusCode::CANCELLED, "report cancelled");
+    }
     if (received != expected)
         return Status(StatusCode::INVALID_ARGUMENT,
                       "report has " + std::to_string(received) + " bytes of values, expected " +

@@ -37,8 +37,10 @@ using Clock = std::chrono::steady_clock;
 constexpr const char* kVersion = "render-worker 0.1";
 constexpr double kRpcTimeout = 10.0;
 
-// Full-frame buffers (3 doubles per pixel) a lease holds at its peak: the renderer's sum and
-// odd sum, the range result's two and the report being sent.
+// Full-frame buffers (3 doubles per pixel) a lease holds at its peak: the renderer's sum, odd
+// sum and iteration image, and the sum and odd sum of the previous lease's report, in flight
+// while this one renders (BackgroundReport: one at most; its technique layers, if any, are
+// charged with the lease). The renderer's sums become the lease's report without a copy.
 constexpr uint64_t kWorkerFilmBuffers = 5;
 
 // The budget of a job's scene and film: --max-memory, or less if the machine has less
@@ -174,6 +176,7 @@ int Worker::run() {
         idle.reset();
         process(reply.lease());
     }
+    report_in_flight_.wait();  // a stop delivers the last lease's report first
     log_info("stop").kv("worker", worker_id_);
     return 0;
 }
@@ -325,6 +328,19 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             estimate_iteration_memory(settings, uint64_t(scene->camera().width()),
                                       uint64_t(scene->camera().height()), options_.threads);
         budget.charge(working.bytes, working.what);
+        // The report in flight while this lease renders, of this lease's size: a larger one
+        // (another job's frame) is waited for first. Its sum and odd sum are in the film's
+        // buffers above; its technique layers are charged here.
+        const uint64_t layer_count = TechniqueLayers::names(settings.layers).size();
+        if (report_in_flight_.bytes_in_flight() >
+            film_memory_bytes(uint64_t(scene->camera().width()), uint64_t(scene->camera().height()),
+                              2 + layer_count))
+            report_in_flight_.wait();
+        if (layer_count > 0)
+            budget.charge(
+                film_memory_bytes(uint64_t(scene->camera().width()),
+                                  uint64_t(scene->camera().height()), layer_count),
+                "the " + std::to_string(layer_count) + " technique layers of the report in flight");
     } catch (const std::exception& e) {
         // Files named as in the client's bundle (as the server's submit errors do), not by
         // this worker's cache folder, which the job's owner cannot see.
@@ -336,14 +352,12 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
 
     // Render in a thread, one iteration per call (the sum equals one call over the range, and
     // a cancellation takes effect between iterations); heartbeat from this thread.
+    // The result's buffers are the renderer's, moved (the memory budget counts them once).
     RangeResult result;
     result.width = scene->camera().width();
     result.height = scene->camera().height();
     const size_t values = size_t(result.width) * size_t(result.height) * 3;
-    result.sum.assign(values, 0.0);
-    result.odd_sum.assign(values, 0.0);
-    result.layers.assign(TechniqueLayers::names(settings.layers).size(),
-                         std::vector<double>(values, 0.0));
+    const size_t layer_count = TechniqueLayers::names(settings.layers).size();
     std::atomic<bool> abandon{false};
     std::mutex mutex;
     std::condition_variable done_cv;
@@ -368,13 +382,14 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             // The iteration contract sizes the buffers by the scene's camera; anything else is a
             // broken build or a bug, never to be sent.
             if (sums.sum.values().size() != values || sums.odd_sum.values().size() != values ||
-                sums.layers.size() != result.layers.size())
+                sums.layers.size() != layer_count)
                 throw std::runtime_error("iteration result has " +
                                          std::to_string(sums.sum.values().size()) +
                                          " values, expected " + std::to_string(values));
             result.sum = std::move(sums.sum.values());
             result.odd_sum = std::move(sums.odd_sum.values());
-            for (size_t l = 0; l < result.layers.size(); ++l)
+            result.layers.resize(layer_count);
+            for (size_t l = 0; l < layer_count; ++l)
                 result.layers[l] = std::move(sums.layers.buffer(l).values());
             result.count = sums.count;
             result.odd_count = sums.odd_count;
@@ -438,7 +453,27 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             line.kv("vpl_acceptance",
                     double(result.stats.vpl_accepted) / double(result.stats.vpl_candidates));
     }
-    return report(lease, result);
+    // Sent while the next lease renders. The lease stays alive on the server meanwhile (the
+    // heartbeats extend all of this worker's leases); a report that cannot be delivered is
+    // given up as a foreground one was: its range is leased again once its lease expires
+    // (which this worker's heartbeats for later leases postpone, as before).
+    const uint64_t bytes = film_memory_bytes(uint64_t(result.width), uint64_t(result.height),
+                                             2 + result.layers.size());
+    const auto wait_start = Clock::now();
+    report_in_flight_.wait();  // one in flight: the render threads idle here only if sending
+                               // is slower than rendering
+    log_info("report_queued")
+        .kv("lease", lease.lease_id())
+        .kv("bytes", bytes)
+        .kv("waited_s", seconds_since(wait_start));
+    report_in_flight_.start(bytes, [this, lease, result = std::move(result)] {
+        try {
+            report(lease, result);
+        } catch (const std::exception& e) {  // e.g. bad_alloc building a chunk
+            log_error("report_failed").kv("lease", lease.lease_id()).kv("error", e.what());
+        }
+    });
+    return Outcome::Reported;
 }
 
 Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result) {

@@ -1,7 +1,8 @@
 #pragma once
 
 // The worker loop: register, lease a range of iterations, fetch the scene's assets, render
-// the range with render_iterations while heartbeating, and stream the sums back.
+// the range with render_iterations while heartbeating, and stream the sums back in the
+// background while the next lease renders (one report in flight at most).
 
 #include <atomic>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include "render.grpc.pb.h"
 #include "service/transport_security.h"
 #include "worker/asset_cache.h"
+#include "worker/background_report.h"
 
 namespace render::service {
 
@@ -41,6 +43,7 @@ class Worker {
     enum class Outcome { Reported, Dropped, Cancelled, Failed };
 
     bool register_worker();
+    // Renders the lease and hands its sums to report_in_flight_ (Reported: handed over).
     Outcome process(const v1::Lease& lease);
     const Scene& scene_for(const v1::Lease& lease, const std::filesystem::path& scene_file);
     grpc::Status fetch_asset(const std::string& sha256,
@@ -53,6 +56,8 @@ class Worker {
     // server does not count toward failing the job.
     void report_failure(const std::string& lease_id, const std::string& error,
                         uint64_t memory_needed = 0, uint64_t memory_limit = 0);
+    // Sends a finished lease's sums, retrying while the lease may still be alive (runs on
+    // report_in_flight_'s thread).
     Outcome report(const v1::Lease& lease, const struct RangeResult& result);
     // Sleeps up to `seconds`, waking early when a stop is requested.
     static void nap(double seconds);
@@ -70,6 +75,9 @@ class Worker {
     // What the scene and film were estimated to need when scene_ was loaded (the memory
     // budget's charges), to which each lease adds its algorithm's working memory.
     uint64_t scene_memory_ = 0;
+
+    // Last: destroyed first, waiting for the report in flight while the stub is alive.
+    BackgroundReport report_in_flight_;
 };
 
 }  // namespace render::service

@@ -158,6 +158,50 @@ TEST_F(SchedulerTest, HeartbeatKeepsLeasesAlive) {
     EXPECT_EQ(scheduler.begin_merge(g->lease_id, 1, &out), MergeDecision::Accept);
 }
 
+// The worker sends a finished lease's report in the background and leases its next range at
+// once (worker/background_report.h): the server grants it a second lease, and the heartbeats
+// it sends for the lease it renders keep the one whose report is in flight alive too.
+TEST_F(SchedulerTest, AReportInFlightStaysAliveWhileItsWorkerRendersTheNextLease) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 3));
+    auto in_flight = scheduler.lease("w");
+    auto rendering = scheduler.lease("w");
+    ASSERT_TRUE(in_flight && rendering);
+    EXPECT_EQ(in_flight->range, (Range{1, 2}));
+    EXPECT_EQ(rendering->range, (Range{2, 3}));
+    EXPECT_EQ(scheduler.worker_leases("w").size(), 2u);
+    for (int i = 0; i < 5; ++i) {  // 30 s of heartbeats naming only the lease being rendered
+        clock.advance(6);
+        EXPECT_TRUE(scheduler.heartbeat("w", {rendering->lease_id}).empty());
+    }
+    EXPECT_TRUE(scheduler.take_expired().empty());
+    auto other = scheduler.lease("x");
+    ASSERT_TRUE(other);
+    EXPECT_EQ(other->range, (Range{3, 4}));  // neither of w's ranges is handed out again
+    LeaseGrant out;
+    ASSERT_EQ(scheduler.begin_merge(in_flight->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    ASSERT_EQ(scheduler.begin_merge(rendering->lease_id, 1, &out), MergeDecision::Accept);
+    scheduler.end_merge(out);
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 2u);
+}
+
+// A worker killed with a report in flight and its next lease: both expire, both ranges are
+// leased again, and the lost report, should it still arrive, is not merged a second time.
+TEST_F(SchedulerTest, AWorkerKilledWithAReportInFlightLosesBothRangesToTheQueue) {
+    scheduler.add_job("a", 0, 1, JobState::Queued, frames(1, 2));
+    auto in_flight = scheduler.lease("dead");
+    auto rendering = scheduler.lease("dead");
+    ASSERT_TRUE(in_flight && rendering);
+    clock.advance(11);
+    EXPECT_EQ(scheduler.tick().size(), 0u);
+    EXPECT_EQ(scheduler.take_expired().size(), 2u);
+    EXPECT_EQ(drain("alive"), 2u);
+    EXPECT_EQ(scheduler.state("a"), JobState::Done);
+    LeaseGrant out;
+    EXPECT_NE(scheduler.begin_merge(in_flight->lease_id, 1, &out), MergeDecision::Accept);
+    EXPECT_EQ(scheduler.progress("a", 0).merged, 2u);
+}
+
 TEST_F(SchedulerTest, PriorityThenSubmissionOrder) {
     scheduler.add_job("low", 0, 1, JobState::Queued, frames(1, 1));
     scheduler.add_job("high-late", 5, 3, JobState::Queued, frames(1, 1));

@@ -1,0 +1,44 @@
+#pragma once
+
+// The report of a finished lease, sent by a thread of its own while the worker renders its
+// next lease (issue 16: a report sent in the foreground idled the render threads for its
+// serialisation, transfer and the server's merge). One report is in flight at most: start()
+// waits for the previous one first, so the worker holds at most one report's buffers besides
+// the lease it renders (charged to the memory budget, Worker::process).
+
+#include <cstdint>
+#include <thread>
+#include <utility>
+
+namespace render::service {
+
+class BackgroundReport {
+  public:
+    BackgroundReport() = default;
+    ~BackgroundReport() { wait(); }
+    BackgroundReport(const BackgroundReport&) = delete;
+    BackgroundReport& operator=(const BackgroundReport&) = delete;
+
+    // Waits for the report in flight, if any, then runs `send` (which owns the report's
+    // buffers, `bytes` of them) in a thread until it returns. `send` must not throw.
+    template <class Send>
+    void start(uint64_t bytes, Send&& send) {
+        wait();
+        bytes_ = bytes;
+        thread_ = std::thread(std::forward<Send>(send));
+    }
+    // Returns once no report is in flight.
+    void wait() {
+        if (thread_.joinable()) thread_.join();
+        bytes_ = 0;
+    }
+    // The buffers the report in flight holds (0 when none is, or it has not been waited for
+    // since it ended: an upper bound either way).
+    uint64_t bytes_in_flight() const { return thread_.joinable() ? bytes_ : 0; }
+
+  private:
+    std::thread thread_;
+    uint64_t bytes_ = 0;
+};
+
+}  // namespace render::service
