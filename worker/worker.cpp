@@ -530,8 +530,14 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
         }
         log_warn("report_failed").kv("lease", lease.lease_id()).kv("status", describe(status));
         if (!is_transient(status.error_code()) || seconds_since(t0) > patience ||
-            g_stop_requests.load() >= 2)
+            g_stop_requests.load() >= 2) {
+            // Said to the server (best effort) so that it re-leases the range now: otherwise
+            // the lease lives on while this worker heartbeats its next one, as a heartbeat
+            // extends every lease of its worker.
+            report_failure(lease.lease_id(),
+                           "the worker could not deliver its report: " + describe(status));
             return Outcome::Failed;
+        }
         // Plain sleep: a first SIGTERM must not cut short the delivery of finished work.
         std::this_thread::sleep_for(std::chrono::duration<double>(backoff.next()));
     }
