@@ -498,7 +498,9 @@ class VcmMis {
             mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + t.eye_query_beam + eye.dVCM +
                                   t.eye_joint2 + eye.dVC * mis(t.eye_reverse_w)) +
             t.eye_photon_beam;
-        return 1.0f / (w_light + joint_factor(t.joint_ratio, t.joint2_ratio) + w_camera);
+        // Summed in the order of the J1-only form, so that images without J2 stay bit-identical.
+        return 1.0f /
+               (w_light + 1.0f + mis(t.joint_ratio) * (1.0f + mis(t.joint2_ratio)) + w_camera);
     }
 
     // The J1 technique of the same junction (the eye vertex sampled toward the light vertex).
