@@ -272,9 +272,9 @@ const std::vector<RenderOption>& table() {
          }},
         {.name = "joint_connections",
          .flag = "--joint-connections",
-         .metavar = "off|on|j1|all",
+         .metavar = "off|on|all",
          .type = OptionType::Choice,
-         .help = "joint connections in homogeneous media: on (= j1): each eye segment in a "
+         .help = "joint connections in homogeneous media: on: each eye segment in a "
                  "medium also joins the vertices of the pixel's light path through a medium "
                  "vertex sampled toward each (J1, vertex-segment), and to a light point "
                  "(equi-angular next-event estimation); all: J1 and J2 (segment-segment: the "
@@ -282,7 +282,7 @@ const std::vector<RenderOption>& table() {
                  "by MIS (bpt, vcm; off by default: on the fog box J1 halves the variance but "
                  "doubles the time per iteration, equal-time error 0.96-1.05x; "
                  "docs/joint-sampling.md)",
-         .choices = {"off", "on", "j1", "all"},
+         .choices = {"off", "on", "all"},
          .default_text = "off",
          .apply =
              [](RenderSettings& s, const std::string& v) {
