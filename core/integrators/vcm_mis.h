@@ -66,6 +66,9 @@ struct DirectTechnique {
     // the light point instead of by distance sampling): its density over this technique's; 0
     // where there is none (ConnectionTechnique::joint_ratio).
     float joint_ratio = 0;
+    // J2 of the junction toward the camera (the receiver sampled on the light's emission ray by
+    // B2, its eye-side neighbour by J1): VcmMis::eye_joint2_term (0: none).
+    float eye_joint2 = 0;
 };
 
 // Eqs. (40) and (41): connecting an eye vertex to a light vertex.
@@ -90,6 +93,14 @@ struct ConnectionTechnique {
     // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.
     float light_joint_ratio = 0;
     float joint_ratio = 0;
+    // Joint (J2) connections (bpt --joint-connections j2|all): the density of a junction's J2
+    // technique over that of its J1 technique, q = p_B2 / p_distance of the light-side vertex
+    // (0 where there is no J2 technique): light_joint2_ratio for the junction one step toward the
+    // light, joint2_ratio for this one; eye_joint2 the junction one step toward the camera
+    // (VcmMis::eye_joint2_term).
+    float light_joint2_ratio = 0;
+    float joint2_ratio = 0;
+    float eye_joint2 = 0;
     // B-B1D at either vertex (the connection segment as the query at the light vertex, as the
     // photon beam at the eye vertex): VcmMis::photon_beam_light_term and photon_beam_eye_term.
     float light_photon_beam = 0;
@@ -109,6 +120,8 @@ struct CameraTechnique {
     // J1 of the junction whose eye-side vertex is the light vertex, sampled from the camera
     // (ConnectionTechnique::light_joint_ratio).
     float light_joint_ratio = 0;
+    // J2 of that junction over its J1 (ConnectionTechnique::light_joint2_ratio).
+    float light_joint2_ratio = 0;
     // B-B1D at the vertex with the camera ray as the query: VcmMis::photon_beam_light_term of
     // the camera's density of the vertex without the distance density, over N_light.
     float light_photon_beam = 0;
@@ -396,11 +409,50 @@ class VcmMis {
     // After arrive(): the J1 technique of the junction whose eye-side vertex is the one the
     // segment started at, with joint_pdf_l its equi-angular density there (arrive() gave the
     // plain connection the reverse distance density instead).
+    // joint2_ratio: that junction's J2 over its J1 (0: none), whose term rides on J1's.
     void add_joint_term(MisQuantities& q, float carried, float joint_pdf_l, float cos_in,
-                        float forward_distance) const {
-        const float term = carried * mis(joint_pdf_l) / mis(cos_in * forward_distance);
+                        float forward_distance, float joint2_ratio = 0) const {
+        const float term = carried * mis(joint_pdf_l) * (1.0f + mis(joint2_ratio)) /
+                           mis(cos_in * forward_distance);
         q.dVC += term;
         if (use_vc_) q.dVM += term;  // connection terms count in merge weights (scatter())
+    }
+
+    // Joint (J2) connections, the segment-segment connection (docs/media.md): junction j's J2
+    // technique samples its light-side vertex x_{j-1} on the light ray from x_{j-2} by B2
+    // (joint_light_distance.h) and then x_j like J1; its density is J1's times
+    // q_j = p_B2(x_{j-1}) / p_distance(x_{j-1}), so each connection term gets
+    // (1 + mis(r_j) (1 + mis(q_j))). q_j needs x_{j-2} .. x_{j+1}: light subpaths complete it with
+    // J1's deferred term (add_joint_term's joint2_ratio); a connection takes it for its own
+    // junction and the one toward the light (ConnectionTechnique, CameraTechnique); eye subpaths
+    // know the part of the junction toward the camera that J1 folded into dVCM, and its q only
+    // when the next light-side vertex is known: at a connection or next-event estimation
+    // (eye_joint2_term), or, carried from a scatter (carried_eye_joint2_term), at the next
+    // arrival (add_eye_joint2_term).
+    //
+    // The eye vertex's share of dVCM that is the J1 technique of the junction toward the camera
+    // (include_joint_junction multiplied dVCM by 1 + mis(r)), times mis(q) of that junction's J2.
+    float eye_joint2_term(const MisQuantities& eye, float joint_ratio, float joint2_ratio) const {
+        if (!(joint_ratio > 0) || !(joint2_ratio > 0)) return 0.0f;
+        const float j1 = mis(joint_ratio);
+        return eye.dVCM * (j1 / (1.0f + j1)) * mis(joint2_ratio);
+    }
+    // Eye subpaths: the J1 share above as scatter() is about to carry it into dVC.
+    float carried_eye_joint2_term(const MisQuantities& eye, float joint_ratio, float cos_out,
+                                  float forward_w, bool specular) const {
+        if (!(joint_ratio > 0) || specular || !(forward_w > 0)) return 0.0f;
+        const float j1 = mis(joint_ratio);
+        return mis(cos_out / forward_w) * eye.dVCM * (j1 / (1.0f + j1));
+    }
+    // After arrive() on an eye subpath: the J2 technique of the junction two steps back (the
+    // vertex the segment left is its light-side vertex, sampled from the new vertex by B2 with
+    // density joint2_pdf_l; arrive() gave the plain connection the reverse distance density).
+    void add_eye_joint2_term(MisQuantities& q, float carried, float joint2_pdf_l, float cos_in,
+                             float forward_distance) const {
+        if (!(carried > 0) || !(joint2_pdf_l > 0)) return;
+        const float term = carried * mis(joint2_pdf_l) / mis(cos_in * forward_distance);
+        q.dVC += term;
+        if (use_vc_) q.dVM += term;
     }
 
     // Eq. (43): the eye subpath hit an emitter. direct_pdf_a and emission_pdf_w include the
@@ -419,13 +471,13 @@ class VcmMis {
         const float w_light =
             t.delta_light ? 0.0f
                           : mis(t.bsdf_forward_w * t.pass_to_light_probability / t.light_pdf_w);
-        const float w_camera = t.cos_light > 0
-                                   ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
-                                         (t.direct_pdf_w * t.cos_light)) *
-                                             (vm_weight_factor_[t.eye_medium] + t.eye_query_beam +
-                                              eye.dVCM + eye.dVC * mis(t.bsdf_reverse_w)) +
-                                         t.eye_photon_beam
-                                   : 0.0f;
+        const float w_camera =
+            t.cos_light > 0 ? mis(t.emission_pdf_w * t.cos_here * t.distance_from_light /
+                                  (t.direct_pdf_w * t.cos_light)) *
+                                      (vm_weight_factor_[t.eye_medium] + t.eye_query_beam +
+                                       eye.dVCM + t.eye_joint2 + eye.dVC * mis(t.bsdf_reverse_w)) +
+                                  t.eye_photon_beam
+                            : 0.0f;
         return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
     }
 
@@ -438,14 +490,17 @@ class VcmMis {
     float weight_connection(const MisQuantities& light, const MisQuantities& eye,
                             const ConnectionTechnique& t) const {
         const float w_light = mis(t.eye_pdf_a) * (vm_weight_factor_[t.light_medium] +
-                                                  light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
+                                                  light.dVCM * joint_factor(t.light_joint_ratio,
+                                                                            t.light_joint2_ratio) +
                                                   light.dVC * mis(t.light_reverse_w)) +
                               t.light_query_beam + t.light_photon_beam;
         const float w_camera =
             mis(t.light_pdf_a) * (vm_weight_factor_[t.eye_medium] + t.eye_query_beam + eye.dVCM +
-                                  eye.dVC * mis(t.eye_reverse_w)) +
+                                  t.eye_joint2 + eye.dVC * mis(t.eye_reverse_w)) +
             t.eye_photon_beam;
-        return 1.0f / (w_light + 1.0f + mis(t.joint_ratio) + w_camera);
+        // Summed in the order of the J1-only form, so that images without J2 stay bit-identical.
+        return 1.0f /
+               (w_light + 1.0f + mis(t.joint_ratio) * (1.0f + mis(t.joint2_ratio)) + w_camera);
     }
 
     // The J1 technique of the same junction (the eye vertex sampled toward the light vertex).
@@ -454,13 +509,20 @@ class VcmMis {
         return mis(t.joint_ratio) * weight_connection(light, eye, t);
     }
 
+    // The J2 technique of the same junction (both vertices sampled jointly, B2 then J1).
+    float weight_joint2_connection(const MisQuantities& light, const MisQuantities& eye,
+                                   const ConnectionTechnique& t) const {
+        return mis(t.joint_ratio) * mis(t.joint2_ratio) * weight_connection(light, eye, t);
+    }
+
     // Eq. (46): a light vertex connected to the camera (CameraTechnique).
     float weight_camera(const MisQuantities& light, const CameraTechnique& t) const {
-        const float w_light = mis(t.camera_pdf_a / light_path_count_) *
-                                  (vm_weight_factor_[t.light_medium] +
-                                   light.dVCM * (1.0f + mis(t.light_joint_ratio)) +
-                                   light.dVC * mis(t.light_reverse_w)) +
-                              t.light_query_beam + t.light_photon_beam;
+        const float w_light =
+            mis(t.camera_pdf_a / light_path_count_) *
+                (vm_weight_factor_[t.light_medium] +
+                 light.dVCM * joint_factor(t.light_joint_ratio, t.light_joint2_ratio) +
+                 light.dVC * mis(t.light_reverse_w)) +
+            t.light_query_beam + t.light_photon_beam;
         return 1.0f / (w_light + 1.0f);
     }
 
@@ -521,6 +583,10 @@ class VcmMis {
 
   private:
     double mis_double(double p) const { return power_ == 1 ? p : p * p; }
+    // A junction's plain connection, J1 and J2 relative to the plain connection.
+    float joint_factor(float joint_ratio, float joint2_ratio) const {
+        return 1.0f + mis(joint_ratio) * (1.0f + mis(joint2_ratio));
+    }
     // q_L of B-B1D: 1 / p_L (long photon beams), 1 / sigma_t (short).
     double q_light(float light_distance, float sigma_t) const {
         return 1.0 / double(short_photon_beams_ ? sigma_t : light_distance);

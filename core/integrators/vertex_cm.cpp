@@ -23,6 +23,7 @@
 #include "core/integrators/importance_mixture.h"
 #include "core/integrators/importance_optimise.h"
 #include "core/integrators/importance_record.h"
+#include "core/integrators/joint_segment.h"
 #include "core/integrators/medium_segment.h"
 #include "core/integrators/merge_radius.h"
 #include "core/integrators/pixel_loop.h"
@@ -82,6 +83,16 @@ struct SubpathState {
     float origin_joint_pdf = 0;
     bool origin_in_medium = false;
     float carried_connection = 0;
+    // Joint (J2) connections on the light's emission ray: the position before origin_previous,
+    // the light-ray distance densities of the origin vertex and of its predecessor (Vertex); on
+    // eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
+    // carried_eye_joint2_term), and, after arriving at a light, the J2 term the emission weight
+    // adds to dVC (there the vertex the segment left is the light-side vertex of a J2 junction).
+    Vec3 origin_previous2;
+    float origin_light_ray_pdf = 0;
+    float origin_previous_light_ray_pdf = 0;
+    float carried_eye_joint2 = 0;
+    float emission_joint2 = 0;
     // Light subpaths with query beams: the factor of the P-B2D term of the vertex the next
     // segment starts at, added at the next arrival (vcm_mis.h, add_query_beam_term).
     float carried_query_beam = 0;
@@ -114,6 +125,16 @@ struct Vertex {
     // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
     Vec3 previous;
     float joint_distance_pdf = 0;
+    // Joint (J2) connections, which resample the first light vertex on the light's emission ray
+    // (docs/media.md): the position `previous` was reached from; this vertex's distance density
+    // from `previous` where J2 can resample it there (a medium vertex of a homogeneous medium
+    // reached in one piece from a finite light's point, on either subpath: 0 elsewhere), and the
+    // same of `previous`; on eye subpaths, J1's ratio r of the junction toward the camera
+    // (whose eye-side vertex is `previous`; include_joint_junction).
+    Vec3 previous2;
+    float light_ray_pdf = 0;
+    float previous_light_ray_pdf = 0;
+    float camera_joint_ratio = 0;
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
@@ -163,6 +184,10 @@ struct LightVertex {
 };
 static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
+
+// Which technique produced a connection: the plain one, J1 (the eye vertex sampled toward the
+// light vertex) or J2 (the light vertex resampled on the emission ray as well).
+enum class JointKind { None, J1, J2 };
 
 // Visibility and distance-sampling densities of a connection segment. Without media the
 // segment is only tested for occlusion, and only once its contribution is known to be non-zero.
@@ -229,10 +254,22 @@ struct ConnectionGeometry {
 
 // One chunk of light paths, from its tracing (in parallel with other chunks) to its gathering
 // into the iteration's arrays (in chunk order).
+// J2 (bpt --joint-connections all): a light path's emission ray from a finite light's point
+// into a homogeneous medium, as it was before its distance sample; J2 resamples the path's first
+// vertex on it by B2, whatever that sample gave (a medium vertex, a surface, nothing).
+struct EmissionRay {
+    Vec3 origin, direction;          // the light point and the sampled unit direction
+    Rgb throughput;                  // energy over the emission density (the selection included)
+    MisQuantities mis;               // the subpath's quantities at the start (start_light)
+    const Medium* medium = nullptr;  // null: the path has no J2
+    float piece_end = 0;             // from origin to the first surface, null or not
+};
+
 struct LightChunk {
     uint64_t index = 0;
     std::vector<LightVertex> vertices;
-    std::vector<uint32_t> path_sizes;  // vertices kept per path
+    std::vector<uint32_t> path_sizes;        // vertices kept per path
+    std::vector<EmissionRay> emission_rays;  // one per path with J2, else none
     std::vector<Splat> splats;
     RenderStats stats;
 };
@@ -246,6 +283,7 @@ struct IterationStorage {
     // In blocks: gathering a chunk appends without ever moving the vertices already there.
     BlockVector<LightVertex> light_vertices;
     std::vector<uint32_t> path_ends;
+    std::vector<EmissionRay> emission_rays;  // per light path, with J2
     // The light pass's chunk buffers (a few per thread), reused from one iteration to the next.
     std::vector<std::unique_ptr<LightChunk>> light_chunks;
     std::vector<LightChunk*> free_light_chunks;
@@ -355,9 +393,11 @@ class Iteration {
           joint_((config.mode == BidirectionalMode::Bpt || config.mode == BidirectionalMode::Vcm) &&
                  config.joint_connections && use_vc_ && !ic_connections_ && !query_beams_ &&
                  !photon_beams_ && scene.has_media() && scene.volume_lights().empty()),
+          joint2_(joint_ && config.joint2_connections && config.mode == BidirectionalMode::Bpt),
           storage_(storage),
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
+          emission_rays_(storage.emission_rays),
           surface_positions_(storage.surface_positions),
           medium_positions_(storage.medium_positions),
           surface_index_(storage.surface_index),
@@ -366,6 +406,7 @@ class Iteration {
           medium_grid_(storage.medium_grid) {
         for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
         for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
+        emission_rays_.clear();
         // Destroying the last iteration's vertices reads all of them (hundreds of MB): in
         // parallel over the blocks.
         tbb::parallel_for(size_t(0), light_vertices_.block_count(),
@@ -407,8 +448,10 @@ class Iteration {
     // as lights"), picked with probability pick_probability.
     bool generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
                                       Rng& rng, SubpathState& state, Ray& ray) const;
+    // emission: where J2 keeps the path's emission ray (null without J2).
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
-                          std::vector<Splat>& splats, RenderStats& stats) const;
+                          std::vector<Splat>& splats, RenderStats& stats,
+                          EmissionRay* emission = nullptr) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
     // it ends at and completes the MIS quantities' conversion (`arrive`).
     std::optional<Vertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
@@ -441,12 +484,13 @@ class Iteration {
     // subpath's last vertex: each light vertex in [first, end) joined through a medium vertex
     // of the segment's first piece, sampled toward it; each passed to add(s, contribution).
     template <class Add>
+    // emission: the light path's emission ray for J2 (null: none).
     void joint_connections(const Ray& ray, const SubpathState& state, uint32_t first, uint32_t end,
-                           Rng& rng, RenderStats& stats, Add&& add) const;
+                           const EmissionRay* emission, Rng& rng, RenderStats& stats,
+                           Add&& add) const;
     // The eye subpath arrived at v: its connection term gains the J1 technique of the junction
     // toward the camera (vcm_mis.h, include_joint_junction).
-    void include_joint_junction(MisQuantities& mis, const SubpathState& state,
-                                const Vertex& v) const;
+    void include_joint_junction(MisQuantities& mis, const SubpathState& state, Vertex& v) const;
     // A connection's MIS-weighted contribution before visibility (f_eye G f_light w, without
     // the subpaths' throughputs) and the segment that decides its visibility; empty when it is
     // zero whatever the visibility.
@@ -456,11 +500,29 @@ class Iteration {
         Ray ray;
         Link link;
     };
-    // joint: v was sampled by the J1 technique (the weight is that technique's).
+    // joint: v was sampled by the J1 technique, or both vertices by J2 (the weight is that
+    // technique's).
     std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
                                                     const Vertex& v, const Vec3& wo,
                                                     const MisQuantities& eye_mis, Rng& rng,
-                                                    RenderStats& stats, bool joint = false) const;
+                                                    RenderStats& stats,
+                                                    JointKind joint = JointKind::None) const;
+    // J2: q = p_B2 / p_distance of the light-side vertex `x` of a junction, resampled on the
+    // emission ray from the light point `light_point` (x's distance density from there:
+    // light_ray_pdf, 0 where J2 cannot resample it), the eye ray from `eye_origin` through
+    // `eye_side`; 0 without J2.
+    float light_joint2_ratio(const Vec3& light_point, const Vec3& x, float light_ray_pdf,
+                             const Vec3& eye_origin, const Vec3& eye_side) const {
+        if (!joint2_ || !(light_ray_pdf > 0)) return 0.0f;
+        return joint2_pdf_l(scene_.bounding_sphere(), light_point, x, eye_origin, eye_side) /
+               light_ray_pdf;
+    }
+    // J2 in joint_connections: the first vertex of the light path in [first, end), resampled on
+    // its emission ray by B2, joined to the eye segment through a J1 vertex (nullopt: none).
+    std::optional<LightVertex> resample_on_emission_ray(const EmissionRay& emission,
+                                                        const Vec3& eye_origin,
+                                                        const Vec3& eye_direction, Rng& rng,
+                                                        RenderStats& stats) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
     // previous vertex toward the light vertex's predecessor) over its plain connection; 0
@@ -565,11 +627,13 @@ class Iteration {
     uint64_t ic_light_path_count_;
     float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
     bool joint_;                 // joint (J1) connections (bpt, vcm in a scene with media)
+    bool joint2_;                // and J2 on the emission ray (bpt only)
     size_t ic_vertex_count_ = 0;
 
     IterationStorage& storage_;
     BlockVector<LightVertex>& light_vertices_;
-    std::vector<uint32_t>& path_ends_;  // light_vertices_ of path p: [ends[p-1], ends[p])
+    std::vector<uint32_t>& path_ends_;         // light_vertices_ of path p: [ends[p-1], ends[p])
+    std::vector<EmissionRay>& emission_rays_;  // of path p, with J2 (else empty)
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
     // lookup.
@@ -615,10 +679,16 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     v.p = seg.position;
     v.medium = seg.medium;
     v.previous = state.origin;
+    v.previous2 = state.origin_previous;
+    v.previous_light_ray_pdf = state.origin_light_ray_pdf;
     const Vec3 wo = -ray.direction;
     if (seg.end == SegmentEnd::Medium) {
         v.phase = &seg.medium->phase();
         if (seg.one_piece) v.joint_distance_pdf = seg.densities.toward_end;
+        // J2's light-side vertex: the first vertex of a light subpath from a finite light.
+        if (joint2_ && mode == TransportMode::Importance && seg.one_piece &&
+            state.path_length == 1 && state.is_finite_light && seg.medium->is_homogeneous())
+            v.light_ray_pdf = seg.densities.toward_end;
         if (mode == TransportMode::Radiance)
             v.query_beam = mis_.query_beam_factor(seg.densities.toward_end);
         if (photon_beams_) set_photon_beam_quantities(v, seg, mode);
@@ -639,9 +709,25 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     if (joint_ && mode == TransportMode::Importance && state.carried_connection > 0 &&
         state.origin_in_medium && joint_light_side(state.path_length - 1, state.is_finite_light) &&
         seg.one_piece)
-        mis_.add_joint_term(state.mis, state.carried_connection,
-                            joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in,
-                            seg.densities.toward_end);
+        mis_.add_joint_term(
+            state.mis, state.carried_connection,
+            joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in, seg.densities.toward_end,
+            light_joint2_ratio(state.origin_previous2, state.origin_previous,
+                               state.origin_previous_light_ray_pdf, v.p, state.origin));
+    // Eye subpaths arriving at a surface (perhaps an emitter): if the path ends here, the
+    // vertex the segment left is the light-side vertex of a J2 junction on the emission ray;
+    // the emission weight adds this term (vcm_mis.h, add_eye_joint2_term).
+    state.emission_joint2 = 0;
+    if (joint2_ && mode == TransportMode::Radiance && state.carried_eye_joint2 > 0 &&
+        seg.end == SegmentEnd::Surface && seg.one_piece && state.origin_in_medium && state.medium &&
+        state.medium->is_homogeneous()) {
+        MisQuantities term;
+        mis_.add_eye_joint2_term(term, state.carried_eye_joint2,
+                                 joint2_pdf_l(scene_.bounding_sphere(), v.p, state.origin,
+                                              state.origin_previous2, state.origin_previous),
+                                 cos_in, seg.densities.toward_end);
+        state.emission_joint2 = term.dVC;
+    }
     // Light subpaths: the P-B2D term of the vertex this segment left (the segment from here is
     // the query that covers it).
     if (mode == TransportMode::Importance)
@@ -737,11 +823,23 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
 }
 
 void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
-                                 std::vector<Splat>& splats, RenderStats& stats) const {
+                                 std::vector<Splat>& splats, RenderStats& stats,
+                                 EmissionRay* emission) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kLightStreamBase + path_index});
     SubpathState state;
     Ray ray;
     if (!generate_light_sample(rng, state, ray)) return;
+    if (emission && state.is_finite_light && state.medium && state.medium->is_homogeneous()) {
+        // The first piece of the emission ray (one closest hit per light path), for J2.
+        ++stats.rays;
+        emission->origin = state.origin;
+        emission->direction = ray.direction;
+        emission->throughput = state.throughput;
+        emission->mis = state.mis;
+        emission->medium = state.medium;
+        emission->piece_end =
+            dot(ray.origin - state.origin, ray.direction) + scene_.closest_hit_distance(ray);
+    }
 
     uint32_t beam_piece = 0;
     for (;; ++state.path_length) {
@@ -804,13 +902,16 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     auto trace = [&](LightChunk* chunk) {
         chunk->vertices.clear();
         chunk->path_sizes.clear();
+        chunk->emission_rays.clear();
         chunk->splats.clear();
         chunk->stats = RenderStats{};
         const uint64_t first = chunk->index * kLightPathChunk;
         const uint64_t last = std::min(first + kLightPathChunk, light_path_count_);
         for (uint64_t p = first; p < last; ++p) {
             const size_t before = chunk->vertices.size();
-            trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats);
+            if (joint2_) chunk->emission_rays.emplace_back();
+            trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats,
+                             joint2_ ? &chunk->emission_rays.back() : nullptr);
             chunk->path_sizes.push_back(uint32_t(chunk->vertices.size() - before));
         }
         return chunk;
@@ -818,6 +919,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     uint32_t end = 0;
     auto gather = [&](LightChunk* chunk) {
         for (uint32_t size : chunk->path_sizes) path_ends_.push_back(end += size);
+        emission_rays_.insert(emission_rays_.end(), chunk->emission_rays.begin(),
+                              chunk->emission_rays.end());
         for (LightVertex& v : chunk->vertices) {
             if (use_vm_) {
                 const bool medium = v.vertex.in_medium();
@@ -865,6 +968,13 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     if (joint_)
         state.carried_connection =
             mis_.carried_connection_term(state.mis, cos_out, bs->pdf_w.forward, bs->delta);
+    // Eye subpaths (J2 on the emission ray): the J1 share of the term this scatter adds, for
+    // the emission weight should the next vertex be a light (light subpaths ignore it).
+    state.carried_eye_joint2 =
+        joint2_ && v.in_medium() && v.medium->is_homogeneous()
+            ? mis_.carried_eye_joint2_term(state.mis, v.camera_joint_ratio, cos_out,
+                                           bs->pdf_w.forward, bs->delta)
+            : 0.0f;
     state.carried_query_beam =
         v.in_medium() ? mis_.carried_query_beam_term(cos_out, bs->pdf_w.forward, bs->delta) : 0.0f;
     if (photon_beams_)
@@ -875,6 +985,9 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     // Eqs. (34)-(36); Russian roulette below is deliberately not part of the densities.
     mis_.scatter(state.mis, cos_out, bs->pdf_w.forward, bs->pdf_w.reverse, bs->delta, v.in_medium(),
                  v.query_beam);
+    state.origin_previous2 = state.origin_previous;
+    state.origin_previous_light_ray_pdf = state.origin_light_ray_pdf;
+    state.origin_light_ray_pdf = v.light_ray_pdf;
     state.origin = v.p;
     state.origin_previous = v.previous;
     state.origin_joint_pdf = v.joint_distance_pdf;
@@ -915,6 +1028,11 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
         l.one_piece && l.densities.toward_start > 0)
         light_joint_ratio =
             joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
+    const float camera_light_joint2 =
+        light_joint_ratio > 0
+            ? light_joint2_ratio(v.previous2, v.previous, v.previous_light_ray_pdf,
+                                 camera_.position(), v.p)
+            : 0.0f;
     // P-B2D at this vertex with the camera ray as the query.
     const float light_query_beam =
         v.in_medium()
@@ -924,13 +1042,15 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
     const float light_photon_beam = light_photon_beam_term(
         v, wo, d, camera_pdf_w * v.cos(d) / dist2 / float(light_path_count_));
     const float weight =
-        light_trace_only_ ? 1.0f
-                          : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
-                                                           .light_reverse_w = pdf_w.reverse,
-                                                           .light_medium = v.in_medium(),
-                                                           .light_query_beam = light_query_beam,
-                                                           .light_joint_ratio = light_joint_ratio,
-                                                           .light_photon_beam = light_photon_beam});
+        light_trace_only_
+            ? 1.0f
+            : mis_.weight_camera(state.mis, {.camera_pdf_a = camera_pdf_a,
+                                             .light_reverse_w = pdf_w.reverse,
+                                             .light_medium = v.in_medium(),
+                                             .light_query_beam = light_query_beam,
+                                             .light_joint_ratio = light_joint_ratio,
+                                             .light_joint2_ratio = camera_light_joint2,
+                                             .light_photon_beam = light_photon_beam});
     const Rgb contribution =
         state.throughput * f *
         (weight * camera_pdf_w * v.shading_cos(d) / (dist2 * float(light_path_count_)));
@@ -962,7 +1082,10 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     if (joint_ && light->is_finite() && state.origin_joint_pdf > 0)
         joint_ratio =
             joint_pdf_l(state.origin_previous, state.origin, hit_point) / state.origin_joint_pdf;
-    return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
+    // J2 on the emission ray (the vertex before the hit point resampled on it).
+    MisQuantities eye = state.mis;
+    if (light->is_finite()) eye.dVC += state.emission_joint2;
+    return le.radiance * mis_.weight_emission(eye, le.pdf_direct_a * pick_probability,
                                               le.pdf_emission_w * pick_probability, joint_ratio);
 }
 
@@ -1015,6 +1138,15 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
     if (joint_ && v.joint_distance_pdf > 0 && std::isfinite(ls.distance))
         joint_ratio =
             joint_pdf_l(v.previous, v.p, v.p + ls.wi * ls.distance) / v.joint_distance_pdf;
+    // J2 of the junction toward the camera, v resampled on the light's emission ray toward it.
+    float eye_joint2 = 0;
+    if (joint2_ && v.camera_joint_ratio > 0 && v.in_medium() && v.medium->is_homogeneous() &&
+        std::isfinite(ls.distance) && l.one_piece && l.densities.toward_start > 0)
+        eye_joint2 =
+            mis_.eye_joint2_term(eye_mis, v.camera_joint_ratio,
+                                 joint2_pdf_l(scene_.bounding_sphere(), v.p + ls.wi * ls.distance,
+                                              v.p, v.previous2, v.previous) /
+                                     l.densities.toward_start);
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
                                     .bsdf_reverse_w = pdf_w.reverse,
@@ -1029,7 +1161,8 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
                                     .pass_to_light_probability = l.densities.toward_end,
                                     .distance_from_light = l.densities.toward_start,
                                     .eye_photon_beam = eye_photon_beam,
-                                    .joint_ratio = joint_ratio};
+                                    .joint_ratio = joint_ratio,
+                                    .eye_joint2 = eye_joint2};
     const float weight = many_lights_ ? 1.0f
                          : joint      ? mis_.weight_joint_direct(eye_mis, technique)
                                       : mis_.weight_direct(eye_mis, technique);
@@ -1054,7 +1187,7 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
 
 std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const LightVertex& lv, const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
-    RenderStats& stats, bool joint) const {
+    RenderStats& stats, JointKind joint) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
     const Vertex& w = lv.vertex;
@@ -1079,6 +1212,15 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             l.densities.toward_end > 0)
             light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
     }
+    // J2 of this junction (the light vertex resampled on the emission ray) and of the one
+    // before it (the light vertex's predecessor resampled there, the light vertex by J1).
+    float joint2_ratio = 0, light_joint2 = 0;
+    if (joint_ratio > 0 && w.light_ray_pdf > 0)
+        joint2_ratio = joint2_pdf_l(scene_.bounding_sphere(), w.previous, w.p, v.previous, v.p) /
+                       w.light_ray_pdf;
+    if (light_joint_ratio > 0)
+        light_joint2 =
+            light_joint2_ratio(w.previous2, w.previous, w.previous_light_ray_pdf, v.p, w.p);
     // Eqs. (40) and (41).
     const ConnectionTechnique technique{
         .eye_pdf_a = eye_pdf_a,
@@ -1093,6 +1235,8 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             w.in_medium() ? mis_.query_beam_term(eye_pdf_w.forward * w.cos(d) / dist2) : 0.0f,
         .light_joint_ratio = light_joint_ratio,
         .joint_ratio = joint_ratio,
+        .light_joint2_ratio = light_joint2,
+        .joint2_ratio = joint2_ratio,
         // B-B1D at the light vertex (the connection as the query) and at the eye vertex (the
         // connection as the photon beam).
         .light_photon_beam =
@@ -1103,8 +1247,10 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
                                             light_pdf_a, light_pdf_w.forward * v.cos(d) / dist2,
                                             l.densities.homogeneous)
                 : 0.0f};
-    const float weight = joint ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
-                               : mis_.weight_connection(lv.mis, eye_mis, technique);
+    const float weight =
+        joint == JointKind::J2   ? mis_.weight_joint2_connection(lv.mis, eye_mis, technique)
+        : joint == JointKind::J1 ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
+                                 : mis_.weight_connection(lv.mis, eye_mis, technique);
     const float geometry = v.shading_cos(d) * w.shading_cos(d) / dist2;
     const Rgb contribution = f_eye * f_light * (geometry * weight);
     if (contribution.is_black()) return std::nullopt;
@@ -1119,17 +1265,19 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Ve
 }
 
 void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& state,
-                                       const Vertex& v) const {
+                                       Vertex& v) const {
     // The junction's eye-side vertex is the one the eye came from (a medium vertex reached in
     // one piece, else it has no J1 technique), sampled toward v.
     if (!joint_ || !(state.origin_joint_pdf > 0)) return;
-    mis_.include_joint_junction(
-        mis, joint_pdf_l(state.origin_previous, state.origin, v.p) / state.origin_joint_pdf);
+    v.camera_joint_ratio =
+        joint_pdf_l(state.origin_previous, state.origin, v.p) / state.origin_joint_pdf;
+    mis_.include_joint_junction(mis, v.camera_joint_ratio);
 }
 
 template <class Add>
 void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uint32_t first,
-                                  uint32_t end, Rng& rng, RenderStats& stats, Add&& add) const {
+                                  uint32_t end, const EmissionRay* emission, Rng& rng,
+                                  RenderStats& stats, Add&& add) const {
     const Medium* medium = state.medium;
     // J1 at s = 1 is next-event estimation's sibling: there whenever next-event estimation is.
     const bool toward_light = 1 + state.path_length <= max_length_;
@@ -1169,6 +1317,8 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         j.v.medium = medium;
         j.v.phase = &medium->phase();
         j.v.previous = state.origin;
+        j.v.previous2 = state.origin_previous;
+        j.v.previous_light_ray_pdf = state.origin_light_ray_pdf;
         j.v.joint_distance_pdf = densities.toward_end;
         j.mis = state.mis;
         mis_.arrive(j.mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
@@ -1190,17 +1340,68 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
                            direct_contribution(j->mis, j->v, wo, dl, rng, stats, /*joint=*/true));
         }
     }
+    // J2: the first vertex of the pixel's light path resampled on its emission ray by B2, then
+    // the eye vertex toward it by J1.
+    if (emission && emission->medium && 2 + state.path_length <= max_length_) {
+        if (const std::optional<LightVertex> b =
+                resample_on_emission_ray(*emission, state.origin, ray.direction, rng, stats)) {
+            if (const std::optional<JointVertex> j = sample_vertex(b->vertex.p)) {
+                if (const std::optional<ConnectionTerms> c =
+                        connection_terms(*b, j->v, wo, j->mis, rng, stats, JointKind::J2))
+                    add(b->path_length + 1, j->eye_weight * b->throughput * c->unoccluded *
+                                                visibility(c->link, c->ray, stats));
+            }
+        }
+    }
     for (uint32_t i = first; i < end; ++i) {
         const LightVertex& lv = light_vertices_[i];
         if (lv.path_length + 1 + state.path_length > max_length_) break;
         const std::optional<JointVertex> j = sample_vertex(lv.vertex.p);
         if (!j) continue;
         const std::optional<ConnectionTerms> c =
-            connection_terms(lv, j->v, wo, j->mis, rng, stats, /*joint=*/true);
+            connection_terms(lv, j->v, wo, j->mis, rng, stats, JointKind::J1);
         if (!c) continue;
         add(lv.path_length + 1,
             j->eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
     }
+}
+
+std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay& e,
+                                                               const Vec3& eye_origin,
+                                                               const Vec3& eye_direction, Rng& rng,
+                                                               RenderStats& stats) const {
+    const float range = light_ray_range(scene_.bounding_sphere(), e.origin, e.direction);
+    if (!(range > 0)) return std::nullopt;
+    const JointLightDistanceSampler b2(e.origin, e.direction, eye_origin, eye_direction, range);
+    const float t = b2.sample(rng.next_1d());
+    const float pdf = b2.pdf_l(t);
+    // Samples past the emission ray's first piece contribute nothing (B2's density covers the
+    // whole range so that every technique evaluates the same density without tracing).
+    if (!(pdf > 0 && t > 0 && t < e.piece_end)) return std::nullopt;
+    const Medium* medium = e.medium;
+    const Ray ray(e.origin, e.direction);
+    const Vec3 b = ray.at(t);
+    const Rgb sigma_s = medium->sigma_s(b);
+    if (sigma_s.is_black()) return std::nullopt;
+    // The first vertex as if distance sampling had reached it (next_vertex), with B2's density.
+    SegmentDensityBuilder builder(false);
+    builder.add_piece(medium, ray, t);
+    const SegmentDensities densities = builder.finish(true);
+    LightVertex lv{};
+    lv.vertex.p = b;
+    lv.vertex.medium = medium;
+    lv.vertex.phase = &medium->phase();
+    lv.vertex.previous = e.origin;
+    lv.vertex.joint_distance_pdf = densities.toward_end;
+    lv.vertex.light_ray_pdf = densities.toward_end;
+    lv.wo = -e.direction;
+    lv.throughput = e.throughput * medium->transmittance(ray, t, rng) * sigma_s * (1.0f / pdf);
+    if (!lv.throughput.is_finite() || lv.throughput.is_black()) return std::nullopt;
+    lv.path_length = 1;
+    lv.finite_light = true;
+    lv.mis = e.mis;
+    mis_.arrive(lv.mis, t * t, true, 1.0f, densities.toward_end, densities.toward_start);
+    return lv;
 }
 
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
@@ -1775,14 +1976,16 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
     };
     // The pixel's light path (connections and joint connections).
     uint32_t light_first = 0, light_end = 0;
+    const EmissionRay* emission_ray = nullptr;
     if (use_vc_ && !ic_connections_ && !path_ends_.empty()) {
         const uint64_t path = pixel % light_path_count_;
         light_first = path == 0 ? 0 : path_ends_[path - 1];
         light_end = path_ends_[path];
+        if (path < emission_rays_.size()) emission_ray = &emission_rays_[path];
     }
     for (;; ++state.path_length) {
         if (joint_ && state.path_length < max_length_)
-            joint_connections(ray, state, light_first, light_end, rng, stats,
+            joint_connections(ray, state, light_first, light_end, emission_ray, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
         if (query_beams_ && state.path_length < max_length_)
             add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));

@@ -82,6 +82,10 @@ struct BidirectionalConfig {
     // vertex sampled by half-line equi-angular sampling toward it, an extra technique in the
     // MIS (Georgiev et al. 2013, the "vertex-segment" connection; docs/media.md).
     bool joint_connections = false;
+    // Bpt with joint_connections: J2 as well, the segment-segment connection on the light's
+    // emission ray (the first light vertex resampled on it by B2, the eye vertex by J1;
+    // docs/media.md, "J2: segment-segment connections").
+    bool joint2_connections = false;
     // Vcm as UPBP's combination (algorithm upbp; Krivanek et al. 2014, docs/media.md): which
     // merges join the connections (surfaces, photon points P-P3D, query beams P-B2D: photon
     // points gathered along whole camera segments in media), and the volume estimators' own
@@ -126,7 +130,7 @@ struct VplSelection {
 // Upper bounds of the sizes of vertex_cm.cpp's stored records, for the per-iteration memory
 // estimate (core/render/iteration_memory.cpp); vertex_cm.cpp checks them with static_assert,
 // so a record that grows past its bound fails the build instead of the estimate.
-inline constexpr size_t kLightVertexBytesBound = 192;  // a stored light vertex (LightVertex)
+inline constexpr size_t kLightVertexBytesBound = 216;  // a stored light vertex (LightVertex)
 inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one

@@ -88,11 +88,14 @@ const std::vector<Algorithm>& table() {
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections",
                      "joint_connections", "ic_light_paths", "connection_samples",
                      "ic_record_density", "ic_heuristic"},
-         .variants = {{{"connections", "ic"}}, {{"joint_connections", "on"}}},
+         .variants = {{{"connections", "ic"}},
+                      {{"joint_connections", "on"}},
+                      {{"joint_connections", "all"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
              config.ic_connections = s.ic_connections;
              config.joint_connections = s.joint_connections;
+             config.joint2_connections = s.joint2_connections;
              config.ic_light_paths = s.ic_light_paths;
              config.ic_record_density = s.ic_record_density;
              config.ic_samples = s.connection_samples;
@@ -120,6 +123,11 @@ const std::vector<Algorithm>& table() {
                      "joint_connections"},
          .variants = {{{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
+             // J2's factors in the merge weights are not derived (docs/media.md).
+             if (s.joint2_connections)
+                 throw std::invalid_argument(
+                     "--joint-connections all (J2 connections) is bpt only: vcm's merge weights "
+                     "have no J2 factors; use --joint-connections on (J1) with vcm");
              BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
              config.joint_connections = s.joint_connections;
              return std::make_unique<VertexConnectionMerging>(config);

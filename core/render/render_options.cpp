@@ -272,19 +272,25 @@ const std::vector<RenderOption>& table() {
          }},
         {.name = "joint_connections",
          .flag = "--joint-connections",
-         .metavar = "off|on",
+         .metavar = "off|on|all",
          .type = OptionType::Choice,
-         .help = "joint (J1, vertex-segment) connections in homogeneous media: each eye segment "
-                 "in a medium also joins the vertices of the pixel's light path through a "
-                 "medium vertex sampled toward each, and to a light point (equi-angular "
-                 "next-event estimation), combined by MIS (bpt, vcm; off by default: on the fog "
-                 "box they halve the variance but double the time per iteration, equal-time "
-                 "error 0.96-1.05x; docs/joint-sampling.md)",
-         .choices = {"off", "on"},
+         .help = "joint connections in homogeneous media: on: each eye segment in a "
+                 "medium also joins the vertices of the pixel's light path through a medium "
+                 "vertex sampled toward each (J1, vertex-segment), and to a light point "
+                 "(equi-angular next-event estimation); all: J1 and J2 (segment-segment: the "
+                 "light path's first vertex resampled on its emission ray, bpt only); combined "
+                 "by MIS (bpt, vcm; off by default: on the fog box J1 halves the variance but "
+                 "doubles the time per iteration, equal-time error 0.96-1.05x; "
+                 "docs/joint-sampling.md)",
+         .choices = {"off", "on", "all"},
          .default_text = "off",
-         .apply = [](RenderSettings& s, const std::string& v) { s.joint_connections = v == "on"; },
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.joint_connections = v != "off";
+                 s.joint2_connections = v == "all";
+             },
          .format = [](const RenderSettings& s) -> std::string {
-             return s.joint_connections ? "on" : "off";
+             return s.joint2_connections ? "all" : s.joint_connections ? "on" : "off";
          }},
         {.name = "vpl_paths",
          .flag = "--vpl-paths",

@@ -40,6 +40,9 @@ struct RenderSettings {
     // bpt, vcm: joint (J1, vertex-segment) connections from eye segments in homogeneous media,
     // one more technique in the MIS (docs/media.md, "Joint connections in bpt and vcm").
     bool joint_connections = false;
+    // bpt: J2 (segment-segment) connections on the light's emission ray beside J1
+    // (--joint-connections all).
+    bool joint2_connections = false;
     // upbp: whether connections are made, which merges join them (surfaces, photon points P-P3D,
     // query beams P-B2D) and the volume estimators' radius schedule (0: the surfaces' radius_factor
     // and alpha; docs/media.md, "Points, beams and paths").

@@ -38,8 +38,11 @@ class JointEyeDistanceSampler {
     // (finite, t0 < t1).
     JointEyeDistanceSampler(const Vec3& origin, const Vec3& direction, const Vec3& light, float t0,
                             float t1)
-        : t0_(t0), t1_(t1) {
-        const RayPointGeometry g = ray_point_geometry(origin, direction, light, t0, t1);
+        : JointEyeDistanceSampler(ray_point_geometry(origin, direction, light, t0, t1), t0, t1) {}
+
+    // The same density with delta and D given directly (joint_light_distance.h: the distance
+    // from a point of one line to another line has this form).
+    JointEyeDistanceSampler(const RayPointGeometry& g, float t0, float t1) : t0_(t0), t1_(t1) {
         delta_ = g.delta;
         distance_ = g.distance;
         x0_ = t0 - delta_;

@@ -89,7 +89,8 @@ def read_layer(path: Path, layer: str):
     return image, {a.name: a.value for a in spec.extra_attribs}
 
 
-BPT_ARMS = {"bpt": ["--joint-connections", "off"], "bpt + J1": ["--joint-connections", "on"]}
+BPT_ARMS = {"bpt": ["--joint-connections", "off"], "bpt + J1": ["--joint-connections", "on"],
+            "bpt + J1 + J2": ["--joint-connections", "all"]}
 # What is measured in bpt: paths of 4 vertices (double scattering) or the whole image.
 BPT_CASES = {"double scattering (max_depth 3)": (["-D", "max_depth=3"], 4),
              "all orders (max_depth -1)": (["-D", "max_depth=-1"], None)}
@@ -205,15 +206,23 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
             {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg)
              for arm, flags in ARMS.items()},
             "jis off", "jis on", "of double scattering", "joint sampling")
-    bpt_verdicts = {}
+    bpt_verdicts, bpt_j2_verdicts = {}, {}
     for case, (defines, vertices) in BPT_CASES.items():
+        what = "the image" if vertices is None else f"paths of {vertices} vertices"
+        arms = {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg,
+                                 algo="bpt", vertices=vertices)
+                for arm, flags in BPT_ARMS.items()}
         bpt_verdicts[case] = compare_arms(
-            lines, f"bpt with and without J1 connections, isotropic fog box, {case}",
-            "the image" if vertices is None else f"paths of {vertices} vertices",
-            {arm: measure_arm(binary, [*defines, *flags], resolution, threads, workdir, cfg,
-                              algo="bpt", vertices=vertices)
-             for arm, flags in BPT_ARMS.items()},
-            "bpt", "bpt + J1", "", "J1")
+            lines, f"bpt with and without J1 connections, isotropic fog box, {case}", what,
+            {k: arms[k] for k in ("bpt", "bpt + J1")}, "bpt", "bpt + J1", "", "J1")
+        # J2 (--joint-connections all) against plain bpt and against bpt + J1.
+        bpt_j2_verdicts[case] = (
+            compare_arms(lines, f"bpt with and without J1 + J2 connections, {case}", what,
+                         {k: arms[k] for k in ("bpt", "bpt + J1 + J2")}, "bpt",
+                         "bpt + J1 + J2", "", "J1 + J2"),
+            compare_arms(lines, f"bpt + J1 with and without J2, {case}", what,
+                         {k: arms[k] for k in ("bpt + J1", "bpt + J1 + J2")}, "bpt + J1",
+                         "bpt + J1 + J2", "", "J2"))
     vcm_verdicts = {}
     for case, (defines, vertices) in VCM_CASES.items():
         vcm_verdicts[case] = compare_arms(
@@ -234,6 +243,10 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
               "covers them): " + "; ".join(
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
                   for case, (r, se) in bpt_verdicts.items()) + ".",
+              "- bpt's J2 connections beside J1 (`--joint-connections all`): " + "; ".join(
+                  f"{case}: {a[0]:.2f} ± {a[1]:.2f}× lower RMSE than bpt, {b[0]:.2f} ± "
+                  f"{b[1]:.2f}× than bpt + J1, at equal time"
+                  for case, (a, b) in bpt_j2_verdicts.items()) + ".",
               "- vcm's J1 connections: " + "; ".join(
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
                   for case, (r, se) in vcm_verdicts.items()) + ".", ""]

@@ -478,6 +478,33 @@ TEST(Convergence, JointConnectionsMatchBptWithoutThemOnIsosph) {
                        "bpt J1 off");
 }
 
+// bpt's J2 connections (--joint-connections all: the first vertex of each light path resampled on
+// its emission ray by B2, joined through a J1 vertex; docs/media.md, "J2: segment-segment
+// connections") beside J1 must converge to plain bpt. The fog box (point light in the medium):
+// max_depth 3, where J2 samples the double scattering light -> b -> c -> camera and its ratio
+// enters next-event estimation's, the connections' and the camera connections' weights, and
+// max_depth 6, where the light subpaths' deferred J2 term takes part. isosph: its area light is
+// outside the medium sphere, so no emission ray starts in a medium and J2 has no technique there;
+// the test checks that turning it on changes nothing else. Tolerance: the file's k = 5 combined
+// standard errors.
+TEST(Convergence, JointSegmentConnectionsMatchBptWithoutThemOnTheFogBox) {
+    auto scene = fog_box("0");
+    expect_same_blocks(render_blocks(*scene, "bpt", 4, {{"joint_connections", "off"}}),
+                       render_blocks(*scene, "bpt", 4, {{"joint_connections", "all"}}), "bpt J1+J2",
+                       "bpt");
+    expect_same_blocks(
+        render_blocks(*scene, "bpt", 4, {{"joint_connections", "off"}, {"max_depth", "6"}}),
+        render_blocks(*scene, "bpt", 4, {{"joint_connections", "all"}, {"max_depth", "6"}}),
+        "bpt J1+J2, max_depth 6", "bpt, max_depth 6");
+}
+
+TEST(Convergence, JointSegmentConnectionsMatchBptWithoutThemOnIsosph) {
+    auto scene = shipped("smallupbp/isosph.xml");
+    expect_same_blocks(render_blocks(*scene, "bpt", 8, {{"joint_connections", "off"}}),
+                       render_blocks(*scene, "bpt", 8, {{"joint_connections", "all"}}), "bpt J1+J2",
+                       "bpt");
+}
+
 // vcm's J1 connections (docs/media.md, "Joint connections in bpt and vcm"): the same block
 // tests against vcm without them (fog box with max_depth 3 and 6, isosph). Both arms merge with
 // the same radii, so the kernel bias is the same on either side. Tolerance: the file's k = 5

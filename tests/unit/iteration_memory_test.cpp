@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "core/base/memory_budget.h"
+#include "core/integrators/vertex_cm.h"
 
 namespace render {
 namespace {
@@ -36,9 +37,9 @@ TEST(IterationMemory, StoredLightPathsGrowWithThePixelsOrTheLightPathCount) {
     const RenderSettings vcm = settings_for("vcm");
     const uint64_t small = estimate_iteration_memory(vcm, 256, 256, 2).bytes;
     const uint64_t large = estimate_iteration_memory(vcm, 512, 512, 2).bytes;
-    // 3 x 65536 more light paths, each of up to 9 vertices of 244 B (a 192-B light vertex and
-    // 52 B of merging index; and its 4-B end).
-    EXPECT_EQ(large - small, 3u * 65536u * (9u * 244u + 4u));
+    // 3 x 65536 more light paths, each of up to 9 vertices of the stored vertex's bound plus
+    // its 52-B merge index, and its 4-B end.
+    EXPECT_EQ(large - small, 3u * 65536u * (9u * (kLightVertexBytesBound + 52u) + 4u));
     RenderSettings fixed = vcm;
     fixed.light_path_count = 1000;
     EXPECT_EQ(estimate_iteration_memory(fixed, 256, 256, 2).bytes,
@@ -71,7 +72,9 @@ TEST(IterationMemory, TheMessageNamesTheAlgorithmTheEstimateAndWhatLowersIt) {
     EXPECT_NE(e.what.find("vcm's working memory per iteration (estimated " + format_bytes(e.bytes)),
               std::string::npos)
         << e.what;
-    EXPECT_NE(e.what.find("4096 light paths x up to 9 stored vertices x 244 B"), std::string::npos)
+    EXPECT_NE(e.what.find("4096 light paths x up to 9 stored vertices x " +
+                          std::to_string(kLightVertexBytesBound + 52) + " B"),
+              std::string::npos)
         << e.what;
     EXPECT_NE(e.what.find("--light-paths"), std::string::npos) << e.what;
     SceneMemoryBudget budget(e.bytes - 1, "test --max-memory");

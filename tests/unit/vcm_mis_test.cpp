@@ -53,6 +53,7 @@
 #include "core/media/henyey_greenstein.h"
 #include "core/media/homogeneous_medium.h"
 #include "core/sampling/half_line_equiangular.h"
+#include "core/sampling/joint_light_distance.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/shapes/triangle_mesh.h"
@@ -94,6 +95,7 @@ enum class TechniqueKind {
     Merge,
     JointConnection,
     JointDirect,
+    Joint2Connection,
     QueryBeam,
     PhotonBeam
 };
@@ -104,6 +106,8 @@ struct Technique {
     // equi-angular sampling toward the light vertex instead of by distance sampling (J1);
     // JointDirect: J1 at s = 1, next-event estimation with vertex 0 (in the medium) sampled
     // toward the light point;
+    // Joint2Connection: as JointConnection, with the light vertex (in the medium) sampled on the
+    // light ray from its predecessor by B2 instead of by distance sampling (J2);
     // QueryBeam: the medium vertex `vertex` is a photon gathered along the camera segment
     // that reaches it (P-B2D, the long query beam: the eye side samples no distance there);
     // PhotonBeam: the medium vertex `vertex` is the closest approach of the light segment that
@@ -352,6 +356,31 @@ class MisSumTest : public ::testing::Test {
         return joint_pdf(from, eye_side, eye_side - 1) / segment(from, eye_side).toward_end;
     }
 
+    // --- joint (J2) connections ----------------------------------------------------------------
+
+    // Whether junction `eye_side` has a J2 technique: a J1 technique whose light-side vertex is
+    // in the medium and was reached from a finite light's point (bpt runs J2 on the emission ray
+    // only: junction 1).
+    bool has_joint2(int eye_side) const {
+        return joint2_ && has_joint(eye_side) && eye_side == 1 && vertices_[0].in_medium() &&
+               end_.finite;
+    }
+    // B2's density of the light-side vertex of junction `eye_side` on the light ray from its
+    // predecessor, the eye ray from endpoint `from` through the eye-side vertex (range: the light
+    // ray's exit from the fog's ball, the test's scene sphere).
+    float joint2_pdf(int eye_side, int from) const {
+        const Vec3 o = endpoint(eye_side - 2), x = endpoint(eye_side - 1);
+        const Vec3 e = endpoint(from), at = endpoint(eye_side);
+        const Vec3 w = normalize(x - o);
+        const float range = light_ray_range(SceneSphere{Vec3(0.0f), kFogRadius}, o, w);
+        return JointLightDistanceSampler(o, w, e, normalize(at - e), range).pdf_l(length(x - o));
+    }
+    // q = p_J2 / p_J1 of that junction: only the light-side vertex's distance density differs.
+    float joint2_ratio(int eye_side, int from) const {
+        if (!has_joint2(eye_side)) return 0.0f;
+        return joint2_pdf(eye_side, from) / segment(eye_side - 2, eye_side - 1).toward_end;
+    }
+
     // --- query beams (P-B2D) ----------------------------------------------------------------
 
     // The eye side's P-B2D factor of vertex i (a medium vertex): eta_2D over the distance
@@ -401,7 +430,7 @@ class MisSumTest : public ::testing::Test {
             // The junction whose eye-side vertex is i - 1, sampled from i.
             if (i >= 1 && has_joint(int(i) - 1))
                 mis.add_joint_term(q, carried, joint_pdf(int(i), int(i) - 1, int(i) - 2), v.cos(wo),
-                                   s.toward_end);
+                                   s.toward_end, joint2_ratio(int(i) - 1, int(i)));
             mis.add_query_beam_term(q, carried_beam, v.cos(wo), s.toward_end);
             mis.add_photon_beam_term(q, carried_photon, v.cos(wo), s.toward_end, s.toward_start,
                                      false, true);
@@ -423,6 +452,7 @@ class MisSumTest : public ::testing::Test {
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
         q = mis.start_camera(camera_pdf_w(-toward_eye(m - 1)));
         carried_photon = 0;
+        float carried_joint2 = 0;  // J2: vertex 0's J1 share of its connection term
         for (size_t k = 0; k < m; ++k) {
             const size_t i = m - 1 - k;
             const PathVertex& v = vertices_[i];
@@ -438,6 +468,8 @@ class MisSumTest : public ::testing::Test {
             st.eye[i] = q;
             const Vec3 wi = toward_light(i);
             const BsdfPdf pdf_w = pdf_at(i, TransportMode::Radiance, wo, wi);
+            carried_joint2 = mis.carried_eye_joint2_term(q, joint_ratio(int(i) + 1, int(i) + 2),
+                                                         v.cos(wi), pdf_w.forward, v.specular);
             carried_photon = v.in_medium()
                                  ? mis.carried_photon_beam_term(
                                        v.cos(wi), pdf_w.forward, v.specular, beam_sin(i),
@@ -455,6 +487,11 @@ class MisSumTest : public ::testing::Test {
             mis.arrive(q, 0.0f, false, 1.0f, s.toward_end, s.toward_start);
         mis.add_photon_beam_term(q, carried_photon, end_.finite ? end_.cos_light : 1.0f,
                                  s.toward_end, s.toward_start, true, true);
+        // J2 on the emission ray, vertex 0 its light-side vertex: only for the emission weight
+        // (eye_at_light is used for nothing else; the integrator adds it to a copy).
+        if (has_joint2(1))
+            mis.add_eye_joint2_term(q, carried_joint2, joint2_pdf(1, 2), end_.cos_light,
+                                    s.toward_end);
         st.eye_at_light = q;
         return st;
     }
@@ -474,6 +511,8 @@ class MisSumTest : public ::testing::Test {
         for (size_t a = 0; use_vc && a + 1 < m; ++a)
             if (!vertices_[a].specular && has_joint(int(a) + 1))
                 list.push_back({TechniqueKind::JointConnection, a});
+        for (size_t a = 0; use_vc && a + 1 < m; ++a)
+            if (has_joint2(int(a) + 1)) list.push_back({TechniqueKind::Joint2Connection, a});
         for (size_t i = 0; use_vm && i < m; ++i)
             if (!vertices_[i].specular) list.push_back({TechniqueKind::Merge, i});
         for (size_t i = 0; query_beams && i < m; ++i)
@@ -505,25 +544,30 @@ class MisSumTest : public ::testing::Test {
                                         beam_sin(0), camera_distance(0), beam_sigma_t(0),
                                         light_density * l.toward_start, light_density, true)
                                   : 0.0f;
-                const DirectTechnique direct{.bsdf_forward_w = pdf_w.forward,
-                                             .bsdf_reverse_w = pdf_w.reverse,
-                                             .light_pdf_w = end_.direct_pdf_w,
-                                             .emission_pdf_w = end_.emission_pdf_w,
-                                             .direct_pdf_w = end_.direct_pdf_w,
-                                             .cos_here = v.cos(wi),
-                                             .cos_light = end_.cos_light,
-                                             .delta_light = end_.delta,
-                                             .eye_medium = v.in_medium(),
-                                             .eye_query_beam = eye_query_beam(mis, 0),
-                                             .pass_to_light_probability = l.toward_end,
-                                             .distance_from_light = l.toward_start,
-                                             .eye_photon_beam = eye_beam,
-                                             .joint_ratio = joint_ratio(0, 1)};
+                const DirectTechnique direct{
+                    .bsdf_forward_w = pdf_w.forward,
+                    .bsdf_reverse_w = pdf_w.reverse,
+                    .light_pdf_w = end_.direct_pdf_w,
+                    .emission_pdf_w = end_.emission_pdf_w,
+                    .direct_pdf_w = end_.direct_pdf_w,
+                    .cos_here = v.cos(wi),
+                    .cos_light = end_.cos_light,
+                    .delta_light = end_.delta,
+                    .eye_medium = v.in_medium(),
+                    .eye_query_beam = eye_query_beam(mis, 0),
+                    .pass_to_light_probability = l.toward_end,
+                    .distance_from_light = l.toward_start,
+                    .eye_photon_beam = eye_beam,
+                    .joint_ratio = joint_ratio(0, 1),
+                    .eye_joint2 = has_joint2(1) ? mis.eye_joint2_term(st.eye[0], joint_ratio(1, 2),
+                                                                      joint2_ratio(1, 2))
+                                                : 0.0f};
                 return t.kind == TechniqueKind::Direct ? mis.weight_direct(st.eye[0], direct)
                                                        : mis.weight_joint_direct(st.eye[0], direct);
             }
             case TechniqueKind::Connection:  // eqs. 40-41 (connect_vertices)
-            case TechniqueKind::JointConnection: {
+            case TechniqueKind::JointConnection:
+            case TechniqueKind::Joint2Connection: {
                 const size_t a = t.vertex, b = a + 1;
                 const PathVertex &w = vertices_[a], &v = vertices_[b];
                 const Vec3 d = toward_eye(a);  // from the light vertex a to the eye vertex b
@@ -550,6 +594,10 @@ class MisSumTest : public ::testing::Test {
                     // vertex from its successor (the camera for the last).
                     .light_joint_ratio = joint_ratio(int(a), int(b)),
                     .joint_ratio = joint_ratio(int(b), int(b) + 1),
+                    // J2: this junction and the one toward the light (the one toward the camera
+                    // has none: its light-side vertex b is not vertex 0).
+                    .light_joint2_ratio = joint2_ratio(int(a), int(b)),
+                    .joint2_ratio = joint2_ratio(int(b), int(b) + 1),
                     // B-B1D at the light vertex (the connection as the query) and at the eye
                     // vertex (the connection as the photon beam).
                     .light_photon_beam = w.in_medium() ? mis.photon_beam_light_term(
@@ -565,7 +613,9 @@ class MisSumTest : public ::testing::Test {
                             : 0.0f};
                 return t.kind == TechniqueKind::Connection
                            ? mis.weight_connection(st.light[a], st.eye[b], c)
-                           : mis.weight_joint_connection(st.light[a], st.eye[b], c);
+                       : t.kind == TechniqueKind::JointConnection
+                           ? mis.weight_joint_connection(st.light[a], st.eye[b], c)
+                           : mis.weight_joint2_connection(st.light[a], st.eye[b], c);
             }
             case TechniqueKind::Camera: {  // eq. 46 (connect_to_camera)
                 const size_t i = m - 1;
@@ -589,12 +639,14 @@ class MisSumTest : public ::testing::Test {
                                         beam_sin(i), camera_pdf_w(-d) / dist2 / float(kLightPaths),
                                         light_distance(i), beam_sigma_t(i))
                                   : 0.0f;
-                return mis.weight_camera(st.light[i], {.camera_pdf_a = camera_pdf_a,
-                                                       .light_reverse_w = pdf_w.reverse,
-                                                       .light_medium = v.in_medium(),
-                                                       .light_query_beam = beam,
-                                                       .light_joint_ratio = joint,
-                                                       .light_photon_beam = photon_beam});
+                return mis.weight_camera(st.light[i],
+                                         {.camera_pdf_a = camera_pdf_a,
+                                          .light_reverse_w = pdf_w.reverse,
+                                          .light_medium = v.in_medium(),
+                                          .light_query_beam = beam,
+                                          .light_joint_ratio = joint,
+                                          .light_joint2_ratio = joint2_ratio(int(i), int(m)),
+                                          .light_photon_beam = photon_beam});
             }
             case TechniqueKind::Merge: {  // eqs. 38-39 (merge)
                 const size_t i = t.vertex;
@@ -746,6 +798,17 @@ class MisSumTest : public ::testing::Test {
                     p.push_back(light_prefix(t.vertex + 1) * joint * eye_suffix(b + 1));
                     break;
                 }
+                case TechniqueKind::Joint2Connection: {
+                    // Both junction vertices' distance densities replaced, written out: the
+                    // light-side one by B2's on the light ray, the eye-side one by J1's.
+                    const size_t a = t.vertex, b = a + 1;
+                    const double joint = eye_fwd[b] / segment(int(b) + 1, int(b)).toward_end *
+                                         joint_pdf(int(b) + 1, int(b), int(a));
+                    const double light = light_fwd[a] / segment(int(a) - 1, int(a)).toward_end *
+                                         joint2_pdf(int(b), int(b) + 1);
+                    p.push_back(light_prefix(a) * light * joint * eye_suffix(b + 1));
+                    break;
+                }
                 case TechniqueKind::Merge: {  // the light subpath ends within r of the eye's
                     const double eta = vertices_[t.vertex].in_medium() ? eta_volume : eta_surface;
                     p.push_back(eta * light_prefix(t.vertex + 1) * eye_suffix(t.vertex));
@@ -780,6 +843,7 @@ class MisSumTest : public ::testing::Test {
                       double eta_photon_beam = 0, bool short_beams = false) {
         joint_ = joint > 0;
         joint_light_ = joint > 1;
+        joint2_ = joint > 2;
         const std::vector<Technique> list =
             techniques(use_vc, use_vm, eta_beam > 0, eta_photon_beam > 0);
         if (list.empty()) return;
@@ -800,6 +864,7 @@ class MisSumTest : public ::testing::Test {
         for (const Technique& t : list) {
             joint_checked_ += t.kind == TechniqueKind::JointConnection;
             joint_direct_checked_ += t.kind == TechniqueKind::JointDirect;
+            joint2_checked_ += t.kind == TechniqueKind::Joint2Connection;
             joint_with_merges_checked_ += merges && t.kind == TechniqueKind::JointConnection;
             query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
             photon_beams_checked_ += t.kind == TechniqueKind::PhotonBeam;
@@ -811,6 +876,12 @@ class MisSumTest : public ::testing::Test {
         for (size_t k = 0; k < list.size(); ++k)
             EXPECT_NEAR(w[k], reference[k], 1e-4 + 1e-3 * reference[k])
                 << name << ": technique " << int(list[k].kind) << " at vertex " << list[k].vertex;
+        // With J2, the emission weight is small in fog (the eye rarely hits the light from a
+        // medium vertex) and its J2 term is below the absolute tolerance above: checked relative.
+        for (size_t k = 0; joint2_ && k < list.size(); ++k)
+            if (list[k].kind == TechniqueKind::Emission)
+                EXPECT_NEAR(w[k], reference[k], 1e-3 * reference[k] + 1e-12)
+                    << name << ": the emission weight, relative";
     }
 
     static Vec3 random_direction_above(Rng& rng, float min_cos) {
@@ -830,6 +901,8 @@ class MisSumTest : public ::testing::Test {
     const Medium* fog_ = nullptr;   // the medium filling the scene; null: vacuum
     bool joint_ = false;            // the J1 techniques are enabled (bpt --joint-connections on)
     bool joint_light_ = false;      // J1 at s = 1 as well (next-event estimation's sibling)
+    bool joint2_ = false;           // J2 as well (bpt --joint-connections all)
+    int joint2_checked_ = 0;        // J2 weights checked so far
     int joint_checked_ = 0;         // J1 weights checked so far
     int joint_direct_checked_ = 0;  // J1 at s = 1 weights checked so far
     int joint_with_merges_checked_ = 0;  // of which beside merges (vcm)
@@ -917,6 +990,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                         check_family(power, true, false, eta_surface, eta_volume, "BPT");
                         check_family(power, true, false, eta_surface, eta_volume, "BPT+J1", 1);
                         check_family(power, true, false, eta_surface, eta_volume, "BPT+J1 s>=1", 2);
+                        // J2 (segment-segment) beside J1 and J1 at s = 1, as bpt runs it.
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT+J1+J2", 3);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
                         check_family(power, true, true, eta_surface, eta_volume, "VCM+J1", 1);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM+J1 s>=1", 2);
@@ -957,6 +1032,7 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(joint_checked_, 800);
     EXPECT_GT(joint_with_merges_checked_, 400);
     EXPECT_GT(joint_direct_checked_, 200);
+    EXPECT_GT(joint2_checked_, 150);
     EXPECT_GT(query_beams_checked_, 1500);
     EXPECT_GT(photon_beams_checked_, 10000);
 }

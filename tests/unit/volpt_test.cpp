@@ -156,6 +156,22 @@ INSTANTIATE_TEST_SUITE_P(Bidirectional, MediumFurnace,
                                            FurnaceCase{"vcm", "0.3, 1, 3", kForward, true, 0, 64,
                                                        false}));
 
+// bpt with J2 (--joint-connections all: the first light vertex resampled on its emission ray,
+// beside J1): the area light's emission rays start in the medium, so J2 runs; isotropic, the
+// chromatic forward case, and g = +-0.99, where B2's and J1's isotropic densities ignore the
+// phase function (the phase function is in the estimate, the densities are exact).
+void with_joint2(RenderSettings& s) {
+    s.joint2_connections = true;
+}
+INSTANTIATE_TEST_SUITE_P(
+    JointSegment, MediumFurnace,
+    ::testing::Values(FurnaceCase{"bpt", "1", kIsotropic, true, 0, 64, true, with_joint2},
+                      // J2's distances ignore the blue channel's sigma_t 3 (JIS samples no
+                      // transmittance): heavy-tailed there, SE 0.059 at 64 iterations.
+                      FurnaceCase{"bpt", "0.3, 1, 3", kForward, true, 0, 512, true, with_joint2},
+                      FurnaceCase{"bpt", "1", kPeakedForward, true, 0, 64, true, with_joint2},
+                      FurnaceCase{"bpt", "1", kPeakedBackward, true, 0, 64, true, with_joint2}));
+
 // upbp's query beams (P-B2D): with every estimator, and as the only one in the medium (no
 // connections, no photon points: every path with a medium vertex is gathered along a camera
 // segment, so an error in the beam estimate itself cannot hide behind other techniques).
@@ -407,6 +423,38 @@ TEST(HardCases, JointSamplingAtExtremeThicknessAndAnisotropyStaysFinite) {
                     EXPECT_GT(mean, 0.0);
                 }
             }
+        }
+    }
+}
+
+// bpt's J2 connections (--joint-connections all) in the same hard cases: the fog box's emission
+// rays start in the medium (point light), so every eye segment resamples the pixel's first light
+// vertex by B2 over the whole bounding sphere. No sample is NaN or infinite; the dense box is
+// black, the g = +-0.99 boxes are lit (the thin box: see above, bpt finds no medium vertex there
+// in 8 iterations without J2; with J2 it may, so only finiteness is required).
+TEST(HardCases, JointSegmentConnectionsAtExtremeThicknessAndAnisotropyStayFinite) {
+    struct Case {
+        const char* sigma_t;
+        const char* g;
+        bool dark, lit;
+    };
+    for (const Case& k : {Case{"2.5e-7", "0", false, false}, Case{"250", "0", true, false},
+                          Case{"0.5", "0.99", false, true}, Case{"0.5", "-0.99", false, true}}) {
+        SCOPED_TRACE(::testing::Message() << "sigma_t " << k.sigma_t << " g " << k.g);
+        auto scene =
+            load_scene(std::string(RENDER_SOURCE_DIR) + "/scenes/tests/fog-box.xml",
+                       {{"resx", "16"}, {"resy", "16"}, {"g", k.g}, {"sigma_t", k.sigma_t}});
+        RenderSettings settings =
+            resolve_render_settings("bpt", {{"joint_connections", "all"}}, scene->settings);
+        ASSERT_TRUE(settings.joint2_connections);
+        settings.seed = 1234;
+        const IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 9});
+        EXPECT_EQ(r.stats.non_finite, 0u);
+        for (int channel = 0; channel < 3; ++channel) {
+            const double mean = pixel_statistics(r, channel).mean;
+            ASSERT_TRUE(std::isfinite(mean));
+            if (k.dark) EXPECT_LT(mean, 1e-30);
+            if (k.lit) EXPECT_GT(mean, 0.0);
         }
     }
 }

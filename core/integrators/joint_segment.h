@@ -1,0 +1,27 @@
+#pragma once
+
+// J2, the segment-segment joint connection of bpt (docs/media.md, "J2: segment-segment
+// connections"): the density with which B2 (core/sampling/joint_light_distance.h) samples a
+// light-side vertex x on the light ray from `light_origin` through it, given the eye ray from
+// `eye_origin` through `eye_through` (the eye-side vertex, sampled afterwards by J1). The range
+// is the light ray's exit from the scene's bounding sphere, so every technique evaluates the same
+// density from the path's vertices alone, without tracing.
+
+#include "core/lights/light.h"
+#include "core/math/vec.h"
+#include "core/sampling/joint_light_distance.h"
+
+namespace render {
+
+inline float joint2_pdf_l(const SceneSphere& sphere, const Vec3& light_origin, const Vec3& x,
+                          const Vec3& eye_origin, const Vec3& eye_through) {
+    const Vec3 d = x - light_origin, e = eye_through - eye_origin;
+    const float t = length(d), s = length(e);
+    if (!(t > 0) || !(s > 0)) return 0.0f;
+    const Vec3 w = d / t;
+    const float range = light_ray_range(sphere, light_origin, w);
+    if (!(range > 0)) return 0.0f;
+    return JointLightDistanceSampler(light_origin, w, eye_origin, e / s, range).pdf_l(t);
+}
+
+}  // namespace render
