@@ -49,6 +49,9 @@ constexpr uint64_t kImportanceStreamBase = kLightStreamBase + (uint64_t(3) << 60
 // Importance caching: the records of the screen grid, and their tables' shadow rays.
 constexpr uint64_t kIcRecordStreamBase = kLightStreamBase + (uint64_t(4) << 60);
 constexpr uint64_t kIcTableStreamBase = kLightStreamBase + (uint64_t(5) << 60);
+// Photon beams in grid media: the ratio-tracking transmittance of a long beam's earlier pieces,
+// one stream per (light path, segment), so the light path's own numbers are not consumed.
+constexpr uint64_t kPhotonBeamStreamBase = kLightStreamBase + (uint64_t(9) << 60);
 // bpt with ic connections: records at the first non-delta vertices of each record path (eye
 // vertices t = 2, 3, 4), so that eye vertices past the first find records that saw what they see.
 constexpr int kIcConnectionRecordsPerPath = 3;
@@ -109,8 +112,8 @@ struct Vertex {
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
-    // technique cannot sample it: outside homogeneous media, or on a light subpath reached by a
-    // segment that cannot carry a beam).
+    // technique cannot sample it: outside Iteration::beam_medium, or on a light subpath reached by
+    // a segment that cannot carry a beam).
     float arrival_distance = 0;
     float sigma_t = 0;
     float photon_beam = 0;
@@ -180,8 +183,8 @@ struct Splat {
     int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
-// A photon beam: one piece, in a homogeneous medium, of a light subpath's segment (up to the
-// sampled distance for a short beam, to the next surface for a long one), with what its
+// A photon beam: one piece, in a medium (Iteration::beam_medium), of a light subpath's segment (up
+// to the sampled distance for a short beam, to the next surface for a long one), with what its
 // estimate and MIS weight need of the subpath at the segment's start (the beam's source).
 struct PhotonBeam {
     uint64_t order = 0;  // (light path, piece) : the beams' order whatever the thread count
@@ -484,6 +487,17 @@ class Iteration {
     float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
     // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
     void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
+    // Where photon beams live (docs/media.md, "Photon beams in grid media"): long beams in every
+    // medium (ratio tracking estimates their transmittance), short ones where the sampled
+    // distance's pass weight is known exactly (homogeneous media, grey grids). The weights use
+    // the same predicates, so a vertex no beam can reach has M_B = 0 in every technique.
+    bool beam_medium(const Medium* medium) const {
+        return !config_.short_photon_beams || medium->is_homogeneous() ||
+               medium->pass_weight_is_one();
+    }
+    bool beam_segment(const SegmentDensities& d) const {
+        return !config_.short_photon_beams || d.short_beam_support;
+    }
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
     // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
@@ -628,19 +642,19 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     // segment is the photon beam that reaches it).
     mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, cos_in,
                               seg.densities.toward_end, seg.densities.toward_start,
-                              mode == TransportMode::Radiance, seg.densities.homogeneous);
+                              mode == TransportMode::Radiance, beam_segment(seg.densities));
     return v;
 }
 
 void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
                                            TransportMode mode) const {
-    if (!seg.medium->is_homogeneous()) return;
+    if (!beam_medium(seg.medium)) return;
     v.arrival_distance = seg.densities.toward_end;
     v.sigma_t = seg.medium->sigma_t(v.p).average();
     if (!(v.sigma_t > 0)) return;
     if (mode == TransportMode::Radiance)
         v.photon_beam = mis_.photon_beam_eye_factor(v.arrival_distance, v.sigma_t);
-    else if (seg.densities.homogeneous)
+    else if (beam_segment(seg.densities))
         v.photon_beam = mis_.photon_beam_light_factor(v.arrival_distance, v.sigma_t);
 }
 
@@ -948,7 +962,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
             ls.pdf_emission_w * v.cos(ls.wi) / (ls.pdf_direct_w * ls.cos_at_light);
         eye_photon_beam = mis_.photon_beam_eye_term(length(cross(wo, ls.wi)), v.arrival_distance,
                                                     v.sigma_t, emission * l.densities.toward_start,
-                                                    emission, l.densities.homogeneous);
+                                                    emission, beam_segment(l.densities));
     }
     // J1 at s = 1 (v sampled from its predecessor toward the light point).
     float joint_ratio = 0;
@@ -1041,7 +1055,7 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             v.photon_beam > 0
                 ? mis_.photon_beam_eye_term(length(cross(wo, d)), v.arrival_distance, v.sigma_t,
                                             light_pdf_a, light_pdf_w.forward * v.cos(d) / dist2,
-                                            l.densities.homogeneous)
+                                            beam_segment(l.densities))
                 : 0.0f};
     const float weight = joint ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)
                                : mis_.weight_connection(lv.mis, eye_mis, technique);
@@ -1487,7 +1501,7 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                 MisQuantities eye = state.mis;
                 mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
                 mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                          d.toward_start, true, d.homogeneous);
+                                          d.toward_start, true, beam_segment(d));
                 const float weight = mis_.weight_query_beam(
                     lv.mis, eye, d.toward_end,
                     {.eye_forward_w = p,
@@ -1537,6 +1551,22 @@ void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& st
 
 // --- photon beams (B-B1D) ---------------------------------------------------------------------
 
+namespace {
+
+// What a photon beam carries to its closest approach t along its last piece: the transmittance
+// (long beams: exact in a homogeneous medium, ratio tracking in a grid, drawing from the query's
+// numbers) or, for short beams, the transmittance over the probability that the sampled distance
+// passed t (exact in a homogeneous medium; exactly 1 where the pass weight is one, which is the
+// only other place short beams are built).
+Rgb beam_transmittance(const Medium* medium, const Ray& beam, float t, bool short_beams, Rng& rng) {
+    if (short_beams && !medium->is_homogeneous()) return Rgb(1.0f);
+    const Rgb tr = medium->transmittance(beam, t, rng);  // homogeneous: exact, draws nothing
+    if (!short_beams) return tr;
+    return tr / std::max(medium->probability_pass(beam, t), 1e-35f);
+}
+
+}  // namespace
+
 // Photon beams are clipped at this length where a light subpath leaves the scene inside an
 // unbounded medium: no vertex a ray can reach lies farther (core/base/scene_limits.h).
 constexpr float kMaxPhotonBeamLength = 4 * kMaxSceneCoordinate;
@@ -1568,13 +1598,17 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
     // surface): the segment already traced it.
     if (seg.one_piece && seg.end != SegmentEnd::Escaped &&
         (short_beams || seg.end == SegmentEnd::Surface)) {
-        if (medium && medium->is_homogeneous()) emit(ray, medium, seg.distance, 0.0f);
+        if (medium && beam_medium(medium)) emit(ray, medium, seg.distance, 0.0f);
         return;
     }
     // Otherwise walk the pieces again (the same closest hits as the sampling saw), up to the
-    // sampled distance (short) or the first surface that is not a null boundary (long). Beams
-    // are made in homogeneous media only: a piece in another medium ends the walk, and the
-    // segment's SegmentDensities::homogeneous tells the weights so.
+    // sampled distance (short) or the first surface that is not a null boundary (long). A piece
+    // where beams of this length cannot live (beam_medium: short beams in a chromatic grid) ends
+    // the walk, and beam_segment tells the weights so. A grid piece's transmittance is estimated
+    // by ratio tracking with numbers of its own (the light path's stay as they were).
+    Rng beam_rng(
+        StreamKey{key_.seed, key_.frame, key_.iteration,
+                  kPhotonBeamStreamBase + (path_index << 8) + uint64_t(from.path_length & 0xff)});
     Ray r = ray;
     float offset = 0;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
@@ -1592,14 +1626,22 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
             }
         }
         if (medium) {
-            if (!medium->is_homogeneous()) return;
+            if (!beam_medium(medium)) return;
             emit(r, medium, end, offset);
             if (last) return;
             // Passing this piece: its transmittance, over the probability that the sample
-            // passed it for a short beam (which reached the next piece only if it did).
-            const Rgb tr = medium->transmittance(r, t_end, rng);  // exact: draws nothing
-            beam.weight *=
-                short_beams ? tr / std::max(medium->probability_pass(r, t_end), 1e-35f) : tr;
+            // passed it for a short beam (which reached the next piece only if it did). That
+            // ratio is exact in a homogeneous medium and exactly 1 where the pass weight is one
+            // (grey grids: delta tracking passes with probability T); a long beam's is the
+            // transmittance, exact or (grids) an unbiased ratio-tracking estimate.
+            if (short_beams) {
+                if (medium->is_homogeneous()) {
+                    const Rgb tr = medium->transmittance(r, t_end, rng);  // exact: draws nothing
+                    beam.weight *= tr / std::max(medium->probability_pass(r, t_end), 1e-35f);
+                }
+            } else {
+                beam.weight *= medium->transmittance(r, t_end, beam_rng);
+            }
             if (beam.weight.is_black()) return;
         }
         if (last) return;
@@ -1639,7 +1681,7 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
         ray, state, rng, stats,
         [&](const Medium* medium, const Ray& piece, float t_end,
             const SegmentDensityBuilder& before, const Rgb& transmittance) {
-            if (medium->is_homogeneous()) {
+            if (beam_medium(medium)) {
                 Ray query = piece;
                 query.t_max = t_end;
                 lookup.for_each_near(query, [&](uint32_t i, const BeamApproach& a) {
@@ -1672,7 +1714,7 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                     mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f,
                                 dc.toward_start);
                     mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                              dc.toward_start, true, dc.homogeneous);
+                                              dc.toward_start, true, beam_segment(dc));
                     const float weight = mis_.weight_photon_beam(
                         light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
                         {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
@@ -1681,10 +1723,8 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                     // a short beam reaches it), the query's, sigma_s and the phase function at x,
                     // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
                     // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-                    Rgb beam_tr = medium->transmittance(beam_ray, a.t_beam, rng);  // draws nothing
-                    if (short_beams)
-                        beam_tr = beam_tr /
-                                  std::max(medium->probability_pass(beam_ray, a.t_beam), 1e-35f);
+                    const Rgb beam_tr =
+                        beam_transmittance(medium, beam_ray, a.t_beam, short_beams, rng);
                     const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
                     sum +=
                         tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
@@ -1738,7 +1778,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                             seg.densities.toward_start);
                 mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, 1.0f,
                                           seg.densities.toward_end, seg.densities.toward_start,
-                                          true, seg.densities.homogeneous);
+                                          true, beam_segment(seg.densities));
                 for (const Light* light : scene_.background_lights())
                     add(Technique::Connection, 0,
                         state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
