@@ -489,6 +489,18 @@ class Iteration {
     // traced along `ray` (its pieces in media up to the first surface that is not a null
     // boundary: the long query), each gathered at its closest approach.
     Rgb photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // Both gathers over one walk of the eye segment's pieces (each normalised as the two
+    // functions above normalise it): one closest hit and one transmittance per piece instead
+    // of two. The sums are those of query_beams and photon_beams, in the same order.
+    void both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                    Rgb& query_sum, Rgb& photon_sum) const;
+    // One piece's part of each gather (unnormalised), added to sum.
+    void query_beams_in_piece(const Ray& ray, const SubpathState& state, const Medium* medium,
+                              const Ray& piece, float t_end, const SegmentDensityBuilder& before,
+                              const Rgb& transmittance, Rng& rng, Rgb& sum) const;
+    void photon_beams_in_piece(const Ray& ray, const SubpathState& state, const Medium* medium,
+                               const Ray& piece, float t_end, const SegmentDensityBuilder& before,
+                               const Rgb& transmittance, Rng& rng, Rgb& sum) const;
     // B-B1D terms of a light vertex v (reached from wo) sampled from the camera side along
     // direction d with density pdf (without its distance density); 0 without the technique.
     float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
@@ -1483,54 +1495,60 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                            RenderStats& stats) const {
     Rgb sum(0.0f);
     if (medium_positions_.empty()) return sum;
-    const PointsAlongRay& lookup = *storage_.beam_lookup;
-    for_each_eye_medium_piece(
-        ray, state, rng, stats,
-        [&](const Medium* medium, const Ray& piece, float t_end,
-            const SegmentDensityBuilder& before, const Rgb& transmittance) {
-            // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
-            // medium, whose look-ups are skipped.
-            const bool homogeneous = medium->is_homogeneous();
-            Ray query = piece;
-            query.t_max = t_end;
-            lookup.for_each_near(query, [&](uint32_t i, float t, float) {
-                const LightVertex& lv = light_vertices_[medium_index_[i]];
-                if (lv.vertex.medium != medium) return;  // a photon of another medium
-                if (lv.path_length + state.path_length > max_length_) return;
-                const Vec3 x = piece.at(t);
-                const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
-                if (!(p > 0)) return;
-                // The eye subpath as if it had scattered at x (the query's distance density
-                // goes to the weight: vcm_mis.h, weight_query_beam).
-                SegmentDensityBuilder densities = before;
-                densities.add_piece(medium, piece, t);
-                const SegmentDensities d = densities.finish(true);
-                MisQuantities eye = state.mis;
-                mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
-                mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                          d.toward_start, true, beam_segment(d));
-                const float weight = mis_.weight_query_beam(
-                    lv.mis, eye, d.toward_end,
-                    {.eye_forward_w = p,
-                     .eye_reverse_w = p,
-                     .medium = true,
-                     .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
-                // sigma_s at x scatters the eye's light; the photon's throughput carries its
-                // own vertex's sigma_s (its distance sampling), divided out.
-                Rgb photon = lv.throughput;
-                if (!homogeneous) {
-                    const Rgb sigma_query = medium->sigma_s(x);
-                    const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
-                    for (int c = 0; c < 3; ++c)
-                        photon[c] = sigma_photon[c] > 0
-                                        ? photon[c] * sigma_query[c] / sigma_photon[c]
-                                        : 0.0f;
-                }
-                const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
-                sum += tr * photon * (p * weight);
-            });
-        });
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  query_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                       transmittance, rng, sum);
+                              });
     return sum * beam_normalization_;
+}
+
+void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
+                                     const Medium* medium, const Ray& piece, float t_end,
+                                     const SegmentDensityBuilder& before, const Rgb& transmittance,
+                                     Rng& rng, Rgb& sum) const {
+    const PointsAlongRay& lookup = *storage_.beam_lookup;
+    // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
+    // medium, whose look-ups are skipped.
+    const bool homogeneous = medium->is_homogeneous();
+    Ray query = piece;
+    query.t_max = t_end;
+    lookup.for_each_near(query, [&](uint32_t i, float t, float) {
+        const LightVertex& lv = light_vertices_[medium_index_[i]];
+        if (lv.vertex.medium != medium) return;  // a photon of another medium
+        if (lv.path_length + state.path_length > max_length_) return;
+        const Vec3 x = piece.at(t);
+        const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
+        if (!(p > 0)) return;
+        // The eye subpath as if it had scattered at x (the query's distance density
+        // goes to the weight: vcm_mis.h, weight_query_beam).
+        SegmentDensityBuilder densities = before;
+        densities.add_piece(medium, piece, t);
+        const SegmentDensities d = densities.finish(true);
+        MisQuantities eye = state.mis;
+        mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
+        mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f, d.toward_start, true,
+                                  beam_segment(d));
+        const float weight = mis_.weight_query_beam(
+            lv.mis, eye, d.toward_end,
+            {.eye_forward_w = p,
+             .eye_reverse_w = p,
+             .medium = true,
+             .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
+        // sigma_s at x scatters the eye's light; the photon's throughput carries its
+        // own vertex's sigma_s (its distance sampling), divided out.
+        Rgb photon = lv.throughput;
+        if (!homogeneous) {
+            const Rgb sigma_query = medium->sigma_s(x);
+            const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
+            for (int c = 0; c < 3; ++c)
+                photon[c] =
+                    sigma_photon[c] > 0 ? photon[c] * sigma_query[c] / sigma_photon[c] : 0.0f;
+        }
+        const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
+        sum += tr * photon * (p * weight);
+    });
 }
 
 template <typename Visit>
@@ -1696,68 +1714,91 @@ void Iteration::build_photon_beams() {
 Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                             RenderStats& stats) const {
     Rgb sum(0.0f);
-    const std::vector<PhotonBeam>& beams = storage_.photon_beams;
-    if (beams.empty()) return sum;
-    const bool short_beams = config_.short_photon_beams;
-    for_each_eye_medium_piece(
-        ray, state, rng, stats,
-        [&](const Medium* medium, const Ray& piece, float t_end,
-            const SegmentDensityBuilder& before, const Rgb& transmittance) {
-            if (beam_medium(medium)) {
-                Ray query = piece;
-                query.t_max = t_end;
-                auto gather = [&](uint32_t i, const BeamApproach& a) {
-                    const PhotonBeam& b = beams[i];
-                    if (b.medium != medium) return;  // a beam of another medium
-                    if (b.path_length + state.path_length > max_length_) return;
-                    const Vec3 x = piece.at(a.t_ray);
-                    const float sigma_t = medium->sigma_t(x).average();
-                    if (!(sigma_t > 0)) return;
-                    // The eye scatters the beam's light toward the camera at x.
-                    const float p = medium->phase().p(-ray.direction, -b.line.direction);
-                    if (!(p > 0)) return;
-                    // Both subpaths as if they had arrived at the closest approach, their distance
-                    // densities left to the weight (vcm_mis.h, weight_photon_beam).
-                    const Ray beam_ray(b.line.origin, b.line.direction);
-                    SegmentDensityBuilder light_pieces = b.before;
-                    light_pieces.add_piece(medium, beam_ray, a.t_beam);
-                    const SegmentDensities dl = light_pieces.finish(true);
-                    MisQuantities light = b.mis;
-                    const float light_distance = b.offset + a.t_beam;
-                    mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f,
-                                1.0f, dl.toward_start);
-                    mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
-                    mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f,
-                                              dl.toward_start, false, true);
-                    SegmentDensityBuilder eye_pieces = before;
-                    eye_pieces.add_piece(medium, piece, a.t_ray);
-                    const SegmentDensities dc = eye_pieces.finish(true);
-                    MisQuantities eye = state.mis;
-                    mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f,
-                                dc.toward_start);
-                    mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                              dc.toward_start, true, beam_segment(dc));
-                    const float weight = mis_.weight_photon_beam(
-                        light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
-                        {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
-                    if (!(weight > 0)) return;
-                    // The beam's transmittance to the closest approach (over the probability that
-                    // a short beam reaches it), the query's, sigma_s and the phase function at x,
-                    // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
-                    // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-                    const Rgb beam_tr =
-                        beam_transmittance(medium, beam_ray, a.t_beam, short_beams, rng);
-                    const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
-                    sum +=
-                        tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
-                };
-                if (storage_.photon_beams_in_grid)
-                    storage_.photon_beam_grid.for_each_near(query, gather);
-                else
-                    storage_.photon_beam_lookup->for_each_near(query, gather);
-            }
-        });
+    if (storage_.photon_beams.empty()) return sum;
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  photon_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                        transmittance, rng, sum);
+                              });
     return sum * photon_beam_normalization_;
+}
+
+void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                           Rgb& query_sum, Rgb& photon_sum) const {
+    query_sum = photon_sum = Rgb(0.0f);
+    const bool points = !medium_positions_.empty(), beams = !storage_.photon_beams.empty();
+    if (!points && !beams) return;
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  if (points)
+                                      query_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                           transmittance, rng, query_sum);
+                                  if (beams)
+                                      photon_beams_in_piece(ray, state, medium, piece, t_end,
+                                                            before, transmittance, rng, photon_sum);
+                              });
+    query_sum = query_sum * beam_normalization_;
+    photon_sum = photon_sum * photon_beam_normalization_;
+}
+
+void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
+                                      const Medium* medium, const Ray& piece, float t_end,
+                                      const SegmentDensityBuilder& before, const Rgb& transmittance,
+                                      Rng& rng, Rgb& sum) const {
+    const std::vector<PhotonBeam>& beams = storage_.photon_beams;
+    const bool short_beams = config_.short_photon_beams;
+    if (beam_medium(medium)) {
+        Ray query = piece;
+        query.t_max = t_end;
+        auto gather = [&](uint32_t i, const BeamApproach& a) {
+            const PhotonBeam& b = beams[i];
+            if (b.medium != medium) return;  // a beam of another medium
+            if (b.path_length + state.path_length > max_length_) return;
+            const Vec3 x = piece.at(a.t_ray);
+            const float sigma_t = medium->sigma_t(x).average();
+            if (!(sigma_t > 0)) return;
+            // The eye scatters the beam's light toward the camera at x.
+            const float p = medium->phase().p(-ray.direction, -b.line.direction);
+            if (!(p > 0)) return;
+            // Both subpaths as if they had arrived at the closest approach, their distance
+            // densities left to the weight (vcm_mis.h, weight_photon_beam).
+            const Ray beam_ray(b.line.origin, b.line.direction);
+            SegmentDensityBuilder light_pieces = b.before;
+            light_pieces.add_piece(medium, beam_ray, a.t_beam);
+            const SegmentDensities dl = light_pieces.finish(true);
+            MisQuantities light = b.mis;
+            const float light_distance = b.offset + a.t_beam;
+            mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f, 1.0f,
+                        dl.toward_start);
+            mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
+            mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f, dl.toward_start,
+                                      false, true);
+            SegmentDensityBuilder eye_pieces = before;
+            eye_pieces.add_piece(medium, piece, a.t_ray);
+            const SegmentDensities dc = eye_pieces.finish(true);
+            MisQuantities eye = state.mis;
+            mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, dc.toward_start);
+            mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f, dc.toward_start,
+                                      true, beam_segment(dc));
+            const float weight = mis_.weight_photon_beam(
+                light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
+                {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+            if (!(weight > 0)) return;
+            // The beam's transmittance to the closest approach (over the probability that
+            // a short beam reaches it), the query's, sigma_s and the phase function at x,
+            // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
+            // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
+            const Rgb beam_tr = beam_transmittance(medium, beam_ray, a.t_beam, short_beams, rng);
+            const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
+            sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
+        };
+        if (storage_.photon_beams_in_grid)
+            storage_.photon_beam_grid.for_each_near(query, gather);
+        else
+            storage_.photon_beam_lookup->for_each_near(query, gather);
+    }
 }
 
 Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
@@ -1790,10 +1831,16 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         if (joint_ && state.path_length < max_length_)
             joint_connections(ray, state, light_first, light_end, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
-        if (query_beams_ && state.path_length < max_length_)
+        if (query_beams_ && photon_beams_ && state.path_length < max_length_) {
+            Rgb query_sum, photon_sum;
+            both_beams(ray, state, rng, stats, query_sum, photon_sum);
+            add(Technique::Merging, 0, state.throughput * query_sum);
+            add(Technique::Merging, 0, state.throughput * photon_sum);
+        } else if (query_beams_ && state.path_length < max_length_) {
             add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));
-        if (photon_beams_ && state.path_length < max_length_)
+        } else if (photon_beams_ && state.path_length < max_length_) {
             add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
+        }
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
