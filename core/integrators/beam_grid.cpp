@@ -55,44 +55,47 @@ void UniformBeamGrid::build(const std::vector<BeamLine>& beams, float radius, co
         cell_size_[a] = extent[a] / float(res_[a]);
     }
     const size_t cell_count = size_t(res_[0]) * res_[1] * res_[2];
-    // (cell, beam) pairs: each beam walked in steps of one cell's smallest side, each step's box
-    // grown by r; a per-cell stamp drops repeats of the same beam.
-    std::vector<uint32_t> stamp(cell_count, UINT32_MAX);
-    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    // Two passes over the beams (count, then fill: 4 bytes per reference, no pair list to
+    // sort), each beam walked in steps of one cell's smallest side, each step's box grown by r;
+    // a per-cell stamp drops repeats of the same beam within a pass.
     const float step = std::min({cell_size_.x, cell_size_.y, cell_size_.z});
     auto cell_of = [&](float v, int a) {
         return std::clamp(int((v - lo_[a]) / cell_size_[a]), 0, res_[a] - 1);
     };
-    for (uint32_t i = 0; i < beams.size(); ++i) {
-        const BeamLine& b = beams[i];
-        float t0 = 0, t1 = b.length;
-        if (!clip(b.origin, b.direction, lo_, hi_, t0, t1)) continue;
-        for (float s = t0; s <= t1; s += step) {
-            const float e = std::min(s + step, t1);
-            const Vec3 p = b.origin + b.direction * s, q = b.origin + b.direction * e;
-            int c0[3], c1[3];
-            for (int a = 0; a < 3; ++a) {
-                c0[a] = cell_of(std::min(p[a], q[a]) - radius, a);
-                c1[a] = cell_of(std::max(p[a], q[a]) + radius, a);
+    std::vector<uint32_t> stamp;
+    auto for_each_cell = [&](auto&& add) {
+        stamp.assign(cell_count, UINT32_MAX);
+        for (uint32_t i = 0; i < beams.size(); ++i) {
+            const BeamLine& b = beams[i];
+            float t0 = 0, t1 = b.length;
+            if (!clip(b.origin, b.direction, lo_, hi_, t0, t1)) continue;
+            for (float s = t0; s <= t1; s += step) {
+                const float e = std::min(s + step, t1);
+                const Vec3 p = b.origin + b.direction * s, q = b.origin + b.direction * e;
+                int c0[3], c1[3];
+                for (int a = 0; a < 3; ++a) {
+                    c0[a] = cell_of(std::min(p[a], q[a]) - radius, a);
+                    c1[a] = cell_of(std::max(p[a], q[a]) + radius, a);
+                }
+                for (int z = c0[2]; z <= c1[2]; ++z)
+                    for (int y = c0[1]; y <= c1[1]; ++y)
+                        for (int x = c0[0]; x <= c1[0]; ++x) {
+                            const uint32_t c = uint32_t((size_t(z) * res_[1] + y) * res_[0] + x);
+                            if (stamp[c] == i) continue;
+                            stamp[c] = i;
+                            add(c, i);
+                        }
+                if (e >= t1) break;
             }
-            for (int z = c0[2]; z <= c1[2]; ++z)
-                for (int y = c0[1]; y <= c1[1]; ++y)
-                    for (int x = c0[0]; x <= c1[0]; ++x) {
-                        const uint32_t c = uint32_t((size_t(z) * res_[1] + y) * res_[0] + x);
-                        if (stamp[c] == i) continue;
-                        stamp[c] = i;
-                        pairs.emplace_back(c, i);
-                    }
-            if (e >= t1) break;
         }
-    }
-    // Counting sort into compressed rows, beams in index order within a cell.
+    };
+    // Compressed rows, beams in index order within a cell.
     cell_start_.assign(cell_count + 1, 0);
-    for (const auto& [c, i] : pairs) ++cell_start_[c + 1];
+    for_each_cell([&](uint32_t c, uint32_t) { ++cell_start_[c + 1]; });
     for (size_t c = 0; c < cell_count; ++c) cell_start_[c + 1] += cell_start_[c];
-    beam_ids_.resize(pairs.size());
+    beam_ids_.resize(cell_start_[cell_count]);
     std::vector<uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
-    for (const auto& [c, i] : pairs) beam_ids_[fill[c]++] = i;
+    for_each_cell([&](uint32_t c, uint32_t i) { beam_ids_[fill[c]++] = i; });
 }
 
 void UniformBeamGrid::query(const Ray& ray, BeamsAlongRay::VisitFunction visit, void* user) const {
