@@ -11,6 +11,7 @@
 #include <embree3/rtcore.h>
 
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "core/math/ray.h"
@@ -55,7 +56,7 @@ class BeamsAlongRay {
         query(
             ray,
             [](void* user, uint32_t i, const BeamApproach& a) {
-                (*static_cast<Visit*>(user))(i, a);
+                (*static_cast<std::remove_reference_t<Visit>*>(user))(i, a);
             },
             &visit);
     }

@@ -23,6 +23,8 @@ void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, floa
     last_pass_ = pass;
     last_scatter_ = scatter;
     homogeneous_ = homogeneous_ && (!medium || medium->is_homogeneous());
+    short_beam_support_ = short_beam_support_ &&
+                          (!medium || medium->is_homogeneous() || medium->pass_weight_is_one());
     ++pieces_;
 }
 
@@ -32,6 +34,7 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
     d.toward_end = pass_before_last_ * (end_in_medium ? last_scatter_ : last_pass_);
     d.toward_start = pass_after_first_ * first_start_factor_;
     d.homogeneous = homogeneous_;
+    d.short_beam_support = short_beam_support_;
     return d;
 }
 

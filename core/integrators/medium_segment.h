@@ -32,6 +32,10 @@ struct SegmentDensities {
     // Every piece is in vacuum or a homogeneous medium: the segment can carry a photon beam
     // (upbp's B-B1D is built in homogeneous media only).
     bool homogeneous = true;
+    // Every piece is in vacuum, a homogeneous medium or one whose pass weight is one
+    // (Medium::pass_weight_is_one): a *short* photon beam along the segment knows its
+    // transmittance over pass probability exactly. Long beams need neither (ratio tracking).
+    bool short_beam_support = true;
 };
 
 // Accumulates the densities of a segment piece by piece.
@@ -43,6 +47,7 @@ class SegmentDensityBuilder {
     SegmentDensities finish(bool end_in_medium) const;
     int pieces() const { return pieces_; }
     bool homogeneous() const { return homogeneous_; }
+    bool short_beam_support() const { return short_beam_support_; }
 
   private:
     bool start_in_medium_;
@@ -52,6 +57,7 @@ class SegmentDensityBuilder {
     float first_start_factor_ = 1;  // the first piece's density toward the segment's start
     float last_pass_ = 1, last_scatter_ = 1;
     bool homogeneous_ = true;
+    bool short_beam_support_ = true;
 };
 
 // Where a sampled segment ended.

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/base/scene_limits.h"
+#include "core/integrators/beam_grid.h"
 #include "core/integrators/beams_along_ray.h"
 #include "core/integrators/direct_light.h"
 #include "core/integrators/hash_grid.h"
@@ -52,6 +53,9 @@ constexpr uint64_t kImportanceStreamBase = kLightStreamBase + (uint64_t(3) << 60
 // Importance caching: the records of the screen grid, and their tables' shadow rays.
 constexpr uint64_t kIcRecordStreamBase = kLightStreamBase + (uint64_t(4) << 60);
 constexpr uint64_t kIcTableStreamBase = kLightStreamBase + (uint64_t(5) << 60);
+// Photon beams in grid media: the ratio-tracking transmittance of a long beam's earlier pieces,
+// one stream per (light path, segment), so the light path's own numbers are not consumed.
+constexpr uint64_t kPhotonBeamStreamBase = kLightStreamBase + (uint64_t(9) << 60);
 // bpt with ic connections: records at the first non-delta vertices of each record path (eye
 // vertices t = 2, 3, 4), so that eye vertices past the first find records that saw what they see.
 constexpr int kIcConnectionRecordsPerPath = 3;
@@ -138,8 +142,8 @@ struct Vertex {
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
-    // technique cannot sample it: outside homogeneous media, or on a light subpath reached by a
-    // segment that cannot carry a beam).
+    // technique cannot sample it: outside Iteration::beam_medium, or on a light subpath reached by
+    // a segment that cannot carry a beam).
     float arrival_distance = 0;
     float sigma_t = 0;
     float photon_beam = 0;
@@ -213,8 +217,8 @@ struct Splat {
     int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
-// A photon beam: one piece, in a homogeneous medium, of a light subpath's segment (up to the
-// sampled distance for a short beam, to the next surface for a long one), with what its
+// A photon beam: one piece, in a medium (Iteration::beam_medium), of a light subpath's segment (up
+// to the sampled distance for a short beam, to the next surface for a long one), with what its
 // estimate and MIS weight need of the subpath at the segment's start (the beam's source).
 struct PhotonBeam {
     uint64_t order = 0;  // (light path, piece) : the beams' order whatever the thread count
@@ -299,7 +303,12 @@ struct IterationStorage {
     tbb::enumerable_thread_specific<std::vector<PhotonBeam>> photon_beam_staging;
     std::vector<PhotonBeam> photon_beams;
     std::vector<BeamLine> photon_beam_lines;
+    // Their lookup: a uniform grid (measured 3-4x faster per query than the Embree BVH,
+    // docs/media.md), or the BVH in an iteration where a beam leaves the scene's box (a beam
+    // escaping through an unbounded medium: the grid would have to span it).
+    UniformBeamGrid photon_beam_grid;
     std::unique_ptr<BeamsAlongRay> photon_beam_lookup;
+    bool photon_beams_in_grid = false;
 };
 
 namespace {
@@ -429,6 +438,7 @@ class Iteration {
     Rgb trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const;
 
     uint64_t light_path_count() const { return light_path_count_; }
+    double photon_beam_radius() const { return photon_beam_radius_; }
     // The records' connections are clamped at 1 % of the scene radius at least, so that a VPL
     // lying on a record cannot take all the importance: this shapes P_k only, never the bias.
     float record_clamp2() const {
@@ -557,11 +567,34 @@ class Iteration {
     // traced along `ray` (its pieces in media up to the first surface that is not a null
     // boundary: the long query), each gathered at its closest approach.
     Rgb photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // Both gathers over one walk of the eye segment's pieces (each normalised as the two
+    // functions above normalise it): one closest hit and one transmittance per piece instead
+    // of two. The sums are those of query_beams and photon_beams, in the same order.
+    void both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                    Rgb& query_sum, Rgb& photon_sum) const;
+    // One piece's part of each gather (unnormalised), added to sum.
+    void query_beams_in_piece(const Ray& ray, const SubpathState& state, const Medium* medium,
+                              const Ray& piece, float t_end, const SegmentDensityBuilder& before,
+                              const Rgb& transmittance, Rng& rng, Rgb& sum) const;
+    void photon_beams_in_piece(const Ray& ray, const SubpathState& state, const Medium* medium,
+                               const Ray& piece, float t_end, const SegmentDensityBuilder& before,
+                               const Rgb& transmittance, Rng& rng, Rgb& sum) const;
     // B-B1D terms of a light vertex v (reached from wo) sampled from the camera side along
     // direction d with density pdf (without its distance density); 0 without the technique.
     float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
     // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
     void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
+    // Where photon beams live (docs/media.md, "Photon beams in grid media"): long beams in every
+    // medium (ratio tracking estimates their transmittance), short ones where the sampled
+    // distance's pass weight is known exactly (homogeneous media, grey grids). The weights use
+    // the same predicates, so a vertex no beam can reach has M_B = 0 in every technique.
+    bool beam_medium(const Medium* medium) const {
+        return !config_.short_photon_beams || medium->is_homogeneous() ||
+               medium->pass_weight_is_one();
+    }
+    bool beam_segment(const SegmentDensities& d) const {
+        return !config_.short_photon_beams || d.short_beam_support;
+    }
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
     // The VPL estimator's term for one light vertex at eye vertex v (without the eye and light
@@ -737,19 +770,19 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
     // segment is the photon beam that reaches it).
     mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, cos_in,
                               seg.densities.toward_end, seg.densities.toward_start,
-                              mode == TransportMode::Radiance, seg.densities.homogeneous);
+                              mode == TransportMode::Radiance, beam_segment(seg.densities));
     return v;
 }
 
 void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
                                            TransportMode mode) const {
-    if (!seg.medium->is_homogeneous()) return;
+    if (!beam_medium(seg.medium)) return;
     v.arrival_distance = seg.densities.toward_end;
     v.sigma_t = seg.medium->sigma_t(v.p).average();
     if (!(v.sigma_t > 0)) return;
     if (mode == TransportMode::Radiance)
         v.photon_beam = mis_.photon_beam_eye_factor(v.arrival_distance, v.sigma_t);
-    else if (seg.densities.homogeneous)
+    else if (beam_segment(seg.densities))
         v.photon_beam = mis_.photon_beam_light_factor(v.arrival_distance, v.sigma_t);
 }
 
@@ -1131,7 +1164,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
             ls.pdf_emission_w * v.cos(ls.wi) / (ls.pdf_direct_w * ls.cos_at_light);
         eye_photon_beam = mis_.photon_beam_eye_term(length(cross(wo, ls.wi)), v.arrival_distance,
                                                     v.sigma_t, emission * l.densities.toward_start,
-                                                    emission, l.densities.homogeneous);
+                                                    emission, beam_segment(l.densities));
     }
     // J1 at s = 1 (v sampled from its predecessor toward the light point).
     float joint_ratio = 0;
@@ -1245,7 +1278,7 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             v.photon_beam > 0
                 ? mis_.photon_beam_eye_term(length(cross(wo, d)), v.arrival_distance, v.sigma_t,
                                             light_pdf_a, light_pdf_w.forward * v.cos(d) / dist2,
-                                            l.densities.homogeneous)
+                                            beam_segment(l.densities))
                 : 0.0f};
     const float weight =
         joint == JointKind::J2   ? mis_.weight_joint2_connection(lv.mis, eye_mis, technique)
@@ -1723,54 +1756,60 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                            RenderStats& stats) const {
     Rgb sum(0.0f);
     if (medium_positions_.empty()) return sum;
-    const PointsAlongRay& lookup = *storage_.beam_lookup;
-    for_each_eye_medium_piece(
-        ray, state, rng, stats,
-        [&](const Medium* medium, const Ray& piece, float t_end,
-            const SegmentDensityBuilder& before, const Rgb& transmittance) {
-            // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
-            // medium, whose look-ups are skipped.
-            const bool homogeneous = medium->is_homogeneous();
-            Ray query = piece;
-            query.t_max = t_end;
-            lookup.for_each_near(query, [&](uint32_t i, float t, float) {
-                const LightVertex& lv = light_vertices_[medium_index_[i]];
-                if (lv.vertex.medium != medium) return;  // a photon of another medium
-                if (lv.path_length + state.path_length > max_length_) return;
-                const Vec3 x = piece.at(t);
-                const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
-                if (!(p > 0)) return;
-                // The eye subpath as if it had scattered at x (the query's distance density
-                // goes to the weight: vcm_mis.h, weight_query_beam).
-                SegmentDensityBuilder densities = before;
-                densities.add_piece(medium, piece, t);
-                const SegmentDensities d = densities.finish(true);
-                MisQuantities eye = state.mis;
-                mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
-                mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                          d.toward_start, true, d.homogeneous);
-                const float weight = mis_.weight_query_beam(
-                    lv.mis, eye, d.toward_end,
-                    {.eye_forward_w = p,
-                     .eye_reverse_w = p,
-                     .medium = true,
-                     .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
-                // sigma_s at x scatters the eye's light; the photon's throughput carries its
-                // own vertex's sigma_s (its distance sampling), divided out.
-                Rgb photon = lv.throughput;
-                if (!homogeneous) {
-                    const Rgb sigma_query = medium->sigma_s(x);
-                    const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
-                    for (int c = 0; c < 3; ++c)
-                        photon[c] = sigma_photon[c] > 0
-                                        ? photon[c] * sigma_query[c] / sigma_photon[c]
-                                        : 0.0f;
-                }
-                const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
-                sum += tr * photon * (p * weight);
-            });
-        });
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  query_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                       transmittance, rng, sum);
+                              });
     return sum * beam_normalization_;
+}
+
+void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
+                                     const Medium* medium, const Ray& piece, float t_end,
+                                     const SegmentDensityBuilder& before, const Rgb& transmittance,
+                                     Rng& rng, Rgb& sum) const {
+    const PointsAlongRay& lookup = *storage_.beam_lookup;
+    // sigma_s at the photon's projection over sigma_s at the photon: 1 in a homogeneous
+    // medium, whose look-ups are skipped.
+    const bool homogeneous = medium->is_homogeneous();
+    Ray query = piece;
+    query.t_max = t_end;
+    lookup.for_each_near(query, [&](uint32_t i, float t, float) {
+        const LightVertex& lv = light_vertices_[medium_index_[i]];
+        if (lv.vertex.medium != medium) return;  // a photon of another medium
+        if (lv.path_length + state.path_length > max_length_) return;
+        const Vec3 x = piece.at(t);
+        const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
+        if (!(p > 0)) return;
+        // The eye subpath as if it had scattered at x (the query's distance density
+        // goes to the weight: vcm_mis.h, weight_query_beam).
+        SegmentDensityBuilder densities = before;
+        densities.add_piece(medium, piece, t);
+        const SegmentDensities d = densities.finish(true);
+        MisQuantities eye = state.mis;
+        mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, d.toward_start);
+        mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f, d.toward_start, true,
+                                  beam_segment(d));
+        const float weight = mis_.weight_query_beam(
+            lv.mis, eye, d.toward_end,
+            {.eye_forward_w = p,
+             .eye_reverse_w = p,
+             .medium = true,
+             .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
+        // sigma_s at x scatters the eye's light; the photon's throughput carries its
+        // own vertex's sigma_s (its distance sampling), divided out.
+        Rgb photon = lv.throughput;
+        if (!homogeneous) {
+            const Rgb sigma_query = medium->sigma_s(x);
+            const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
+            for (int c = 0; c < 3; ++c)
+                photon[c] =
+                    sigma_photon[c] > 0 ? photon[c] * sigma_query[c] / sigma_photon[c] : 0.0f;
+        }
+        const Rgb tr = transmittance * medium->transmittance(piece, t, rng);
+        sum += tr * photon * (p * weight);
+    });
 }
 
 template <typename Visit>
@@ -1797,6 +1836,22 @@ void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& st
 }
 
 // --- photon beams (B-B1D) ---------------------------------------------------------------------
+
+namespace {
+
+// What a photon beam carries to its closest approach t along its last piece: the transmittance
+// (long beams: exact in a homogeneous medium, ratio tracking in a grid, drawing from the query's
+// numbers) or, for short beams, the transmittance over the probability that the sampled distance
+// passed t (exact in a homogeneous medium; exactly 1 where the pass weight is one, which is the
+// only other place short beams are built).
+Rgb beam_transmittance(const Medium* medium, const Ray& beam, float t, bool short_beams, Rng& rng) {
+    if (short_beams && !medium->is_homogeneous()) return Rgb(1.0f);
+    const Rgb tr = medium->transmittance(beam, t, rng);  // homogeneous: exact, draws nothing
+    if (!short_beams) return tr;
+    return tr / std::max(medium->probability_pass(beam, t), 1e-35f);
+}
+
+}  // namespace
 
 // Photon beams are clipped at this length where a light subpath leaves the scene inside an
 // unbounded medium: no vertex a ray can reach lies farther (core/base/scene_limits.h).
@@ -1829,13 +1884,17 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
     // surface): the segment already traced it.
     if (seg.one_piece && seg.end != SegmentEnd::Escaped &&
         (short_beams || seg.end == SegmentEnd::Surface)) {
-        if (medium && medium->is_homogeneous()) emit(ray, medium, seg.distance, 0.0f);
+        if (medium && beam_medium(medium)) emit(ray, medium, seg.distance, 0.0f);
         return;
     }
     // Otherwise walk the pieces again (the same closest hits as the sampling saw), up to the
-    // sampled distance (short) or the first surface that is not a null boundary (long). Beams
-    // are made in homogeneous media only: a piece in another medium ends the walk, and the
-    // segment's SegmentDensities::homogeneous tells the weights so.
+    // sampled distance (short) or the first surface that is not a null boundary (long). A piece
+    // where beams of this length cannot live (beam_medium: short beams in a chromatic grid) ends
+    // the walk, and beam_segment tells the weights so. A grid piece's transmittance is estimated
+    // by ratio tracking with numbers of its own (the light path's stay as they were).
+    Rng beam_rng(
+        StreamKey{key_.seed, key_.frame, key_.iteration,
+                  kPhotonBeamStreamBase + (path_index << 8) + uint64_t(from.path_length & 0xff)});
     Ray r = ray;
     float offset = 0;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
@@ -1853,14 +1912,22 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
             }
         }
         if (medium) {
-            if (!medium->is_homogeneous()) return;
+            if (!beam_medium(medium)) return;
             emit(r, medium, end, offset);
             if (last) return;
             // Passing this piece: its transmittance, over the probability that the sample
-            // passed it for a short beam (which reached the next piece only if it did).
-            const Rgb tr = medium->transmittance(r, t_end, rng);  // exact: draws nothing
-            beam.weight *=
-                short_beams ? tr / std::max(medium->probability_pass(r, t_end), 1e-35f) : tr;
+            // passed it for a short beam (which reached the next piece only if it did). That
+            // ratio is exact in a homogeneous medium and exactly 1 where the pass weight is one
+            // (grey grids: delta tracking passes with probability T); a long beam's is the
+            // transmittance, exact or (grids) an unbiased ratio-tracking estimate.
+            if (short_beams) {
+                if (medium->is_homogeneous()) {
+                    const Rgb tr = medium->transmittance(r, t_end, rng);  // exact: draws nothing
+                    beam.weight *= tr / std::max(medium->probability_pass(r, t_end), 1e-35f);
+                }
+            } else {
+                beam.weight *= medium->transmittance(r, t_end, beam_rng);
+            }
             if (beam.weight.is_black()) return;
         }
         if (last) return;
@@ -1884,75 +1951,115 @@ void Iteration::build_photon_beams() {
     lines.clear();
     lines.reserve(beams.size());
     for (const PhotonBeam& b : beams) lines.push_back(b.line);
+    const float r = float(photon_beam_radius_);
+    Aabb box = scene_.bounds();
+    box.lo = box.lo - Vec3(r);
+    box.hi = box.hi + Vec3(r);
+    auto inside = [&](const Vec3& p) {
+        return p.x >= box.lo.x && p.y >= box.lo.y && p.z >= box.lo.z && p.x <= box.hi.x &&
+               p.y <= box.hi.y && p.z <= box.hi.z;
+    };
+    storage_.photon_beams_in_grid =
+        !box.empty() && std::all_of(lines.begin(), lines.end(), [&](const BeamLine& b) {
+            return inside(b.origin) && inside(b.origin + b.direction * b.length);
+        });
+    if (storage_.photon_beams_in_grid) {
+        storage_.photon_beam_grid.build(lines, r, box);
+        return;
+    }
     if (!storage_.photon_beam_lookup)
         storage_.photon_beam_lookup = std::make_unique<BeamsAlongRay>();
-    storage_.photon_beam_lookup->build(lines, float(photon_beam_radius_));
+    storage_.photon_beam_lookup->build(lines, r);
 }
 
 Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                             RenderStats& stats) const {
     Rgb sum(0.0f);
-    const std::vector<PhotonBeam>& beams = storage_.photon_beams;
-    if (beams.empty()) return sum;
-    const BeamsAlongRay& lookup = *storage_.photon_beam_lookup;
-    const bool short_beams = config_.short_photon_beams;
-    for_each_eye_medium_piece(
-        ray, state, rng, stats,
-        [&](const Medium* medium, const Ray& piece, float t_end,
-            const SegmentDensityBuilder& before, const Rgb& transmittance) {
-            if (medium->is_homogeneous()) {
-                Ray query = piece;
-                query.t_max = t_end;
-                lookup.for_each_near(query, [&](uint32_t i, const BeamApproach& a) {
-                    const PhotonBeam& b = beams[i];
-                    if (b.medium != medium) return;  // a beam of another medium
-                    if (b.path_length + state.path_length > max_length_) return;
-                    const Vec3 x = piece.at(a.t_ray);
-                    const float sigma_t = medium->sigma_t(x).average();
-                    if (!(sigma_t > 0)) return;
-                    // The eye scatters the beam's light toward the camera at x.
-                    const float p = medium->phase().p(-ray.direction, -b.line.direction);
-                    if (!(p > 0)) return;
-                    // Both subpaths as if they had arrived at the closest approach, their distance
-                    // densities left to the weight (vcm_mis.h, weight_photon_beam).
-                    const Ray beam_ray(b.line.origin, b.line.direction);
-                    SegmentDensityBuilder light_pieces = b.before;
-                    light_pieces.add_piece(medium, beam_ray, a.t_beam);
-                    const SegmentDensities dl = light_pieces.finish(true);
-                    MisQuantities light = b.mis;
-                    const float light_distance = b.offset + a.t_beam;
-                    mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f,
-                                1.0f, dl.toward_start);
-                    mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
-                    mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f,
-                                              dl.toward_start, false, true);
-                    SegmentDensityBuilder eye_pieces = before;
-                    eye_pieces.add_piece(medium, piece, a.t_ray);
-                    const SegmentDensities dc = eye_pieces.finish(true);
-                    MisQuantities eye = state.mis;
-                    mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f,
-                                dc.toward_start);
-                    mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f,
-                                              dc.toward_start, true, dc.homogeneous);
-                    const float weight = mis_.weight_photon_beam(
-                        light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
-                        {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
-                    if (!(weight > 0)) return;
-                    // The beam's transmittance to the closest approach (over the probability that
-                    // a short beam reaches it), the query's, sigma_s and the phase function at x,
-                    // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
-                    // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-                    Rgb beam_tr = medium->transmittance(beam_ray, a.t_beam, rng);  // draws nothing
-                    if (short_beams)
-                        beam_tr = beam_tr /
-                                  std::max(medium->probability_pass(beam_ray, a.t_beam), 1e-35f);
-                    const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
-                    sum +=
-                        tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
-                });
-            }
-        });
+    if (storage_.photon_beams.empty()) return sum;
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  photon_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                        transmittance, rng, sum);
+                              });
     return sum * photon_beam_normalization_;
+}
+
+void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                           Rgb& query_sum, Rgb& photon_sum) const {
+    query_sum = photon_sum = Rgb(0.0f);
+    const bool points = !medium_positions_.empty(), beams = !storage_.photon_beams.empty();
+    if (!points && !beams) return;
+    for_each_eye_medium_piece(ray, state, rng, stats,
+                              [&](const Medium* medium, const Ray& piece, float t_end,
+                                  const SegmentDensityBuilder& before, const Rgb& transmittance) {
+                                  if (points)
+                                      query_beams_in_piece(ray, state, medium, piece, t_end, before,
+                                                           transmittance, rng, query_sum);
+                                  if (beams)
+                                      photon_beams_in_piece(ray, state, medium, piece, t_end,
+                                                            before, transmittance, rng, photon_sum);
+                              });
+    query_sum = query_sum * beam_normalization_;
+    photon_sum = photon_sum * photon_beam_normalization_;
+}
+
+void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
+                                      const Medium* medium, const Ray& piece, float t_end,
+                                      const SegmentDensityBuilder& before, const Rgb& transmittance,
+                                      Rng& rng, Rgb& sum) const {
+    const std::vector<PhotonBeam>& beams = storage_.photon_beams;
+    const bool short_beams = config_.short_photon_beams;
+    if (beam_medium(medium)) {
+        Ray query = piece;
+        query.t_max = t_end;
+        auto gather = [&](uint32_t i, const BeamApproach& a) {
+            const PhotonBeam& b = beams[i];
+            if (b.medium != medium) return;  // a beam of another medium
+            if (b.path_length + state.path_length > max_length_) return;
+            const Vec3 x = piece.at(a.t_ray);
+            const float sigma_t = medium->sigma_t(x).average();
+            if (!(sigma_t > 0)) return;
+            // The eye scatters the beam's light toward the camera at x.
+            const float p = medium->phase().p(-ray.direction, -b.line.direction);
+            if (!(p > 0)) return;
+            // Both subpaths as if they had arrived at the closest approach, their distance
+            // densities left to the weight (vcm_mis.h, weight_photon_beam).
+            const Ray beam_ray(b.line.origin, b.line.direction);
+            SegmentDensityBuilder light_pieces = b.before;
+            light_pieces.add_piece(medium, beam_ray, a.t_beam);
+            const SegmentDensities dl = light_pieces.finish(true);
+            MisQuantities light = b.mis;
+            const float light_distance = b.offset + a.t_beam;
+            mis_.arrive(light, light_distance * light_distance, b.apply_distance, 1.0f, 1.0f,
+                        dl.toward_start);
+            mis_.add_query_beam_term(light, b.carried_query_beam, 1.0f, 1.0f);
+            mis_.add_photon_beam_term(light, b.carried_photon_beam, 1.0f, 1.0f, dl.toward_start,
+                                      false, true);
+            SegmentDensityBuilder eye_pieces = before;
+            eye_pieces.add_piece(medium, piece, a.t_ray);
+            const SegmentDensities dc = eye_pieces.finish(true);
+            MisQuantities eye = state.mis;
+            mis_.arrive(eye, length_squared(x - ray.origin), true, 1.0f, 1.0f, dc.toward_start);
+            mis_.add_photon_beam_term(eye, state.carried_photon_beam, 1.0f, 1.0f, dc.toward_start,
+                                      true, beam_segment(dc));
+            const float weight = mis_.weight_photon_beam(
+                light, eye, dl.toward_end, dc.toward_end, a.sin_theta, sigma_t,
+                {.eye_forward_w = p, .eye_reverse_w = p, .medium = true});
+            if (!(weight > 0)) return;
+            // The beam's transmittance to the closest approach (over the probability that
+            // a short beam reaches it), the query's, sigma_s and the phase function at x,
+            // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
+            // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
+            const Rgb beam_tr = beam_transmittance(medium, beam_ray, a.t_beam, short_beams, rng);
+            const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
+            sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
+        };
+        if (storage_.photon_beams_in_grid)
+            storage_.photon_beam_grid.for_each_near(query, gather);
+        else
+            storage_.photon_beam_lookup->for_each_near(query, gather);
+    }
 }
 
 Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSink& sink) const {
@@ -1987,10 +2094,16 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         if (joint_ && state.path_length < max_length_)
             joint_connections(ray, state, light_first, light_end, emission_ray, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
-        if (query_beams_ && state.path_length < max_length_)
+        if (query_beams_ && photon_beams_ && state.path_length < max_length_) {
+            Rgb query_sum, photon_sum;
+            both_beams(ray, state, rng, stats, query_sum, photon_sum);
+            add(Technique::Merging, 0, state.throughput * query_sum);
+            add(Technique::Merging, 0, state.throughput * photon_sum);
+        } else if (query_beams_ && state.path_length < max_length_) {
             add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));
-        if (photon_beams_ && state.path_length < max_length_)
+        } else if (photon_beams_ && state.path_length < max_length_) {
             add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
+        }
         SampledSegment seg;
         std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
@@ -2001,7 +2114,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                             seg.densities.toward_start);
                 mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, 1.0f,
                                           seg.densities.toward_end, seg.densities.toward_start,
-                                          true, seg.densities.homogeneous);
+                                          true, beam_segment(seg.densities));
                 for (const Light* light : scene_.background_lights())
                     add(Technique::Connection, 0,
                         state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
@@ -2135,6 +2248,20 @@ VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
     selection.importance_records = config_.importance_records;
     selection.record_distance_clamp = std::sqrt(double(iteration.record_clamp2()));
     return selection;
+}
+
+PhotonBeamInspection VertexConnectionMerging::inspect_photon_beams(const Scene& scene,
+                                                                   const IterationKey& key) const {
+    PhotonBeamInspection out;
+    if (config_.mode != BidirectionalMode::Vcm || !config_.photon_beams || scene.lights().empty())
+        return out;
+    IterationStorage storage;
+    Iteration iteration(config_, scene, key, storage);
+    RenderStats stats;
+    iteration.trace_light_paths(stats, [](std::span<const Splat>) {});
+    out.lines = storage.photon_beam_lines;
+    out.radius = iteration.photon_beam_radius();
+    return out;
 }
 
 }  // namespace render

@@ -14,6 +14,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/integrators/beams_along_ray.h"
 #include "core/integrators/importance_weights.h"
 #include "core/integrators/integrator.h"
 #include "core/materials/surface_bsdf.h"
@@ -127,6 +128,13 @@ struct VplSelection {
     double record_distance_clamp = 0;  // the records' connections use max(d, this)
 };
 
+// One iteration's photon beams as the beam lookup sees them (upbp with photon beams), for the
+// benchmark of the lookup (bench/beam_lookup.cpp).
+struct PhotonBeamInspection {
+    std::vector<BeamLine> lines;
+    double radius = 0;
+};
+
 // Upper bounds of the sizes of vertex_cm.cpp's stored records, for the per-iteration memory
 // estimate (core/render/iteration_memory.cpp); vertex_cm.cpp checks them with static_assert,
 // so a record that grows past its bound fails the build instead of the estimate.
@@ -152,6 +160,9 @@ class VertexConnectionMerging final : public Integrator {
     // light and record passes, so its numbers are those render_iteration uses; for tests and
     // diagnostics.
     VplSelection inspect_vpl_selection(const Scene& scene, const IterationKey& key) const;
+    // The photon beams of one iteration (upbp with photon beams; empty otherwise), as the
+    // iteration builds them; for benchmarks.
+    PhotonBeamInspection inspect_photon_beams(const Scene& scene, const IterationKey& key) const;
 
   private:
     BidirectionalConfig config_;

@@ -72,6 +72,8 @@ class HeterogeneousMedium final : public Medium {
     Rgb sigma_t(const Vec3& p) const override { return sigma_t_->eval(p) * scale_; }
     const PhaseFunction& phase() const override { return *phase_; }
     bool is_homogeneous() const override { return false; }
+    // Grey extinction: classic delta tracking, whose pass weight is exactly 1 (sample()).
+    bool pass_weight_is_one() const override { return grey_; }
     bool is_emissive() const override { return radiance_ != nullptr; }
     Rgb radiance(const Vec3& p) const override {
         return radiance_ ? radiance_->eval(p) : Rgb(0.0f);

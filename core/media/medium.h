@@ -84,6 +84,11 @@ class Medium {
 
     virtual const PhaseFunction& phase() const = 0;
     virtual bool is_homogeneous() const = 0;
+    // True when sample()'s weight on passing any distance is exactly 1 in every channel, i.e.
+    // the probability of passing t is the transmittance T(t) itself (grey extinction sampled by
+    // delta tracking). upbp's short photon beams, cut at a sampled distance, then need no
+    // transmittance estimate along the beam: T(t) / P(pass t) = 1 (docs/media.md).
+    virtual bool pass_weight_is_one() const { return false; }
     // True when the medium emits (a non-zero `radiance`): sample() then fills
     // MediumSample::emission. Non-emissive media do no emission work at all.
     virtual bool is_emissive() const { return false; }

@@ -136,8 +136,8 @@ const std::vector<Algorithm>& table() {
          .description =
              "unified points, beams and paths (homogeneous and grid media): vcm's connections "
              "and merges with query beams (photon points gathered along whole camera "
-             "segments in media) and photon beams (light-path segments in homogeneous "
-             "media gathered by camera segments)",
+             "segments in media) and photon beams (light-path segments in media gathered "
+             "by camera segments)",
          .support = {.homogeneous_media = true, .grid_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
                      "vertex_connections", "surface_merging", "photon_points", "query_beams",

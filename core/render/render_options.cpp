@@ -134,8 +134,8 @@ const std::vector<RenderOption>& table() {
          .flag = "--photon-beams",
          .metavar = "on|off",
          .type = OptionType::Choice,
-         .help = "upbp: light-path segments in homogeneous media stored as photon beams and "
-                 "gathered by camera segments with a 1-D kernel (B-B1D)",
+         .help = "upbp: light-path segments in media stored as photon beams and gathered by "
+                 "camera segments with a 1-D kernel (B-B1D; short beams not in chromatic grids)",
          .choices = {"on", "off"},
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.photon_beams = v == "on"; },

@@ -8,6 +8,8 @@
 
 #include "core/integrators/beams_along_ray.h"
 
+#include "core/integrators/beam_grid.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -44,9 +46,9 @@ std::map<uint32_t, BeamApproach> scan(const std::vector<BeamLine>& beams, const 
     return out;
 }
 
-int check_queries(const std::vector<BeamLine>& beams, float r, const std::vector<Ray>& rays) {
-    BeamsAlongRay lookup;
-    lookup.build(beams, r);
+template <typename Lookup>
+int check_queries(const Lookup& lookup, const std::vector<BeamLine>& beams, float r,
+                  const std::vector<Ray>& rays) {
     int visited_total = 0;
     for (const Ray& ray : rays) {
         std::vector<bool> borderline;
@@ -132,7 +134,47 @@ TEST(BeamsAlongRay, VisitsExactlyTheBeamsNearTheSegment) {
                            0.2f + 3.0f * rng.next_1d()));
     rays.push_back(Ray(Vec3(-2.5f, 0.1f, 0.2f), Vec3(1, 0, 0), 0.0f, 5.0f));  // along an axis
     rays.push_back(Ray(Vec3(0.3f, -2.5f, 0.2f), Vec3(0, 1, 0), 0.0f, 1e6f));  // very long
-    for (float r : {0.01f, 0.05f, 0.2f}) EXPECT_GE(check_queries(beams, r, rays), 20) << r;
+    for (float r : {0.01f, 0.05f, 0.2f}) {
+        BeamsAlongRay lookup;
+        lookup.build(beams, r);
+        EXPECT_GE(check_queries(lookup, beams, r, rays), 20) << r;
+    }
+}
+
+// The uniform grid (beam_grid.h, the integrator's lookup when every beam is inside the scene's
+// box) against the same scan: random beams and segments inside its bounds, several cell sizes
+// (cells per beam), each beam visited once; and with bounds of 1e6 for the hard cases below.
+TEST(UniformBeamGrid, VisitsExactlyTheBeamsNearTheSegment) {
+    Rng rng(StreamKey{23, 0, 0, 0});
+    std::vector<BeamLine> beams(4000);
+    for (BeamLine& b : beams)
+        b = BeamLine{random_point(rng), warp::square_to_uniform_sphere(rng.next_2d()),
+                     3.0f * rng.next_1d() * rng.next_1d()};
+    beams[0].length = 0;
+    beams[2] = BeamLine{Vec3(-1, 0.1f, 0.2f), Vec3(1, 0, 0), 2};
+    beams[3] = BeamLine{Vec3(1, 0.1f, 0.21f), Vec3(-1, 0, 0), 2};
+    std::vector<Ray> rays;
+    for (int k = 0; k < 200; ++k)
+        rays.push_back(Ray(random_point(rng), warp::square_to_uniform_sphere(rng.next_2d()), 0.0f,
+                           0.2f + 3.0f * rng.next_1d()));
+    rays.push_back(Ray(Vec3(-2.5f, 0.1f, 0.2f), Vec3(1, 0, 0), 0.0f, 5.0f));  // along an axis
+    Aabb bounds;
+    bounds.expand(Vec3(-6.0f));
+    bounds.expand(Vec3(6.0f));
+    for (float r : {0.01f, 0.05f, 0.2f})
+        for (double cells_per_beam : {0.1, 1.0, 8.0}) {
+            UniformBeamGrid grid;
+            grid.build(beams, r, bounds, cells_per_beam);
+            EXPECT_GE(check_queries(grid, beams, r, rays), 20) << r << " " << cells_per_beam;
+        }
+    // A 1e6-long beam and query in bounds that hold them.
+    beams[1].length = 1e6f;
+    rays.push_back(Ray(Vec3(0.3f, -2.5f, 0.2f), Vec3(0, 1, 0), 0.0f, 1e6f));
+    bounds.expand(Vec3(-1.1e6f));
+    bounds.expand(Vec3(1.1e6f));
+    UniformBeamGrid grid;
+    grid.build(beams, 0.05f, bounds);
+    EXPECT_GE(check_queries(grid, beams, 0.05f, rays), 20);
 }
 
 TEST(BeamsAlongRay, ParallelZeroLengthAndHugeBeams) {

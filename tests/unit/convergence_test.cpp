@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "core/render/render_iterations.h"
@@ -398,6 +399,37 @@ TEST(Convergence, PhotonBeamsMatchBptOnTheSmallUpbpBoxes) {
                            std::string("upbp (short photon beams only) on ") + file, "bpt");
         expect_same_blocks(reference, render_blocks(*scene, "upbp", 16, long_beams_only),
                            std::string("upbp (long photon beams only, eta 2r) on ") + file, "bpt");
+    }
+}
+
+// Photon beams in a grid medium (docs/media.md, "Photon beams in grid media"): the smoke's
+// grey grid, where short beams end at the delta-tracking distance (their transmittance over
+// pass probability is exactly 1) and long beams carry ratio-tracked transmittance along the beam
+// and across earlier pieces; the weights use the same midpoint-rule proxies as every other
+// technique. upbp restricted to {bpt, bb1d} and with photon beams as the only medium estimator
+// (short, r/2; long, 2r) converges to volpt and to bpt. Tolerance: the file's k = 5 combined
+// standard errors per block and channel.
+TEST(Convergence, PhotonBeamsInAGridMatchVolptAndBptOnTheSmoke) {
+    auto scene = shipped("smoke/scene.xml");
+    const OptionMap beams_and_connections = {
+        {"surface_merging", "off"}, {"photon_points", "off"}, {"query_beams", "off"}};
+    const OptionMap beams_only = {
+        {"vertex_connections", "off"}, {"photon_points", "off"}, {"query_beams", "off"}};
+    OptionMap long_beams_and_connections = beams_and_connections;
+    long_beams_and_connections["photon_beam_length"] = "long";
+    OptionMap long_beams_only = beams_only;
+    long_beams_only["photon_beam_length"] = "long";
+    long_beams_only["photon_beam_eta"] = "2r";
+    const BlockEstimate volpt = render_blocks(*scene, "volpt", 8);
+    const BlockEstimate bpt = render_blocks(*scene, "bpt", 8);
+    for (const auto& [options, iterations, name] :
+         {std::tuple{beams_and_connections, 8, "upbp {bpt, bb1d} short"},
+          std::tuple{long_beams_and_connections, 8, "upbp {bpt, bb1d} long"},
+          std::tuple{beams_only, 16, "upbp (short photon beams only)"},
+          std::tuple{long_beams_only, 16, "upbp (long photon beams only, eta 2r)"}}) {
+        const BlockEstimate upbp = render_blocks(*scene, "upbp", iterations, options);
+        expect_same_blocks(volpt, upbp, name, "volpt");
+        expect_same_blocks(bpt, upbp, name, "bpt");
     }
 }
 

@@ -50,7 +50,10 @@
 #include "core/materials/phong.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
+#include "core/media/constant_volume.h"
+#include "core/media/grid_volume.h"
 #include "core/media/henyey_greenstein.h"
+#include "core/media/heterogeneous_medium.h"
 #include "core/media/homogeneous_medium.h"
 #include "core/sampling/half_line_equiangular.h"
 #include "core/sampling/joint_light_distance.h"
@@ -162,7 +165,7 @@ class MisSumTest : public ::testing::Test {
     // geometry degenerate.
     bool build_path(Rng& rng, const std::vector<Material>& materials, LightKind kind,
                     bool in_fog = false) {
-        fog_ = in_fog ? &fog_medium_ : nullptr;
+        fog_ = in_fog ? (grid_fog_ ? grid_fog_ : &fog_medium_) : nullptr;
         const Vec3 eye(0.1f, -0.2f, -3.0f), target(0, 0, 0);
         camera_ = PerspectiveCamera(Transform::look_at(eye, target, Vec3(0, 1, 0)), 50.0f, 'x',
                                     kWidth, kHeight);
@@ -325,10 +328,39 @@ class MisSumTest : public ::testing::Test {
     // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
     // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
     SegmentDensities segment(int from, int to) const {
+        if (fog_ && !fog_->is_homogeneous()) return grid_segment(from, to);
         const Vec3 a = endpoint(from);
         const Ray ray(a, normalize(endpoint(to) - a));
         const float t = fog_length(from, to);
         return SegmentDensities{distance_density(to, ray, t), distance_density(from, ray, t)};
+    }
+
+    // In a grid fog the densities depend on where a piece starts and on sigma_t at both ends
+    // (the midpoint-rule proxies of heterogeneous_medium.h), so the segment is built by the
+    // integrator's SegmentDensityBuilder over its real pieces: toward an infinite light the fog
+    // up to the ball's boundary, then vacuum.
+    SegmentDensities grid_segment(int from, int to) const {
+        auto medium_vertex = [&](int id) {
+            return id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
+        };
+        const bool infinite = !end_.finite && (from == kLightEnd || to == kLightEnd);
+        if (!infinite) {
+            const Vec3 a = endpoint(from), b = endpoint(to);
+            SegmentDensityBuilder pieces(medium_vertex(from));
+            pieces.add_piece(fog_, Ray(a, normalize(b - a)), length(b - a));
+            return pieces.finish(medium_vertex(to));
+        }
+        const Vec3 exit = vertices_[0].p + to_light_ * fog_exit_;
+        if (to == kLightEnd) {
+            SegmentDensityBuilder pieces(medium_vertex(from));
+            pieces.add_piece(fog_, Ray(vertices_[0].p, to_light_), fog_exit_);
+            pieces.add_piece(nullptr, Ray(exit, to_light_), kInfinity);
+            return pieces.finish(false);
+        }
+        SegmentDensityBuilder pieces(false);
+        pieces.add_piece(nullptr, Ray(exit + to_light_, -to_light_), kInfinity);
+        pieces.add_piece(fog_, Ray(exit, -to_light_), fog_exit_);
+        return pieces.finish(medium_vertex(to));
     }
 
     // --- joint (J1) connections ----------------------------------------------------------------
@@ -395,7 +427,9 @@ class MisSumTest : public ::testing::Test {
     // sin of the angle between the light segment and the camera segment that reach vertex i.
     float beam_sin(size_t i) const { return length(cross(toward_light(i), toward_eye(i))); }
     // The fog's sigma_t as the weights use it (mean over the channels).
-    float beam_sigma_t(size_t i) const { return fog_medium_.sigma_t(vertices_[i].p).average(); }
+    float beam_sigma_t(size_t i) const {
+        return (fog_ ? fog_ : &fog_medium_)->sigma_t(vertices_[i].p).average();
+    }
     // Distance densities of vertex i from the light side (p_L) and the camera side (p_C).
     float light_distance(size_t i) const { return segment(int(i) - 1, int(i)).toward_end; }
     float camera_distance(size_t i) const { return segment(int(i) + 1, int(i)).toward_end; }
@@ -898,7 +932,8 @@ class MisSumTest : public ::testing::Test {
     ConductorBsdf mirror_;
     TriangleMesh rectangle_;
     HomogeneousMedium fog_medium_;
-    const Medium* fog_ = nullptr;   // the medium filling the scene; null: vacuum
+    const Medium* grid_fog_ = nullptr;  // set: fog paths are in this grid medium instead
+    const Medium* fog_ = nullptr;       // the medium filling the scene; null: vacuum
     bool joint_ = false;            // the J1 techniques are enabled (bpt --joint-connections on)
     bool joint_light_ = false;      // J1 at s = 1 as well (next-event estimation's sibling)
     bool joint2_ = false;           // J2 as well (bpt --joint-connections all)
@@ -1035,6 +1070,87 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(joint2_checked_, 150);
     EXPECT_GT(query_beams_checked_, 1500);
     EXPECT_GT(photon_beams_checked_, 10000);
+}
+
+// A grid fog over the fog's ball: a cube of 28 (centred at the origin) of 6^3 voxels with
+// sigma_t between 0.05 and 0.65 (one channel, or three that differ), albedo 0.8, the fog's HG.
+std::unique_ptr<HeterogeneousMedium> grid_fog(bool grey, Rng& rng) {
+    VolumeGridData d;
+    d.xres = d.yres = d.zres = 6;
+    d.channels = grey ? 1 : 3;
+    for (size_t i = 0; i < d.voxel_count() * size_t(d.channels); ++i)
+        d.values.push_back(0.05f + 0.6f * rng.next_1d());
+    auto volume = std::make_shared<GridVolume>(
+        std::move(d), Transform::translate(Vec3(-14.0f)) * Transform::scale(Vec3(28.0f)));
+    return std::make_unique<HeterogeneousMedium>(volume,
+                                                 std::make_shared<ConstantVolume>(Rgb(0.8f)), 1.0f,
+                                                 std::make_shared<HenyeyGreenstein>(0.4f));
+}
+
+// Photon beams in a grid medium (docs/media.md, "Photon beams in grid media"): the fog paths in
+// a grid fog, whose distance densities are the midpoint-rule proxies (different from either
+// end, sigma_t varying from vertex to vertex). B-B1D beside BPT, beside everything, beside BPM
+// and alone, with both constants eta_1; long beams in a grey and a chromatic grid, short beams
+// in the grey one (the integrator builds short beams only where the pass weight is one, so
+// chromatic grids have none). The weights must sum to one and equal the written-out ratios, the
+// short beam's coverage P_pass / p_L taken as 1 / sigma_t(x) as in homogeneous media.
+TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
+    using M = Material;
+    const std::vector<std::vector<Material>> paths = {
+        {M::Medium},
+        {M::Medium, M::Medium},
+        {M::Medium, M::Diffuse},
+        {M::Diffuse, M::Medium},
+        {M::Medium, M::Mirror, M::Medium},
+        {M::Medium, M::Medium, M::Medium},
+        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+    };
+    Rng rng(StreamKey{2026, 0, 1, 0});
+    int checked = 0, short_checked = 0;
+    for (const bool grey : {true, false}) {
+        const std::unique_ptr<HeterogeneousMedium> grid = grid_fog(grey, rng);
+        grid_fog_ = grid.get();
+        for (const auto& materials : paths)
+            for (LightKind kind : kAllLights)
+                for (int trial = 0; trial < 6; ++trial) {
+                    if (!build_path(rng, materials, kind, true)) continue;
+                    for (double radius : {0.05, 0.15})
+                        for (int power : {1, 2}) {
+                            const double eta_surface = kPi * radius * radius * kLightPaths;
+                            const double eta_volume =
+                                4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
+                            const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
+                            const double r_1 = 0.5 * radius;
+                            for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
+                                for (const bool short_beams : {false, true}) {
+                                    if (short_beams && !grey) continue;
+                                    SCOPED_TRACE(
+                                        ::testing::Message()
+                                        << (grey ? "grey" : "chromatic") << " grid fog path of "
+                                        << materials.size() << " vertices, light kind " << int(kind)
+                                        << ", trial " << trial << ", radius " << radius
+                                        << ", power " << power << ", eta_1 " << eta_1 << ", "
+                                        << (short_beams ? "short" : "long") << " beams");
+                                    for (const auto& [vc, vm, qb, name] :
+                                         {std::tuple{true, false, 0.0, "BPT+BB1D"},
+                                          std::tuple{true, true, eta_beam, "UPBP (all)"},
+                                          std::tuple{false, true, 0.0, "BPM+BB1D"},
+                                          std::tuple{false, false, 0.0, "BB1D"}}) {
+                                        const int before = photon_beams_checked_;
+                                        check_family(power, vc, vm, eta_surface, eta_volume, name,
+                                                     0, qb, eta_1 * kLightPaths, short_beams);
+                                        short_checked +=
+                                            short_beams ? photon_beams_checked_ - before : 0;
+                                    }
+                                    ++checked;
+                                }
+                        }
+                }
+    }
+    grid_fog_ = nullptr;
+    EXPECT_GT(checked, 500);
+    EXPECT_GT(photon_beams_checked_, 3000);
+    EXPECT_GT(short_checked, 1000);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
