@@ -288,7 +288,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
         const RenderSettings settings =
             resolve_render_settings(job_algorithm(s->algorithm(), scene->settings.integrator),
                                     service::request_options(*s), scene->settings);
-        check_algorithm_supports_scene(settings.algorithm, *scene);
+        check_algorithm_supports_scene(settings, *scene);
         s->set_algorithm(settings.algorithm);
         service::set_request_options(*s, render_settings_options(settings));
         if (s->iterations() == 0 && s->time_budget_seconds() == 0)
@@ -337,7 +337,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
             loading_frame = i;
             std::unique_ptr<Scene> frame_scene = load_scene_within_memory(
                 scene_dir / request.bundle().scene_path(), defines, scene_dir);
-            check_algorithm_supports_scene(settings.algorithm, *frame_scene);
+            check_algorithm_supports_scene(settings, *frame_scene);
             loading_frame = -1;
         }
         validate_seconds =

@@ -184,7 +184,7 @@ int render_scene(const Options& o) {
     RenderSettings settings = resolve_render_settings(
         job_algorithm(o.job.algorithm, scene->settings.integrator), o.job.options, scene->settings);
     settings.threads = o.threads;
-    check_algorithm_supports_scene(settings.algorithm, *scene);
+    check_algorithm_supports_scene(settings, *scene);
     const uint64_t scene_bytes = budget.charged();
     const uint64_t film_w = uint64_t(scene->camera().width()),
                    film_h = uint64_t(scene->camera().height());

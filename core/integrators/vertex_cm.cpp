@@ -269,6 +269,9 @@ struct EmissionRay {
     float piece_end = 0;             // from origin to the first surface, null or not
 };
 
+static_assert(sizeof(EmissionRay) <= kEmissionRayBytesBound,
+              "EmissionRay outgrew kEmissionRayBytesBound (vertex_cm.h): raise it");
+
 struct LightChunk {
     uint64_t index = 0;
     std::vector<LightVertex> vertices;
@@ -531,8 +534,7 @@ class Iteration {
     // its emission ray by B2, joined to the eye segment through a J1 vertex (nullopt: none).
     std::optional<LightVertex> resample_on_emission_ray(const EmissionRay& emission,
                                                         const Vec3& eye_origin,
-                                                        const Vec3& eye_direction, Rng& rng,
-                                                        RenderStats& stats) const;
+                                                        const Vec3& eye_direction, Rng& rng) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
     // previous vertex toward the light vertex's predecessor) over its plain connection; 0
@@ -1377,7 +1379,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     // the eye vertex toward it by J1.
     if (emission && emission->medium && 2 + state.path_length <= max_length_) {
         if (const std::optional<LightVertex> b =
-                resample_on_emission_ray(*emission, state.origin, ray.direction, rng, stats)) {
+                resample_on_emission_ray(*emission, state.origin, ray.direction, rng)) {
             if (const std::optional<JointVertex> j = sample_vertex(b->vertex.p)) {
                 if (const std::optional<ConnectionTerms> c =
                         connection_terms(*b, j->v, wo, j->mis, rng, stats, JointKind::J2))
@@ -1401,8 +1403,8 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
 
 std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay& e,
                                                                const Vec3& eye_origin,
-                                                               const Vec3& eye_direction, Rng& rng,
-                                                               RenderStats& stats) const {
+                                                               const Vec3& eye_direction,
+                                                               Rng& rng) const {
     const float range = light_ray_range(scene_.bounding_sphere(), e.origin, e.direction);
     if (!(range > 0)) return std::nullopt;
     const JointLightDistanceSampler b2(e.origin, e.direction, eye_origin, eye_direction, range);

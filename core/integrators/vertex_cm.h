@@ -140,6 +140,7 @@ struct PhotonBeamInspection {
 // so a record that grows past its bound fails the build instead of the estimate.
 inline constexpr size_t kLightVertexBytesBound = 216;  // a stored light vertex (LightVertex)
 inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
+inline constexpr size_t kEmissionRayBytesBound = 96;   // J2's per-path emission ray
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one
 // iteration to the next (vertex_cm.cpp).

@@ -1,5 +1,6 @@
 #include "core/render/algorithms.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "core/integrators/eyelight.h"
@@ -312,6 +313,21 @@ void check_algorithm_supports_scene(const std::string& name, const Scene& scene)
         "the scene has " +
         std::string(grid ? "a heterogeneous (grid) medium" : "participating media") +
         ", which algorithm \"" + algorithm.name + "\" does not render correctly (use " + can + ")");
+}
+
+void check_algorithm_supports_scene(const RenderSettings& settings, const Scene& scene) {
+    check_algorithm_supports_scene(settings.algorithm, scene);
+    const Algorithm& algorithm = find_algorithm_or_throw(settings.algorithm);
+    // Only the algorithms that read the option: the others ignore it. The weights count a J1
+    // technique at s = 1 toward every light, and toward a volume light's point none samples.
+    const bool reads_joint = std::find(algorithm.options.begin(), algorithm.options.end(),
+                                       std::string("joint_connections")) != algorithm.options.end();
+    if (reads_joint && settings.joint_connections && !scene.volume_lights().empty())
+        throw std::invalid_argument(
+            "--joint-connections " + std::string(settings.joint2_connections ? "all" : "on") +
+            " does not render emitting media yet (the scene's emitting media are lights, and no "
+            "joint connection samples a point of them); use --joint-connections off with \"" +
+            algorithm.name + "\", or volpt");
 }
 
 }  // namespace render

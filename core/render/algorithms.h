@@ -76,5 +76,8 @@ std::unique_ptr<Integrator> make_integrator(const RenderSettings& settings);
 // Throws std::invalid_argument when the algorithm would render `scene` wrongly (media it does
 // not handle), naming the algorithms that can.
 void check_algorithm_supports_scene(const std::string& algorithm, const Scene& scene);
+// The same, and the options of `settings` that cannot render `scene` (joint connections beside
+// an emitting medium, whose J1 technique toward a volume light's point is not built).
+void check_algorithm_supports_scene(const RenderSettings& settings, const Scene& scene);
 
 }  // namespace render

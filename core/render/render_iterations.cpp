@@ -44,7 +44,7 @@ struct IterationRenderer::State {
 IterationRenderer::IterationRenderer(const Scene& scene, const RenderSettings& settings,
                                      uint32_t frame)
     : state_(std::make_unique<State>(scene, settings, frame)) {
-    check_algorithm_supports_scene(settings.algorithm, scene);
+    check_algorithm_supports_scene(settings, scene);
 }
 
 IterationRenderer::~IterationRenderer() = default;

@@ -47,6 +47,20 @@ TEST(IterationMemory, StoredLightPathsGrowWithThePixelsOrTheLightPathCount) {
     EXPECT_LT(estimate_iteration_memory(fixed, 512, 512, 2).bytes, small);
 }
 
+// J2 (bpt --joint-connections all) keeps one emission ray per light path besides the vertices.
+TEST(IterationMemory, JointSegmentConnectionsChargeTheirEmissionRays) {
+    RenderSettings j1 = settings_for("bpt");
+    j1.joint_connections = true;
+    RenderSettings j2 = j1;
+    j2.joint2_connections = true;
+    const uint64_t paths = 256u * 256u;  // one light path per pixel
+    EXPECT_EQ(estimate_iteration_memory(j2, 256, 256, 2).bytes -
+                  estimate_iteration_memory(j1, 256, 256, 2).bytes,
+              paths * kEmissionRayBytesBound);
+    EXPECT_NE(estimate_iteration_memory(j2, 256, 256, 2).what.find("J2's emission rays"),
+              std::string::npos);
+}
+
 TEST(IterationMemory, EachAlgorithmChargesWhatItStores) {
     const uint64_t w = 512, h = 512;
     const uint64_t pt = estimate_iteration_memory(settings_for("pt"), w, h, 2).bytes;

@@ -223,7 +223,7 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
         for (const std::string& algorithm : testing::physically_based_algorithms()) {
             RenderSettings settings = testing::algorithm_settings(algorithm);
             try {
-                check_algorithm_supports_scene(settings.algorithm, *scene);
+                check_algorithm_supports_scene(settings, *scene);
             } catch (const std::invalid_argument&) {
                 continue;
             }

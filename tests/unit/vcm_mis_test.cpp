@@ -912,10 +912,12 @@ class MisSumTest : public ::testing::Test {
                 << name << ": technique " << int(list[k].kind) << " at vertex " << list[k].vertex;
         // With J2, the emission weight is small in fog (the eye rarely hits the light from a
         // medium vertex) and its J2 term is below the absolute tolerance above: checked relative.
-        for (size_t k = 0; joint2_ && k < list.size(); ++k)
-            if (list[k].kind == TechniqueKind::Emission)
+        for (size_t k = 0; joint2_ && k < list.size(); ++k) {
+            if (list[k].kind == TechniqueKind::Emission) {
                 EXPECT_NEAR(w[k], reference[k], 1e-3 * reference[k] + 1e-12)
                     << name << ": the emission weight, relative";
+            }
+        }
     }
 
     static Vec3 random_direction_above(Rng& rng, float min_cos) {

@@ -453,8 +453,12 @@ TEST(HardCases, JointSegmentConnectionsAtExtremeThicknessAndAnisotropyStayFinite
         for (int channel = 0; channel < 3; ++channel) {
             const double mean = pixel_statistics(r, channel).mean;
             ASSERT_TRUE(std::isfinite(mean));
-            if (k.dark) EXPECT_LT(mean, 1e-30);
-            if (k.lit) EXPECT_GT(mean, 0.0);
+            if (k.dark) {
+                EXPECT_LT(mean, 1e-30);
+            }
+            if (k.lit) {
+                EXPECT_GT(mean, 0.0);
+            }
         }
     }
 }

@@ -314,7 +314,7 @@ TEST_P(EmittingIterationContract, SplitRangesAndThreadCountsOnAnEmittingMedium) 
     auto scene = load_scene_from_string(sphere_over_floor(), ".");
     RenderSettings settings = testing::algorithm_settings(GetParam());
     try {
-        check_algorithm_supports_scene(settings.algorithm, *scene);
+        check_algorithm_supports_scene(settings, *scene);
     } catch (const std::invalid_argument&) {
         GTEST_SKIP() << GetParam() << " refuses emitting media";
     }
@@ -341,6 +341,29 @@ TEST_P(EmittingIterationContract, SplitRangesAndThreadCountsOnAnEmittingMedium) 
     const IterationResult one = render_with(1), two = render_with(2);
     EXPECT_EQ(one.stats.rays, two.stats.rays);
     EXPECT_TRUE(one.sum.values() == two.sum.values());
+}
+
+// Joint connections count a J1 technique at s = 1 toward every light, and none samples a volume
+// light's point: with an emitting medium they are refused by name (they used to be switched off
+// without a word), and the same algorithms without them render the scene.
+TEST(VolumeEmitter, JointConnectionsBesideAnEmittingMediumAreRefusedByName) {
+    auto scene = load_scene_from_string(sphere_over_floor(), ".");
+    for (const char* algorithm : {"bpt", "vcm"}) {
+        RenderSettings settings = testing::algorithm_settings(algorithm);
+        EXPECT_NO_THROW(check_algorithm_supports_scene(settings, *scene)) << algorithm;
+        settings.joint_connections = true;
+        try {
+            check_algorithm_supports_scene(settings, *scene);
+            ADD_FAILURE() << algorithm << " with joint connections accepted an emitting medium";
+        } catch (const std::invalid_argument& e) {
+            EXPECT_NE(std::string(e.what()).find("--joint-connections on"), std::string::npos)
+                << e.what();
+        }
+        // render_iterations, the entry point of render and the worker, refuses it too.
+        EXPECT_THROW(render_iterations(*scene, settings, 0, IterationRange{1, 2}),
+                     std::invalid_argument)
+            << algorithm;
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Algorithms, EmittingIterationContract,
