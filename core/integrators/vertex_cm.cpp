@@ -32,12 +32,12 @@
 #include "core/integrators/vcm_mis.h"
 #include "core/integrators/volume_light_sampling.h"
 #include "core/integrators/vpl_distribution.h"
-#include "core/lights/volume_emitter.h"
 #include "core/materials/surface_bsdf.h"
 #include "core/math/constants.h"
 #include "core/media/medium.h"
 #include "core/media/medium_interface.h"
 #include "core/sampling/half_line_equiangular.h"
+#include "core/scene/volume_emitter.h"
 #include "core/util/block_vector.h"
 
 namespace render {

@@ -1,7 +1,7 @@
 #pragma once
 
 // Sampling the emitters of the bidirectional family: the scene's lights and its emitting media
-// (Scene::volume_lights, core/lights/volume_emitter.h; docs/media.md "Emitting media as
+// (Scene::volume_lights, core/scene/volume_emitter.h; docs/media.md "Emitting media as
 // lights"). A volume light's point takes three numbers, its direction two, so it has routines of
 // its own beside Light::illuminate and Light::emit. Without emitting media every routine here
 // draws what sample_direct_light and Light::emit draw, in the same order.
@@ -10,9 +10,9 @@
 
 #include "core/integrators/direct_light.h"
 #include "core/integrators/vcm_mis.h"
-#include "core/lights/volume_emitter.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
+#include "core/scene/volume_emitter.h"
 
 namespace render {
 

@@ -18,7 +18,7 @@
 //     p_B2(t) p_B1(s | b) = G(b, c) sin(alpha) / (C (pi - theta_b)),
 // checked numerically by joint_sampling_test. T must be finite (the integral of 1 / h over a
 // half-line diverges): bpt uses the light ray's exit from the scene's bounding sphere, which
-// every technique can compute without tracing (light_ray_range below).
+// every technique can compute without tracing (light_ray_range, core/integrators/joint_segment.h).
 //
 // Guards: (nearly) parallel lines (sin^2 alpha < 1e-12) have a constant h, and the density is
 // uniform; D is clamped to 1e-6 of the problem's size (lines that meet), as U3 clamps it; a
@@ -27,7 +27,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/lights/light.h"
 #include "core/math/vec.h"
 #include "core/sampling/joint_eye_distance.h"
 #include "core/sampling/ray_point_geometry.h"
@@ -108,21 +107,5 @@ class JointLightDistanceSampler {
     float t1_;
     JointEyeDistanceSampler eye_form_;
 };
-
-// B2's range on the light ray from `origin` along unit `direction`: up to where it leaves the
-// scene's bounding sphere (0 when it never is inside). Deterministic from the ray alone, so
-// that the density of a path's light-side vertex can be evaluated by every technique without
-// tracing (ALGORITHMS-NEXT.md rule 0.3).
-inline float light_ray_range(const SceneSphere& sphere, const Vec3& origin, const Vec3& direction) {
-    const double o[3] = {double(origin.x) - sphere.center.x, double(origin.y) - sphere.center.y,
-                         double(origin.z) - sphere.center.z};
-    const double b = o[0] * direction.x + o[1] * direction.y + o[2] * direction.z;
-    const double c =
-        o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - double(sphere.radius) * sphere.radius;
-    const double disc = b * b - c;
-    if (!(disc > 0)) return 0.0f;
-    const double t = -b + std::sqrt(disc);
-    return t > 0 && std::isfinite(t) ? float(t) : 0.0f;
-}
 
 }  // namespace render

@@ -5,10 +5,10 @@
 
 #include "core/base/error.h"
 #include "core/base/properties.h"
-#include "core/lights/volume_emitter.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
 #include "core/scene/embree_ray.h"
+#include "core/scene/volume_emitter.h"
 #include "core/shapes/instance.h"
 
 namespace render {

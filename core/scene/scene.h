@@ -108,7 +108,7 @@ class Scene {
     const Light* sample_light(float u, float* pick_probability) const;
     float light_pick_probability(const Light* light) const;
 
-    // Emitting media as lights (core/lights/volume_emitter.h), for the bidirectional family
+    // Emitting media as lights (core/scene/volume_emitter.h), for the bidirectional family
     // only: path tracers keep lights() and collect medium emission along their segments. Built
     // at commit() for every emitting medium whose region is finite; the others are named by
     // unbounded_emitting_media().

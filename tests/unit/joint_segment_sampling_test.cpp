@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/integrators/joint_segment.h"
 #include "core/sampling/half_line_equiangular.h"
 #include "core/sampling/joint_light_distance.h"
 #include "tests/support/chi_square.h"

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "core/camera/perspective_camera.h"
+#include "core/integrators/joint_segment.h"
 #include "core/integrators/medium_segment.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"

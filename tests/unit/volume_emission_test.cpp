@@ -25,6 +25,7 @@
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "tests/support/emitting_sphere_scene.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/test_scenes.h"
 
@@ -101,28 +102,10 @@ std::string medium_xml(bool grid, const std::string& albedo,
   </medium>)";
 }
 
-// A unit sphere of emitting, absorbing medium (null boundary) seen from (0, y, -5) along +z
-// with a field of view of 0.02 degrees: every camera ray crosses the sphere within 1e-3 of the
-// line x = 0, y = y, whose chord is 2 sqrt(1 - y^2); over the pixels the chord varies by a
-// relative 1e-6 at most (the linear part cancels by symmetry), so every pixel sees the
-// closed form of that chord.
+// A unit sphere of emitting, absorbing medium seen from outside (tests/support): every pixel
+// sees the closed form of the chord 2 sqrt(1 - y^2).
 std::string sphere_seen_from_outside(bool grid, double y = 0, const std::string& albedo = "0") {
-    const std::string ys = std::to_string(y);
-    return R"(<scene version="3.0.0">
-  )" + medium_xml(grid, albedo) +
-           R"(
-  <sensor type="perspective">
-    <float name="fov" value="0.02"/>
-    <transform name="to_world"><lookat origin="0, )" +
-           ys + R"(, -5" target="0, )" + ys + R"(, 0" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="1"/>
-    <bsdf type="null"/>
-    <ref name="interior" id="glow"/>
-  </shape>
-</scene>)";
+    return testing::emitting_sphere_seen_from_outside(medium_xml(grid, albedo), y);
 }
 
 double sphere_radiance(int channel, double y = 0) {

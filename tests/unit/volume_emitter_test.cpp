@@ -1,4 +1,4 @@
-// Emitting media as lights of the bidirectional family (core/lights/volume_emitter.h,
+// Emitting media as lights of the bidirectional family (core/scene/volume_emitter.h,
 // docs/media.md "Emitting media as lights"):
 //   - the start-point sampler against its density p_V (chi-square over a histogram of the box
 //     that does not line up with the sampler's lattice, expected counts integrated exactly), and
@@ -20,15 +20,16 @@
 #include <string>
 #include <vector>
 
-#include "core/lights/volume_emitter.h"
 #include "core/media/medium.h"
 #include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_settings.h"
 #include "core/scene/loader/scene_loader.h"
+#include "core/scene/volume_emitter.h"
 #include "tests/support/algorithms.h"
 #include "tests/support/block_estimate.h"
 #include "tests/support/chi_square.h"
+#include "tests/support/emitting_sphere_scene.h"
 
 namespace render {
 namespace {
@@ -51,25 +52,9 @@ std::string glow(const std::string& albedo) {
   </medium>)";
 }
 
-// volume_emission_test's absorbing unit sphere seen from (0, y, -5) with a 0.02 degree field of
-// view: every pixel sees the chord 2 sqrt(1 - y^2).
+// volume_emission_test's absorbing unit sphere: every pixel sees the chord 2 sqrt(1 - y^2).
 std::string absorbing_sphere(double y) {
-    const std::string ys = std::to_string(y);
-    return R"(<scene version="3.0.0">
-  )" + glow("0") +
-           R"(
-  <sensor type="perspective">
-    <float name="fov" value="0.02"/>
-    <transform name="to_world"><lookat origin="0, )" +
-           ys + R"(, -5" target="0, )" + ys + R"(, 0" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="1"/>
-    <bsdf type="null"/>
-    <ref name="interior" id="glow"/>
-  </shape>
-</scene>)";
+    return testing::emitting_sphere_seen_from_outside(glow("0"), y);
 }
 
 // The closed furnace: the medium inside black walls emitting L_e, the camera inside.

@@ -1,4 +1,4 @@
-#include "core/lights/volume_emitter.h"
+#include "core/scene/volume_emitter.h"
 
 #include <algorithm>
 #include <cmath>
