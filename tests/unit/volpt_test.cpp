@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,19 @@ struct FurnaceCase {
     bool jis = true;  // joint sampling (volpt: J3; bpt, vcm: J1 connections)
     void (*adjust)(RenderSettings&) = nullptr;  // other settings (upbp's estimators)
 };
+
+// How test output and ctest name a case (gtest would print its raw bytes, pointers included,
+// which change from build to build).
+void PrintTo(const FurnaceCase& c, std::ostream* os) {
+    const std::string phase(c.phase);
+    const size_t g = phase.find("value=\"");
+    *os << c.algorithm << " sigma_t=" << c.sigma_t << " "
+        << (g == std::string::npos ? "isotropic"
+                                   : "g=" + phase.substr(g + 7, phase.find('"', g + 7) - g - 7))
+        << (c.equiangular ? "" : " no-equiangular") << " radius=" << c.radius_factor
+        << " iterations=" << c.iterations << (c.jis ? "" : " no-jis")
+        << (c.adjust ? " adjusted" : "");
+}
 
 class MediumFurnace : public ::testing::TestWithParam<FurnaceCase> {};
 
