@@ -28,13 +28,8 @@ struct VolumeLightSample {
 
 inline VolumeLightSample sample_volume_light_start(const VolumeEmitter& emitter,
                                                    float pick_probability, Rng& rng) {
-    Vec3 u;
-    u.x = rng.next_1d();
-    u.y = rng.next_1d();
-    u.z = rng.next_1d();
-    Vec2 ud;
-    ud.x = rng.next_1d();
-    ud.y = rng.next_1d();
+    const Vec3 u = rng.next_3d();
+    const Vec2 ud = rng.next_2d();
     const VolumePointSample y = emitter.sample_point(u);
     VolumeLightSample out;
     out.p = y.p;
@@ -89,10 +84,7 @@ inline bool sample_direct_emitter(const Scene& scene, const Vec3& receiver, Rng&
         const Vec2 u = rng.next_2d();
         return out.light->illuminate(receiver, u, out.ls) && out.ls.pdf_direct_w > 0;
     }
-    Vec3 u;
-    u.x = rng.next_1d();
-    u.y = rng.next_1d();
-    u.z = rng.next_1d();
+    const Vec3 u = rng.next_3d();
     const VolumePointSample y = emitter->sample_point(u);
     if (y.source.is_black() || !(y.pdf_volume > 0)) return false;
     return volume_light_illuminate(receiver, y.p, y.source, y.pdf_volume, out.ls);

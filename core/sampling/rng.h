@@ -63,6 +63,11 @@ class Rng {
         float a = next_1d();
         return {a, next_1d()};
     }
+    // x, y, z drawn in that order.
+    Vec3 next_3d() {
+        const float x = next_1d(), y = next_1d();
+        return Vec3(x, y, next_1d());
+    }
 
   private:
     uint64_t state_ = 0;

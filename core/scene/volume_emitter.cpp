@@ -101,10 +101,7 @@ VolumeEmitter::VolumeEmitter(const Scene& scene, const Medium& medium, const Aab
                                            float(i / (resolution_ * resolution_)) * cell_size_.z);
         double cell = 0;
         for (int k = 0; k < kPointsPerCell; ++k) {
-            Vec3 u;
-            u.x = rng.next_1d();
-            u.y = rng.next_1d();
-            u.z = rng.next_1d();
+            const Vec3 u = rng.next_3d();
             cell += source_luminance(medium, corner + u * cell_size_);
         }
         w[size_t(i)] = float(cell / kPointsPerCell);
