@@ -18,6 +18,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/iteration_contract.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/statistics.h"
 #include "tests/support/test_scenes.h"
@@ -150,23 +151,8 @@ TEST(GridPhotonBeams, IterationContractOnTheSmoke) {
     auto scene = smoke("16", 24);
     for (void (*adjust)(RenderSettings&) : {+[](RenderSettings&) {}, long_photon_beams}) {
         RenderSettings settings = upbp(adjust);
-        const IterationResult whole = render_iterations(*scene, settings, 0, IterationRange{1, 5});
-        const IterationResult a = render_iterations(*scene, settings, 0, IterationRange{1, 3});
-        const IterationResult b = render_iterations(*scene, settings, 0, IterationRange{3, 5});
-        for (size_t i = 0; i < whole.sum.values().size(); ++i) {
-            const double split = a.sum.values()[i] + b.sum.values()[i];
-            ASSERT_NEAR(whole.sum.values()[i], split, 1e-12 * std::abs(split) + 1e-300);
-        }
-        auto render_with = [&](int threads) {
-            settings.threads = threads;
-            IterationRenderer renderer(*scene, settings, 2);
-            IterationResult result = renderer.empty_result();
-            renderer.add(IterationRange{3, 5}, result);
-            return result;
-        };
-        const IterationResult one = render_with(1), two = render_with(2);
-        EXPECT_EQ(one.stats.rays, two.stats.rays);
-        EXPECT_TRUE(one.sum.values() == two.sum.values());
+        ASSERT_NO_FATAL_FAILURE(testing::expect_split_ranges_add_up(*scene, settings, 1, 3, 5));
+        testing::expect_thread_count_changes_nothing(*scene, settings, IterationRange{3, 5});
     }
 }
 
