@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace render {
 namespace {
@@ -27,7 +29,11 @@ constexpr size_t kGroupBuckets = 4096;
 // each group is counting-sorted by bucket on its own. Both levels are stable, so a bucket's
 // points are in increasing index order, as a serial counting sort leaves them, whatever the
 // number of threads.
-void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
+void HashGrid::build(const std::vector<Vec3>& positions, double radius,
+                     std::span<const uint32_t> ids) {
+    if (!ids.empty() && ids.size() != positions.size())
+        throw std::invalid_argument("HashGrid::build: " + std::to_string(ids.size()) + " ids for " +
+                                    std::to_string(positions.size()) + " points");
     radius2_ = float(radius * radius);
     inv_cell_size_ = 1.0 / (2.0 * radius);
     const size_t n = positions.size();
@@ -80,12 +86,13 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius) {
         }
     }
     group_starts_[groups] = slot;
-    // The points (position, index) in group order; within a group in block order, then point
+    // The points (position, id) in group order; within a group in block order, then point
     // order.
     tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
         uint32_t* next = slots_.data() + b * groups;
         for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i)
-            entries_[next[bucket_of(i) / kGroupBuckets]++] = {positions[i], uint32_t(i)};
+            entries_[next[bucket_of(i) / kGroupBuckets]++] = {positions[i],
+                                                              ids.empty() ? uint32_t(i) : ids[i]};
     });
     // Each group sorted by bucket in place, through a copy of its entries (the bucket is
     // recomputed from the same position, so it is the one counted above).

@@ -980,8 +980,10 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
             tbb::make_filter<LightChunk*, void>(tbb::filter_mode::serial_in_order, gather));
 
     if (use_vm_) {
-        surface_grid_.build(surface_positions_, radius_);
-        medium_grid_.build(medium_positions_, volume_radius_);
+        // Each grid point carries its light vertex's index: a merge goes from the point straight
+        // to the vertex (the index arrays are increasing, so the visiting order is unchanged).
+        surface_grid_.build(surface_positions_, radius_, surface_index_);
+        medium_grid_.build(medium_positions_, volume_radius_, medium_index_);
     }
     if (query_beams_) {
         if (!storage_.beam_lookup) storage_.beam_lookup = std::make_unique<PointsAlongRay>();
@@ -1718,10 +1720,9 @@ float Iteration::merge_joint_ratio(const LightVertex& lv, const Vertex& v) const
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
-    const std::vector<uint32_t>& index = medium ? medium_index_ : surface_index_;
     Rgb sum(0.0f);
     grid.for_each_within_radius(v.p, [&](uint32_t i) {
-        const LightVertex& lv = light_vertices_[index[i]];
+        const LightVertex& lv = light_vertices_[i];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
         const auto [f, pdf_w] = v.evaluate(wo, lv.wo);

@@ -11,7 +11,9 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -206,6 +208,67 @@ TEST(HashGrid, VisitOrderIsIncreasingAndIndependentOfTheThreadCount) {
                 ASSERT_EQ(many[q], one[q]) << threads << " threads, query " << q;
         }
     }
+}
+
+// Ids given to build() are what the visit receives, and the visiting order stays that of the
+// point indices (VCM passes each point's increasing light-vertex index: its merge sums must not
+// change order). A wrong count of ids is refused by name.
+TEST(HashGrid, VisitsTheIdsGivenToTheBuildInPointOrder) {
+    const double radius = 0.1;
+    const std::vector<Vec3> points = point_set(radius, 31);
+    std::vector<uint32_t> ids(points.size());
+    for (size_t i = 0; i < ids.size(); ++i) ids[i] = uint32_t(3 * i + 7);  // increasing
+    HashGrid plain, with_ids;
+    plain.build(points, radius);
+    with_ids.build(points, radius, ids);
+    size_t non_trivial = 0;
+    for (const Vec3& q : query_set(points, radius, 32)) {
+        std::vector<uint32_t> expected, visited;
+        plain.for_each_within_radius(q, [&](uint32_t i) { expected.push_back(ids[i]); });
+        with_ids.for_each_within_radius(q, [&](uint32_t id) { visited.push_back(id); });
+        ASSERT_EQ(visited, expected) << "query " << q;
+        non_trivial += expected.size() > 1;
+    }
+    EXPECT_GT(non_trivial, 100u);
+    std::vector<uint32_t> too_few(points.size() - 1);
+    try {
+        with_ids.build(points, radius, too_few);
+        FAIL() << "a wrong number of ids was accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("ids"), std::string::npos) << e.what();
+    }
+}
+
+// The cells a query skips (out of the sphere's reach) never hold a point within the radius:
+// queries at exactly r from a point along one, two and three axes' diagonals, where the point
+// sits just across a cell edge or corner from the query, find it as the linear scan does.
+TEST(HashGrid, SkippedCellsHoldNoPointWithinTheRadius) {
+    const double radius = 0.25;  // cells of 0.5: boundaries exact in float
+    const float cell = float(2 * radius);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 8; ++i)
+        for (int j = 0; j < 8; ++j)
+            for (int k = 0; k < 8; ++k) points.push_back(kLow + Vec3(i, j, k) * cell);
+    HashGrid grid;
+    grid.build(points, radius);
+    size_t found = 0;
+    for (const Vec3& corner : points)
+        for (int axes = 1; axes < 8; ++axes)
+            for (float scale : {0.999f, 1.0f, 1.001f}) {
+                // Toward the corner from inside the neighbouring cell, along the diagonal of
+                // the stepped axes, at (about) the radius.
+                const int n = (axes & 1) + (axes >> 1 & 1) + (axes >> 2 & 1);
+                const float offset = scale * float(radius) / std::sqrt(float(n));
+                Vec3 q = corner;
+                for (int a = 0; a < 3; ++a)
+                    if (axes >> a & 1) q[a] += offset;
+                std::vector<uint32_t> visited;
+                grid.for_each_within_radius(q, [&](uint32_t i) { visited.push_back(i); });
+                std::sort(visited.begin(), visited.end());
+                ASSERT_EQ(visited, linear_scan(points, q, radius)) << "query " << q;
+                found += visited.size();
+            }
+    EXPECT_GT(found, points.size() * 7);  // the 0.999 queries find their corner at least
 }
 
 }  // namespace
