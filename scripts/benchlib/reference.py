@@ -9,7 +9,17 @@ path length (10 segments), merging radius (0.003 x the scene's bounding-sphere r
 0.75) and the base seed are fixed in its config.hxx, and the thread count is
 omp_get_num_procs(), the CPUs in the process's affinity mask (OMP_NUM_THREADS is overridden by
 its omp_set_num_threads). Both programs therefore run pinned to the same THREADS CPUs. Without
-the option the section says "not run". Only the Python standard library is used.
+the option the section says "not run".
+
+Per unit of error: both programs' images of the timed runs are compared with the converged
+image of each box in docs/references/ (ours, vcm, 256-1024 iterations at 256 x 256, made once by
+`scripts/bench --make-references`): each 512 x 512 image is box-averaged 2 x 2 down to 256 x 256
+(both programs use a box pixel filter, so the average has the coarse pixel's expectation), and
+efficiency = 1 / (MSE x wall seconds). The ratio ours / reference above 1 means ours reaches a
+given error sooner; its inverse is the time ours needs for the reference's error, relative to the
+reference's time (the time target <= 0.8 read per unit of error). SmallVCM writes its image as
+PFM (its driver's `.pfm` output: raw little-endian float RGB, top row first). The timing needs
+only the standard library; the error needs numpy and OpenImageIO (scripts/setup installs them).
 """
 
 import os
@@ -27,6 +37,8 @@ ALGORITHMS = ["vcm", "bpt"]
 ITERATIONS = 16  # SmallVCM splits -i over its threads: 2 threads x 8 iterations of 512^2 paths
 ROUNDS = 3
 THREADS = 2
+# The converged image of each box (docs/references/README.md): name of its EXR.
+REFERENCE_IMAGES = {"0-gbs_s": "gbs_s", "1-glm_c": "glm_c", "2-gbs_p": "gbs_p", "3-gbs_b": "gbs_b"}
 
 
 def pinned_cpus():
@@ -54,6 +66,57 @@ def timed(cmd, cpus, env=None):
         raise RuntimeError(f"{' '.join(map(str, cmd))} exited {code}: {stderr.strip()[-500:]}")
     # ru_maxrss is in KiB on Linux
     return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
+
+
+def read_pfm(path):
+    """A colour PFM as a float64 array of shape H x W x 3, top row first. SmallVCM's SavePFM
+    writes its framebuffer's rows in memory order, top row first (its BMP writer flips them for
+    BMP's bottom-up order), under a negative (little-endian) scale."""
+    import numpy as np
+
+    data = Path(path).read_bytes()
+    fields, offset = [], 0
+    while len(fields) < 4:  # "PF", width, height, scale, separated by whitespace
+        while data[offset:offset + 1].isspace():
+            offset += 1
+        end = offset
+        while not data[end:end + 1].isspace():
+            end += 1
+        fields.append(data[offset:end].decode())
+        offset = end
+    offset += 1  # the single whitespace character before the raster
+    if fields[0] != "PF":
+        raise ValueError(f"{path}: not a colour PFM (magic {fields[0]!r})")
+    width, height, scale = int(fields[1]), int(fields[2]), float(fields[3])
+    pixels = np.frombuffer(data, dtype="<f4" if scale < 0 else ">f4", count=width * height * 3,
+                           offset=offset)
+    return pixels.astype(np.float64).reshape(height, width, 3)
+
+
+def converged_image(scene):
+    """The box's converged image (256 x 256) and its own estimated MSE: the reference's noise,
+    (relative error estimate x RMS of the image)^2, from the render:relative_error_estimate
+    its header records (half the RMS difference of its odd and even iterations' means over
+    the RMS of the mean)."""
+    from benchlib import common
+
+    path = Path(__file__).resolve().parents[2] / "docs" / "references" / (
+        REFERENCE_IMAGES[scene] + ".exr")
+    pixels, attributes = common.read_exr(path)
+    relative = float(attributes.get("render:relative_error_estimate", "nan"))
+    own_mse = relative * relative * float((pixels * pixels).mean())
+    return pixels, own_mse, attributes
+
+
+def image_error(image, converged):
+    """MSE over pixels and channels of `image` (box-averaged down to the converged image's
+    size) against the converged image, and the ratio of their means (a bias indicator)."""
+    from benchlib import common
+
+    height, width = converged.shape[:2]
+    small = common.downscale(image, (width, height))
+    diff = small - converged
+    return float((diff * diff).mean()), float(small.mean() / converged.mean())
 
 
 def loadavg():
@@ -87,14 +150,24 @@ def run(bin_dir, reference, quick, work, log=print):
                         "--algo", algo, "--iterations", str(iterations),
                         "--threads", str(THREADS), "--out", str(Path(work) / "ours.exr")]
             ref_cmd = [str(reference), "-s", str(SCENE_IDS[scene]), "-a", algo,
-                       "-i", str(iterations), "-o", str(Path(work) / "reference.bmp")]
+                       "-i", str(iterations), "-o", str(Path(work) / "reference.pfm")]
             ours, theirs = [], []
             for r in range(rounds):
                 log(f"reference comparison: {scene} {algo} round {r + 1}/{rounds} "
                     f"(load {' '.join(loadavg())})")
                 ours.append(timed(ours_cmd, cpus))
                 theirs.append(timed(ref_cmd, cpus))
+            # Both programs seed their samplers the same way every run, so the last round's
+            # images stand for all rounds.
+            from benchlib import common
+
+            converged, own_mse, _ = converged_image(scene)
+            ours_mse, ours_mean = image_error(common.read_exr(Path(work) / "ours.exr")[0],
+                                              converged)
+            ref_mse, ref_mean = image_error(read_pfm(Path(work) / "reference.pfm"), converged)
             rows.append({
+                "ours_mse": ours_mse, "reference_mse": ref_mse, "converged_own_mse": own_mse,
+                "ours_mean_ratio": ours_mean, "reference_mean_ratio": ref_mean,
                 "scene": scene, "algorithm": algo, "iterations": iterations,
                 "ours_seconds": [w for w, _, _ in ours],
                 "reference_seconds": [w for w, _, _ in theirs],
@@ -108,7 +181,7 @@ def run(bin_dir, reference, quick, work, log=print):
             "ours_binary": str((Path(bin_dir) / "render").resolve()),
             "ours_cmd": "build/bin/render scenes/smallvcm/SCENE.xml --algo ALGO --iterations "
                         f"{iterations} --threads {THREADS} --out OUT.exr",
-            "reference_cmd": f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.bmp"}
+            "reference_cmd": f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm"}
 
 
 TITLE = "## Against the reference implementation (SmallVCM)"
@@ -162,11 +235,44 @@ def section(result, previous=None):
                  f"**{t_ours / t_ref:.2f}** | {c_ours:.1f} | {c_ref:.1f} | {m_ours:.0f} | "
                  f"{m_ref:.0f} | **{m_ours / m_ref:.2f}** |")
     L.append("")
+    L.extend(efficiency_lines(result["rows"]))
     L.append("Per-round wall seconds (ours / reference): " + "; ".join(
         f"{row['scene']} {row['algorithm']} "
         + ", ".join(f"{a:.1f}/{b:.1f}" for a, b in zip(row["ours_seconds"],
                                                        row["reference_seconds"]))
         for row in result["rows"]) + ".")
+    return L + [""]
+
+
+def efficiency_lines(rows):
+    """The per-unit-of-error table: efficiency 1 / (MSE x median wall seconds) of each program
+    against the converged image, and their ratio."""
+    rows = [row for row in rows if "ours_mse" in row]
+    if not rows:
+        return []
+    L = ["Per unit of error: MSE of each program's image (box-averaged 2 × 2 to 256 × 256) "
+         "against the box's converged image in `docs/references/` (ours, vcm, 256–1024 "
+         "iterations), efficiency = 1 / (MSE × wall seconds) with the medians above. "
+         "Ours / reference > 1: ours reaches a given error sooner; the time target ≤ 0.8 per "
+         "unit of error is an efficiency ratio ≥ 1.25. The converged image's own noise "
+         "(estimated from its odd and even iterations) is in both MSEs (its share of ours is "
+         "given): it pulls the ratio toward 1. The mean ratio (image mean / converged mean) "
+         "shows a bias a noise-free measure would not hide; each program renders with a fixed "
+         "seed, so each MSE is one sample.", "",
+         "| scene | algorithm | ours MSE | reference MSE | converged image's own MSE (share of "
+         "ours) | ours mean ratio | reference mean ratio | ours efficiency | reference "
+         "efficiency | ours / reference (target ≥ 1.25) |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for row in rows:
+        t_ours = statistics.median(row["ours_seconds"])
+        t_ref = statistics.median(row["reference_seconds"])
+        e_ours = 1.0 / (row["ours_mse"] * t_ours)
+        e_ref = 1.0 / (row["reference_mse"] * t_ref)
+        L.append(f"| {row['scene']} | {row['algorithm']} | {row['ours_mse']:.3e} | "
+                 f"{row['reference_mse']:.3e} | {row['converged_own_mse']:.2e} "
+                 f"({row['converged_own_mse'] / row['ours_mse']:.0%}) | "
+                 f"{row['ours_mean_ratio']:.4f} | {row['reference_mean_ratio']:.4f} | "
+                 f"{e_ours:.4g} | {e_ref:.4g} | **{e_ours / e_ref:.2f}** |")
     return L + [""]
 
 
