@@ -68,13 +68,40 @@ class HashGrid {
                 reached[k] = reached[k] || reaches;
             }
         }
+        // The buckets' bounds, then their first entries, are requested for all cells before
+        // any is read: the cells' cache misses overlap instead of following one another.
+        for (int k = 0; k < count; ++k)
+            if (reached[k]) __builtin_prefetch(&cell_starts_[buckets[k]]);
+        std::array<uint32_t, 8> begin, end;
         for (int k = 0; k < count; ++k) {
-            if (!reached[k]) continue;
-            for (uint32_t j = cell_starts_[buckets[k]]; j < cell_starts_[buckets[k] + 1]; ++j) {
+            begin[k] = reached[k] ? cell_starts_[buckets[k]] : 0;
+            end[k] = reached[k] ? cell_starts_[buckets[k] + 1] : 0;
+            if (begin[k] < end[k]) __builtin_prefetch(&entries_[begin[k]]);
+        }
+        for (int k = 0; k < count; ++k)
+            for (uint32_t j = begin[k]; j < end[k]; ++j) {
                 const Entry& e = entries_[j];
                 if (length_squared(e.p - p) <= radius2_) visit(e.index);
             }
-        }
+    }
+
+    // for_each_within_radius in two steps: first prefetch(id) for every point found, then
+    // visit(id) for each, in the same order. The caller's records of the points are then
+    // requested from memory together, instead of one miss after the other inside a visit too
+    // long for the processor to run ahead of it.
+    template <typename Prefetch, typename Visit>
+    void for_each_within_radius(const Vec3& p, Prefetch&& prefetch, Visit&& visit) const {
+        std::array<uint32_t, 32> found;
+        size_t count = 0;
+        for_each_within_radius(p, [&](uint32_t id) {
+            if (count == found.size()) {
+                for (uint32_t f : found) visit(f);
+                count = 0;
+            }
+            prefetch(id);
+            found[count++] = id;
+        });
+        for (size_t k = 0; k < count; ++k) visit(found[k]);
     }
 
   private:

@@ -1721,7 +1721,14 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
     Rgb sum(0.0f);
-    grid.for_each_within_radius(v.p, [&](uint32_t i) {
+    // What a merge reads of a light vertex lies between its wo and its MIS quantities: at most
+    // two cache lines.
+    auto prefetch = [&](uint32_t i) {
+        const LightVertex& lv = light_vertices_[i];
+        __builtin_prefetch(&lv.wo);
+        __builtin_prefetch(reinterpret_cast<const char*>(&lv.mis + 1) - 1);
+    };
+    grid.for_each_within_radius(v.p, prefetch, [&](uint32_t i) {
         const LightVertex& lv = light_vertices_[i];
         if (lv.path_length + state.path_length > max_length_) return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.

@@ -239,6 +239,34 @@ TEST(HashGrid, VisitsTheIdsGivenToTheBuildInPointOrder) {
     }
 }
 
+// The two-step visit (prefetch every point found, then visit them) visits what the one-step
+// visit does, in the same order, and prefetches each point once before its visit, also when a
+// query finds more points than its buffer holds (radius 8: every query finds thousands).
+TEST(HashGrid, PrefetchingVisitMatchesThePlainVisitInOrder) {
+    for (double radius : {0.1, 8.0}) {
+        const std::vector<Vec3> points = point_set(radius, 41);
+        HashGrid grid;
+        grid.build(points, radius);
+        size_t large = 0;
+        for (const Vec3& q : query_set(points, radius, 42)) {
+            std::vector<uint32_t> plain, prefetched, visited;
+            grid.for_each_within_radius(q, [&](uint32_t i) { plain.push_back(i); });
+            grid.for_each_within_radius(
+                q, [&](uint32_t i) { prefetched.push_back(i); },
+                [&](uint32_t i) {
+                    ASSERT_GT(prefetched.size(), visited.size()) << "visited before prefetched";
+                    visited.push_back(i);
+                });
+            ASSERT_EQ(visited, plain) << "query " << q << ", radius " << radius;
+            ASSERT_EQ(prefetched, plain) << "query " << q << ", radius " << radius;
+            large += plain.size() > 32;
+        }
+        if (radius > 1) {
+            EXPECT_GT(large, 100u);
+        }
+    }
+}
+
 // The cells a query skips (out of the sphere's reach) never hold a point within the radius:
 // queries at exactly r from a point along one, two and three axes' diagonals, where the point
 // sits just across a cell edge or corner from the query, find it as the linear scan does.
