@@ -60,13 +60,15 @@ def main():
 
     row = {"scene": "2-gbs_p", "algorithm": "vcm", "ours_seconds": [10.0, 12.0, 11.0],
            "reference_seconds": [20.0, 22.0, 21.0], "ours_mse": 0.02, "reference_mse": 0.015,
-           "converged_own_mse": 0.001, "ours_mean_ratio": 1.0, "reference_mean_ratio": 1.0}
+           "converged_own_mse": 0.001, "ours_mean_ratio": 1.0, "reference_mean_ratio": 1.0,
+           "ours_mses": [0.03, 0.02, 0.01]}
     lines = reference.efficiency_lines([row])
     table = [line for line in lines if line.startswith("| 2-gbs_p |")]
     assert len(table) == 1, lines
     ratio = (0.015 * 21.0) / (0.02 * 11.0)  # medians 11 and 21 s
     assert f"**{ratio:.2f}**" in table[0], (table[0], ratio)
     assert "(5%)" in table[0], table[0]
+    assert any("2-gbs_p vcm 3.000e-02, 2.000e-02, 1.000e-02" in line for line in lines), lines
     print(f"bench.reference_error: PFM orientation, error and efficiency ratio ({ratio:.2f}) "
           "as expected")
     return 0
