@@ -88,8 +88,8 @@ struct SubpathState {
     bool origin_in_medium = false;
     float carried_connection = 0;
     // Joint (J2) connections on the light's emission ray: the position before origin_previous,
-    // the light-ray distance densities of the origin vertex and of its predecessor (Vertex); on
-    // eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
+    // the light-ray distance densities of the origin vertex and of its predecessor (Joint2Vertex);
+    // on eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
     // carried_eye_joint2_term), and, after arriving at a light, the J2 term the emission weight
     // adds to dVC (there the vertex the segment left is the light-side vertex of a J2 junction).
     Vec3 origin_previous2;
@@ -129,16 +129,6 @@ struct Vertex {
     // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
     Vec3 previous;
     float joint_distance_pdf = 0;
-    // Joint (J2) connections, which resample the first light vertex on the light's emission ray
-    // (docs/media.md): the position `previous` was reached from; this vertex's distance density
-    // from `previous` where J2 can resample it there (a medium vertex of a homogeneous medium
-    // reached in one piece from a finite light's point, on either subpath: 0 elsewhere), and the
-    // same of `previous`; on eye subpaths, J1's ratio r of the junction toward the camera
-    // (whose eye-side vertex is `previous`; include_joint_junction).
-    Vec3 previous2;
-    float light_ray_pdf = 0;
-    float previous_light_ray_pdf = 0;
-    float camera_joint_ratio = 0;
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
@@ -177,6 +167,27 @@ struct Vertex {
     }
 };
 
+// Joint (J2) connections' state of a subpath vertex, which resample the first light vertex on
+// the light's emission ray (docs/media.md): the position `previous` was reached from; this
+// vertex's distance density from `previous` where J2 can resample it there (a medium vertex of
+// a homogeneous medium reached in one piece from a finite light's point, on either subpath: 0
+// elsewhere), and the same of `previous`. Stored light vertices keep it in a side array indexed
+// like them (IterationStorage::joint2_vertices), filled only with J2, so that the stored vertex
+// does not pay for it when J2 is off.
+struct Joint2Vertex {
+    Vec3 previous2;
+    float light_ray_pdf = 0;
+    float previous_light_ray_pdf = 0;
+};
+
+// A vertex while its subpath is traced: the part a light vertex stores, J2's state, and on eye
+// subpaths J1's ratio r of the junction toward the camera (whose eye-side vertex is `previous`;
+// include_joint_junction), which J2's terms read.
+struct SubpathVertex : Vertex {
+    Joint2Vertex joint2;
+    float camera_joint_ratio = 0;
+};
+
 // A stored light-subpath vertex with a non-delta BSDF or in a medium.
 struct LightVertex {
     [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
@@ -186,6 +197,8 @@ struct LightVertex {
     MisQuantities mis;
     bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
 };
+static_assert(sizeof(Joint2Vertex) <= kJoint2VertexBytesBound,
+              "Joint2Vertex grew: raise kJoint2VertexBytesBound (the memory estimate uses it)");
 static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
 
@@ -275,8 +288,9 @@ static_assert(sizeof(EmissionRay) <= kEmissionRayBytesBound,
 struct LightChunk {
     uint64_t index = 0;
     std::vector<LightVertex> vertices;
-    std::vector<uint32_t> path_sizes;        // vertices kept per path
-    std::vector<EmissionRay> emission_rays;  // one per path with J2, else none
+    std::vector<uint32_t> path_sizes;           // vertices kept per path
+    std::vector<EmissionRay> emission_rays;     // one per path with J2, else none
+    std::vector<Joint2Vertex> joint2_vertices;  // one per vertex with J2, else none
     std::vector<Splat> splats;
     RenderStats stats;
 };
@@ -291,6 +305,8 @@ struct IterationStorage {
     BlockVector<LightVertex> light_vertices;
     std::vector<uint32_t> path_ends;
     std::vector<EmissionRay> emission_rays;  // per light path, with J2
+    // J2's state of each light vertex, indexed like light_vertices (with J2; else empty).
+    BlockVector<Joint2Vertex> joint2_vertices;
     // The light pass's chunk buffers (a few per thread), reused from one iteration to the next.
     std::vector<std::unique_ptr<LightChunk>> light_chunks;
     std::vector<LightChunk*> free_light_chunks;
@@ -410,6 +426,7 @@ class Iteration {
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
           emission_rays_(storage.emission_rays),
+          joint2_vertices_(storage.joint2_vertices),
           surface_positions_(storage.surface_positions),
           medium_positions_(storage.medium_positions),
           surface_index_(storage.surface_index),
@@ -419,6 +436,7 @@ class Iteration {
         for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
         for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
         emission_rays_.clear();
+        joint2_vertices_.clear();
         // Destroying the last iteration's vertices reads all of them (hundreds of MB): in
         // parallel over the blocks.
         tbb::parallel_for(size_t(0), light_vertices_.block_count(),
@@ -462,37 +480,46 @@ class Iteration {
     bool generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
                                       Rng& rng, SubpathState& state, Ray& ray) const;
     // emission: where J2 keeps the path's emission ray (null without J2).
+    // joint2: where J2 keeps the state of the path's stored vertices (null without J2).
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                           std::vector<Splat>& splats, RenderStats& stats,
-                          EmissionRay* emission = nullptr) const;
+                          EmissionRay* emission = nullptr,
+                          std::vector<Joint2Vertex>* joint2 = nullptr) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
     // it ends at and completes the MIS quantities' conversion (`arrive`).
-    std::optional<Vertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
-                                      SubpathState& state, RenderStats& stats,
-                                      SampledSegment& segment) const;
-    bool sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
+    std::optional<SubpathVertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                             SubpathState& state, RenderStats& stats,
+                                             SampledSegment& segment) const;
+    bool sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
                            Ray& ray) const;
     Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
               Rng& rng, RenderStats& stats) const;
     Rgb visibility(const Link& link, const Ray& ray, RenderStats& stats) const;
-    void connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
-                           std::vector<Splat>& splats, RenderStats& stats) const;
+    void connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
+                           Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const;
     Rgb emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
                  const Vec3& hit_normal, const Vec3& ray_direction) const;
     // The eye subpath's collision estimate of the emission at v, a vertex in an emitting medium
     // just reached (s = 0 with the medium as the light), MIS-weighted, without the throughput
     // before the segment (state.source_throughput holds it).
     Rgb medium_emission(const SubpathState& state, const Vertex& v) const;
-    Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
-                            RenderStats& stats) const;
+    Rgb direct_illumination(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
+                            Rng& rng, RenderStats& stats) const;
     // Next-event estimation's MIS-weighted contribution at v (without the eye throughput) for
     // the light sample dl, visibility included; joint: v was sampled by J1 at s = 1 toward the
     // light point (the weight is that technique's).
-    Rgb direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
+    Rgb direct_contribution(const MisQuantities& eye_mis, const SubpathVertex& v, const Vec3& wo,
                             const DirectLightSample& dl, Rng& rng, RenderStats& stats,
                             bool joint = false) const;
-    Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
-                         const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const;
+    // light_joint2: the light vertex's J2 state (joint2_of).
+    Rgb connect_vertices(const LightVertex& light_vertex, const Joint2Vertex& light_joint2,
+                         const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
+                         RenderStats& stats) const;
+    // The J2 state of stored light vertex i (none without J2: the side array is empty then).
+    const Joint2Vertex& joint2_of(uint32_t i) const {
+        static const Joint2Vertex none;
+        return joint2_ ? joint2_vertices_[i] : none;
+    }
     // Joint connections for the eye segment about to be traced along `ray` from the eye
     // subpath's last vertex: each light vertex in [first, end) joined through a medium vertex
     // of the segment's first piece, sampled toward it; each passed to add(s, contribution).
@@ -503,7 +530,8 @@ class Iteration {
                            Add&& add) const;
     // The eye subpath arrived at v: its connection term gains the J1 technique of the junction
     // toward the camera (vcm_mis.h, include_joint_junction).
-    void include_joint_junction(MisQuantities& mis, const SubpathState& state, Vertex& v) const;
+    void include_joint_junction(MisQuantities& mis, const SubpathState& state,
+                                SubpathVertex& v) const;
     // A connection's MIS-weighted contribution before visibility (f_eye G f_light w, without
     // the subpaths' throughputs) and the segment that decides its visibility; empty when it is
     // zero whatever the visibility.
@@ -516,6 +544,7 @@ class Iteration {
     // joint: v was sampled by the J1 technique, or both vertices by J2 (the weight is that
     // technique's).
     std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
+                                                    const Joint2Vertex& light_joint2,
                                                     const Vertex& v, const Vec3& wo,
                                                     const MisQuantities& eye_mis, Rng& rng,
                                                     RenderStats& stats,
@@ -531,10 +560,12 @@ class Iteration {
                light_ray_pdf;
     }
     // J2 in joint_connections: the first vertex of the light path in [first, end), resampled on
-    // its emission ray by B2, joined to the eye segment through a J1 vertex (nullopt: none).
+    // its emission ray by B2, joined to the eye segment through a J1 vertex (nullopt: none);
+    // joint2 receives its J2 state.
     std::optional<LightVertex> resample_on_emission_ray(const EmissionRay& emission,
                                                         const Vec3& eye_origin,
-                                                        const Vec3& eye_direction, Rng& rng) const;
+                                                        const Vec3& eye_direction,
+                                                        Joint2Vertex& joint2, Rng& rng) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
     // previous vertex toward the light vertex's predecessor) over its plain connection; 0
@@ -667,8 +698,9 @@ class Iteration {
 
     IterationStorage& storage_;
     BlockVector<LightVertex>& light_vertices_;
-    std::vector<uint32_t>& path_ends_;         // light_vertices_ of path p: [ends[p-1], ends[p])
-    std::vector<EmissionRay>& emission_rays_;  // of path p, with J2 (else empty)
+    std::vector<uint32_t>& path_ends_;            // light_vertices_ of path p: [ends[p-1], ends[p])
+    std::vector<EmissionRay>& emission_rays_;     // of path p, with J2 (else empty)
+    BlockVector<Joint2Vertex>& joint2_vertices_;  // of light vertex i, with J2 (else empty)
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
     // lookup.
@@ -687,9 +719,9 @@ class Iteration {
 
 // --- segments and links -----------------------------------------------------------------------
 
-std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
-                                             SubpathState& state, RenderStats& stats,
-                                             SampledSegment& seg) const {
+std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                                    SubpathState& state, RenderStats& stats,
+                                                    SampledSegment& seg) const {
     if (!state.medium && !scene_.has_media()) {
         // Surface-only scenes: one closest hit, every distance density 1 (as sample_segment
         // would return, without its bookkeeping).
@@ -710,12 +742,12 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         if (seg.end == SegmentEnd::Escaped || (state.throughput.is_black() && !collects_emission))
             return std::nullopt;
     }
-    Vertex v;
+    SubpathVertex v;
     v.p = seg.position;
     v.medium = seg.medium;
     v.previous = state.origin;
-    v.previous2 = state.origin_previous;
-    v.previous_light_ray_pdf = state.origin_light_ray_pdf;
+    v.joint2.previous2 = state.origin_previous;
+    v.joint2.previous_light_ray_pdf = state.origin_light_ray_pdf;
     const Vec3 wo = -ray.direction;
     if (seg.end == SegmentEnd::Medium) {
         v.phase = &seg.medium->phase();
@@ -723,7 +755,7 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         // J2's light-side vertex: the first vertex of a light subpath from a finite light.
         if (joint2_ && mode == TransportMode::Importance && seg.one_piece &&
             state.path_length == 1 && state.is_finite_light && seg.medium->is_homogeneous())
-            v.light_ray_pdf = seg.densities.toward_end;
+            v.joint2.light_ray_pdf = seg.densities.toward_end;
         if (mode == TransportMode::Radiance)
             v.query_beam = mis_.query_beam_factor(seg.densities.toward_end);
         if (photon_beams_) set_photon_beam_quantities(v, seg, mode);
@@ -859,7 +891,7 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
 
 void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                                  std::vector<Splat>& splats, RenderStats& stats,
-                                 EmissionRay* emission) const {
+                                 EmissionRay* emission, std::vector<Joint2Vertex>* joint2) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kLightStreamBase + path_index});
     SubpathState state;
     Ray ray;
@@ -882,16 +914,18 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         // Photon beams need the subpath as it was before the segment.
         std::optional<SubpathState> before;
         if (photon_beams_) before = state;
-        std::optional<Vertex> v =
+        std::optional<SubpathVertex> v =
             next_vertex(ray, TransportMode::Importance, rng, state, stats, seg);
         if (before) emit_photon_beams(ray, *before, seg, path_index, beam_piece, rng, stats);
         if (!v) break;
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
-            if (use_vc_ || use_vm_ || many_lights_)
+            if (use_vc_ || use_vm_ || many_lights_) {
                 vertices.push_back(LightVertex{*v, wo, state.throughput, state.path_length,
                                                state.mis, state.is_finite_light});
+                if (joint2) joint2->push_back(v->joint2);
+            }
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
                 connect_to_camera(state, *v, wo, rng, splats, stats);
         }
@@ -938,6 +972,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         chunk->vertices.clear();
         chunk->path_sizes.clear();
         chunk->emission_rays.clear();
+        chunk->joint2_vertices.clear();
         chunk->splats.clear();
         chunk->stats = RenderStats{};
         const uint64_t first = chunk->index * kLightPathChunk;
@@ -946,7 +981,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
             const size_t before = chunk->vertices.size();
             if (joint2_) chunk->emission_rays.emplace_back();
             trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats,
-                             joint2_ ? &chunk->emission_rays.back() : nullptr);
+                             joint2_ ? &chunk->emission_rays.back() : nullptr,
+                             joint2_ ? &chunk->joint2_vertices : nullptr);
             chunk->path_sizes.push_back(uint32_t(chunk->vertices.size() - before));
         }
         return chunk;
@@ -956,6 +992,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         for (uint32_t size : chunk->path_sizes) path_ends_.push_back(end += size);
         emission_rays_.insert(emission_rays_.end(), chunk->emission_rays.begin(),
                               chunk->emission_rays.end());
+        for (const Joint2Vertex& j : chunk->joint2_vertices) joint2_vertices_.push_back(j);
         for (LightVertex& v : chunk->vertices) {
             if (use_vm_) {
                 const bool medium = v.vertex.in_medium();
@@ -990,8 +1027,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     if (photon_beams_) build_photon_beams();
 }
 
-bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
-                                  Ray& ray) const {
+bool Iteration::sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng,
+                                  SubpathState& state, Ray& ray) const {
     const float u_lobe = rng.next_1d();
     const Vec2 u = rng.next_2d();
     std::optional<BsdfSample> bs = v.sample(wo, u_lobe, u);
@@ -1022,7 +1059,7 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
                  v.query_beam);
     state.origin_previous2 = state.origin_previous;
     state.origin_previous_light_ray_pdf = state.origin_light_ray_pdf;
-    state.origin_light_ray_pdf = v.light_ray_pdf;
+    state.origin_light_ray_pdf = v.joint2.light_ray_pdf;
     state.origin = v.p;
     state.origin_previous = v.previous;
     state.origin_joint_pdf = v.joint_distance_pdf;
@@ -1041,7 +1078,7 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     return true;
 }
 
-void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo,
+void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
                                   Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const {
     std::optional<Vec2> raster = camera_.raster_position(v.p);
     if (!raster) return;
@@ -1065,7 +1102,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
             joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
     const float camera_light_joint2 =
         light_joint_ratio > 0
-            ? light_joint2_ratio(v.previous2, v.previous, v.previous_light_ray_pdf,
+            ? light_joint2_ratio(v.joint2.previous2, v.previous, v.joint2.previous_light_ray_pdf,
                                  camera_.position(), v.p)
             : 0.0f;
     // P-B2D at this vertex with the camera ray as the query.
@@ -1139,16 +1176,16 @@ Rgb Iteration::medium_emission(const SubpathState& state, const Vertex& v) const
     return le * volume_emission_weight(mis_, state.mis, direct_pdf_a);
 }
 
-Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
-                                   Rng& rng, RenderStats& stats) const {
+Rgb Iteration::direct_illumination(const SubpathState& state, const SubpathVertex& v,
+                                   const Vec3& wo, Rng& rng, RenderStats& stats) const {
     DirectLightSample dl;
     if (!sample_direct_emitter(scene_, v.p, rng, dl)) return Rgb(0.0f);
     return direct_contribution(state.mis, v, wo, dl, rng, stats);
 }
 
-Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
-                                   const DirectLightSample& dl, Rng& rng, RenderStats& stats,
-                                   bool joint) const {
+Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVertex& v,
+                                   const Vec3& wo, const DirectLightSample& dl, Rng& rng,
+                                   RenderStats& stats, bool joint) const {
     const LightIlluminateSample& ls = dl.ls;
     const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
@@ -1180,7 +1217,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
         eye_joint2 =
             mis_.eye_joint2_term(eye_mis, v.camera_joint_ratio,
                                  joint2_pdf_l(scene_.bounding_sphere(), v.p + ls.wi * ls.distance,
-                                              v.p, v.previous2, v.previous) /
+                                              v.p, v.joint2.previous2, v.previous) /
                                      l.densities.toward_start);
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
@@ -1221,8 +1258,8 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
 }
 
 std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
-    const LightVertex& lv, const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
-    RenderStats& stats, JointKind joint) const {
+    const LightVertex& lv, const Joint2Vertex& w2, const Vertex& v, const Vec3& wo,
+    const MisQuantities& eye_mis, Rng& rng, RenderStats& stats, JointKind joint) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
     const Vertex& w = lv.vertex;
@@ -1250,12 +1287,12 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     // J2 of this junction (the light vertex resampled on the emission ray) and of the one
     // before it (the light vertex's predecessor resampled there, the light vertex by J1).
     float joint2_ratio = 0, light_joint2 = 0;
-    if (joint_ratio > 0 && w.light_ray_pdf > 0)
+    if (joint_ratio > 0 && w2.light_ray_pdf > 0)
         joint2_ratio = joint2_pdf_l(scene_.bounding_sphere(), w.previous, w.p, v.previous, v.p) /
-                       w.light_ray_pdf;
+                       w2.light_ray_pdf;
     if (light_joint_ratio > 0)
         light_joint2 =
-            light_joint2_ratio(w.previous2, w.previous, w.previous_light_ray_pdf, v.p, w.p);
+            light_joint2_ratio(w2.previous2, w.previous, w2.previous_light_ray_pdf, v.p, w.p);
     // Eqs. (40) and (41).
     const ConnectionTechnique technique{
         .eye_pdf_a = eye_pdf_a,
@@ -1292,15 +1329,17 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     return ConnectionTerms{*g, contribution, ray, l};
 }
 
-Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
-                                const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const {
-    const std::optional<ConnectionTerms> t = connection_terms(lv, v, wo, eye_mis, rng, stats);
+Rgb Iteration::connect_vertices(const LightVertex& lv, const Joint2Vertex& light_joint2,
+                                const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis,
+                                Rng& rng, RenderStats& stats) const {
+    const std::optional<ConnectionTerms> t =
+        connection_terms(lv, light_joint2, v, wo, eye_mis, rng, stats);
     if (!t) return Rgb(0.0f);
     return t->unoccluded * visibility(t->link, t->ray, stats);
 }
 
 void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& state,
-                                       Vertex& v) const {
+                                       SubpathVertex& v) const {
     // The junction's eye-side vertex is the one the eye came from (a medium vertex reached in
     // one piece, else it has no J1 technique), sampled toward v.
     if (!joint_ || !(state.origin_joint_pdf > 0)) return;
@@ -1329,7 +1368,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     // taken); nullopt if the sample lies past the first piece or carries nothing.
     struct JointVertex {
         Rgb eye_weight;
-        Vertex v;
+        SubpathVertex v;
         MisQuantities mis;
     };
     auto sample_vertex = [&](const Vec3& target) -> std::optional<JointVertex> {
@@ -1352,8 +1391,8 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         j.v.medium = medium;
         j.v.phase = &medium->phase();
         j.v.previous = state.origin;
-        j.v.previous2 = state.origin_previous;
-        j.v.previous_light_ray_pdf = state.origin_light_ray_pdf;
+        j.v.joint2.previous2 = state.origin_previous;
+        j.v.joint2.previous_light_ray_pdf = state.origin_light_ray_pdf;
         j.v.joint_distance_pdf = densities.toward_end;
         j.mis = state.mis;
         mis_.arrive(j.mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
@@ -1378,11 +1417,12 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     // J2: the first vertex of the pixel's light path resampled on its emission ray by B2, then
     // the eye vertex toward it by J1.
     if (emission && emission->medium && 2 + state.path_length <= max_length_) {
+        Joint2Vertex b_joint2;
         if (const std::optional<LightVertex> b =
-                resample_on_emission_ray(*emission, state.origin, ray.direction, rng)) {
+                resample_on_emission_ray(*emission, state.origin, ray.direction, b_joint2, rng)) {
             if (const std::optional<JointVertex> j = sample_vertex(b->vertex.p)) {
                 if (const std::optional<ConnectionTerms> c =
-                        connection_terms(*b, j->v, wo, j->mis, rng, stats, JointKind::J2))
+                        connection_terms(*b, b_joint2, j->v, wo, j->mis, rng, stats, JointKind::J2))
                     add(b->path_length + 1, j->eye_weight * b->throughput * c->unoccluded *
                                                 visibility(c->link, c->ray, stats));
             }
@@ -1394,7 +1434,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         const std::optional<JointVertex> j = sample_vertex(lv.vertex.p);
         if (!j) continue;
         const std::optional<ConnectionTerms> c =
-            connection_terms(lv, j->v, wo, j->mis, rng, stats, JointKind::J1);
+            connection_terms(lv, joint2_of(i), j->v, wo, j->mis, rng, stats, JointKind::J1);
         if (!c) continue;
         add(lv.path_length + 1,
             j->eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
@@ -1404,6 +1444,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
 std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay& e,
                                                                const Vec3& eye_origin,
                                                                const Vec3& eye_direction,
+                                                               Joint2Vertex& joint2,
                                                                Rng& rng) const {
     const float range = light_ray_range(scene_.bounding_sphere(), e.origin, e.direction);
     if (!(range > 0)) return std::nullopt;
@@ -1428,7 +1469,8 @@ std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay
     lv.vertex.phase = &medium->phase();
     lv.vertex.previous = e.origin;
     lv.vertex.joint_distance_pdf = densities.toward_end;
-    lv.vertex.light_ray_pdf = densities.toward_end;
+    joint2 = Joint2Vertex{};
+    joint2.light_ray_pdf = densities.toward_end;
     lv.wo = -e.direction;
     lv.throughput = e.throughput * medium->transmittance(ray, t, rng) * sigma_s * (1.0f / pdf);
     if (!lv.throughput.is_finite() || lv.throughput.is_black()) return std::nullopt;
@@ -1483,7 +1525,8 @@ void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats
     float distance = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+        std::optional<SubpathVertex> v =
+            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v || state.path_length >= max_length_) return;
         distance += seg.distance;
         if (v->has_non_delta()) {
@@ -1564,7 +1607,7 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
             // bpt: the table entries are the connection's own MIS-weighted contribution at the
             // record (the weight tames the 1 / d^2 of nearby vertices, so no clamp).
             const std::optional<ConnectionTerms> t =
-                connection_terms(lv, r.vertex, r.wo, r.mis, rng, stats);
+                connection_terms(lv, Joint2Vertex{}, r.vertex, r.wo, r.mis, rng, stats);
             if (!t) continue;
             const double y = (lv.throughput * t->unoccluded).luminance();
             if (!(y > 0) || !std::isfinite(y)) continue;
@@ -2107,7 +2150,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
         }
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+        std::optional<SubpathVertex> v =
+            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
             if (seg.end == SegmentEnd::Escaped && !state.throughput.is_black()) {
                 // Left the scene: the distance sampling on the way is part of this
@@ -2172,7 +2216,9 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                 draw_from_importance_caches(
                     *v, state.path_length, rng,
                     [&](const LightVertex& lv) {
-                        return lv.throughput * connect_vertices(lv, *v, wo, state.mis, rng, stats) *
+                        // No J2 beside ic connections (joint_ is off there).
+                        return lv.throughput *
+                               connect_vertices(lv, Joint2Vertex{}, *v, wo, state.mis, rng, stats) *
                                ic_connection_scale_;
                     },
                     [&](int s, const Rgb& c) {
@@ -2184,7 +2230,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, *v, wo, state.mis, rng, stats));
+                            connect_vertices(lv, joint2_of(i), *v, wo, state.mis, rng, stats));
                 }
             }
             if (v->in_medium() ? merge_points_ : merge_surfaces_) {
