@@ -88,15 +88,14 @@ struct SubpathState {
     bool origin_in_medium = false;
     float carried_connection = 0;
     // Joint (J2) connections on the light's emission ray: the position before origin_previous,
-    // the light-ray distance densities of the origin vertex and of its predecessor (Vertex); on
-    // eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
+    // the light-ray distance densities of the origin vertex and of its predecessor (Joint2Vertex);
+    // on eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
     // carried_eye_joint2_term), and, after arriving at a light, the J2 term the emission weight
     // adds to dVC (there the vertex the segment left is the light-side vertex of a J2 junction).
     Vec3 origin_previous2;
     float origin_light_ray_pdf = 0;
     float origin_previous_light_ray_pdf = 0;
     float carried_eye_joint2 = 0;
-    float emission_joint2 = 0;
     // Light subpaths with query beams: the factor of the P-B2D term of the vertex the next
     // segment starts at, added at the next arrival (vcm_mis.h, add_query_beam_term).
     float carried_query_beam = 0;
@@ -129,16 +128,6 @@ struct Vertex {
     // which a J1 technique's density compares; 0 where no J1 technique samples this vertex.
     Vec3 previous;
     float joint_distance_pdf = 0;
-    // Joint (J2) connections, which resample the first light vertex on the light's emission ray
-    // (docs/media.md): the position `previous` was reached from; this vertex's distance density
-    // from `previous` where J2 can resample it there (a medium vertex of a homogeneous medium
-    // reached in one piece from a finite light's point, on either subpath: 0 elsewhere), and the
-    // same of `previous`; on eye subpaths, J1's ratio r of the junction toward the camera
-    // (whose eye-side vertex is `previous`; include_joint_junction).
-    Vec3 previous2;
-    float light_ray_pdf = 0;
-    float previous_light_ray_pdf = 0;
-    float camera_joint_ratio = 0;
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
@@ -177,6 +166,27 @@ struct Vertex {
     }
 };
 
+// Joint (J2) connections' state of a subpath vertex, which resample the first light vertex on
+// the light's emission ray (docs/media.md): the position `previous` was reached from; this
+// vertex's distance density from `previous` where J2 can resample it there (a medium vertex of
+// a homogeneous medium reached in one piece from a finite light's point, on either subpath: 0
+// elsewhere), and the same of `previous`. Stored light vertices keep it in a side array indexed
+// like them (IterationStorage::joint2_vertices), filled only with J2, so that the stored vertex
+// does not pay for it when J2 is off.
+struct Joint2Vertex {
+    Vec3 previous2;
+    float light_ray_pdf = 0;
+    float previous_light_ray_pdf = 0;
+};
+
+// A vertex while its subpath is traced: the part a light vertex stores, J2's state, and on eye
+// subpaths J1's ratio r of the junction toward the camera (whose eye-side vertex is `previous`;
+// include_joint_junction), which J2's terms read.
+struct SubpathVertex : Vertex {
+    Joint2Vertex joint2;
+    float camera_joint_ratio = 0;
+};
+
 // A stored light-subpath vertex with a non-delta BSDF or in a medium.
 struct LightVertex {
     [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
@@ -186,6 +196,8 @@ struct LightVertex {
     MisQuantities mis;
     bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
 };
+static_assert(sizeof(Joint2Vertex) <= kJoint2VertexBytesBound,
+              "Joint2Vertex grew: raise kJoint2VertexBytesBound (the memory estimate uses it)");
 static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
 
@@ -258,25 +270,36 @@ struct ConnectionGeometry {
 
 // One chunk of light paths, from its tracing (in parallel with other chunks) to its gathering
 // into the iteration's arrays (in chunk order).
-// J2 (bpt --joint-connections all): a light path's emission ray from a finite light's point
-// into a homogeneous medium, as it was before its distance sample; J2 resamples the path's first
-// vertex on it by B2, whatever that sample gave (a medium vertex, a surface, nothing).
-struct EmissionRay {
-    Vec3 origin, direction;          // the light point and the sampled unit direction
-    Rgb throughput;                  // energy over the emission density (the selection included)
-    MisQuantities mis;               // the subpath's quantities at the start (start_light)
-    const Medium* medium = nullptr;  // null: the path has no J2
+// J2 (bpt --joint-connections all): a ray of a light path into a homogeneous medium, as it was
+// before its distance sample: the emission ray from a finite light's point, or the ray a
+// scattering vertex of the path sampled. J2 resamples the vertex at its end by B2, whatever the
+// distance sample gave (a medium vertex, a surface, nothing); arriving there needs what
+// next_vertex reads of the subpath (SubpathState) besides the ray.
+struct LightRay {
+    Vec3 origin, direction;          // the light point or vertex and the sampled unit direction
+    Rgb throughput;                  // the subpath's, after the scattering (or emission)
+    MisQuantities mis;               // the subpath's quantities after it
+    const Medium* medium = nullptr;  // homogeneous
     float piece_end = 0;             // from origin to the first surface, null or not
+    // The subpath's state at the ray's origin (SubpathState's fields of the same names).
+    Vec3 origin_previous, origin_previous2;
+    float origin_light_ray_pdf = 0, origin_previous_light_ray_pdf = 0;
+    float carried_connection = 0;
+    int path_length = 1;  // segments up to the resampled vertex
+    bool origin_in_medium = false;
+    bool finite_light = true;
 };
 
-static_assert(sizeof(EmissionRay) <= kEmissionRayBytesBound,
-              "EmissionRay outgrew kEmissionRayBytesBound (vertex_cm.h): raise it");
+static_assert(sizeof(LightRay) <= kLightRayBytesBound,
+              "LightRay outgrew kLightRayBytesBound (vertex_cm.h): raise it");
 
 struct LightChunk {
     uint64_t index = 0;
     std::vector<LightVertex> vertices;
-    std::vector<uint32_t> path_sizes;        // vertices kept per path
-    std::vector<EmissionRay> emission_rays;  // one per path with J2, else none
+    std::vector<uint32_t> path_sizes;           // vertices kept per path
+    std::vector<LightRay> light_rays;           // with J2, else none
+    std::vector<uint32_t> ray_counts;           // light rays per path, with J2
+    std::vector<Joint2Vertex> joint2_vertices;  // one per vertex with J2, else none
     std::vector<Splat> splats;
     RenderStats stats;
 };
@@ -290,7 +313,11 @@ struct IterationStorage {
     // In blocks: gathering a chunk appends without ever moving the vertices already there.
     BlockVector<LightVertex> light_vertices;
     std::vector<uint32_t> path_ends;
-    std::vector<EmissionRay> emission_rays;  // per light path, with J2
+    // J2's light rays, and where each light path's end (like path_ends), with J2; else empty.
+    std::vector<LightRay> light_rays;
+    std::vector<uint32_t> ray_ends;
+    // J2's state of each light vertex, indexed like light_vertices (with J2; else empty).
+    BlockVector<Joint2Vertex> joint2_vertices;
     // The light pass's chunk buffers (a few per thread), reused from one iteration to the next.
     std::vector<std::unique_ptr<LightChunk>> light_chunks;
     std::vector<LightChunk*> free_light_chunks;
@@ -409,7 +436,9 @@ class Iteration {
           storage_(storage),
           light_vertices_(storage.light_vertices),
           path_ends_(storage.path_ends),
-          emission_rays_(storage.emission_rays),
+          light_rays_(storage.light_rays),
+          ray_ends_(storage.ray_ends),
+          joint2_vertices_(storage.joint2_vertices),
           surface_positions_(storage.surface_positions),
           medium_positions_(storage.medium_positions),
           surface_index_(storage.surface_index),
@@ -418,7 +447,9 @@ class Iteration {
           medium_grid_(storage.medium_grid) {
         for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
         for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
-        emission_rays_.clear();
+        light_rays_.clear();
+        ray_ends_.clear();
+        joint2_vertices_.clear();
         // Destroying the last iteration's vertices reads all of them (hundreds of MB): in
         // parallel over the blocks.
         tbb::parallel_for(size_t(0), light_vertices_.block_count(),
@@ -461,49 +492,59 @@ class Iteration {
     // as lights"), picked with probability pick_probability.
     bool generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
                                       Rng& rng, SubpathState& state, Ray& ray) const;
-    // emission: where J2 keeps the path's emission ray (null without J2).
+    // rays, joint2: where J2 keeps the path's light rays and the state of its stored vertices
+    // (null without J2).
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                           std::vector<Splat>& splats, RenderStats& stats,
-                          EmissionRay* emission = nullptr) const;
+                          std::vector<LightRay>* rays = nullptr,
+                          std::vector<Joint2Vertex>* joint2 = nullptr) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
     // it ends at and completes the MIS quantities' conversion (`arrive`).
-    std::optional<Vertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
-                                      SubpathState& state, RenderStats& stats,
-                                      SampledSegment& segment) const;
-    bool sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
+    std::optional<SubpathVertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                             SubpathState& state, RenderStats& stats,
+                                             SampledSegment& segment) const;
+    bool sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
                            Ray& ray) const;
     Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
               Rng& rng, RenderStats& stats) const;
     Rgb visibility(const Link& link, const Ray& ray, RenderStats& stats) const;
-    void connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
-                           std::vector<Splat>& splats, RenderStats& stats) const;
+    void connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
+                           Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const;
     Rgb emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
                  const Vec3& hit_normal, const Vec3& ray_direction) const;
     // The eye subpath's collision estimate of the emission at v, a vertex in an emitting medium
     // just reached (s = 0 with the medium as the light), MIS-weighted, without the throughput
     // before the segment (state.source_throughput holds it).
     Rgb medium_emission(const SubpathState& state, const Vertex& v) const;
-    Rgb direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo, Rng& rng,
-                            RenderStats& stats) const;
+    Rgb direct_illumination(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
+                            Rng& rng, RenderStats& stats) const;
     // Next-event estimation's MIS-weighted contribution at v (without the eye throughput) for
     // the light sample dl, visibility included; joint: v was sampled by J1 at s = 1 toward the
     // light point (the weight is that technique's).
-    Rgb direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
+    Rgb direct_contribution(const MisQuantities& eye_mis, const SubpathVertex& v, const Vec3& wo,
                             const DirectLightSample& dl, Rng& rng, RenderStats& stats,
                             bool joint = false) const;
-    Rgb connect_vertices(const LightVertex& light_vertex, const Vertex& v, const Vec3& wo,
-                         const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const;
+    // light_joint2: the light vertex's J2 state (joint2_of).
+    Rgb connect_vertices(const LightVertex& light_vertex, const Joint2Vertex& light_joint2,
+                         const SubpathVertex& v, const Vec3& wo, const MisQuantities& eye_mis,
+                         Rng& rng, RenderStats& stats) const;
+    // The J2 state of stored light vertex i (none without J2: the side array is empty then).
+    const Joint2Vertex& joint2_of(uint32_t i) const {
+        static const Joint2Vertex none;
+        return joint2_ ? joint2_vertices_[i] : none;
+    }
     // Joint connections for the eye segment about to be traced along `ray` from the eye
     // subpath's last vertex: each light vertex in [first, end) joined through a medium vertex
     // of the segment's first piece, sampled toward it; each passed to add(s, contribution).
     template <class Add>
-    // emission: the light path's emission ray for J2 (null: none).
+    // [rays_first, rays_end): the light path's rays for J2 (light_rays_; empty: none).
     void joint_connections(const Ray& ray, const SubpathState& state, uint32_t first, uint32_t end,
-                           const EmissionRay* emission, Rng& rng, RenderStats& stats,
+                           uint32_t rays_first, uint32_t rays_end, Rng& rng, RenderStats& stats,
                            Add&& add) const;
     // The eye subpath arrived at v: its connection term gains the J1 technique of the junction
     // toward the camera (vcm_mis.h, include_joint_junction).
-    void include_joint_junction(MisQuantities& mis, const SubpathState& state, Vertex& v) const;
+    void include_joint_junction(MisQuantities& mis, const SubpathState& state,
+                                SubpathVertex& v) const;
     // A connection's MIS-weighted contribution before visibility (f_eye G f_light w, without
     // the subpaths' throughputs) and the segment that decides its visibility; empty when it is
     // zero whatever the visibility.
@@ -516,7 +557,8 @@ class Iteration {
     // joint: v was sampled by the J1 technique, or both vertices by J2 (the weight is that
     // technique's).
     std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
-                                                    const Vertex& v, const Vec3& wo,
+                                                    const Joint2Vertex& light_joint2,
+                                                    const SubpathVertex& v, const Vec3& wo,
                                                     const MisQuantities& eye_mis, Rng& rng,
                                                     RenderStats& stats,
                                                     JointKind joint = JointKind::None) const;
@@ -530,11 +572,18 @@ class Iteration {
         return joint2_pdf_l(scene_.bounding_sphere(), light_point, x, eye_origin, eye_side) /
                light_ray_pdf;
     }
-    // J2 in joint_connections: the first vertex of the light path in [first, end), resampled on
-    // its emission ray by B2, joined to the eye segment through a J1 vertex (nullopt: none).
-    std::optional<LightVertex> resample_on_emission_ray(const EmissionRay& emission,
-                                                        const Vec3& eye_origin,
-                                                        const Vec3& eye_direction, Rng& rng) const;
+    // J2 in joint_connections: the vertex at the end of one of the light path's rays, resampled
+    // on it by B2 toward the eye ray (nullopt: none), with the MIS quantities next_vertex would
+    // have given it; joint2 receives its J2 state.
+    std::optional<LightVertex> resample_on_light_ray(const LightRay& light_ray,
+                                                     const Vec3& eye_origin,
+                                                     const Vec3& eye_direction,
+                                                     Joint2Vertex& joint2, Rng& rng) const;
+    // J2: the light ray that `ray` starts (after generate_light_sample or sample_scattering
+    // with `state`), whose end vertex would be reached after path_length segments; nothing
+    // where J2 cannot resample on it (not a homogeneous medium).
+    void record_light_ray(const Ray& ray, const SubpathState& state, int path_length,
+                          std::vector<LightRay>& rays, RenderStats& stats) const;
     Rgb merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const;
     // J1 of the junction whose eye-side vertex is the merge vertex v (sampled from the eye's
     // previous vertex toward the light vertex's predecessor) over its plain connection; 0
@@ -606,7 +655,7 @@ class Iteration {
     // An importance record: the first non-delta vertex of a camera path through a random
     // image position, with the eye throughput that reaches it.
     struct Record {
-        Vertex vertex;
+        SubpathVertex vertex;
         Vec3 wo;
         Rgb throughput;
         int path_length;
@@ -667,8 +716,10 @@ class Iteration {
 
     IterationStorage& storage_;
     BlockVector<LightVertex>& light_vertices_;
-    std::vector<uint32_t>& path_ends_;         // light_vertices_ of path p: [ends[p-1], ends[p])
-    std::vector<EmissionRay>& emission_rays_;  // of path p, with J2 (else empty)
+    std::vector<uint32_t>& path_ends_;            // light_vertices_ of path p: [ends[p-1], ends[p])
+    std::vector<LightRay>& light_rays_;           // with J2 (else empty)
+    std::vector<uint32_t>& ray_ends_;             // light_rays_ of path p end here (with J2)
+    BlockVector<Joint2Vertex>& joint2_vertices_;  // of light vertex i, with J2 (else empty)
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
     // lookup.
@@ -687,9 +738,9 @@ class Iteration {
 
 // --- segments and links -----------------------------------------------------------------------
 
-std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
-                                             SubpathState& state, RenderStats& stats,
-                                             SampledSegment& seg) const {
+std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
+                                                    SubpathState& state, RenderStats& stats,
+                                                    SampledSegment& seg) const {
     if (!state.medium && !scene_.has_media()) {
         // Surface-only scenes: one closest hit, every distance density 1 (as sample_segment
         // would return, without its bookkeeping).
@@ -710,20 +761,22 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
         if (seg.end == SegmentEnd::Escaped || (state.throughput.is_black() && !collects_emission))
             return std::nullopt;
     }
-    Vertex v;
+    SubpathVertex v;
     v.p = seg.position;
     v.medium = seg.medium;
     v.previous = state.origin;
-    v.previous2 = state.origin_previous;
-    v.previous_light_ray_pdf = state.origin_light_ray_pdf;
+    v.joint2.previous2 = state.origin_previous;
+    v.joint2.previous_light_ray_pdf = state.origin_light_ray_pdf;
     const Vec3 wo = -ray.direction;
     if (seg.end == SegmentEnd::Medium) {
         v.phase = &seg.medium->phase();
         if (seg.one_piece) v.joint_distance_pdf = seg.densities.toward_end;
-        // J2's light-side vertex: the first vertex of a light subpath from a finite light.
+        // J2's light-side vertex: a light subpath's medium vertex reached in one piece from a
+        // scattering vertex or a finite light's point (record_light_ray keeps that ray).
         if (joint2_ && mode == TransportMode::Importance && seg.one_piece &&
-            state.path_length == 1 && state.is_finite_light && seg.medium->is_homogeneous())
-            v.light_ray_pdf = seg.densities.toward_end;
+            joint_light_side(state.path_length, state.is_finite_light) &&
+            seg.medium->is_homogeneous())
+            v.joint2.light_ray_pdf = seg.densities.toward_end;
         if (mode == TransportMode::Radiance)
             v.query_beam = mis_.query_beam_factor(seg.densities.toward_end);
         if (photon_beams_) set_photon_beam_quantities(v, seg, mode);
@@ -749,20 +802,16 @@ std::optional<Vertex> Iteration::next_vertex(const Ray& ray, TransportMode mode,
             joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in, seg.densities.toward_end,
             light_joint2_ratio(state.origin_previous2, state.origin_previous,
                                state.origin_previous_light_ray_pdf, v.p, state.origin));
-    // Eye subpaths arriving at a surface (perhaps an emitter): if the path ends here, the
-    // vertex the segment left is the light-side vertex of a J2 junction on the emission ray;
-    // the emission weight adds this term (vcm_mis.h, add_eye_joint2_term).
-    state.emission_joint2 = 0;
+    // Eye subpaths: the vertex the segment left is the light-side vertex of a J2 junction whose
+    // light ray starts here (at a light's point should the path end here, or at a scattering
+    // vertex of the light subpath); every technique that has this vertex on the light side
+    // counts it (vcm_mis.h, add_eye_joint2_term).
     if (joint2_ && mode == TransportMode::Radiance && state.carried_eye_joint2 > 0 &&
-        seg.end == SegmentEnd::Surface && seg.one_piece && state.origin_in_medium && state.medium &&
-        state.medium->is_homogeneous()) {
-        MisQuantities term;
-        mis_.add_eye_joint2_term(term, state.carried_eye_joint2,
+        seg.one_piece && state.origin_in_medium && state.medium && state.medium->is_homogeneous())
+        mis_.add_eye_joint2_term(state.mis, state.carried_eye_joint2,
                                  joint2_pdf_l(scene_.bounding_sphere(), v.p, state.origin,
                                               state.origin_previous2, state.origin_previous),
                                  cos_in, seg.densities.toward_end);
-        state.emission_joint2 = term.dVC;
-    }
     // Light subpaths: the P-B2D term of the vertex this segment left (the segment from here is
     // the query that covers it).
     if (mode == TransportMode::Importance)
@@ -859,22 +908,16 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
 
 void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                                  std::vector<Splat>& splats, RenderStats& stats,
-                                 EmissionRay* emission) const {
+                                 std::vector<LightRay>* rays,
+                                 std::vector<Joint2Vertex>* joint2) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kLightStreamBase + path_index});
     SubpathState state;
     Ray ray;
     if (!generate_light_sample(rng, state, ray)) return;
-    if (emission && state.is_finite_light && state.medium && state.medium->is_homogeneous()) {
-        // The first piece of the emission ray (one closest hit per light path), for J2.
-        ++stats.rays;
-        emission->origin = state.origin;
-        emission->direction = ray.direction;
-        emission->throughput = state.throughput;
-        emission->mis = state.mis;
-        emission->medium = state.medium;
-        emission->piece_end =
-            dot(ray.origin - state.origin, ray.direction) + scene_.closest_hit_distance(ray);
-    }
+    // J2 joins a ray's resampled vertex (after path_length segments) to an eye vertex: rays whose
+    // paths would exceed max_depth are not kept.
+    if (rays && state.is_finite_light && 3 <= max_length_)
+        record_light_ray(ray, state, 1, *rays, stats);
 
     uint32_t beam_piece = 0;
     for (;; ++state.path_length) {
@@ -882,23 +925,50 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         // Photon beams need the subpath as it was before the segment.
         std::optional<SubpathState> before;
         if (photon_beams_) before = state;
-        std::optional<Vertex> v =
+        std::optional<SubpathVertex> v =
             next_vertex(ray, TransportMode::Importance, rng, state, stats, seg);
         if (before) emit_photon_beams(ray, *before, seg, path_index, beam_piece, rng, stats);
         if (!v) break;
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
-            if (use_vc_ || use_vm_ || many_lights_)
+            if (use_vc_ || use_vm_ || many_lights_) {
                 vertices.push_back(LightVertex{*v, wo, state.throughput, state.path_length,
                                                state.mis, state.is_finite_light});
+                if (joint2) joint2->push_back(v->joint2);
+            }
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
                 connect_to_camera(state, *v, wo, rng, splats, stats);
         }
         // Extending needs one more segment plus at least the segment to the eye.
         if (state.path_length + 2 > max_length_) break;
         if (!sample_scattering(*v, wo, rng, state, ray)) break;
+        if (rays && state.path_length + 3 <= max_length_)
+            record_light_ray(ray, state, state.path_length + 1, *rays, stats);
     }
+}
+
+void Iteration::record_light_ray(const Ray& ray, const SubpathState& state, int path_length,
+                                 std::vector<LightRay>& rays, RenderStats& stats) const {
+    if (!state.medium || !state.medium->is_homogeneous()) return;
+    // The ray's first piece (one closest hit per light ray).
+    ++stats.rays;
+    LightRay r;
+    r.origin = state.origin;
+    r.direction = ray.direction;
+    r.throughput = state.throughput;
+    r.mis = state.mis;
+    r.medium = state.medium;
+    r.piece_end = dot(ray.origin - state.origin, ray.direction) + scene_.closest_hit_distance(ray);
+    r.origin_previous = state.origin_previous;
+    r.origin_previous2 = state.origin_previous2;
+    r.origin_light_ray_pdf = state.origin_light_ray_pdf;
+    r.origin_previous_light_ray_pdf = state.origin_previous_light_ray_pdf;
+    r.carried_connection = state.carried_connection;
+    r.path_length = path_length;
+    r.origin_in_medium = state.origin_in_medium;
+    r.finite_light = state.is_finite_light;
+    rays.push_back(r);
 }
 
 void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splats) {
@@ -937,25 +1007,31 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     auto trace = [&](LightChunk* chunk) {
         chunk->vertices.clear();
         chunk->path_sizes.clear();
-        chunk->emission_rays.clear();
+        chunk->light_rays.clear();
+        chunk->ray_counts.clear();
+        chunk->joint2_vertices.clear();
         chunk->splats.clear();
         chunk->stats = RenderStats{};
         const uint64_t first = chunk->index * kLightPathChunk;
         const uint64_t last = std::min(first + kLightPathChunk, light_path_count_);
         for (uint64_t p = first; p < last; ++p) {
-            const size_t before = chunk->vertices.size();
-            if (joint2_) chunk->emission_rays.emplace_back();
+            const size_t before = chunk->vertices.size(), rays_before = chunk->light_rays.size();
             trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats,
-                             joint2_ ? &chunk->emission_rays.back() : nullptr);
+                             joint2_ ? &chunk->light_rays : nullptr,
+                             joint2_ ? &chunk->joint2_vertices : nullptr);
             chunk->path_sizes.push_back(uint32_t(chunk->vertices.size() - before));
+            if (joint2_)
+                chunk->ray_counts.push_back(uint32_t(chunk->light_rays.size() - rays_before));
         }
         return chunk;
     };
     uint32_t end = 0;
     auto gather = [&](LightChunk* chunk) {
         for (uint32_t size : chunk->path_sizes) path_ends_.push_back(end += size);
-        emission_rays_.insert(emission_rays_.end(), chunk->emission_rays.begin(),
-                              chunk->emission_rays.end());
+        uint32_t ray_end = uint32_t(light_rays_.size());
+        for (uint32_t count : chunk->ray_counts) ray_ends_.push_back(ray_end += count);
+        light_rays_.insert(light_rays_.end(), chunk->light_rays.begin(), chunk->light_rays.end());
+        for (const Joint2Vertex& j : chunk->joint2_vertices) joint2_vertices_.push_back(j);
         for (LightVertex& v : chunk->vertices) {
             if (use_vm_) {
                 const bool medium = v.vertex.in_medium();
@@ -992,8 +1068,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     if (photon_beams_) build_photon_beams();
 }
 
-bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
-                                  Ray& ray) const {
+bool Iteration::sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng,
+                                  SubpathState& state, Ray& ray) const {
     const float u_lobe = rng.next_1d();
     const Vec2 u = rng.next_2d();
     std::optional<BsdfSample> bs = v.sample(wo, u_lobe, u);
@@ -1024,7 +1100,7 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
                  v.query_beam);
     state.origin_previous2 = state.origin_previous;
     state.origin_previous_light_ray_pdf = state.origin_light_ray_pdf;
-    state.origin_light_ray_pdf = v.light_ray_pdf;
+    state.origin_light_ray_pdf = v.joint2.light_ray_pdf;
     state.origin = v.p;
     state.origin_previous = v.previous;
     state.origin_joint_pdf = v.joint_distance_pdf;
@@ -1043,7 +1119,7 @@ bool Iteration::sample_scattering(const Vertex& v, const Vec3& wo, Rng& rng, Sub
     return true;
 }
 
-void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, const Vec3& wo,
+void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
                                   Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const {
     std::optional<Vec2> raster = camera_.raster_position(v.p);
     if (!raster) return;
@@ -1067,7 +1143,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const Vertex& v, co
             joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
     const float camera_light_joint2 =
         light_joint_ratio > 0
-            ? light_joint2_ratio(v.previous2, v.previous, v.previous_light_ray_pdf,
+            ? light_joint2_ratio(v.joint2.previous2, v.previous, v.joint2.previous_light_ray_pdf,
                                  camera_.position(), v.p)
             : 0.0f;
     // P-B2D at this vertex with the camera ray as the query.
@@ -1119,10 +1195,9 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     if (joint_ && light->is_finite() && state.origin_joint_pdf > 0)
         joint_ratio =
             joint_pdf_l(state.origin_previous, state.origin, hit_point) / state.origin_joint_pdf;
-    // J2 on the emission ray (the vertex before the hit point resampled on it).
-    MisQuantities eye = state.mis;
-    if (light->is_finite()) eye.dVC += state.emission_joint2;
-    return le.radiance * mis_.weight_emission(eye, le.pdf_direct_a * pick_probability,
+    // (J2 on the emission ray, the vertex before the hit point resampled on it, is in dVC:
+    // next_vertex added it on arriving here.)
+    return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
                                               le.pdf_emission_w * pick_probability, joint_ratio);
 }
 
@@ -1141,16 +1216,16 @@ Rgb Iteration::medium_emission(const SubpathState& state, const Vertex& v) const
     return le * volume_emission_weight(mis_, state.mis, direct_pdf_a);
 }
 
-Rgb Iteration::direct_illumination(const SubpathState& state, const Vertex& v, const Vec3& wo,
-                                   Rng& rng, RenderStats& stats) const {
+Rgb Iteration::direct_illumination(const SubpathState& state, const SubpathVertex& v,
+                                   const Vec3& wo, Rng& rng, RenderStats& stats) const {
     DirectLightSample dl;
     if (!sample_direct_emitter(scene_, v.p, rng, dl)) return Rgb(0.0f);
     return direct_contribution(state.mis, v, wo, dl, rng, stats);
 }
 
-Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v, const Vec3& wo,
-                                   const DirectLightSample& dl, Rng& rng, RenderStats& stats,
-                                   bool joint) const {
+Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVertex& v,
+                                   const Vec3& wo, const DirectLightSample& dl, Rng& rng,
+                                   RenderStats& stats, bool joint) const {
     const LightIlluminateSample& ls = dl.ls;
     const auto [f, pdf_w] = v.evaluate(wo, ls.wi);
     if (f.is_black()) return Rgb(0.0f);
@@ -1182,7 +1257,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const Vertex& v
         eye_joint2 =
             mis_.eye_joint2_term(eye_mis, v.camera_joint_ratio,
                                  joint2_pdf_l(scene_.bounding_sphere(), v.p + ls.wi * ls.distance,
-                                              v.p, v.previous2, v.previous) /
+                                              v.p, v.joint2.previous2, v.previous) /
                                      l.densities.toward_start);
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
@@ -1223,8 +1298,8 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
 }
 
 std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
-    const LightVertex& lv, const Vertex& v, const Vec3& wo, const MisQuantities& eye_mis, Rng& rng,
-    RenderStats& stats, JointKind joint) const {
+    const LightVertex& lv, const Joint2Vertex& w2, const SubpathVertex& v, const Vec3& wo,
+    const MisQuantities& eye_mis, Rng& rng, RenderStats& stats, JointKind joint) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
     const Vertex& w = lv.vertex;
@@ -1252,12 +1327,21 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     // J2 of this junction (the light vertex resampled on the emission ray) and of the one
     // before it (the light vertex's predecessor resampled there, the light vertex by J1).
     float joint2_ratio = 0, light_joint2 = 0;
-    if (joint_ratio > 0 && w.light_ray_pdf > 0)
+    if (joint_ratio > 0 && w2.light_ray_pdf > 0)
         joint2_ratio = joint2_pdf_l(scene_.bounding_sphere(), w.previous, w.p, v.previous, v.p) /
-                       w.light_ray_pdf;
+                       w2.light_ray_pdf;
     if (light_joint_ratio > 0)
         light_joint2 =
-            light_joint2_ratio(w.previous2, w.previous, w.previous_light_ray_pdf, v.p, w.p);
+            light_joint2_ratio(w2.previous2, w.previous, w2.previous_light_ray_pdf, v.p, w.p);
+    // J2 of the junction toward the camera: v resampled on the light ray from w toward it (the
+    // connection segment, in one piece), its successor toward the camera by J1.
+    float eye_joint2 = 0;
+    if (joint2_ && v.camera_joint_ratio > 0 && v.in_medium() && v.medium->is_homogeneous() &&
+        l.one_piece && l.densities.toward_start > 0)
+        eye_joint2 = mis_.eye_joint2_term(
+            eye_mis, v.camera_joint_ratio,
+            joint2_pdf_l(scene_.bounding_sphere(), w.p, v.p, v.joint2.previous2, v.previous) /
+                l.densities.toward_start);
     // Eqs. (40) and (41).
     const ConnectionTechnique technique{
         .eye_pdf_a = eye_pdf_a,
@@ -1274,6 +1358,7 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
         .joint_ratio = joint_ratio,
         .light_joint2_ratio = light_joint2,
         .joint2_ratio = joint2_ratio,
+        .eye_joint2 = eye_joint2,
         // B-B1D at the light vertex (the connection as the query) and at the eye vertex (the
         // connection as the photon beam).
         .light_photon_beam =
@@ -1294,15 +1379,17 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     return ConnectionTerms{*g, contribution, ray, l};
 }
 
-Rgb Iteration::connect_vertices(const LightVertex& lv, const Vertex& v, const Vec3& wo,
+Rgb Iteration::connect_vertices(const LightVertex& lv, const Joint2Vertex& light_joint2,
+                                const SubpathVertex& v, const Vec3& wo,
                                 const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const {
-    const std::optional<ConnectionTerms> t = connection_terms(lv, v, wo, eye_mis, rng, stats);
+    const std::optional<ConnectionTerms> t =
+        connection_terms(lv, light_joint2, v, wo, eye_mis, rng, stats);
     if (!t) return Rgb(0.0f);
     return t->unoccluded * visibility(t->link, t->ray, stats);
 }
 
 void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& state,
-                                       Vertex& v) const {
+                                       SubpathVertex& v) const {
     // The junction's eye-side vertex is the one the eye came from (a medium vertex reached in
     // one piece, else it has no J1 technique), sampled toward v.
     if (!joint_ || !(state.origin_joint_pdf > 0)) return;
@@ -1313,7 +1400,7 @@ void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& s
 
 template <class Add>
 void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uint32_t first,
-                                  uint32_t end, const EmissionRay* emission, Rng& rng,
+                                  uint32_t end, uint32_t rays_first, uint32_t rays_end, Rng& rng,
                                   RenderStats& stats, Add&& add) const {
     const Medium* medium = state.medium;
     // J1 at s = 1 is next-event estimation's sibling: there whenever next-event estimation is.
@@ -1331,7 +1418,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     // taken); nullopt if the sample lies past the first piece or carries nothing.
     struct JointVertex {
         Rgb eye_weight;
-        Vertex v;
+        SubpathVertex v;
         MisQuantities mis;
     };
     auto sample_vertex = [&](const Vec3& target) -> std::optional<JointVertex> {
@@ -1354,11 +1441,19 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         j.v.medium = medium;
         j.v.phase = &medium->phase();
         j.v.previous = state.origin;
-        j.v.previous2 = state.origin_previous;
-        j.v.previous_light_ray_pdf = state.origin_light_ray_pdf;
+        j.v.joint2.previous2 = state.origin_previous;
+        j.v.joint2.previous_light_ray_pdf = state.origin_light_ray_pdf;
         j.v.joint_distance_pdf = densities.toward_end;
         j.mis = state.mis;
         mis_.arrive(j.mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
+        // As next_vertex: the J2 term of the junction two steps toward the camera, whose light
+        // ray would start here (the first piece is one piece).
+        if (joint2_ && state.carried_eye_joint2 > 0 && state.origin_in_medium &&
+            medium->is_homogeneous())
+            mis_.add_eye_joint2_term(j.mis, state.carried_eye_joint2,
+                                     joint2_pdf_l(scene_.bounding_sphere(), z, state.origin,
+                                                  state.origin_previous2, state.origin_previous),
+                                     1.0f, densities.toward_end);
         include_joint_junction(j.mis, state, j.v);
         return j;
     };
@@ -1377,14 +1472,18 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
                            direct_contribution(j->mis, j->v, wo, dl, rng, stats, /*joint=*/true));
         }
     }
-    // J2: the first vertex of the pixel's light path resampled on its emission ray by B2, then
+    // J2: the vertex at the end of each of the pixel's light path's rays (its emission ray and
+    // the rays its vertices scattered into, in homogeneous media) resampled on it by B2, then
     // the eye vertex toward it by J1.
-    if (emission && emission->medium && 2 + state.path_length <= max_length_) {
+    for (uint32_t r = rays_first; r < rays_end; ++r) {
+        const LightRay& light_ray = light_rays_[r];
+        if (light_ray.path_length + 1 + state.path_length > max_length_) break;
+        Joint2Vertex b_joint2;
         if (const std::optional<LightVertex> b =
-                resample_on_emission_ray(*emission, state.origin, ray.direction, rng)) {
+                resample_on_light_ray(light_ray, state.origin, ray.direction, b_joint2, rng)) {
             if (const std::optional<JointVertex> j = sample_vertex(b->vertex.p)) {
                 if (const std::optional<ConnectionTerms> c =
-                        connection_terms(*b, j->v, wo, j->mis, rng, stats, JointKind::J2))
+                        connection_terms(*b, b_joint2, j->v, wo, j->mis, rng, stats, JointKind::J2))
                     add(b->path_length + 1, j->eye_weight * b->throughput * c->unoccluded *
                                                 visibility(c->link, c->ray, stats));
             }
@@ -1396,32 +1495,32 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         const std::optional<JointVertex> j = sample_vertex(lv.vertex.p);
         if (!j) continue;
         const std::optional<ConnectionTerms> c =
-            connection_terms(lv, j->v, wo, j->mis, rng, stats, JointKind::J1);
+            connection_terms(lv, joint2_of(i), j->v, wo, j->mis, rng, stats, JointKind::J1);
         if (!c) continue;
         add(lv.path_length + 1,
             j->eye_weight * lv.throughput * c->unoccluded * visibility(c->link, c->ray, stats));
     }
 }
 
-std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay& e,
-                                                               const Vec3& eye_origin,
-                                                               const Vec3& eye_direction,
-                                                               Rng& rng) const {
+std::optional<LightVertex> Iteration::resample_on_light_ray(const LightRay& e,
+                                                            const Vec3& eye_origin,
+                                                            const Vec3& eye_direction,
+                                                            Joint2Vertex& joint2, Rng& rng) const {
     const float range = light_ray_range(scene_.bounding_sphere(), e.origin, e.direction);
     if (!(range > 0)) return std::nullopt;
     const JointLightDistanceSampler b2(e.origin, e.direction, eye_origin, eye_direction, range);
     const float t = b2.sample(rng.next_1d());
     const float pdf = b2.pdf_l(t);
-    // Samples past the emission ray's first piece contribute nothing (B2's density covers the
-    // whole range so that every technique evaluates the same density without tracing).
+    // Samples past the ray's first piece contribute nothing (B2's density covers the whole
+    // range so that every technique evaluates the same density without tracing).
     if (!(pdf > 0 && t > 0 && t < e.piece_end)) return std::nullopt;
     const Medium* medium = e.medium;
     const Ray ray(e.origin, e.direction);
     const Vec3 b = ray.at(t);
     const Rgb sigma_s = medium->sigma_s(b);
     if (sigma_s.is_black()) return std::nullopt;
-    // The first vertex as if distance sampling had reached it (next_vertex), with B2's density.
-    SegmentDensityBuilder builder(false);
+    // The vertex as if distance sampling had reached it (next_vertex), with B2's density.
+    SegmentDensityBuilder builder(e.origin_in_medium);
     builder.add_piece(medium, ray, t);
     const SegmentDensities densities = builder.finish(true);
     LightVertex lv{};
@@ -1430,14 +1529,25 @@ std::optional<LightVertex> Iteration::resample_on_emission_ray(const EmissionRay
     lv.vertex.phase = &medium->phase();
     lv.vertex.previous = e.origin;
     lv.vertex.joint_distance_pdf = densities.toward_end;
-    lv.vertex.light_ray_pdf = densities.toward_end;
+    joint2 = Joint2Vertex{};
+    joint2.previous2 = e.origin_previous;
+    joint2.light_ray_pdf = densities.toward_end;
+    joint2.previous_light_ray_pdf = e.origin_light_ray_pdf;
     lv.wo = -e.direction;
     lv.throughput = e.throughput * medium->transmittance(ray, t, rng) * sigma_s * (1.0f / pdf);
     if (!lv.throughput.is_finite() || lv.throughput.is_black()) return std::nullopt;
-    lv.path_length = 1;
-    lv.finite_light = true;
+    lv.path_length = e.path_length;
+    lv.finite_light = e.finite_light;
     lv.mis = e.mis;
-    mis_.arrive(lv.mis, t * t, true, 1.0f, densities.toward_end, densities.toward_start);
+    mis_.arrive(lv.mis, t * t, e.path_length > 1 || e.finite_light, 1.0f, densities.toward_end,
+                densities.toward_start);
+    // J1's deferred term of the junction whose eye-side vertex is the ray's origin (next_vertex).
+    if (e.carried_connection > 0 && e.origin_in_medium &&
+        joint_light_side(e.path_length - 1, e.finite_light))
+        mis_.add_joint_term(lv.mis, e.carried_connection,
+                            joint_pdf_l(b, e.origin, e.origin_previous), 1.0f, densities.toward_end,
+                            light_joint2_ratio(e.origin_previous2, e.origin_previous,
+                                               e.origin_previous_light_ray_pdf, b, e.origin));
     return lv;
 }
 
@@ -1485,7 +1595,8 @@ void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats
     float distance = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+        std::optional<SubpathVertex> v =
+            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v || state.path_length >= max_length_) return;
         distance += seg.distance;
         if (v->has_non_delta()) {
@@ -1566,7 +1677,7 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
             // bpt: the table entries are the connection's own MIS-weighted contribution at the
             // record (the weight tames the 1 / d^2 of nearby vertices, so no clamp).
             const std::optional<ConnectionTerms> t =
-                connection_terms(lv, r.vertex, r.wo, r.mis, rng, stats);
+                connection_terms(lv, Joint2Vertex{}, r.vertex, r.wo, r.mis, rng, stats);
             if (!t) continue;
             const double y = (lv.throughput * t->unoccluded).luminance();
             if (!(y > 0) || !std::isfinite(y)) continue;
@@ -2093,16 +2204,19 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
     };
     // The pixel's light path (connections and joint connections).
     uint32_t light_first = 0, light_end = 0;
-    const EmissionRay* emission_ray = nullptr;
+    uint32_t rays_first = 0, rays_end = 0;  // its J2 light rays
     if (use_vc_ && !ic_connections_ && !path_ends_.empty()) {
         const uint64_t path = pixel % light_path_count_;
         light_first = path == 0 ? 0 : path_ends_[path - 1];
         light_end = path_ends_[path];
-        if (path < emission_rays_.size()) emission_ray = &emission_rays_[path];
+        if (path < ray_ends_.size()) {
+            rays_first = path == 0 ? 0 : ray_ends_[path - 1];
+            rays_end = ray_ends_[path];
+        }
     }
     for (;; ++state.path_length) {
         if (joint_ && state.path_length < max_length_)
-            joint_connections(ray, state, light_first, light_end, emission_ray, rng, stats,
+            joint_connections(ray, state, light_first, light_end, rays_first, rays_end, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
         if (query_beams_ && photon_beams_ && state.path_length < max_length_) {
             Rgb query_sum, photon_sum;
@@ -2115,7 +2229,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
         }
         SampledSegment seg;
-        std::optional<Vertex> v = next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+        std::optional<SubpathVertex> v =
+            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
         if (!v) {
             if (seg.end == SegmentEnd::Escaped && !state.throughput.is_black()) {
                 // Left the scene: the distance sampling on the way is part of this
@@ -2180,7 +2295,9 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                 draw_from_importance_caches(
                     *v, state.path_length, rng,
                     [&](const LightVertex& lv) {
-                        return lv.throughput * connect_vertices(lv, *v, wo, state.mis, rng, stats) *
+                        // No J2 beside ic connections (joint_ is off there).
+                        return lv.throughput *
+                               connect_vertices(lv, Joint2Vertex{}, *v, wo, state.mis, rng, stats) *
                                ic_connection_scale_;
                     },
                     [&](int s, const Rgb& c) {
@@ -2192,7 +2309,7 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > max_length_) break;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, *v, wo, state.mis, rng, stats));
+                            connect_vertices(lv, joint2_of(i), *v, wo, state.mis, rng, stats));
                 }
             }
             if (v->in_medium() ? merge_points_ : merge_surfaces_) {

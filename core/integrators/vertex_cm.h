@@ -138,9 +138,10 @@ struct PhotonBeamInspection {
 // Upper bounds of the sizes of vertex_cm.cpp's stored records, for the per-iteration memory
 // estimate (core/render/iteration_memory.cpp); vertex_cm.cpp checks them with static_assert,
 // so a record that grows past its bound fails the build instead of the estimate.
-inline constexpr size_t kLightVertexBytesBound = 216;  // a stored light vertex (LightVertex)
+inline constexpr size_t kLightVertexBytesBound = 192;  // a stored light vertex (LightVertex)
+inline constexpr size_t kJoint2VertexBytesBound = 20;  // J2's state of one (Joint2Vertex)
 inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
-inline constexpr size_t kEmissionRayBytesBound = 96;   // J2's per-path emission ray
+inline constexpr size_t kLightRayBytesBound = 104;     // a J2 light ray (LightRay)
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one
 // iteration to the next (vertex_cm.cpp).

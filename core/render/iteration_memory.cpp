@@ -90,12 +90,19 @@ IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings
         part(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
              std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
                  " stored vertices x " + std::to_string(per_vertex) + " B");
-        // bpt's J2 keeps each light path's emission ray (vertex_cm.cpp's EmissionRay).
-        if (name == "bpt" && settings.joint_connections && settings.joint2_connections)
-            part(mul(paths, kEmissionRayBytesBound), "J2's emission rays");
+        // bpt's J2 keeps each light path's rays in homogeneous media (vertex_cm.cpp's LightRay:
+        // the emission ray and one per scattering vertex, up to V + 1, and the path's 4-B end)
+        // and each stored vertex's J2 state in a side array (Joint2Vertex), in the chunks too.
+        const bool joint2 =
+            name == "bpt" && settings.joint_connections && settings.joint2_connections;
+        const uint64_t joint2_per_path = joint2
+                                             ? add(mul(vertices_per_path + 1, kLightRayBytesBound),
+                                                   mul(vertices_per_path, kJoint2VertexBytesBound))
+                                             : 0;
+        if (joint2) part(mul(paths, add(joint2_per_path, 4)), "J2's light rays and vertex states");
         const uint64_t chunk_paths =
             std::min(paths, mul(mul(thread_count, kChunksInFlightPerThread), kLightPathsPerChunk));
-        part(mul(mul(chunk_paths, vertices_per_path), kLightVertexBytes),
+        part(mul(chunk_paths, add(mul(vertices_per_path, kLightVertexBytes), joint2_per_path)),
              "the light pass's chunks in flight");
     }
     const bool many_lights = name == "vpl" || name == "ic";

@@ -278,7 +278,8 @@ const std::vector<RenderOption>& table() {
                  "medium also joins the vertices of the pixel's light path through a medium "
                  "vertex sampled toward each (J1, vertex-segment), and to a light point "
                  "(equi-angular next-event estimation); all: J1 and J2 (segment-segment: the "
-                 "light path's first vertex resampled on its emission ray, bpt only); combined "
+                 "light path's vertices resampled on their light rays in homogeneous media, bpt "
+                 "only); combined "
                  "by MIS (bpt, vcm; off by default: on the fog box J1 halves the variance but "
                  "doubles the time per iteration, equal-time error 0.96-1.05x; "
                  "docs/joint-sampling.md)",

@@ -47,18 +47,30 @@ TEST(IterationMemory, StoredLightPathsGrowWithThePixelsOrTheLightPathCount) {
     EXPECT_LT(estimate_iteration_memory(fixed, 512, 512, 2).bytes, small);
 }
 
-// J2 (bpt --joint-connections all) keeps one emission ray per light path besides the vertices.
-TEST(IterationMemory, JointSegmentConnectionsChargeTheirEmissionRays) {
+// J2 (bpt --joint-connections all) keeps a light path's rays in media (up to one per stored vertex
+// and the emission ray, and the path's 4-B end) and its state of each stored vertex (a side
+// array), also in the light pass's chunks; without J2 neither is charged (nor stored).
+TEST(IterationMemory, JointSegmentConnectionsChargeTheirLightRaysAndVertexStates) {
     RenderSettings j1 = settings_for("bpt");
     j1.joint_connections = true;
     RenderSettings j2 = j1;
     j2.joint2_connections = true;
     const uint64_t paths = 256u * 256u;  // one light path per pixel
+    const uint64_t vertices = assumed_light_vertices_per_path(j2);
+    // 2 threads x 4 chunks in flight x 256 paths.
+    const uint64_t chunk_paths = 2u * 4u * 256u;
+    const uint64_t per_path =
+        (vertices + 1) * kLightRayBytesBound + vertices * kJoint2VertexBytesBound;
     EXPECT_EQ(estimate_iteration_memory(j2, 256, 256, 2).bytes -
                   estimate_iteration_memory(j1, 256, 256, 2).bytes,
-              paths * kEmissionRayBytesBound);
-    EXPECT_NE(estimate_iteration_memory(j2, 256, 256, 2).what.find("J2's emission rays"),
+              paths * (per_path + 4) + chunk_paths * per_path);
+    EXPECT_NE(estimate_iteration_memory(j2, 256, 256, 2).what.find("J2's light rays"),
               std::string::npos);
+    EXPECT_EQ(estimate_iteration_memory(j1, 256, 256, 2).what.find("J2's"), std::string::npos);
+    RenderSettings plain = settings_for("bpt");
+    plain.joint2_connections = true;  // without joint_connections J2 does not run
+    EXPECT_EQ(estimate_iteration_memory(plain, 256, 256, 2).bytes,
+              estimate_iteration_memory(settings_for("bpt"), 256, 256, 2).bytes);
 }
 
 TEST(IterationMemory, EachAlgorithmChargesWhatItStores) {

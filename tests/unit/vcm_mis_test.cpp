@@ -392,11 +392,11 @@ class MisSumTest : public ::testing::Test {
     // --- joint (J2) connections ----------------------------------------------------------------
 
     // Whether junction `eye_side` has a J2 technique: a J1 technique whose light-side vertex is
-    // in the medium and was reached from a finite light's point (bpt runs J2 on the emission ray
-    // only: junction 1).
+    // in the medium and was reached from a scattering vertex or a finite light's point (bpt
+    // resamples it on that light ray: the emission ray at junction 1, deeper ones beyond).
     bool has_joint2(int eye_side) const {
-        return joint2_ && has_joint(eye_side) && eye_side == 1 && vertices_[0].in_medium() &&
-               end_.finite;
+        return joint2_ && has_joint(eye_side) && eye_side >= 1 &&
+               vertices_[size_t(eye_side) - 1].in_medium() && (eye_side >= 2 || end_.finite);
     }
     // B2's density of the light-side vertex of junction `eye_side` on the light ray from its
     // predecessor, the eye ray from endpoint `from` through the eye-side vertex (range: the light
@@ -487,7 +487,7 @@ class MisSumTest : public ::testing::Test {
         // Eye subpath (trace_eye_path): the first segment starts at the camera.
         q = mis.start_camera(camera_pdf_w(-toward_eye(m - 1)));
         carried_photon = 0;
-        float carried_joint2 = 0;  // J2: vertex 0's J1 share of its connection term
+        float carried_joint2 = 0;  // J2: the last scatter's J1 share of its connection term
         for (size_t k = 0; k < m; ++k) {
             const size_t i = m - 1 - k;
             const PathVertex& v = vertices_[i];
@@ -498,6 +498,11 @@ class MisSumTest : public ::testing::Test {
             mis.arrive(q, distance2_to_eye_side(i), true, v.cos(wo), s.toward_end, s.toward_start);
             mis.add_photon_beam_term(q, carried_photon, v.cos(wo), s.toward_end, s.toward_start,
                                      true, true);
+            // J2 of the junction two steps toward the camera (light-side vertex i + 1, resampled
+            // on the light ray from here), carried from the scatter at i + 1.
+            if (has_joint2(int(i) + 2))
+                mis.add_eye_joint2_term(q, carried_joint2, joint2_pdf(int(i) + 2, int(i) + 3),
+                                        v.cos(wo), s.toward_end);
             // The junction toward the camera (eye-side vertex i + 1, sampled from i + 2).
             mis.include_joint_junction(q, joint_ratio(int(i) + 1, int(i) + 2));
             st.eye[i] = q;
@@ -522,8 +527,7 @@ class MisSumTest : public ::testing::Test {
             mis.arrive(q, 0.0f, false, 1.0f, s.toward_end, s.toward_start);
         mis.add_photon_beam_term(q, carried_photon, end_.finite ? end_.cos_light : 1.0f,
                                  s.toward_end, s.toward_start, true, true);
-        // J2 on the emission ray, vertex 0 its light-side vertex: only for the emission weight
-        // (eye_at_light is used for nothing else; the integrator adds it to a copy).
+        // J2 on the emission ray, vertex 0 its light-side vertex (for the emission weight).
         if (has_joint2(1))
             mis.add_eye_joint2_term(q, carried_joint2, joint2_pdf(1, 2), end_.cos_light,
                                     s.toward_end);
@@ -629,10 +633,15 @@ class MisSumTest : public ::testing::Test {
                     // vertex from its successor (the camera for the last).
                     .light_joint_ratio = joint_ratio(int(a), int(b)),
                     .joint_ratio = joint_ratio(int(b), int(b) + 1),
-                    // J2: this junction and the one toward the light (the one toward the camera
-                    // has none: its light-side vertex b is not vertex 0).
+                    // J2: this junction, the one toward the light, and the one toward the camera
+                    // (its light-side vertex b resampled on the connection from a).
                     .light_joint2_ratio = joint2_ratio(int(a), int(b)),
                     .joint2_ratio = joint2_ratio(int(b), int(b) + 1),
+                    .eye_joint2 =
+                        has_joint2(int(b) + 1)
+                            ? mis.eye_joint2_term(st.eye[b], joint_ratio(int(b) + 1, int(b) + 2),
+                                                  joint2_ratio(int(b) + 1, int(b) + 2))
+                            : 0.0f,
                     // B-B1D at the light vertex (the connection as the query) and at the eye
                     // vertex (the connection as the photon beam).
                     .light_photon_beam = w.in_medium() ? mis.photon_beam_light_term(
@@ -900,6 +909,8 @@ class MisSumTest : public ::testing::Test {
             joint_checked_ += t.kind == TechniqueKind::JointConnection;
             joint_direct_checked_ += t.kind == TechniqueKind::JointDirect;
             joint2_checked_ += t.kind == TechniqueKind::Joint2Connection;
+            // J2 from a deeper light vertex: the light ray starts at a scattering vertex.
+            joint2_deep_checked_ += t.kind == TechniqueKind::Joint2Connection && t.vertex >= 1;
             joint_with_merges_checked_ += merges && t.kind == TechniqueKind::JointConnection;
             query_beams_checked_ += t.kind == TechniqueKind::QueryBeam;
             photon_beams_checked_ += t.kind == TechniqueKind::PhotonBeam;
@@ -941,6 +952,7 @@ class MisSumTest : public ::testing::Test {
     bool joint_light_ = false;      // J1 at s = 1 as well (next-event estimation's sibling)
     bool joint2_ = false;           // J2 as well (bpt --joint-connections all)
     int joint2_checked_ = 0;        // J2 weights checked so far
+    int joint2_deep_checked_ = 0;   // of them, on a light ray from a scattering vertex
     int joint_checked_ = 0;         // J1 weights checked so far
     int joint_direct_checked_ = 0;  // J1 at s = 1 weights checked so far
     int joint_with_merges_checked_ = 0;  // of which beside merges (vcm)
@@ -1005,6 +1017,10 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
         {M::Medium, M::Medium, M::Medium},
         {M::Diffuse, M::Medium, M::Mirror, M::Medium, M::Glossy},
         {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+        // Runs of medium vertices: J2 on light rays from scattering vertices at every depth,
+        // with the light subpath's deferred term of junctions 2 and beyond.
+        {M::Medium, M::Medium, M::Medium, M::Medium},
+        {M::Glossy, M::Medium, M::Medium, M::Medium, M::Diffuse},
     };
     Rng rng(StreamKey{2025, 0, 1, 0});
     int checked = 0, with_medium_vertex = 0;
@@ -1070,7 +1086,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
     EXPECT_GT(joint_checked_, 800);
     EXPECT_GT(joint_with_merges_checked_, 400);
     EXPECT_GT(joint_direct_checked_, 200);
-    EXPECT_GT(joint2_checked_, 150);
+    EXPECT_GT(joint2_checked_, 300);
+    EXPECT_GT(joint2_deep_checked_, 150);
     EXPECT_GT(query_beams_checked_, 1500);
     EXPECT_GT(photon_beams_checked_, 10000);
 }

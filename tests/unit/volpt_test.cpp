@@ -170,9 +170,9 @@ INSTANTIATE_TEST_SUITE_P(Bidirectional, MediumFurnace,
                                            FurnaceCase{"vcm", "0.3, 1, 3", kForward, true, 0, 64,
                                                        false}));
 
-// bpt with J2 (--joint-connections all: the first light vertex resampled on its emission ray,
-// beside J1): the area light's emission rays start in the medium, so J2 runs; isotropic, the
-// chromatic forward case, and g = +-0.99, where B2's and J1's isotropic densities ignore the
+// bpt with J2 (--joint-connections all: the light vertices resampled on their light rays in the
+// medium, beside J1): the area light's emission rays start in the medium, so J2 runs; isotropic,
+// the chromatic forward case, and g = +-0.99, where B2's and J1's isotropic densities ignore the
 // phase function (the phase function is in the estimate, the densities are exact).
 void with_joint2(RenderSettings& s) {
     s.joint2_connections = true;
