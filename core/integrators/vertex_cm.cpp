@@ -2255,7 +2255,8 @@ VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
 PhotonBeamInspection VertexConnectionMerging::inspect_photon_beams(const Scene& scene,
                                                                    const IterationKey& key) const {
     PhotonBeamInspection out;
-    if (config_.mode != BidirectionalMode::Vcm || !config_.photon_beams || scene.lights().empty())
+    if (config_.mode != BidirectionalMode::Vcm || !config_.photon_beams ||
+        (scene.lights().empty() && scene.volume_lights().empty()))
         return out;
     IterationStorage storage;
     Iteration iteration(config_, scene, key, storage);

@@ -42,6 +42,7 @@
 #include "core/camera/perspective_camera.h"
 #include "core/integrators/joint_segment.h"
 #include "core/integrators/medium_segment.h"
+#include "core/integrators/volume_light_sampling.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"
 #include "core/lights/directional_light.h"
@@ -65,7 +66,9 @@
 namespace render {
 namespace {
 
-enum class LightKind { Area, Point, Directional, Constant };
+// Volume: a point y of an emitting medium filling the fog (a volume light, docs/media.md
+// "Emitting media as lights"): a medium endpoint, reached by the eye by a scattering event.
+enum class LightKind { Area, Point, Directional, Constant, Volume };
 enum class Material { Diffuse, Glossy, Mirror, Medium };
 
 struct PathVertex {
@@ -89,6 +92,7 @@ struct LightEnd {
     float emission_pdf_w = 0;  // emit()'s density of (endpoint, direction)
     float direct_pdf_w = 0;    // illuminate()'s solid-angle density at the first vertex
     float cos_light = 1;
+    bool volume = false;  // a volume light's point: a medium endpoint (cos 1, volume measure)
 };
 
 enum class TechniqueKind {
@@ -200,6 +204,7 @@ class MisSumTest : public ::testing::Test {
         // The light end: `direction` points from the last vertex toward the light.
         const Vec3 first = vertices_.front().p;
         SceneSphere sphere{Vec3(0, 0, 0), 6.0f};
+        end_ = LightEnd{};
         switch (kind) {
             case LightKind::Area: {
                 light_point_ = first + direction * (0.8f + rng.next_1d());
@@ -239,6 +244,25 @@ class MisSumTest : public ::testing::Test {
                 end_.emission_pdf_w = le.pdf_emission_w;
                 end_.direct_pdf_w = le.pdf_direct_a;
                 light_ = std::move(light);
+                break;
+            }
+            case LightKind::Volume: {
+                // Only in fog (the emitting medium is the fog itself). The densities are those
+                // next-event estimation reports (volume_light_illuminate) for any p_V: the
+                // weights must sum to one whatever the light's density.
+                if (!in_fog) return false;
+                light_point_ = first + direction * (0.8f + rng.next_1d());
+                const float pdf_volume = 0.01f + 0.5f * rng.next_1d();
+                LightIlluminateSample ls;
+                if (!volume_light_illuminate(first, light_point_, Rgb(1.0f), pdf_volume, ls))
+                    return false;
+                end_.finite = true;
+                end_.volume = true;
+                end_.cos_light = ls.cos_at_light;
+                end_.direct_pdf_a = pdf_volume;  // selection probability 1
+                end_.emission_pdf_w = ls.pdf_emission_w;
+                end_.direct_pdf_w = ls.pdf_direct_w;
+                light_.reset();
                 break;
             }
         }
@@ -322,9 +346,13 @@ class MisSumTest : public ::testing::Test {
     // Distance density, at endpoint `id`, of a segment reaching it after `t` in the fog.
     float distance_density(int id, const Ray& ray, float t) const {
         if (!fog_) return 1.0f;
-        const bool medium_vertex =
-            id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        return medium_vertex ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
+        return medium_endpoint(id) ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
+    }
+    // Whether endpoint `id` is reached by a scattering event: a medium vertex, or a volume
+    // light's point.
+    bool medium_endpoint(int id) const {
+        if (id == kLightEnd) return end_.volume;
+        return id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
     }
     // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
     // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
@@ -341,9 +369,7 @@ class MisSumTest : public ::testing::Test {
     // integrator's SegmentDensityBuilder over its real pieces: toward an infinite light the fog
     // up to the ball's boundary, then vacuum.
     SegmentDensities grid_segment(int from, int to) const {
-        auto medium_vertex = [&](int id) {
-            return id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        };
+        auto medium_vertex = [&](int id) { return medium_endpoint(id); };
         const bool infinite = !end_.finite && (from == kLightEnd || to == kLightEnd);
         if (!infinite) {
             const Vec3 a = endpoint(from), b = endpoint(to);
@@ -448,8 +474,10 @@ class MisSumTest : public ::testing::Test {
         st.light_carried_photon.resize(m);
         st.eye_carried_photon.resize(m);
         // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
-        MisQuantities q =
-            mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
+        // A volume light starts as generate_volume_light_sample starts it.
+        MisQuantities q = end_.volume ? start_volume_light_mis(mis, end_.direct_pdf_a)
+                                      : mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w,
+                                                        end_.cos_light, end_.delta);
         float carried = 0;         // J1: the previous vertex's connection term (vertex_cm.cpp)
         float carried_beam = 0;    // P-B2D: the previous vertex's scatter factor
         float carried_photon = 0;  // B-B1D: the previous vertex's deferred term
@@ -563,6 +591,9 @@ class MisSumTest : public ::testing::Test {
         const size_t m = vertices_.size();
         switch (t.kind) {
             case TechniqueKind::Emission:  // eq. 43 (trace_eye_path, emission)
+                // A volume light: the eye's collision estimate at y (medium_emission).
+                if (end_.volume)
+                    return volume_emission_weight(mis, st.eye_at_light, end_.direct_pdf_a);
                 return mis.weight_emission(st.eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w,
                                            joint_ratio(0, 1));
             case TechniqueKind::Direct:  // eqs. 44-45 (direct_illumination)
@@ -1154,6 +1185,87 @@ TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
     EXPECT_GT(checked, 500);
     EXPECT_GT(photon_beams_checked_, 3000);
     EXPECT_GT(short_checked, 1000);
+}
+
+// Paths that start at a volume light (a point y of an emitting medium: upbp with emitting media,
+// docs/media.md "Emitting media as lights") in the homogeneous fog and in grey and chromatic grid
+// fogs: the eye's collision emission at y (s = 0), next-event estimation to y (s = 1), every
+// connection, merge and camera connection, and upbp's query beams (P-B2D) and photon beams
+// (B-B1D, the light's first segment from y a beam like any other), beside BPT, beside
+// everything, beside BPM and alone. No technique samples y itself by a merge or a beam (y is not
+// stored, as an area light's point is not), so the list is the other lights'. The weights must
+// sum to one and equal the written-out ratios.
+TEST_F(MisSumTest, VolumeLightWeightsSumToOneWithBeams) {
+    using M = Material;
+    const std::vector<std::vector<Material>> paths = {
+        {M::Medium},
+        {M::Diffuse},
+        {M::Medium, M::Medium},
+        {M::Medium, M::Diffuse},
+        {M::Diffuse, M::Medium},
+        {M::Medium, M::Mirror, M::Medium},
+        {M::Medium, M::Medium, M::Medium},
+        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+    };
+    Rng rng(StreamKey{2027, 0, 1, 0});
+    int checked = 0, query_before = query_beams_checked_;
+    int emission_checked = 0, direct_checked = 0;
+    // 0: the homogeneous fog; 1: a grey grid fog; 2: a chromatic one.
+    for (const int fog : {0, 1, 2}) {
+        std::unique_ptr<HeterogeneousMedium> grid;
+        if (fog > 0) grid = grid_fog(fog == 1, rng);
+        grid_fog_ = grid.get();
+        for (const auto& materials : paths)
+            for (int trial = 0; trial < 8; ++trial) {
+                if (!build_path(rng, materials, LightKind::Volume, true)) continue;
+                for (const Technique& t : techniques(true, false)) {
+                    emission_checked += t.kind == TechniqueKind::Emission;
+                    direct_checked += t.kind == TechniqueKind::Direct;
+                }
+                for (double radius : {0.05, 0.15})
+                    for (int power : {1, 2}) {
+                        const double eta_surface = kPi * radius * radius * kLightPaths;
+                        const double eta_volume =
+                            4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
+                        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
+                        SCOPED_TRACE(::testing::Message()
+                                     << "fog " << fog << ", path of " << materials.size()
+                                     << " vertices, trial " << trial << ", radius " << radius
+                                     << ", power " << power);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT");
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM");
+                        check_family(power, false, true, eta_surface, eta_volume, "BPM");
+                        for (const auto& [vc, vm, name] : {std::tuple{true, false, "BPT+PB2D"},
+                                                           std::tuple{true, true, "VCM+PB2D"},
+                                                           std::tuple{false, true, "BPM+PB2D"},
+                                                           std::tuple{false, false, "PB2D"}})
+                            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
+                        const double r_1 = 0.5 * radius;
+                        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
+                            for (const bool short_beams : {false, true}) {
+                                // Short beams live in homogeneous media and grey grids only.
+                                if (short_beams && fog == 2) continue;
+                                SCOPED_TRACE(::testing::Message()
+                                             << "eta_1 " << eta_1 << ", "
+                                             << (short_beams ? "short" : "long") << " beams");
+                                for (const auto& [vc, vm, qb, name] :
+                                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
+                                      std::tuple{true, true, eta_beam, "UPBP (all)"},
+                                      std::tuple{false, true, 0.0, "BPM+BB1D"},
+                                      std::tuple{false, false, 0.0, "BB1D"}})
+                                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0,
+                                                 qb, eta_1 * kLightPaths, short_beams);
+                            }
+                        ++checked;
+                    }
+            }
+    }
+    grid_fog_ = nullptr;
+    EXPECT_GT(checked, 300);
+    EXPECT_GT(emission_checked, 100);
+    EXPECT_GT(direct_checked, 100);
+    EXPECT_GT(query_beams_checked_ - query_before, 1000);
+    EXPECT_GT(photon_beams_checked_, 5000);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one

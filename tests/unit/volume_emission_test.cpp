@@ -5,7 +5,7 @@
 //   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit
 //     L_e too has L = L_e everywhere (sigma_a (L_e - L) = 0 in the transfer equation);
 //   - the same with grid (heterogeneous) media of constant data, tracked stochastically;
-//   - the scene format's validation; which algorithms refuse emitting media (pt, vpl, ic, upbp;
+//   - the scene format's validation; which algorithms refuse emitting media (pt, vpl, ic;
 //     the bidirectional family an unbounded one: volume_emitter_test.cpp renders the others).
 // Every statistical check states its tolerance in standard errors.
 
@@ -360,8 +360,9 @@ TEST(VolumeEmission, SceneFormatRefusesBadRadiance) {
         SceneError);
 }
 
-// pt, vpl and ic refuse every emitting medium; the bidirectional family renders those inside
-// closed shapes (as lights, volume_emitter_test.cpp) and refuses an unbounded one by name.
+// pt, vpl and ic refuse every emitting medium; the bidirectional family (upbp included) renders
+// those inside closed shapes (as lights, volume_emitter_test.cpp) and refuses an unbounded one by
+// name.
 TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     const std::string infinite = R"(<scene version="3.0.0">
   <medium type="homogeneous" id="glow"><float name="albedo" value="0.5"/><rgb name="radiance" value="1"/></medium>
@@ -370,9 +371,9 @@ TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     for (const bool grid : {false, true}) {
         auto scene = load_scene_from_string(closed_furnace(grid, "0.6"), grid_folder().string());
         EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
-        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm"})
+        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm", "upbp"})
             EXPECT_NO_THROW(check_algorithm_supports_scene(algorithm, *scene)) << algorithm;
-        for (const char* algorithm : {"pt", "vpl", "ic", "upbp"}) {
+        for (const char* algorithm : {"pt", "vpl", "ic"}) {
             try {
                 check_algorithm_supports_scene(algorithm, *scene);
                 ADD_FAILURE() << algorithm << " accepted an emissive medium";
@@ -391,7 +392,7 @@ TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     }
     auto scene = load_scene_from_string(infinite, ".");
     EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
-    for (const char* algorithm : {"lt", "bpt", "vcm"}) {
+    for (const char* algorithm : {"lt", "bpt", "vcm", "upbp"}) {
         try {
             check_algorithm_supports_scene(algorithm, *scene);
             ADD_FAILURE() << algorithm << " accepted an unbounded emitting medium";
