@@ -139,7 +139,7 @@ struct PhotonBeamInspection {
 // estimate (core/render/iteration_memory.cpp); vertex_cm.cpp checks them with static_assert,
 // so a record that grows past its bound fails the build instead of the estimate.
 inline constexpr size_t kLightVertexBytesBound = 216;  // a stored light vertex (LightVertex)
-inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
+inline constexpr size_t kPhotonBeamBytesBound = 144;   // a photon beam (PhotonBeam)
 inline constexpr size_t kEmissionRayBytesBound = 96;   // J2's per-path emission ray
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one
