@@ -160,6 +160,19 @@ TEST(GridPhotonBeams, IterationContractOnTheSmoke) {
     }
 }
 
+// The same with short beams in a chromatic grid (the furnace's), whose weight is the sampling
+// walk replayed from a stored random state: that replay draws from no stream, so the contract
+// holds as well.
+TEST(GridPhotonBeams, IterationContractWithChromaticShortBeams) {
+    auto scene = load_scene_from_string(
+        testing::medium_sphere_furnace(grid_medium(write_grid(false), "2", "1, 1, 1", kIsotropic),
+                                       "fog", "0.5", "0.5"),
+        ".");
+    const RenderSettings settings = upbp(photon_beams_only);
+    ASSERT_NO_FATAL_FAILURE(testing::expect_split_ranges_add_up(*scene, settings, 1, 3, 5));
+    testing::expect_thread_count_changes_nothing(*scene, settings, IterationRange{3, 5});
+}
+
 // A directional light along +z through the grid cube, seen by a camera looking along +z with a
 // 0.2-degree field of view: every query's first segment is within 0.1 degrees of every beam
 // the light emits (sin^2 theta < 1e-5), which the lookup and the weights reject.
