@@ -23,8 +23,8 @@ void SegmentDensityBuilder::add_piece(const Medium* medium, const Ray& ray, floa
     last_pass_ = pass;
     last_scatter_ = scatter;
     homogeneous_ = homogeneous_ && (!medium || medium->is_homogeneous());
-    short_beam_support_ = short_beam_support_ &&
-                          (!medium || medium->is_homogeneous() || medium->pass_weight_is_one());
+    chromatic_grid_ =
+        chromatic_grid_ || (medium && !medium->is_homogeneous() && !medium->pass_weight_is_one());
     ++pieces_;
 }
 
@@ -34,7 +34,7 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
     d.toward_end = pass_before_last_ * (end_in_medium ? last_scatter_ : last_pass_);
     d.toward_start = pass_after_first_ * first_start_factor_;
     d.homogeneous = homogeneous_;
-    d.short_beam_support = short_beam_support_;
+    d.short_beam_support = short_beam_support();
     return d;
 }
 
@@ -49,6 +49,10 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
         const bool hit = scene.intersect(ray, si);
         const float t_end = hit ? si.t : kInfinity;
         if (medium) {
+            if (crossing == 0 && !medium->is_homogeneous() && !medium->pass_weight_is_one()) {
+                out.first_piece_rng = rng;
+                out.first_piece_t_max = t_end;
+            }
             const MediumSample ms = medium->sample(ray, t_end, rng);
             if (ms.scattered) out.source_weight = out.weight * ms.source_weight;
             out.weight *= ms.weight;

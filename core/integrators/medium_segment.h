@@ -11,6 +11,7 @@
 // homogeneous media; that is why the bidirectional family accepts homogeneous media only.
 
 #include <cstdint>
+#include <optional>
 
 #include "core/base/interaction.h"
 #include "core/base/render_stats.h"
@@ -32,9 +33,11 @@ struct SegmentDensities {
     // Every piece is in vacuum or a homogeneous medium: the segment can carry a photon beam
     // (upbp's B-B1D is built in homogeneous media only).
     bool homogeneous = true;
-    // Every piece is in vacuum, a homogeneous medium or one whose pass weight is one
-    // (Medium::pass_weight_is_one): a *short* photon beam along the segment knows its
-    // transmittance over pass probability exactly. Long beams need neither (ratio tracking).
+    // A *short* photon beam along the segment knows its weight: every piece is in vacuum, a
+    // homogeneous medium or one whose pass weight is one (Medium::pass_weight_is_one:
+    // transmittance over pass probability exact, or 1), or the segment is one piece in a
+    // chromatic grid (the sampling walk's pass weight replayed, Medium::replay_pass_weight).
+    // The same read from either end. Long beams need none of it (ratio tracking).
     bool short_beam_support = true;
 };
 
@@ -47,7 +50,7 @@ class SegmentDensityBuilder {
     SegmentDensities finish(bool end_in_medium) const;
     int pieces() const { return pieces_; }
     bool homogeneous() const { return homogeneous_; }
-    bool short_beam_support() const { return short_beam_support_; }
+    bool short_beam_support() const { return !chromatic_grid_ || pieces_ == 1; }
 
   private:
     bool start_in_medium_;
@@ -57,7 +60,7 @@ class SegmentDensityBuilder {
     float first_start_factor_ = 1;  // the first piece's density toward the segment's start
     float last_pass_ = 1, last_scatter_ = 1;
     bool homogeneous_ = true;
-    bool short_beam_support_ = true;
+    bool chromatic_grid_ = false;  // a piece is in a chromatic grid
 };
 
 // Where a sampled segment ended.
@@ -75,6 +78,11 @@ struct SampledSegment {
     SegmentDensities densities;
     float distance = 0;      // from the ray's origin to the vertex
     bool one_piece = false;  // no boundary crossed on the way (joint connections need it)
+    // The first piece in a medium whose pass weight is neither one nor in closed form (a
+    // chromatic grid): the random state its walk started with and its end, so that a short
+    // photon beam along it can replay the walk (Medium::replay_pass_weight).
+    std::optional<Rng> first_piece_rng;
+    float first_piece_t_max = 0;
 };
 
 // Traces `ray` from a vertex (in a medium when `start_in_medium`) through null boundaries and

@@ -131,7 +131,7 @@ struct Vertex {
     // With photon beams, at a medium vertex: the distance density of the segment that reached
     // it, the medium's mean sigma_t there, and the vertex's own part of its B-B1D term
     // (VcmMis::photon_beam_light_factor or photon_beam_eye_factor by subpath; 0 where the
-    // technique cannot sample it: outside Iteration::beam_medium, or on a light subpath reached by
+    // technique cannot sample it: on a light subpath reached by
     // a segment that cannot carry a beam).
     float arrival_distance = 0;
     float sigma_t = 0;
@@ -229,7 +229,7 @@ struct Splat {
     int light_vertices;  // s of the (s, t = 1) technique, for the per-technique layers
 };
 
-// A photon beam: one piece, in a medium (Iteration::beam_medium), of a light subpath's segment (up
+// A photon beam: one piece, in a medium (Iteration::beam_segment), of a light subpath's segment (up
 // to the sampled distance for a short beam, to the next surface for a long one), with what its
 // estimate and MIS weight need of the subpath at the segment's start (the beam's source).
 struct PhotonBeam {
@@ -245,6 +245,10 @@ struct PhotonBeam {
     float carried_query_beam = 0, carried_photon_beam = 0;
     int path_length = 0;  // segments of the light path with the beam's
     bool apply_distance = true;
+    // A short beam in a chromatic grid (Iteration::replays_walk): the random state its sampling
+    // walk started with and that walk's t_max, replayed to the closest approach for its weight.
+    float replay_t_max = 0;
+    Rng replay{StreamKey{}};
 };
 static_assert(sizeof(PhotonBeam) <= kPhotonBeamBytesBound,
               "PhotonBeam grew: raise kPhotonBeamBytesBound (the memory estimate uses it)");
@@ -636,15 +640,18 @@ class Iteration {
     // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
     void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
     // Where photon beams live (docs/media.md, "Photon beams in grid media"): long beams in every
-    // medium (ratio tracking estimates their transmittance), short ones where the sampled
-    // distance's pass weight is known exactly (homogeneous media, grey grids). The weights use
-    // the same predicates, so a vertex no beam can reach has M_B = 0 in every technique.
-    bool beam_medium(const Medium* medium) const {
-        return !config_.short_photon_beams || medium->is_homogeneous() ||
-               medium->pass_weight_is_one();
-    }
+    // medium (ratio tracking estimates their transmittance), short ones where their weight is
+    // known: the sampled distance's pass weight exactly (homogeneous media, grey grids), or in a
+    // chromatic grid the sampling walk's own pass weight, replayed (replays_walk), on segments
+    // of one piece. The weights use the same predicate, so a vertex no beam can reach has
+    // M_B = 0 in every technique.
     bool beam_segment(const SegmentDensities& d) const {
         return !config_.short_photon_beams || d.short_beam_support;
+    }
+    // A short beam in `medium` carries the replayed walk's pass weight (a chromatic grid).
+    bool replays_walk(const Medium* medium) const {
+        return config_.short_photon_beams && !medium->is_homogeneous() &&
+               !medium->pass_weight_is_one();
     }
     static std::optional<ConnectionGeometry> connection_geometry(const LightVertex& light_vertex,
                                                                  const Vertex& v, const Vec3& wo);
@@ -819,15 +826,17 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
                                  seg.densities.toward_end);
     // Photon beams: the B-B1D term of the vertex this segment left (on eye subpaths, this
     // segment is the photon beam that reaches it).
+    // Light subpaths: whether the vertex's own arrival can carry a beam is in its carried term
+    // already (this segment is the long query, which needs no support).
+    const bool eye = mode == TransportMode::Radiance;
     mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, cos_in,
-                              seg.densities.toward_end, seg.densities.toward_start,
-                              mode == TransportMode::Radiance, beam_segment(seg.densities));
+                              seg.densities.toward_end, seg.densities.toward_start, eye,
+                              !eye || beam_segment(seg.densities));
     return v;
 }
 
 void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
                                            TransportMode mode) const {
-    if (!beam_medium(seg.medium)) return;
     v.arrival_distance = seg.densities.toward_end;
     v.sigma_t = seg.medium->sigma_t(v.p).average();
     if (!(v.sigma_t > 0)) return;
@@ -1963,10 +1972,15 @@ namespace {
 // What a photon beam carries to its closest approach t along its last piece: the transmittance
 // (long beams: exact in a homogeneous medium, ratio tracking in a grid, drawing from the query's
 // numbers) or, for short beams, the transmittance over the probability that the sampled distance
-// passed t (exact in a homogeneous medium; exactly 1 where the pass weight is one, which is the
-// only other place short beams are built).
-Rgb beam_transmittance(const Medium* medium, const Ray& beam, float t, bool short_beams, Rng& rng) {
-    if (short_beams && !medium->is_homogeneous()) return Rgb(1.0f);
+// passed t (exact in a homogeneous medium; exactly 1 where the pass weight is one), or in a
+// chromatic grid the sampling walk's pass weight at t, replayed from its random state (an
+// unbiased weight: E[w(t) 1{passed t}] = T(t), Medium::replay_pass_weight).
+Rgb beam_transmittance(const Medium* medium, const Ray& beam, float t, bool short_beams,
+                       const PhotonBeam& b, Rng& rng) {
+    if (short_beams && !medium->is_homogeneous())
+        return medium->pass_weight_is_one()
+                   ? Rgb(1.0f)
+                   : medium->replay_pass_weight(beam, b.replay_t_max, t, b.replay);
     const Rgb tr = medium->transmittance(beam, t, rng);  // homogeneous: exact, draws nothing
     if (!short_beams) return tr;
     return tr / std::max(medium->probability_pass(beam, t), 1e-35f);
@@ -2005,13 +2019,20 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
     // surface): the segment already traced it.
     if (seg.one_piece && seg.end != SegmentEnd::Escaped &&
         (short_beams || seg.end == SegmentEnd::Surface)) {
-        if (medium && beam_medium(medium)) emit(ray, medium, seg.distance, 0.0f);
+        if (!medium) return;
+        if (replays_walk(medium)) {
+            if (!seg.first_piece_rng) return;
+            beam.replay = *seg.first_piece_rng;
+            beam.replay_t_max = seg.first_piece_t_max;
+        }
+        emit(ray, medium, seg.distance, 0.0f);
         return;
     }
     // Otherwise walk the pieces again (the same closest hits as the sampling saw), up to the
     // sampled distance (short) or the first surface that is not a null boundary (long). A piece
-    // where beams of this length cannot live (beam_medium: short beams in a chromatic grid) ends
-    // the walk, and beam_segment tells the weights so. A grid piece's transmittance is estimated
+    // where beams of this length cannot live (short beams in a chromatic grid past the first
+    // piece: they would need that piece's whole pass weight) ends the walk, and beam_segment
+    // tells the weights so. A grid piece's transmittance is estimated
     // by ratio tracking with numbers of its own (the light path's stay as they were).
     Rng beam_rng(
         StreamKey{key_.seed, key_.frame, key_.iteration,
@@ -2033,7 +2054,14 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
             }
         }
         if (medium) {
-            if (!beam_medium(medium)) return;
+            if (replays_walk(medium)) {
+                // Only as the segment's first piece, and nothing after it (beam_segment).
+                if (crossing > 0 || !seg.first_piece_rng) return;
+                beam.replay = *seg.first_piece_rng;
+                beam.replay_t_max = seg.first_piece_t_max;
+                emit(r, medium, end, offset);
+                return;
+            }
             emit(r, medium, end, offset);
             if (last) return;
             // Passing this piece: its transmittance, over the probability that the sample
@@ -2131,7 +2159,7 @@ void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
                                       Rng& rng, Rgb& sum) const {
     const std::vector<PhotonBeam>& beams = storage_.photon_beams;
     const bool short_beams = config_.short_photon_beams;
-    if (beam_medium(medium)) {
+    {
         Ray query = piece;
         query.t_max = t_end;
         auto gather = [&](uint32_t i, const BeamApproach& a) {
@@ -2172,7 +2200,7 @@ void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
             // a short beam reaches it), the query's, sigma_s and the phase function at x,
             // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
             // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-            const Rgb beam_tr = beam_transmittance(medium, beam_ray, a.t_beam, short_beams, rng);
+            const Rgb beam_tr = beam_transmittance(medium, beam_ray, a.t_beam, short_beams, b, rng);
             const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
             sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
         };
@@ -2380,7 +2408,8 @@ VplSelection VertexConnectionMerging::inspect_vpl_selection(const Scene& scene,
 PhotonBeamInspection VertexConnectionMerging::inspect_photon_beams(const Scene& scene,
                                                                    const IterationKey& key) const {
     PhotonBeamInspection out;
-    if (config_.mode != BidirectionalMode::Vcm || !config_.photon_beams || scene.lights().empty())
+    if (config_.mode != BidirectionalMode::Vcm || !config_.photon_beams ||
+        (scene.lights().empty() && scene.volume_lights().empty()))
         return out;
     IterationStorage storage;
     Iteration iteration(config_, scene, key, storage);

@@ -97,6 +97,35 @@ MediumSample HeterogeneousMedium::sample(const Ray& ray, float t_max, Rng& rng) 
     return s;
 }
 
+Rgb HeterogeneousMedium::replay_pass_weight(const Ray& ray, float t_max, float t, Rng rng) const {
+    Rgb w(1.0f);
+    bool passed = true;
+    // The branches and draws of sample(), in the same order, stopping at t.
+    for_each_tentative_collision(ray, t_max, rng, [&](float ti, float mu) {
+        if (!(ti < t)) return false;
+        const Rgb st = sigma_t(ray.at(ti));
+        if (grey_) {
+            if (!(rng.next_1d() * mu < st.r)) return true;
+            passed = false;
+            return false;
+        }
+        const Rgb sn = clamp_non_negative(Rgb(mu) - st);
+        const float real = (w * st).average(), null = (w * sn).average();
+        const float total = real + null;
+        if (!(total > 0)) {
+            w = Rgb(0.0f);
+            return false;
+        }
+        if (rng.next_1d() * total < real) {
+            passed = false;
+            return false;
+        }
+        w = w * sn * (total / (mu * null));
+        return true;
+    });
+    return passed ? w : Rgb(0.0f);
+}
+
 Rgb HeterogeneousMedium::transmittance(const Ray& ray, float t_max, Rng& rng) const {
     Rgb tr(1.0f);
     for_each_tentative_collision(ray, t_max, rng, [&](float t, float mu) {

@@ -74,6 +74,9 @@ class HeterogeneousMedium final : public Medium {
     bool is_homogeneous() const override { return false; }
     // Grey extinction: classic delta tracking, whose pass weight is exactly 1 (sample()).
     bool pass_weight_is_one() const override { return grey_; }
+    // sample()'s walk replayed from its random state up to t (the same draws: the emission
+    // estimate draws nothing), returning its weight on passing t.
+    Rgb replay_pass_weight(const Ray& ray, float t_max, float t, Rng rng) const override;
     bool is_emissive() const override { return radiance_ != nullptr; }
     Rgb radiance(const Vec3& p) const override {
         return radiance_ ? radiance_->eval(p) : Rgb(0.0f);

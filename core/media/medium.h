@@ -89,6 +89,14 @@ class Medium {
     // delta tracking). upbp's short photon beams, cut at a sampled distance, then need no
     // transmittance estimate along the beam: T(t) / P(pass t) = 1 (docs/media.md).
     virtual bool pass_weight_is_one() const { return false; }
+    // For media whose pass weight is neither one nor in closed form (chromatic grids): the
+    // weight w(t) with which sample(ray, t_max, rng), started with this random state, passed t
+    // (zero if it stopped before t). E[w(t) 1{passed t}] = T(t) per channel, so a short photon
+    // beam cut where that walk stopped carries w(t) at t (docs/media.md, "Photon beams in grid
+    // media"). Media that never need it return one.
+    virtual Rgb replay_pass_weight(const Ray&, float /*t_max*/, float /*t*/, Rng /*rng*/) const {
+        return Rgb(1.0f);
+    }
     // True when the medium emits (a non-zero `radiance`): sample() then fills
     // MediumSample::emission. Non-emissive media do no emission work at all.
     virtual bool is_emissive() const { return false; }

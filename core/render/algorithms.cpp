@@ -135,11 +135,11 @@ const std::vector<Algorithm>& table() {
          }},
         {.name = "upbp",
          .description =
-             "unified points, beams and paths (homogeneous and grid media): vcm's connections "
-             "and merges with query beams (photon points gathered along whole camera "
-             "segments in media) and photon beams (light-path segments in media gathered "
-             "by camera segments)",
-         .support = {.homogeneous_media = true, .grid_media = true},
+             "unified points, beams and paths (homogeneous and grid media, emitting media in "
+             "closed shapes): vcm's connections and merges with query beams (photon points "
+             "gathered along whole camera segments in media) and photon beams (light-path "
+             "segments in media gathered by camera segments)",
+         .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
                      "vertex_connections", "surface_merging", "photon_points", "query_beams",
                      "photon_beams", "photon_beam_length", "photon_beam_eta",

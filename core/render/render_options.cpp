@@ -135,7 +135,7 @@ const std::vector<RenderOption>& table() {
          .metavar = "on|off",
          .type = OptionType::Choice,
          .help = "upbp: light-path segments in media stored as photon beams and gathered by "
-                 "camera segments with a 1-D kernel (B-B1D; short beams not in chromatic grids)",
+                 "camera segments with a 1-D kernel (B-B1D; short beams in chromatic grids on one-piece segments only)",
          .choices = {"on", "off"},
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.photon_beams = v == "on"; },

@@ -99,8 +99,9 @@ constexpr const char* kBackward = R"(<phase type="hg"><float name="g" value="-0.
 // ratio tracking along the beam and across earlier pieces) cannot hide behind other techniques.
 // Standard error from 16 batches of iterations (the pixels share the beams; volpt_test's
 // MediumFurnace explains why the pixels' spread would understate it); tolerance 5 standard
-// errors. Chromatic grids have no short beams (their pass weight is not one), so there the
-// long beams are tested alone and the short case runs with every estimator.
+// errors. Short beams in the chromatic grid carry the sampling walk's replayed pass weight
+// (Medium::replay_pass_weight; every segment here is one piece, where they live), tested alone
+// too.
 TEST(GridPhotonBeams, FurnaceStaysOne) {
     constexpr uint64_t kBatches = 16, kPerBatch = 4;
     struct Case {
@@ -110,10 +111,13 @@ TEST(GridPhotonBeams, FurnaceStaysOne) {
         void (*adjust)(RenderSettings&);
         const char* name;
     };
-    for (const Case& c : {Case{true, "2", kIsotropic, photon_beams_only, "grey, short only"},
-                          Case{true, "2", kBackward, long_photon_beams_only, "grey, long only"},
-                          Case{false, "2", kIsotropic, long_photon_beams_only, "rgb, long only"},
-                          Case{false, "2", kBackward, nullptr, "rgb, all, short"}}) {
+    for (const Case& c :
+         {Case{true, "2", kIsotropic, photon_beams_only, "grey, short only"},
+          Case{true, "2", kBackward, long_photon_beams_only, "grey, long only"},
+          Case{false, "2", kIsotropic, long_photon_beams_only, "rgb, long only"},
+          Case{false, "2", kIsotropic, photon_beams_only, "rgb, short only"},
+          Case{false, "2", kBackward, photon_beams_only, "rgb, short only, backward"},
+          Case{false, "2", kBackward, nullptr, "rgb, all, short"}}) {
         auto scene = load_scene_from_string(
             testing::medium_sphere_furnace(
                 grid_medium(write_grid(c.grey), c.scale, "1, 1, 1", c.phase), "fog", "0.5", "0.5"),
@@ -154,6 +158,19 @@ TEST(GridPhotonBeams, IterationContractOnTheSmoke) {
         ASSERT_NO_FATAL_FAILURE(testing::expect_split_ranges_add_up(*scene, settings, 1, 3, 5));
         testing::expect_thread_count_changes_nothing(*scene, settings, IterationRange{3, 5});
     }
+}
+
+// The same with short beams in a chromatic grid (the furnace's), whose weight is the sampling
+// walk replayed from a stored random state: that replay draws from no stream, so the contract
+// holds as well.
+TEST(GridPhotonBeams, IterationContractWithChromaticShortBeams) {
+    auto scene = load_scene_from_string(
+        testing::medium_sphere_furnace(grid_medium(write_grid(false), "2", "1, 1, 1", kIsotropic),
+                                       "fog", "0.5", "0.5"),
+        ".");
+    const RenderSettings settings = upbp(photon_beams_only);
+    ASSERT_NO_FATAL_FAILURE(testing::expect_split_ranges_add_up(*scene, settings, 1, 3, 5));
+    testing::expect_thread_count_changes_nothing(*scene, settings, IterationRange{3, 5});
 }
 
 // A directional light along +z through the grid cube, seen by a camera looking along +z with a

@@ -42,6 +42,7 @@
 #include "core/camera/perspective_camera.h"
 #include "core/integrators/joint_segment.h"
 #include "core/integrators/medium_segment.h"
+#include "core/integrators/volume_light_sampling.h"
 #include "core/lights/area_light.h"
 #include "core/lights/constant_light.h"
 #include "core/lights/directional_light.h"
@@ -65,7 +66,9 @@
 namespace render {
 namespace {
 
-enum class LightKind { Area, Point, Directional, Constant };
+// Volume: a point y of an emitting medium filling the fog (a volume light, docs/media.md
+// "Emitting media as lights"): a medium endpoint, reached by the eye by a scattering event.
+enum class LightKind { Area, Point, Directional, Constant, Volume };
 enum class Material { Diffuse, Glossy, Mirror, Medium };
 
 struct PathVertex {
@@ -89,6 +92,7 @@ struct LightEnd {
     float emission_pdf_w = 0;  // emit()'s density of (endpoint, direction)
     float direct_pdf_w = 0;    // illuminate()'s solid-angle density at the first vertex
     float cos_light = 1;
+    bool volume = false;  // a volume light's point: a medium endpoint (cos 1, volume measure)
 };
 
 enum class TechniqueKind {
@@ -200,6 +204,7 @@ class MisSumTest : public ::testing::Test {
         // The light end: `direction` points from the last vertex toward the light.
         const Vec3 first = vertices_.front().p;
         SceneSphere sphere{Vec3(0, 0, 0), 6.0f};
+        end_ = LightEnd{};
         switch (kind) {
             case LightKind::Area: {
                 light_point_ = first + direction * (0.8f + rng.next_1d());
@@ -239,6 +244,25 @@ class MisSumTest : public ::testing::Test {
                 end_.emission_pdf_w = le.pdf_emission_w;
                 end_.direct_pdf_w = le.pdf_direct_a;
                 light_ = std::move(light);
+                break;
+            }
+            case LightKind::Volume: {
+                // Only in fog (the emitting medium is the fog itself). The densities are those
+                // next-event estimation reports (volume_light_illuminate) for any p_V: the
+                // weights must sum to one whatever the light's density.
+                if (!in_fog) return false;
+                light_point_ = first + direction * (0.8f + rng.next_1d());
+                const float pdf_volume = 0.01f + 0.5f * rng.next_1d();
+                LightIlluminateSample ls;
+                if (!volume_light_illuminate(first, light_point_, Rgb(1.0f), pdf_volume, ls))
+                    return false;
+                end_.finite = true;
+                end_.volume = true;
+                end_.cos_light = ls.cos_at_light;
+                end_.direct_pdf_a = pdf_volume;  // selection probability 1
+                end_.emission_pdf_w = ls.pdf_emission_w;
+                end_.direct_pdf_w = ls.pdf_direct_w;
+                light_.reset();
                 break;
             }
         }
@@ -322,9 +346,13 @@ class MisSumTest : public ::testing::Test {
     // Distance density, at endpoint `id`, of a segment reaching it after `t` in the fog.
     float distance_density(int id, const Ray& ray, float t) const {
         if (!fog_) return 1.0f;
-        const bool medium_vertex =
-            id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        return medium_vertex ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
+        return medium_endpoint(id) ? fog_->pdf_scatter_l(ray, t) : fog_->probability_pass(ray, t);
+    }
+    // Whether endpoint `id` is reached by a scattering event: a medium vertex, or a volume
+    // light's point.
+    bool medium_endpoint(int id) const {
+        if (id == kLightEnd) return end_.volume;
+        return id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
     }
     // The segment from endpoint `from` to endpoint `to`, as sample_segment / connect_segment
     // report it when traced from `from`: toward_end at `to`, toward_start at `from`.
@@ -341,9 +369,7 @@ class MisSumTest : public ::testing::Test {
     // integrator's SegmentDensityBuilder over its real pieces: toward an infinite light the fog
     // up to the ball's boundary, then vacuum.
     SegmentDensities grid_segment(int from, int to) const {
-        auto medium_vertex = [&](int id) {
-            return id >= 0 && id < int(vertices_.size()) && vertices_[size_t(id)].in_medium();
-        };
+        auto medium_vertex = [&](int id) { return medium_endpoint(id); };
         const bool infinite = !end_.finite && (from == kLightEnd || to == kLightEnd);
         if (!infinite) {
             const Vec3 a = endpoint(from), b = endpoint(to);
@@ -448,8 +474,10 @@ class MisSumTest : public ::testing::Test {
         st.light_carried_photon.resize(m);
         st.eye_carried_photon.resize(m);
         // Light subpath (generate_light_sample, next_vertex, sample_scattering): eqs. 31-36.
-        MisQuantities q =
-            mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w, end_.cos_light, end_.delta);
+        // A volume light starts as generate_volume_light_sample starts it.
+        MisQuantities q = end_.volume ? start_volume_light_mis(mis, end_.direct_pdf_a)
+                                      : mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w,
+                                                        end_.cos_light, end_.delta);
         float carried = 0;         // J1: the previous vertex's connection term (vertex_cm.cpp)
         float carried_beam = 0;    // P-B2D: the previous vertex's scatter factor
         float carried_photon = 0;  // B-B1D: the previous vertex's deferred term
@@ -567,6 +595,9 @@ class MisSumTest : public ::testing::Test {
         const size_t m = vertices_.size();
         switch (t.kind) {
             case TechniqueKind::Emission:  // eq. 43 (trace_eye_path, emission)
+                // A volume light: the eye's collision estimate at y (medium_emission).
+                if (end_.volume)
+                    return volume_emission_weight(mis, st.eye_at_light, end_.direct_pdf_a);
                 return mis.weight_emission(st.eye_at_light, end_.direct_pdf_a, end_.emission_pdf_w,
                                            joint_ratio(0, 1));
             case TechniqueKind::Direct:  // eqs. 44-45 (direct_illumination)
@@ -1111,9 +1142,9 @@ std::unique_ptr<HeterogeneousMedium> grid_fog(bool grey, Rng& rng) {
 // a grid fog, whose distance densities are the midpoint-rule proxies (different from either
 // end, sigma_t varying from vertex to vertex). B-B1D beside BPT, beside everything, beside BPM
 // and alone, with both constants eta_1; long beams in a grey and a chromatic grid, short beams
-// in the grey one (the integrator builds short beams only where the pass weight is one, so
-// chromatic grids have none). The weights must sum to one and equal the written-out ratios, the
-// short beam's coverage P_pass / p_L taken as 1 / sigma_t(x) as in homogeneous media.
+// in both (in the chromatic grid on one-piece segments only: finite lights). The weights must
+// sum to one and equal the written-out ratios, the short beam's coverage P_pass / p_L taken as
+// 1 / sigma_t(x) as in homogeneous media.
 TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
     using M = Material;
     const std::vector<std::vector<Material>> paths = {
@@ -1143,7 +1174,15 @@ TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
                             const double r_1 = 0.5 * radius;
                             for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
                                 for (const bool short_beams : {false, true}) {
-                                    if (short_beams && !grey) continue;
+                                    // Chromatic grids carry short beams on segments of one
+                                    // piece only (the sampling walk's pass weight replayed,
+                                    // docs/media.md); toward an infinite light a segment has
+                                    // two (the fog, then vacuum), which the model does not
+                                    // mark, so those lights are left out here.
+                                    if (short_beams && !grey &&
+                                        (kind == LightKind::Directional ||
+                                         kind == LightKind::Constant))
+                                        continue;
                                     SCOPED_TRACE(
                                         ::testing::Message()
                                         << (grey ? "grey" : "chromatic") << " grid fog path of "
@@ -1171,6 +1210,85 @@ TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
     EXPECT_GT(checked, 500);
     EXPECT_GT(photon_beams_checked_, 3000);
     EXPECT_GT(short_checked, 1000);
+}
+
+// Paths that start at a volume light (a point y of an emitting medium: upbp with emitting media,
+// docs/media.md "Emitting media as lights") in the homogeneous fog and in grey and chromatic grid
+// fogs: the eye's collision emission at y (s = 0), next-event estimation to y (s = 1), every
+// connection, merge and camera connection, and upbp's query beams (P-B2D) and photon beams
+// (B-B1D, the light's first segment from y a beam like any other), beside BPT, beside
+// everything, beside BPM and alone. No technique samples y itself by a merge or a beam (y is not
+// stored, as an area light's point is not), so the list is the other lights'. The weights must
+// sum to one and equal the written-out ratios.
+TEST_F(MisSumTest, VolumeLightWeightsSumToOneWithBeams) {
+    using M = Material;
+    const std::vector<std::vector<Material>> paths = {
+        {M::Medium},
+        {M::Diffuse},
+        {M::Medium, M::Medium},
+        {M::Medium, M::Diffuse},
+        {M::Diffuse, M::Medium},
+        {M::Medium, M::Mirror, M::Medium},
+        {M::Medium, M::Medium, M::Medium},
+        {M::Medium, M::Diffuse, M::Medium, M::Glossy, M::Medium},
+    };
+    Rng rng(StreamKey{2027, 0, 1, 0});
+    int checked = 0, query_before = query_beams_checked_;
+    int emission_checked = 0, direct_checked = 0;
+    // 0: the homogeneous fog; 1: a grey grid fog; 2: a chromatic one.
+    for (const int fog : {0, 1, 2}) {
+        std::unique_ptr<HeterogeneousMedium> grid;
+        if (fog > 0) grid = grid_fog(fog == 1, rng);
+        grid_fog_ = grid.get();
+        for (const auto& materials : paths)
+            for (int trial = 0; trial < 8; ++trial) {
+                if (!build_path(rng, materials, LightKind::Volume, true)) continue;
+                for (const Technique& t : techniques(true, false)) {
+                    emission_checked += t.kind == TechniqueKind::Emission;
+                    direct_checked += t.kind == TechniqueKind::Direct;
+                }
+                for (double radius : {0.05, 0.15})
+                    for (int power : {1, 2}) {
+                        const double eta_surface = kPi * radius * radius * kLightPaths;
+                        const double eta_volume =
+                            4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
+                        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
+                        SCOPED_TRACE(::testing::Message()
+                                     << "fog " << fog << ", path of " << materials.size()
+                                     << " vertices, trial " << trial << ", radius " << radius
+                                     << ", power " << power);
+                        check_family(power, true, false, eta_surface, eta_volume, "BPT");
+                        check_family(power, true, true, eta_surface, eta_volume, "VCM");
+                        check_family(power, false, true, eta_surface, eta_volume, "BPM");
+                        for (const auto& [vc, vm, name] : {std::tuple{true, false, "BPT+PB2D"},
+                                                           std::tuple{true, true, "VCM+PB2D"},
+                                                           std::tuple{false, true, "BPM+PB2D"},
+                                                           std::tuple{false, false, "PB2D"}})
+                            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
+                        const double r_1 = 0.5 * radius;
+                        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
+                            for (const bool short_beams : {false, true}) {
+                                SCOPED_TRACE(::testing::Message()
+                                             << "eta_1 " << eta_1 << ", "
+                                             << (short_beams ? "short" : "long") << " beams");
+                                for (const auto& [vc, vm, qb, name] :
+                                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
+                                      std::tuple{true, true, eta_beam, "UPBP (all)"},
+                                      std::tuple{false, true, 0.0, "BPM+BB1D"},
+                                      std::tuple{false, false, 0.0, "BB1D"}})
+                                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0,
+                                                 qb, eta_1 * kLightPaths, short_beams);
+                            }
+                        ++checked;
+                    }
+            }
+    }
+    grid_fog_ = nullptr;
+    EXPECT_GT(checked, 300);
+    EXPECT_GT(emission_checked, 100);
+    EXPECT_GT(direct_checked, 100);
+    EXPECT_GT(query_beams_checked_ - query_before, 1000);
+    EXPECT_GT(photon_beams_checked_, 5000);
 }
 
 // The test model's segment densities are those of the integrator's SegmentDensityBuilder: one
@@ -1207,6 +1325,26 @@ TEST_F(MisSumTest, SegmentDensitiesMatchTheIntegrators) {
         EXPECT_FLOAT_EQ(d_in.toward_end, at_vertex);
         EXPECT_FLOAT_EQ(d_in.toward_start, fog_medium_.probability_pass(ray, t));
     }
+}
+
+// Where short photon beams live (SegmentDensities::short_beam_support): any segment through
+// vacuum, homogeneous media and grey grids; in a chromatic grid a segment of one piece only (its
+// weight is the sampling walk's, replayed), read the same from either end.
+TEST_F(MisSumTest, ShortBeamSupportOfChromaticGridsIsOnePieceOnly) {
+    Rng rng(StreamKey{9, 0, 1, 0});
+    const std::unique_ptr<HeterogeneousMedium> grey = grid_fog(true, rng);
+    const std::unique_ptr<HeterogeneousMedium> rgb = grid_fog(false, rng);
+    const Ray ray(Vec3(0.0f), Vec3(0, 0, 1));
+    auto support = [&](std::initializer_list<const Medium*> pieces) {
+        SegmentDensityBuilder b(true);
+        for (const Medium* m : pieces) b.add_piece(m, ray, 1.0f);
+        return b.finish(true).short_beam_support;
+    };
+    EXPECT_TRUE(support({rgb.get()}));
+    EXPECT_TRUE(support({grey.get(), nullptr, &fog_medium_}));
+    EXPECT_FALSE(support({rgb.get(), nullptr}));
+    EXPECT_FALSE(support({nullptr, rgb.get()}));
+    EXPECT_FALSE(support({&fog_medium_, rgb.get(), grey.get()}));
 }
 
 // The test must be able to fail: dropping one technique breaks the sum.

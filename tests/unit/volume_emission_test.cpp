@@ -5,7 +5,7 @@
 //   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit
 //     L_e too has L = L_e everywhere (sigma_a (L_e - L) = 0 in the transfer equation);
 //   - the same with grid (heterogeneous) media of constant data, tracked stochastically;
-//   - the scene format's validation; which algorithms refuse emitting media (pt, vpl, ic, upbp;
+//   - the scene format's validation; which algorithms refuse emitting media (pt, vpl, ic;
 //     the bidirectional family an unbounded one: volume_emitter_test.cpp renders the others).
 // Every statistical check states its tolerance in standard errors.
 
@@ -15,16 +15,14 @@
 #include <filesystem>
 #include <string>
 
-#include <unistd.h>
-
 #include "core/base/error.h"
 #include "core/media/medium.h"
-#include "core/media/vol_file.h"
 #include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "tests/support/emitting_grid_medium.h"
 #include "tests/support/emitting_sphere_scene.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/test_scenes.h"
@@ -44,35 +42,10 @@ IterationResult render_volpt(const Scene& scene, uint64_t iterations, uint64_t s
     return render_iterations(scene, settings, 0, IterationRange{1, 1 + iterations});
 }
 
-// A folder with constant .vol grids over [-1.25, 1.25]^3 (trilinear interpolation of a
-// constant grid is that constant everywhere inside the box).
+// The constant grids of tests/support/emitting_grid_medium.h.
 std::filesystem::path grid_folder() {
-    static const std::filesystem::path dir = [] {
-        const std::filesystem::path d = std::filesystem::temp_directory_path() /
-                                        ("volume_emission_test_" + std::to_string(::getpid()));
-        std::filesystem::create_directories(d);
-        auto write = [&](const std::string& name, const Rgb& value) {
-            VolumeGridData g;
-            g.xres = g.yres = g.zres = 4;
-            g.channels = 3;
-            g.bbox.lo = Vec3(-1.25f);
-            g.bbox.hi = Vec3(1.25f);
-            g.values.resize(g.voxel_count() * 3);
-            for (size_t i = 0; i < g.voxel_count(); ++i)
-                for (int c = 0; c < 3; ++c) g.values[3 * i + size_t(c)] = value[c];
-            write_vol_file((d / name).string(), g);
-        };
-        write("sigma_t.vol", Rgb(0.5f, 1.0f, 4.0f));
-        write("radiance.vol", Rgb(1.0f, 2.0f, 0.5f));
-        write("albedo.vol", Rgb(0.6f));
-        VolumeGridData grey;  // one channel: classic delta tracking (w stays 1)
-        grey.xres = grey.yres = grey.zres = 4;
-        grey.bbox.lo = Vec3(-1.25f);
-        grey.bbox.hi = Vec3(1.25f);
-        grey.values.assign(grey.voxel_count(), 1.5f);
-        write_vol_file((d / "sigma_t_grey.vol").string(), grey);
-        return d;
-    }();
+    static const std::filesystem::path dir =
+        testing::constant_emission_grids("volume_emission_test");
     return dir;
 }
 
@@ -82,24 +55,7 @@ constexpr double kRadiance[3] = {1.0, 2.0, 0.5};
 // The emitting medium: homogeneous (constant RGB) or heterogeneous with the grids above.
 std::string medium_xml(bool grid, const std::string& albedo,
                        const std::string& sigma_t_file = "sigma_t.vol") {
-    if (!grid)
-        return R"(<medium type="homogeneous" id="glow">
-    <rgb name="sigma_t" value="0.5, 1, 4"/>
-    <float name="albedo" value=")" +
-               albedo + R"("/>
-    <rgb name="radiance" value="1, 2, 0.5"/>
-  </medium>)";
-    const std::string albedo_xml =
-        albedo == "0"
-            ? R"(<float name="albedo" value="0"/>)"
-            : R"(<volume type="gridvolume" name="albedo"><string name="filename" value="albedo.vol"/><boolean name="use_grid_bbox" value="true"/></volume>)";
-    return R"(<medium type="heterogeneous" id="glow">
-    <volume type="gridvolume" name="sigma_t"><string name="filename" value=")" +
-           sigma_t_file + R"("/><boolean name="use_grid_bbox" value="true"/></volume>
-    <volume type="gridvolume" name="radiance"><string name="filename" value="radiance.vol"/><boolean name="use_grid_bbox" value="true"/></volume>
-    )" + albedo_xml +
-           R"(
-  </medium>)";
+    return testing::emitting_medium_xml(grid, albedo, sigma_t_file);
 }
 
 // A unit sphere of emitting, absorbing medium seen from outside (tests/support): every pixel
@@ -360,8 +316,9 @@ TEST(VolumeEmission, SceneFormatRefusesBadRadiance) {
         SceneError);
 }
 
-// pt, vpl and ic refuse every emitting medium; the bidirectional family renders those inside
-// closed shapes (as lights, volume_emitter_test.cpp) and refuses an unbounded one by name.
+// pt, vpl and ic refuse every emitting medium; the bidirectional family (upbp included) renders
+// those inside closed shapes (as lights, volume_emitter_test.cpp) and refuses an unbounded one by
+// name.
 TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     const std::string infinite = R"(<scene version="3.0.0">
   <medium type="homogeneous" id="glow"><float name="albedo" value="0.5"/><rgb name="radiance" value="1"/></medium>
@@ -370,9 +327,9 @@ TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     for (const bool grid : {false, true}) {
         auto scene = load_scene_from_string(closed_furnace(grid, "0.6"), grid_folder().string());
         EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
-        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm"})
+        for (const char* algorithm : {"lt", "bpt", "ppm", "bpm", "vcm", "upbp"})
             EXPECT_NO_THROW(check_algorithm_supports_scene(algorithm, *scene)) << algorithm;
-        for (const char* algorithm : {"pt", "vpl", "ic", "upbp"}) {
+        for (const char* algorithm : {"pt", "vpl", "ic"}) {
             try {
                 check_algorithm_supports_scene(algorithm, *scene);
                 ADD_FAILURE() << algorithm << " accepted an emissive medium";
@@ -391,7 +348,7 @@ TEST(VolumeEmission, AlgorithmsWithoutVolumeLightsRefuseEmissiveMedia) {
     }
     auto scene = load_scene_from_string(infinite, ".");
     EXPECT_NO_THROW(check_algorithm_supports_scene("volpt", *scene));
-    for (const char* algorithm : {"lt", "bpt", "vcm"}) {
+    for (const char* algorithm : {"lt", "bpt", "vcm", "upbp"}) {
         try {
             check_algorithm_supports_scene(algorithm, *scene);
             ADD_FAILURE() << algorithm << " accepted an unbounded emitting medium";

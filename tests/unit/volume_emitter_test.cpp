@@ -3,9 +3,10 @@
 //   - the start-point sampler against its density p_V (chi-square over a histogram of the box
 //     that does not line up with the sampler's lattice, expected counts integrated exactly), and
 //     integral p_V = 1, for a homogeneous sphere and the flame's grid;
-//   - lt, bpt and vcm against volume_emission_test's closed forms: the absorbing sphere
+//   - lt, bpt, vcm and upbp against volume_emission_test's closed forms: the absorbing sphere
 //     L = L_e (1 - exp(-sigma_t chord)) and the emitting furnace L = L_e (homogeneous and grid);
-//   - bpt and vcm against volpt on an emitting sphere lighting a floor and on the flame scene
+//   - bpt and vcm against volpt on an emitting sphere lighting a floor and on the flame scene,
+//     and upbp (every estimator, and each beam estimator beside connections) against bpt there
 //     (block test);
 //   - the region: bounded media become lights, an unbounded one none;
 //   - the iteration contract (split ranges, thread counts bit for bit) on an emitting medium for
@@ -29,8 +30,10 @@
 #include "tests/support/algorithms.h"
 #include "tests/support/block_estimate.h"
 #include "tests/support/chi_square.h"
+#include "tests/support/emitting_grid_medium.h"
 #include "tests/support/emitting_sphere_scene.h"
 #include "tests/support/iteration_contract.h"
+#include "tests/support/test_scenes.h"
 
 namespace render {
 namespace {
@@ -249,7 +252,7 @@ TEST(VolumeEmitter, AbsorbingSphereMatchesTheClosedFormInTheBidirectionalFamily)
         double expected[3];
         for (int c = 0; c < 3; ++c)
             expected[c] = kRadiance[c] * (1.0 - std::exp(-kSigmaT[c] * 2.0 * std::sqrt(1 - y * y)));
-        for (const char* algorithm : {"lt", "bpt", "vcm"})
+        for (const char* algorithm : {"lt", "bpt", "vcm", "upbp"})
             expect_closed_form(*scene, algorithm, expected, 16, 4, 0.03,
                                "sphere y " + std::to_string(y));
     }
@@ -258,12 +261,83 @@ TEST(VolumeEmitter, AbsorbingSphereMatchesTheClosedFormInTheBidirectionalFamily)
 TEST(VolumeEmitter, EmittingFurnaceIsTheEmittedRadianceInTheBidirectionalFamily) {
     auto scene = load_scene_from_string(furnace(glow("0.6")), ".");
     ASSERT_EQ(scene->volume_lights().size(), 1u);
-    for (const char* algorithm : {"bpt", "vcm"})
+    for (const char* algorithm : {"bpt", "vcm", "upbp"})
         expect_closed_form(*scene, algorithm, kRadiance, 16, 8, 0.05, "homogeneous furnace");
+    // upbp with every estimator, and each beam estimator beside connections, at a volume radius
+    // (0.15 of the scene's) where the merges and beams take 20-50 % of the image (the radiance
+    // is the same everywhere, so the kernels are unbiased away from the wall), 1024 iterations:
+    // standard errors 0.1-0.3 %. Planted: photon beams not emitted from a volume light's start
+    // (a missing technique) reads 1.5-4 % dark and fails; at 128 iterations it did not.
+    for (const char* entry : {"upbp", "upbp photon_beam_length=long",
+                              "upbp surface_merging=off,photon_points=off,query_beams=off",
+                              "upbp surface_merging=off,photon_points=off,photon_beams=off"}) {
+        RenderSettings settings = testing::algorithm_settings(entry);
+        settings.seed = 31;
+        settings.volume_radius_factor = 0.15;
+        const BlockEstimate e = render_block_estimate(*scene, settings, 16, 64, 1);
+        for (int c = 0; c < 3; ++c) {
+            SCOPED_TRACE(std::string("homogeneous furnace ") + entry + " r 0.15 channel " +
+                         std::to_string(c));
+            EXPECT_NEAR(e.mean[size_t(c)], kRadiance[c], 5 * e.standard_error[size_t(c)]);
+            EXPECT_LT(e.standard_error[size_t(c)], 0.05 * kRadiance[c]);
+        }
+    }
     // lt's camera connections from medium vertices next to the camera (inside the medium) are
     // heavy-tailed, as in volpt_test's medium furnace without emission: its standard error
     // hardly falls with iterations (about 5-8 % here), so its cap is looser.
     expect_closed_form(*scene, "lt", kRadiance, 16, 8, 0.12, "homogeneous furnace");
+}
+
+// The same furnace with a heterogeneous medium of constant grids (tests/support/
+// emitting_grid_medium.h, 16 x 16): RGB sigma_t (spectral tracking, ratio-tracked connections)
+// and grey sigma_t (delta tracking), albedo grid 0.6, radiance grid L_e; the volume light's start
+// sampler then has its 16^3 lattice. L = L_e whatever the medium, so every algorithm of the
+// family must read L_e within 5 standard errors of 16 batch means. upbp also runs with the beams
+// taking a large share (volume radius 0.15): long and short photon beams in both grids (short
+// ones in the chromatic grid carry the replayed walk's pass weight), and query beams beside
+// connections.
+// Measured (seed 37): bpt, vcm, upbp 0.99-1.007 / 1.98-2.003 / 0.495-0.507 (SE 0.1-0.8 %),
+// the beam arms within 2 SE, lt within 1 SE (SE up to 10 % on the chromatic grid's blue).
+// Planted: the eye's collision emission in a grid weighted by the scattering weight instead of
+// the source weight (seg.weight for seg.source_weight) reads 5-12 % off and fails every arm.
+TEST(VolumeEmitter, GridEmittingFurnaceIsTheEmittedRadianceInTheBidirectionalFamily) {
+    const std::filesystem::path grids = testing::constant_emission_grids("volume_emitter_test");
+    for (const char* sigma_t_file : {"sigma_t.vol", "sigma_t_grey.vol"}) {
+        auto scene = load_scene_from_string(
+            testing::medium_sphere_furnace(testing::emitting_medium_xml(true, "0.6", sigma_t_file),
+                                           "glow", "0", "1, 2, 0.5"),
+            grids.string());
+        ASSERT_EQ(scene->volume_lights().size(), 1u);
+        struct Arm {
+            const char* entry;
+            double volume_radius_factor;
+            double max_relative;  // cap on the standard error / L_e
+            int per_batch = 8;    // iterations per batch
+        };
+        std::vector<Arm> arms = {
+            {"bpt", 0, 0.05},
+            {"vcm", 0, 0.05},
+            {"upbp", 0, 0.05},
+            {"upbp photon_beam_length=long", 0.15, 0.05},
+            {"upbp surface_merging=off,photon_points=off,photon_beams=off", 0.15, 0.05},
+            // lt: heavy-tailed camera connections next to the camera (as in
+            // the homogeneous furnace).
+            {"lt", 0, 0.12, 32}};
+        arms.push_back({"upbp surface_merging=off,photon_points=off,query_beams=off", 0.15, 0.05});
+        for (const Arm& arm : arms) {
+            RenderSettings settings = testing::algorithm_settings(arm.entry);
+            settings.seed = 37;
+            settings.volume_radius_factor = arm.volume_radius_factor;
+            const BlockEstimate e = render_block_estimate(*scene, settings, 16, arm.per_batch, 1);
+            for (int c = 0; c < 3; ++c) {
+                SCOPED_TRACE(std::string("grid furnace ") + sigma_t_file + " " + arm.entry +
+                             " channel " + std::to_string(c));
+                ASSERT_GT(e.standard_error[size_t(c)], 0.0);
+                EXPECT_NEAR(e.mean[size_t(c)], kRadiance[c], 5 * e.standard_error[size_t(c)]);
+                EXPECT_LT(e.standard_error[size_t(c)], arm.max_relative * kRadiance[c]);
+            }
+        }
+    }
 }
 
 // --- against volpt -----------------------------------------------------------------------------
@@ -290,6 +364,37 @@ TEST(VolumeEmitter, EmittingSphereLightingAFloorMatchesVolpt) {
 TEST(VolumeEmitter, FlameMatchesVolpt) {
     auto scene = flame(32);
     expect_matches_volpt(*scene, {"bpt", "vcm"}, 8, "flame");
+}
+
+// upbp with emitting media (docs/media.md, "Emitting media as lights"): light subpaths start at
+// volume lights, their first segments are photon beams and their medium vertices photon points
+// for the query beams, and the eye's collision emission and next-event estimation weigh against
+// both beam techniques. Against bpt (the reference: connections only), block test as above: upbp
+// with every estimator (short beams), with long beams, and each beam estimator as the only one
+// beside connections.
+void expect_upbp_matches_bpt(const Scene& scene, int per_batch, const std::string& what) {
+    const BlockEstimate reference =
+        render_block_estimate(scene, settings_for("bpt", 101), 16, per_batch, 4);
+    for (const char* entry : {"upbp", "upbp photon_beam_length=long",
+                              "upbp surface_merging=off,photon_points=off,query_beams=off",
+                              "upbp surface_merging=off,photon_points=off,photon_beams=off"}) {
+        RenderSettings settings = testing::algorithm_settings(entry);
+        settings.seed = 202;
+        const BlockEstimate e = render_block_estimate(scene, settings, 16, per_batch, 4);
+        const std::vector<std::string> bad = differing_blocks(reference, e, 1.0, 5.0);
+        EXPECT_TRUE(bad.empty()) << what << " " << entry << ": " << bad.size()
+                                 << " blocks differ, first: " << bad.front();
+    }
+}
+
+TEST(VolumeEmitter, UpbpMatchesBptOnAnEmittingSphereOverAFloor) {
+    auto scene = load_scene_from_string(sphere_over_floor(), ".");
+    expect_upbp_matches_bpt(*scene, 8, "sphere over floor");
+}
+
+TEST(VolumeEmitter, UpbpMatchesBptOnTheFlame) {
+    auto scene = flame(32);
+    expect_upbp_matches_bpt(*scene, 8, "flame");
 }
 
 // --- the iteration contract ----------------------------------------------------------------------
