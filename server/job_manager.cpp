@@ -1,5 +1,6 @@
 #include "server/job_manager.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -139,6 +140,8 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
       clock_(clock),
+      start_clock_(clock_()),
+      start_unix_ms_(unix_ms()),
       store_((fs::create_directories(options.store), options.store / "render.db")),
       assets_(options.store, options.max_store_size),
       client_streams_(options.streams),
@@ -154,6 +157,11 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
 }
 
 JobManager::~JobManager() = default;
+
+int64_t JobManager::now_unix_ms() const {
+    return start_unix_ms_ +
+           std::chrono::duration_cast<std::chrono::milliseconds>(clock_() - start_clock_).count();
+}
 
 fs::path JobManager::checkpoint_path(const std::string& job_id, uint32_t frame) const {
     return options_.store / "checkpoints" / job_id / (std::to_string(frame) + ".ckpt");
@@ -182,6 +190,14 @@ void JobManager::restore() {
         job->row = std::move(row);
         const std::string& id = job->row.id;
         JobState state = JobState(job->row.state);
+        if (is_terminal(state) && job->row.finished_unix_ms == 0) {
+            // Finished before its store recorded finish times: its retention counts from now.
+            job->row.finished_unix_ms = now_unix_ms();
+            store_or_log("job", id, [&] {
+                store_.update_job_state(id, job->row.state, job->row.error,
+                                        job->row.finished_unix_ms);
+            });
+        }
         std::vector<FrameRow> rows = store_.load_frames(id);
         std::vector<FramePlan> plans;
         const v1::RenderSettings& s = job->request.settings();
@@ -504,8 +520,11 @@ void JobManager::set_state(JobData& job, JobState state, const std::string& erro
     scheduler_.set_state(job.row.id, state);
     job.row.state = int(state);
     job.row.error = error;
-    store_or_log("job", job.row.id,
-                 [&] { store_.update_job_state(job.row.id, int(state), error); });
+    if (is_terminal(state)) job.row.finished_unix_ms = now_unix_ms();
+    store_or_log("job", job.row.id, [&] {
+        store_.update_job_state(job.row.id, int(state), error,
+                                is_terminal(state) ? job.row.finished_unix_ms : 0);
+    });
 }
 
 Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
@@ -525,7 +544,8 @@ Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
     return Status::OK;
 }
 
-Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply) {
+Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply,
+                              const char* reason) {
     // One frame finishes at a time (finish_mu_): none of this job's is being written now.
     std::lock_guard finish_lock(finish_mu_);
     std::vector<std::string> orphans;
@@ -566,6 +586,7 @@ Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* rep
         fs::remove_all(dir, ec);
     Log("info", "job_deleted")
         .kv("job", job_id)
+        .kv("reason", reason)
         .kv("assets_removed", reply->assets_removed())
         .kv("bytes_freed", reply->bytes_freed());
     return Status::OK;
@@ -1077,6 +1098,38 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
 void JobManager::tick() {
     advance();
     flush_checkpoints(false);
+    apply_retention();
+}
+
+void JobManager::apply_retention() {
+    const double retain = options_.retain_finished_seconds;
+    if (retain <= 0) return;
+    std::vector<std::string> expired;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t cutoff = now_unix_ms() - int64_t(retain * 1000);
+        for (const auto& [id, job] : jobs_)
+            if (is_terminal(scheduler_.state(id)) && job->row.finished_unix_ms > 0 &&
+                job->row.finished_unix_ms <= cutoff)
+                expired.push_back(id);
+    }
+    // Each through DeleteJob's own code: the same rows, folders and unshared assets go.
+    uint64_t deleted = 0, assets = 0, freed = 0;
+    for (const std::string& id : expired) {
+        v1::DeleteJobReply reply;
+        // NOT_FOUND: a client deleted it meanwhile.
+        if (!delete_job(id, &reply, "retention").ok()) continue;
+        metrics_.job_expired();
+        ++deleted;
+        assets += reply.assets_removed();
+        freed += reply.bytes_freed();
+    }
+    if (deleted > 0)
+        Log("info", "retention")
+            .kv("jobs_deleted", deleted)
+            .kv("assets_removed", assets)
+            .kv("bytes_freed", freed)
+            .kv("retain_seconds", retain);
 }
 
 void JobManager::advance() {

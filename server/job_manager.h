@@ -56,6 +56,10 @@ struct ServerOptions {
     // A job refused for memory by every live worker (each refused it, or is known to have a
     // smaller limit than it needs) FAILS once that has lasted this long (docs/service.md).
     double memory_wait_seconds = 300;
+    // Retention (docs/service.md, "Deleting jobs"): a finished, failed or cancelled job is
+    // deleted, as DeleteJob deletes it, once it finished this long ago; 0 keeps jobs until a
+    // client deletes them. Checked at every tick() (a scan of the jobs in memory).
+    double retain_finished_seconds = 0;
     // For tests and measurements (--report-delay): a report whose values are received waits
     // this long before it is merged, as over a slow network or on a busy server; a worker that
     // disconnects meanwhile cancels it (it is not merged, and its lease expires).
@@ -76,7 +80,9 @@ class JobManager {
     // first): its rows, scene folder, checkpoints and results, and the assets of its bundle
     // that no other job references (the store's size goes down by theirs). An asset uploaded
     // but not yet in any submitted job is kept.
-    grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply);
+    // `reason` goes to the log line ("request", or "retention" for the rule above).
+    grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply,
+                            const char* reason = "request");
     // The EXR to stream for FetchResult; `temporary` files (previews) are deleted by the caller.
     grpc::Status result_file(const v1::FetchResultRequest& request, std::filesystem::path* file,
                              bool* temporary);
@@ -130,8 +136,9 @@ class JobManager {
     // as a lost lease of a worker that rendered (toward kMaxLostRenderingWorkers).
     void report_stream_idle(const std::string& lease_id);
 
-    // Expires leases, closes time budgets, finishes complete frames and writes the checkpoints
-    // that are due. Called periodically (a report does all but the checkpoints).
+    // Expires leases, closes time budgets, finishes complete frames, writes the checkpoints
+    // that are due and applies the retention rule. Called periodically, from one thread (a
+    // report does all but the checkpoints and the retention).
     void tick();
     // Writes the checkpoint of every frame that merged since its last one and saves the render
     // time of unfinished frames (SIGTERM).
@@ -239,12 +246,19 @@ class JobManager {
     std::string memory_waiting(const JobData& job) const;
     // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).
     void fail_memory_blocked();
+    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
+    // moves it too): the time of the manager's start plus the clock's time since.
+    int64_t now_unix_ms() const;
+    // Deletes the jobs past the retention time (retain_finished_seconds).
+    void apply_retention();
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);
 
     ServerOptions options_;
     Scheduler::ClockFn clock_;
+    TimePoint start_clock_;
+    int64_t start_unix_ms_ = 0;
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;

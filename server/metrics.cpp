@@ -96,6 +96,13 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                                       "limit); not failures: the job waits for a larger worker")
                                   .Register(r)
                                   .Add({});
+    jobs_expired_ = &BuildCounter()
+                         .Name("render_jobs_expired_total")
+                         .Help(
+                             "Finished, failed or cancelled jobs deleted by the retention rule "
+                             "(server --retain-finished), as DeleteJob deletes them")
+                         .Register(r)
+                         .Add({});
     reports_merged_ = &BuildCounter()
                            .Name("render_reports_merged_total")
                            .Help("Worker reports whose sums were merged into a frame")

@@ -64,6 +64,8 @@ class ServerMetrics {
     void report_received(uint64_t bytes);
     // An uploaded asset's bytes.
     void asset_received(uint64_t bytes);
+    // A finished, failed or cancelled job deleted by the retention rule (--retain-finished).
+    void job_expired() { jobs_expired_->Increment(); }
 
     // Sets the gauges from `snapshot` and returns the whole exposition (text format 0.0.4).
     std::string exposition(const MetricsSnapshot& snapshot);
@@ -84,6 +86,7 @@ class ServerMetrics {
     prometheus::Counter* leases_requeued_;
     prometheus::Counter* leases_failed_;
     prometheus::Counter* leases_refused_memory_;
+    prometheus::Counter* jobs_expired_;
     prometheus::Counter* reports_merged_;
     prometheus::Family<prometheus::Counter>* reports_dropped_;
     prometheus::Counter* bytes_reports_;

@@ -733,3 +733,82 @@ TEST_F(ManagerTest, ASlowCheckpointSpacesTheNextOnes) {
     JobManager m(options, now);
     EXPECT_EQ(iterations_done(m, id), 3u);
 }
+
+namespace {
+
+// Leases and reports as worker `worker` until nothing more is granted.
+void render_all(ManagerTest& t, JobManager& m, const std::string& worker) {
+    for (int i = 0; i < 100; ++i) {
+        const v1::LeaseReply reply = ManagerTest::lease_for(m, worker);
+        if (!reply.granted()) return;
+        ASSERT_TRUE(t.render_and_report(m, reply.lease()));
+    }
+    FAIL() << "the job never stopped granting leases";
+}
+
+bool job_exists(JobManager& m, const std::string& id) {
+    v1::Job job;
+    return m.get(id, &job).ok();
+}
+
+}  // namespace
+
+// Retention (--retain-finished 1 h), on an injected clock: each job is deleted an hour after
+// it finished (not after it was submitted), through DeleteJob's code (rows, folders), counted
+// in the metrics, and the finish time survives a restart. (The manager's wall clock starts at
+// the real time of its construction, so the times below keep 10 s of margin.)
+TEST_F(ManagerTest, RetentionDeletesJobsAnHourAfterTheyFinished) {
+    options.retain_finished_seconds = 3600;
+    FakeClock clock;
+    std::string done_id, cancelled_id, running_id;
+    {
+        JobManager m(options, [&] { return clock.now; });
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 3), &job).ok());
+        done_id = job.id();
+        render_all(*this, m, "w-1");
+        ASSERT_TRUE(m.get(done_id, &job).ok());
+        ASSERT_EQ(job.state(), v1::JOB_STATE_DONE);
+        m.tick();
+    }
+    // A restart: the finish time comes from the store.
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 1000), &job).ok());  // never finishes: never deleted
+    running_id = job.id();
+    clock.advance(1800);  // submitted and cancelled half an hour after the first finished
+    ASSERT_TRUE(m.submit(request(m, 3), &job).ok());
+    cancelled_id = job.id();
+    ASSERT_TRUE(m.cancel(cancelled_id, &job).ok());
+    m.tick();
+    EXPECT_TRUE(fs::exists(dir / "jobs" / done_id));
+    clock.advance(1790);  // 59:50 after the first finished
+    m.tick();
+    EXPECT_TRUE(job_exists(m, done_id));
+    clock.advance(20);  // 60:10
+    m.tick();
+    EXPECT_FALSE(job_exists(m, done_id));
+    EXPECT_FALSE(fs::exists(dir / "jobs" / done_id));
+    EXPECT_FALSE(fs::exists(dir / "results" / done_id));
+    EXPECT_TRUE(job_exists(m, cancelled_id));
+    EXPECT_NE(m.metrics_text().find("render_jobs_expired_total 1\n"), std::string::npos);
+    clock.advance(1800);  // 60:10 after the cancel
+    m.tick();
+    EXPECT_FALSE(job_exists(m, cancelled_id));
+    EXPECT_TRUE(job_exists(m, running_id));
+    EXPECT_NE(m.metrics_text().find("render_jobs_expired_total 2\n"), std::string::npos);
+    // The shared scene asset stays with the job that still uses it.
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+}
+
+// Without --retain-finished (the default) nothing is ever deleted by time.
+TEST_F(ManagerTest, WithoutRetentionFinishedJobsStay) {
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 2), &job).ok());
+    render_all(*this, m, "w-1");
+    clock.advance(10 * 365 * 86400.0);
+    m.tick();
+    EXPECT_TRUE(job_exists(m, job.id()));
+}
