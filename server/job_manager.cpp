@@ -249,17 +249,38 @@ void JobManager::restore() {
 }
 
 void JobManager::asset_added(const std::string& sha256, uint64_t size) {
+    assets_.touch(sha256, now_unix_ms());
     store_.add_asset(sha256, size);
 }
 
 void JobManager::has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply) {
+    const int64_t now = now_unix_ms();
     for (const std::string& sha : request.sha256())
-        if (!assets_.has(sha)) reply->add_missing(sha);
+        if (!assets_.touch(sha, now)) reply->add_missing(sha);
 }
 
 Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     if (Status st = check_submit_request(in, options_.max_job_assets); !st.ok()) return st;
     v1::SubmitJobRequest request = in;
+    // The bundle's assets are pinned from before their presence is checked until the job is
+    // stored (or refused): the asset sweep and job deletions (under mu_) pass them over.
+    std::vector<std::string> pinned;
+    for (const v1::BundleFile& f : request.bundle().files()) pinned.push_back(f.sha256());
+    {
+        std::lock_guard lock(mu_);
+        for (const std::string& sha : pinned) ++submitting_assets_[sha];
+    }
+    struct Unpin {
+        JobManager& m;
+        const std::vector<std::string>& shas;
+        ~Unpin() {
+            std::lock_guard lock(m.mu_);
+            for (const std::string& sha : shas)
+                if (auto it = m.submitting_assets_.find(sha);
+                    it != m.submitting_assets_.end() && --it->second <= 0)
+                    m.submitting_assets_.erase(it);
+        }
+    } unpin{*this, pinned};
     for (const v1::BundleFile& f : request.bundle().files()) {
         auto size = assets_.size(f.sha256());
         if (!size)
@@ -406,8 +427,9 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     job->row.submitted_unix_ms = unix_ms();
     const uint32_t frame_count = frames_requested;
     std::lock_guard lock(mu_);
-    // Checked again under mu_: a job deleted meanwhile (delete_job, under mu_) may have
-    // removed an asset this bundle shares, which workers could then not fetch.
+    // Checked again under mu_ (the pins above keep deletions and the asset sweep off them, so
+    // this only guards against a removal by another path): a job must never be stored with an
+    // asset that workers could not fetch.
     for (const v1::BundleFile& f : request.bundle().files())
         if (!assets_.has(f.sha256())) {
             std::error_code ec;
@@ -562,14 +584,14 @@ Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* rep
             if (id != job_id)
                 for (const v1::BundleFile& f : other->request.bundle().files())
                     mine.erase(f.sha256());
+        for (const auto& [sha, n] : submitting_assets_) mine.erase(sha);
         orphans.assign(mine.begin(), mine.end());
         scheduler_.remove_job(job_id);
         jobs_.erase(job_id);
         // The rows go while mu_ is held: a restart never sees a job whose files are gone.
         store_or_log("job", job_id, [&] { store_.delete_job(job_id, orphans); });
-        // Removed under mu_ too: a submit checks its assets and materializes them before it
-        // takes mu_, so a submit racing this may find one gone and fail (the client uploads
-        // it again); one that has linked it keeps its own link.
+        // Removed under mu_ too; the assets a submit in progress names are pinned (passed
+        // over above) from before it checks them until its job is stored.
         uint64_t freed = 0, removed = 0;
         for (const std::string& sha : orphans)
             if (const uint64_t n = assets_.remove(sha); n > 0) {
@@ -1099,6 +1121,47 @@ void JobManager::tick() {
     advance();
     flush_checkpoints(false);
     apply_retention();
+    collect_unreferenced_assets();
+}
+
+void JobManager::collect_unreferenced_assets() {
+    const double grace = options_.unreferenced_asset_seconds;
+    if (grace <= 0) return;
+    const TimePoint now = clock_();
+    const double every = std::clamp(grace / 4, 0.5, 60.0);
+    if (last_asset_sweep_ &&
+        std::chrono::duration<double>(now - *last_asset_sweep_).count() < every)
+        return;
+    last_asset_sweep_ = now;
+    std::vector<std::string> removed;
+    uint64_t freed = 0;
+    {
+        // Under mu_: a submit pins its assets under mu_ before it checks that they exist, and
+        // stores its job under mu_, so every asset a job names or will name is seen here.
+        std::lock_guard lock(mu_);
+        std::set<std::string> wanted;
+        for (const auto& [id, job] : jobs_)
+            for (const v1::BundleFile& f : job->request.bundle().files()) wanted.insert(f.sha256());
+        for (const auto& [sha, n] : submitting_assets_) wanted.insert(sha);
+        const int64_t cutoff = now_unix_ms() - int64_t(grace * 1000);
+        for (const std::string& sha : assets_.list()) {
+            if (wanted.count(sha)) continue;
+            if (const std::optional<uint64_t> n = assets_.remove_if_untouched_since(sha, cutoff)) {
+                removed.push_back(sha);
+                freed += *n;
+                metrics_.asset_collected(*n);
+                Log("info", "asset_collected").kv("sha256", sha).kv("bytes", *n);
+            }
+        }
+        if (!removed.empty())
+            store_or_log("assets", std::to_string(removed.size()),
+                         [&] { store_.delete_assets(removed); });
+    }
+    if (!removed.empty())
+        Log("info", "assets_collected")
+            .kv("count", removed.size())
+            .kv("bytes_freed", freed)
+            .kv("grace_seconds", grace);
 }
 
 void JobManager::apply_retention() {

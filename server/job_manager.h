@@ -60,6 +60,10 @@ struct ServerOptions {
     // deleted, as DeleteJob deletes it, once it finished this long ago; 0 keeps jobs until a
     // client deletes them. Checked at every tick() (a scan of the jobs in memory).
     double retain_finished_seconds = 0;
+    // An uploaded asset that no job references is removed once it was last uploaded or named
+    // in a HasAssets request this long ago (a client uploaded and never submitted); 0 never.
+    // Swept by tick() every quarter of this (0.5 s to 60 s).
+    double unreferenced_asset_seconds = 86400;
     // For tests and measurements (--report-delay): a report whose values are received waits
     // this long before it is merged, as over a slow network or on a busy server; a worker that
     // disconnects meanwhile cancels it (it is not merged, and its lease expires).
@@ -78,8 +82,9 @@ class JobManager {
     grpc::Status cancel(const std::string& job_id, v1::Job* job);
     // Deletes a finished, failed or cancelled job (FAILED_PRECONDITION otherwise: cancel it
     // first): its rows, scene folder, checkpoints and results, and the assets of its bundle
-    // that no other job references (the store's size goes down by theirs). An asset uploaded
-    // but not yet in any submitted job is kept.
+    // that no other job references and no submit in progress names (the store's size goes
+    // down by theirs). An asset uploaded but not yet in any submitted job is kept (the asset
+    // sweep removes it after unreferenced_asset_seconds).
     // `reason` goes to the log line ("request", or "retention" for the rule above).
     grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply,
                             const char* reason = "request");
@@ -103,8 +108,10 @@ class JobManager {
     // The Prometheus text exposition of the server's metrics (server/metrics.h).
     std::string metrics_text();
     ServerMetrics& metrics() { return metrics_; }
+    // Lists the missing assets; the present ones are touched (the client is about to submit a
+    // job naming them: the asset sweep's grace period starts again).
     void has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply);
-    // Records an uploaded asset.
+    // Records an uploaded asset (and touches it, on the manager's clock).
     void asset_added(const std::string& sha256, uint64_t size);
 
     // --- worker protocol ---
@@ -251,6 +258,9 @@ class JobManager {
     int64_t now_unix_ms() const;
     // Deletes the jobs past the retention time (retain_finished_seconds).
     void apply_retention();
+    // Removes the assets no job references and no submit in progress names, untouched for
+    // unreferenced_asset_seconds (tick()'s thread only: it paces itself).
+    void collect_unreferenced_assets();
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);
@@ -259,6 +269,7 @@ class JobManager {
     Scheduler::ClockFn clock_;
     TimePoint start_clock_;
     int64_t start_unix_ms_ = 0;
+    std::optional<TimePoint> last_asset_sweep_;  // tick()'s thread only
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;
@@ -269,6 +280,9 @@ class JobManager {
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;
     std::map<std::string, WorkerInfo> workers_;
+    // The assets named by submits in progress, with how many (under mu_): neither the asset
+    // sweep nor a job's deletion removes them.
+    std::map<std::string, int> submitting_assets_;
     int64_t next_sequence_ = 1;
     std::mutex finish_mu_;  // one frame finishes at a time
 };

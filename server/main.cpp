@@ -187,6 +187,14 @@ ArgumentParser make_parser(Options& o) {
             [&](const std::string& v) {
                 o.server.retain_finished_seconds = parse_duration("--retain-finished", v);
             });
+    p.value({"--unreferenced-asset-grace"}, "DURATION",
+            "remove an uploaded asset that no job references once it was last uploaded or "
+            "named in HasAssets this long ago (a client that uploaded and never submitted): "
+            "seconds or 30m, 12h, 7d, or off (default 24h)",
+            [&](const std::string& v) {
+                o.server.unreferenced_asset_seconds =
+                    parse_duration("--unreferenced-asset-grace", v);
+            });
     p.value({"--max-transfer-streams"}, "N",
             "at most N clients' UploadAsset and FetchResult streams open at once, and N "
             "workers' FetchAsset streams; past it RESOURCE_EXHAUSTED (default 64)",

@@ -103,6 +103,20 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                              "(server --retain-finished), as DeleteJob deletes them")
                          .Register(r)
                          .Add({});
+    assets_collected_ = &BuildCounter()
+                             .Name("render_assets_collected_total")
+                             .Help(
+                                 "Uploaded assets that no job referenced, removed after the grace "
+                                 "period (server --unreferenced-asset-grace)")
+                             .Register(r)
+                             .Add({});
+    assets_collected_bytes_ = &BuildCounter()
+                                   .Name("render_assets_collected_bytes_total")
+                                   .Help(
+                                       "The bytes of the assets render_assets_collected_total "
+                                       "counts")
+                                   .Register(r)
+                                   .Add({});
     reports_merged_ = &BuildCounter()
                            .Name("render_reports_merged_total")
                            .Help("Worker reports whose sums were merged into a frame")

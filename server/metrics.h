@@ -66,6 +66,11 @@ class ServerMetrics {
     void asset_received(uint64_t bytes);
     // A finished, failed or cancelled job deleted by the retention rule (--retain-finished).
     void job_expired() { jobs_expired_->Increment(); }
+    // An uploaded asset no job referenced, removed after the grace period.
+    void asset_collected(uint64_t bytes) {
+        assets_collected_->Increment();
+        assets_collected_bytes_->Increment(double(bytes));
+    }
 
     // Sets the gauges from `snapshot` and returns the whole exposition (text format 0.0.4).
     std::string exposition(const MetricsSnapshot& snapshot);
@@ -87,6 +92,8 @@ class ServerMetrics {
     prometheus::Counter* leases_failed_;
     prometheus::Counter* leases_refused_memory_;
     prometheus::Counter* jobs_expired_;
+    prometheus::Counter* assets_collected_;
+    prometheus::Counter* assets_collected_bytes_;
     prometheus::Counter* reports_merged_;
     prometheus::Family<prometheus::Counter>* reports_dropped_;
     prometheus::Counter* bytes_reports_;

@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <functional>
+#include <thread>
 
 #include <filesystem>
 
@@ -811,4 +813,86 @@ TEST_F(ManagerTest, WithoutRetentionFinishedJobsStay) {
     clock.advance(10 * 365 * 86400.0);
     m.tick();
     EXPECT_TRUE(job_exists(m, job.id()));
+}
+
+// The asset sweep (--unreferenced-asset-grace 1 h) on an injected clock: an asset uploaded and
+// never submitted goes an hour after it was last uploaded or named in HasAssets; an asset a job
+// references stays; the store's size and the metrics follow.
+TEST_F(ManagerTest, AssetsNoJobReferencesGoAfterTheGracePeriod) {
+    options.unreferenced_asset_seconds = 3600;
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 1000), &job).ok());
+    const std::string orphan = "never submitted";
+    const std::string sha = upload(m, orphan);
+    m.asset_added(sha, orphan.size());
+    const uint64_t stored = m.assets().stored_bytes();
+    m.tick();
+    clock.advance(3590);
+    m.tick();
+    EXPECT_TRUE(m.assets().has(sha));
+    // A client asks HasAssets at 59:50: it is about to submit a job naming the asset.
+    v1::HasAssetsRequest ask;
+    ask.add_sha256(sha);
+    v1::HasAssetsReply missing;
+    m.has_assets(ask, &missing);
+    EXPECT_EQ(missing.missing_size(), 0);
+    clock.advance(70);  // 61:00 after the upload, 1:10 after HasAssets (a sweep is due: the
+    m.tick();           // sweeps come every quarter of the grace, at most every 60 s)
+    EXPECT_TRUE(m.assets().has(sha));
+    clock.advance(3600);  // 61:10 after HasAssets
+    m.tick();
+    EXPECT_FALSE(m.assets().has(sha));
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));  // the job's
+    EXPECT_EQ(m.assets().stored_bytes(), stored - orphan.size());
+    const std::string text = m.metrics_text();
+    EXPECT_NE(text.find("render_assets_collected_total 1\n"), std::string::npos) << text;
+    EXPECT_NE(
+        text.find("render_assets_collected_bytes_total " + std::to_string(orphan.size()) + "\n"),
+        std::string::npos);
+    m.has_assets(ask, &missing);
+    EXPECT_EQ(missing.missing_size(), 1);  // the client uploads it again
+}
+
+// A submit in progress pins its bundle's assets: sweeps that run while it validates (here its
+// 400 frames, each a scene load) never remove them, though no stored job references them yet
+// and they are far past the grace period; the job is accepted and its assets stay.
+TEST_F(ManagerTest, TheAssetSweepNeverRemovesTheAssetsOfASubmitInProgress) {
+    options.unreferenced_asset_seconds = 1;
+    std::atomic<int64_t> now_ms{0};
+    auto clock = [&] { return TimePoint{} + std::chrono::milliseconds(now_ms.load()); };
+    JobManager m(options, clock);
+    v1::SubmitJobRequest r = request(m, 1);
+    for (int i = 0; i < 400; ++i)
+        (*r.add_frames()->mutable_defines())["r"] = std::to_string(0.001 * (i + 1));
+    std::atomic<bool> done{false};
+    grpc::Status status;
+    v1::Job job;
+    std::thread submit([&] {
+        status = m.submit(r, &job);
+        done = true;
+    });
+    // The sweeps start once the submit has checked its assets and placed its files (its job
+    // folder exists); a sweep before that may remove them, and the submit then fails cleanly
+    // with FAILED_PRECONDITION (the client uploads them again).
+    while (!done.load() && fs::is_empty(dir / "jobs"))
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    int sweeps_during_submit = 0;
+    while (!done.load()) {
+        now_ms += 10'000;  // every asset is 10 s older: past the 1-s grace
+        m.tick();          // a sweep every call (it paces itself by 0.5 s of this clock)
+        if (!done.load()) ++sweeps_during_submit;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    submit.join();
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+    // Not a proof by itself: the submit must have been swept over (the load of 400 frames
+    // takes far longer than a tick).
+    EXPECT_GT(sweeps_during_submit, 0);
+    // Once stored, the job references it: later sweeps keep it too.
+    now_ms += 10'000;
+    m.tick();
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
 }
