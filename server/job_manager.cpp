@@ -473,7 +473,7 @@ void JobManager::fill_job(const JobData& job, v1::Job* out) const {
     out->Clear();
     out->set_id(job.row.id);
     out->set_name(job.row.name);
-    out->set_state(v1::JobState(scheduler_.state(job.row.id)));
+    out->set_state(shown_state(job));
     out->set_priority(job.row.priority);
     *out->mutable_settings() = job.request.settings();
     out->set_error(job.row.error);
@@ -682,9 +682,10 @@ void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
         *s->mutable_rates() = w.rates;
     }
     for (const auto& [id, job] : jobs_) {
-        JobState st = scheduler_.state(id);
-        if (st == JobState::Queued) reply->set_queued_jobs(reply->queued_jobs() + 1);
-        if (st == JobState::Running) reply->set_running_jobs(reply->running_jobs() + 1);
+        const v1::JobState st = shown_state(*job);
+        if (st == v1::JOB_STATE_QUEUED) reply->set_queued_jobs(reply->queued_jobs() + 1);
+        if (st == v1::JOB_STATE_RUNNING) reply->set_running_jobs(reply->running_jobs() + 1);
+        if (st == v1::JOB_STATE_WAITING) reply->set_waiting_jobs(reply->waiting_jobs() + 1);
     }
 }
 
@@ -835,6 +836,15 @@ bool JobManager::memory_blocked(const JobData& job) const {
         if (!lacks_memory_for(job, id)) return false;
     }
     return any_live;
+}
+
+v1::JobState JobManager::shown_state(const JobData& job) const {
+    const JobState state = scheduler_.state(job.row.id);
+    // A job that was ever leased stays Running in the scheduler (and the store): shown as
+    // RUNNING while nobody renders it, it would look stuck.
+    if (!is_terminal(state) && memory_blocked(job) && !scheduler_.job_has_lease(job.row.id))
+        return v1::JOB_STATE_WAITING;
+    return v1::JobState(state);
 }
 
 std::string JobManager::memory_waiting(const JobData& job) const {
@@ -1406,7 +1416,8 @@ std::string JobManager::metrics_text() {
         }
         for (const auto& [id, job] : jobs_) {
             const JobState state = scheduler_.state(id);
-            if (size_t(state) < s.jobs_by_state.size()) ++s.jobs_by_state[size_t(state)];
+            const size_t shown = size_t(shown_state(*job));
+            if (shown < s.jobs_by_state.size()) ++s.jobs_by_state[shown];
             if (is_terminal(state)) continue;
             JobSnapshot js;
             js.id = id;

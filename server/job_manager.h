@@ -249,6 +249,9 @@ class JobManager {
     // The job was refused for memory and no live worker (seen within the lease timeout) can
     // take it; false without live workers (mu_ held).
     bool memory_blocked(const JobData& job) const;
+    // The state clients see: WAITING (never stored) for an unfinished job that is
+    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
+    v1::JobState shown_state(const JobData& job) const;
     // Job.waiting for a memory-blocked job (mu_ held).
     std::string memory_waiting(const JobData& job) const;
     // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).

@@ -26,6 +26,7 @@ const char* state_label(size_t state) {
         case JobState::Failed:
             return "failed";
     }
+    if (state == 6) return "waiting";  // v1::JOB_STATE_WAITING: shown, never stored
     return "unknown";
 }
 
@@ -42,7 +43,12 @@ prometheus::Histogram::BucketBoundaries byte_buckets() {
 ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry>()) {
     auto& r = *registry_;
     jobs_ =
-        &BuildGauge().Name("render_jobs").Help("Jobs known to the server, by state").Register(r);
+        &BuildGauge()
+             .Name("render_jobs")
+             .Help(
+                 "Jobs known to the server, by state (waiting: every live worker refused it for "
+                 "memory and none holds a lease of it; not counted as running)")
+             .Register(r);
     for (size_t s = 1; s < jobs_by_state_.size(); ++s)
         jobs_by_state_[s] = &jobs_->Add({{"state", state_label(s)}});
     asset_store_bytes_ = &BuildGauge()

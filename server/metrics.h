@@ -39,7 +39,8 @@ struct JobSnapshot {
 };
 
 struct MetricsSnapshot {
-    std::array<uint64_t, 6> jobs_by_state{};  // indexed by JobState (1..5)
+    // Indexed by the state clients see (v1::JobState 1..6: JobState's, and 6 for WAITING).
+    std::array<uint64_t, 7> jobs_by_state{};
     uint64_t queued_iterations = 0;
     uint64_t asset_store_bytes = 0;  // what --max-store-size counts
     uint64_t active_leases = 0;
@@ -81,7 +82,7 @@ class ServerMetrics {
     std::mutex mu_;  // exposition() and the per-worker/per-job children
     std::shared_ptr<prometheus::Registry> registry_;
     prometheus::Family<prometheus::Gauge>* jobs_;
-    std::array<prometheus::Gauge*, 6> jobs_by_state_{};
+    std::array<prometheus::Gauge*, 7> jobs_by_state_{};
     prometheus::Gauge* queued_iterations_;
     prometheus::Gauge* asset_store_bytes_;
     prometheus::Gauge* workers_connected_;

@@ -550,7 +550,7 @@ TEST_F(ManagerTest, AJobRefusedForMemoryByEveryWorkerFailsAfterTheMemoryWait) {
     clock.advance(59);
     m.tick();
     ASSERT_TRUE(m.get(job.id(), &job).ok());
-    EXPECT_EQ(job.state(), v1::JOB_STATE_RUNNING) << job.error();
+    EXPECT_EQ(job.state(), v1::JOB_STATE_WAITING) << job.error();
     EXPECT_NE(job.waiting().find("waiting for a worker with more than 4.0 MiB of memory: the "
                                  "job needs at least 10.0 MiB (refused for memory by 1 worker;"),
               std::string::npos)
@@ -895,4 +895,49 @@ TEST_F(ManagerTest, TheAssetSweepNeverRemovesTheAssetsOfASubmitInProgress) {
     now_ms += 10'000;
     m.tick();
     EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+}
+
+// A job every live worker refused for memory shows WAITING (not RUNNING, though it was leased)
+// once no worker holds a lease of it, in GetJob, ListJobs, ClusterStatus and the metrics; with
+// a lease still held it shows RUNNING; a larger worker's lease makes it RUNNING again.
+TEST_F(ManagerTest, AJobRefusedForMemoryWithNoLeaseHeldShowsWaiting) {
+    FakeClock clock;
+    options.memory_wait_seconds = 600;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    const v1::LeaseReply a = lease_for(m, "w-small");  // rendered
+    const v1::LeaseReply b = lease_for(m, "w-small");  // refused for memory
+    ASSERT_TRUE(a.granted());
+    ASSERT_TRUE(b.granted());
+    refuse_for_memory(m, "w-small", b, 4 << 20);
+    auto shown = [&] {
+        v1::Job j;
+        EXPECT_TRUE(m.get(job.id(), &j).ok());
+        return j;
+    };
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_RUNNING);  // lease a is still rendering
+    EXPECT_NE(shown().waiting(), "");
+    ASSERT_TRUE(render_and_report(m, a.lease()));
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_WAITING);
+    v1::ListJobsReply list;
+    m.list(&list);
+    ASSERT_EQ(list.jobs_size(), 1);
+    EXPECT_EQ(list.jobs(0).state(), v1::JOB_STATE_WAITING);
+    v1::ClusterStatusReply status;
+    m.cluster_status(&status);
+    EXPECT_EQ(status.waiting_jobs(), 1u);
+    EXPECT_EQ(status.running_jobs(), 0u);
+    EXPECT_EQ(status.queued_jobs(), 0u);
+    std::string text = m.metrics_text();
+    EXPECT_NE(text.find("render_jobs{state=\"waiting\"} 1\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("render_jobs{state=\"running\"} 0\n"), std::string::npos);
+    // Not final: a larger worker takes it.
+    const v1::LeaseReply c = lease_for(m, "w-large");
+    ASSERT_TRUE(c.granted());
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_RUNNING);
+    EXPECT_EQ(shown().waiting(), "");
+    text = m.metrics_text();
+    EXPECT_NE(text.find("render_jobs{state=\"running\"} 1\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("render_jobs{state=\"waiting\"} 0\n"), std::string::npos);
 }
