@@ -941,3 +941,41 @@ TEST_F(ManagerTest, AJobRefusedForMemoryWithNoLeaseHeldShowsWaiting) {
     EXPECT_NE(text.find("render_jobs{state=\"running\"} 1\n"), std::string::npos) << text;
     EXPECT_NE(text.find("render_jobs{state=\"waiting\"} 0\n"), std::string::npos);
 }
+
+// A report the worker gave up on, told in a heartbeat as a lease failure while the worker
+// holds (and heartbeats) its next lease, is queued again at once: another worker gets its
+// range without the clock moving (before, it waited for the lease timeout, postponed by the
+// worker's heartbeats of its next lease).
+TEST_F(ManagerTest, AReportGivenUpIsLeasedAgainAtOnce) {
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    // Two known workers: a lease failure on the only one would fail the job (the poison rule,
+    // ALeaseFailedOnTheOnlyWorkerFailsTheJob).
+    v1::RegisterWorkerReply one, two;
+    m.register_worker({}, &one);
+    m.register_worker({}, &two);
+    const std::string w1 = one.worker_id(), w2 = two.worker_id();
+    const v1::LeaseReply given_up = lease_for(m, w1);
+    const v1::LeaseReply next = lease_for(m, w1);
+    ASSERT_TRUE(given_up.granted());
+    ASSERT_TRUE(next.granted());
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id(w1);
+    hb.add_lease_ids(next.lease().lease_id());
+    v1::LeaseFailure* f = hb.add_failed_leases();
+    f->set_lease_id(given_up.lease().lease_id());
+    f->set_error("the worker could not deliver its report: INVALID_ARGUMENT");
+    v1::HeartbeatReply reply;
+    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    EXPECT_EQ(reply.cancelled_lease_ids_size(), 0);  // the next lease goes on
+    const v1::LeaseReply again = lease_for(m, w2);
+    ASSERT_TRUE(again.granted());
+    EXPECT_EQ(again.lease().first_iteration(), given_up.lease().first_iteration());
+    EXPECT_EQ(again.lease().end_iteration(), given_up.lease().end_iteration());
+    // The given-up lease's report, should it arrive after all, is dropped (its lease is void).
+    EXPECT_FALSE(render_and_report(m, given_up.lease()));
+    EXPECT_TRUE(render_and_report(m, again.lease()));
+    EXPECT_TRUE(render_and_report(m, next.lease()));
+}
