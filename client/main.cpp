@@ -556,8 +556,9 @@ int status(const Connection& c) {
     v1::ClusterStatusReply reply;
     grpc::Status s = c.stub->ClusterStatus(&context, v1::ClusterStatusRequest(), &reply);
     if (!s.ok()) throw RpcFailure("ClusterStatus", s);
-    std::printf("server %s: %u queued, %u running job(s), %d worker(s)\n", c.address.c_str(),
-                reply.queued_jobs(), reply.running_jobs(), reply.workers_size());
+    std::printf("server %s: %u queued, %u running, %u waiting for memory job(s), %d worker(s)\n",
+                c.address.c_str(), reply.queued_jobs(), reply.running_jobs(), reply.waiting_jobs(),
+                reply.workers_size());
     if (reply.workers_size() > 0)
         std::printf("%-24s %-20s %7s %10s  %s\n", "WORKER", "HOST", "THREADS", "SEEN", "LEASE");
     int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(

@@ -60,6 +60,8 @@ const char* state_name(v1::JobState state) {
             return "CANCELLED";
         case v1::JOB_STATE_FAILED:
             return "FAILED";
+        case v1::JOB_STATE_WAITING:
+            return "WAITING";
         default:
             return "UNSPECIFIED";
     }

@@ -1,6 +1,7 @@
 #include "server/asset_store.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -43,14 +44,59 @@ void AssetStore::release(uint64_t bytes) const {
     reserved_ -= bytes;
 }
 
+namespace {
+
+// A file's modification time in Unix milliseconds; nullopt when it cannot be read.
+std::optional<int64_t> modified_unix_ms(const fs::path& file) {
+    struct stat st {};
+    if (::stat(file.c_str(), &st) != 0) return std::nullopt;
+    return int64_t(st.st_mtim.tv_sec) * 1000 + int64_t(st.st_mtim.tv_nsec / 1000000);
+}
+
+}  // namespace
+
 uint64_t AssetStore::remove(const std::string& sha256) {
-    const std::optional<uint64_t> n = size(sha256);
-    if (!n) return 0;
-    std::error_code ec;
-    if (!fs::remove(path(sha256), ec) || ec) return 0;
+    return remove_if_untouched_since(sha256, INT64_MAX).value_or(0);
+}
+
+std::optional<uint64_t> AssetStore::remove_if_untouched_since(const std::string& sha256,
+                                                              int64_t cutoff_unix_ms) {
+    // The check and the removal under mu_, as commit() renames under it: a re-upload of this
+    // asset that lands first has a new time and is kept; one that lands after stores it anew.
     std::lock_guard lock(mu_);
+    const std::optional<uint64_t> n = size(sha256);
+    if (!n) return std::nullopt;
+    if (cutoff_unix_ms != INT64_MAX) {
+        const std::optional<int64_t> touched = modified_unix_ms(path(sha256));
+        if (!touched || *touched >= cutoff_unix_ms) return std::nullopt;
+    }
+    std::error_code ec;
+    if (!fs::remove(path(sha256), ec) || ec) return std::nullopt;
     stored_ -= std::min(stored_, *n);
     return *n;
+}
+
+bool AssetStore::touch(const std::string& sha256, int64_t now_unix_ms) {
+    std::lock_guard lock(mu_);
+    if (!has(sha256)) return false;
+    struct timespec times[2];
+    times[0].tv_sec = now_unix_ms / 1000;
+    times[0].tv_nsec = long(now_unix_ms % 1000) * 1000000;
+    times[1] = times[0];
+    // A file that cannot be touched keeps its older time: it may then be collected before the
+    // submit, which fails with a clear error (the client uploads it again).
+    ::utimensat(AT_FDCWD, path(sha256).c_str(), times, 0);
+    return true;
+}
+
+std::vector<std::string> AssetStore::list() const {
+    std::vector<std::string> out;
+    std::error_code ec;
+    for (fs::directory_iterator it(assets_dir_, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (is_sha256_hex(name)) out.push_back(name);
+    }
+    return out;
 }
 
 fs::path AssetStore::path(const std::string& sha256) const {

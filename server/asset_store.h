@@ -63,6 +63,16 @@ class AssetStore {
     // Deletes an asset (no job references it any more) and takes its size off the store's
     // total; returns the bytes freed (0 when it was not there).
     uint64_t remove(const std::string& sha256);
+    // Deletes an asset last touched (stored, or marked by touch()) before `cutoff_unix_ms`;
+    // returns the bytes freed (nullopt when it was not there or is newer). Under the lock that
+    // an upload's commit takes: an upload of the same asset that lands first keeps it.
+    std::optional<uint64_t> remove_if_untouched_since(const std::string& sha256,
+                                                      int64_t cutoff_unix_ms);
+    // Marks an asset as wanted now (its file's modification time): a client that asked
+    // HasAssets is about to submit a job naming it. False when the store does not have it.
+    bool touch(const std::string& sha256, int64_t now_unix_ms);
+    // The stored assets' sha256 (the files of STORE/assets/).
+    std::vector<std::string> list() const;
 
     // Links (or copies) each (bundle path, sha256) under `dir`. Throws std::runtime_error.
     void materialize(const std::vector<std::pair<std::string, std::string>>& files,

@@ -1,5 +1,6 @@
 #include "server/job_manager.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -139,6 +140,8 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
       clock_(clock),
+      start_clock_(clock_()),
+      start_unix_ms_(unix_ms()),
       store_((fs::create_directories(options.store), options.store / "render.db")),
       assets_(options.store, options.max_store_size),
       client_streams_(options.streams),
@@ -154,6 +157,11 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
 }
 
 JobManager::~JobManager() = default;
+
+int64_t JobManager::now_unix_ms() const {
+    return start_unix_ms_ +
+           std::chrono::duration_cast<std::chrono::milliseconds>(clock_() - start_clock_).count();
+}
 
 fs::path JobManager::checkpoint_path(const std::string& job_id, uint32_t frame) const {
     return options_.store / "checkpoints" / job_id / (std::to_string(frame) + ".ckpt");
@@ -182,6 +190,14 @@ void JobManager::restore() {
         job->row = std::move(row);
         const std::string& id = job->row.id;
         JobState state = JobState(job->row.state);
+        if (is_terminal(state) && job->row.finished_unix_ms == 0) {
+            // Finished before its store recorded finish times: its retention counts from now.
+            job->row.finished_unix_ms = now_unix_ms();
+            store_or_log("job", id, [&] {
+                store_.update_job_state(id, job->row.state, job->row.error,
+                                        job->row.finished_unix_ms);
+            });
+        }
         std::vector<FrameRow> rows = store_.load_frames(id);
         std::vector<FramePlan> plans;
         const v1::RenderSettings& s = job->request.settings();
@@ -233,17 +249,38 @@ void JobManager::restore() {
 }
 
 void JobManager::asset_added(const std::string& sha256, uint64_t size) {
+    assets_.touch(sha256, now_unix_ms());
     store_.add_asset(sha256, size);
 }
 
 void JobManager::has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply) {
+    const int64_t now = now_unix_ms();
     for (const std::string& sha : request.sha256())
-        if (!assets_.has(sha)) reply->add_missing(sha);
+        if (!assets_.touch(sha, now)) reply->add_missing(sha);
 }
 
 Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     if (Status st = check_submit_request(in, options_.max_job_assets); !st.ok()) return st;
     v1::SubmitJobRequest request = in;
+    // The bundle's assets are pinned from before their presence is checked until the job is
+    // stored (or refused): the asset sweep and job deletions (under mu_) pass them over.
+    std::vector<std::string> pinned;
+    for (const v1::BundleFile& f : request.bundle().files()) pinned.push_back(f.sha256());
+    {
+        std::lock_guard lock(mu_);
+        for (const std::string& sha : pinned) ++submitting_assets_[sha];
+    }
+    struct Unpin {
+        JobManager& m;
+        const std::vector<std::string>& shas;
+        ~Unpin() {
+            std::lock_guard lock(m.mu_);
+            for (const std::string& sha : shas)
+                if (auto it = m.submitting_assets_.find(sha);
+                    it != m.submitting_assets_.end() && --it->second <= 0)
+                    m.submitting_assets_.erase(it);
+        }
+    } unpin{*this, pinned};
     for (const v1::BundleFile& f : request.bundle().files()) {
         auto size = assets_.size(f.sha256());
         if (!size)
@@ -390,8 +427,9 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     job->row.submitted_unix_ms = unix_ms();
     const uint32_t frame_count = frames_requested;
     std::lock_guard lock(mu_);
-    // Checked again under mu_: a job deleted meanwhile (delete_job, under mu_) may have
-    // removed an asset this bundle shares, which workers could then not fetch.
+    // Checked again under mu_ (the pins above keep deletions and the asset sweep off them, so
+    // this only guards against a removal by another path): a job must never be stored with an
+    // asset that workers could not fetch.
     for (const v1::BundleFile& f : request.bundle().files())
         if (!assets_.has(f.sha256())) {
             std::error_code ec;
@@ -435,7 +473,7 @@ void JobManager::fill_job(const JobData& job, v1::Job* out) const {
     out->Clear();
     out->set_id(job.row.id);
     out->set_name(job.row.name);
-    out->set_state(v1::JobState(scheduler_.state(job.row.id)));
+    out->set_state(shown_state(job));
     out->set_priority(job.row.priority);
     *out->mutable_settings() = job.request.settings();
     out->set_error(job.row.error);
@@ -504,8 +542,11 @@ void JobManager::set_state(JobData& job, JobState state, const std::string& erro
     scheduler_.set_state(job.row.id, state);
     job.row.state = int(state);
     job.row.error = error;
-    store_or_log("job", job.row.id,
-                 [&] { store_.update_job_state(job.row.id, int(state), error); });
+    if (is_terminal(state)) job.row.finished_unix_ms = now_unix_ms();
+    store_or_log("job", job.row.id, [&] {
+        store_.update_job_state(job.row.id, int(state), error,
+                                is_terminal(state) ? job.row.finished_unix_ms : 0);
+    });
 }
 
 Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
@@ -525,7 +566,8 @@ Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
     return Status::OK;
 }
 
-Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply) {
+Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply,
+                              const char* reason) {
     // One frame finishes at a time (finish_mu_): none of this job's is being written now.
     std::lock_guard finish_lock(finish_mu_);
     std::vector<std::string> orphans;
@@ -542,14 +584,14 @@ Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* rep
             if (id != job_id)
                 for (const v1::BundleFile& f : other->request.bundle().files())
                     mine.erase(f.sha256());
+        for (const auto& [sha, n] : submitting_assets_) mine.erase(sha);
         orphans.assign(mine.begin(), mine.end());
         scheduler_.remove_job(job_id);
         jobs_.erase(job_id);
         // The rows go while mu_ is held: a restart never sees a job whose files are gone.
         store_or_log("job", job_id, [&] { store_.delete_job(job_id, orphans); });
-        // Removed under mu_ too: a submit checks its assets and materializes them before it
-        // takes mu_, so a submit racing this may find one gone and fail (the client uploads
-        // it again); one that has linked it keeps its own link.
+        // Removed under mu_ too; the assets a submit in progress names are pinned (passed
+        // over above) from before it checks them until its job is stored.
         uint64_t freed = 0, removed = 0;
         for (const std::string& sha : orphans)
             if (const uint64_t n = assets_.remove(sha); n > 0) {
@@ -566,6 +608,7 @@ Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* rep
         fs::remove_all(dir, ec);
     Log("info", "job_deleted")
         .kv("job", job_id)
+        .kv("reason", reason)
         .kv("assets_removed", reply->assets_removed())
         .kv("bytes_freed", reply->bytes_freed());
     return Status::OK;
@@ -639,9 +682,10 @@ void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
         *s->mutable_rates() = w.rates;
     }
     for (const auto& [id, job] : jobs_) {
-        JobState st = scheduler_.state(id);
-        if (st == JobState::Queued) reply->set_queued_jobs(reply->queued_jobs() + 1);
-        if (st == JobState::Running) reply->set_running_jobs(reply->running_jobs() + 1);
+        const v1::JobState st = shown_state(*job);
+        if (st == v1::JOB_STATE_QUEUED) reply->set_queued_jobs(reply->queued_jobs() + 1);
+        if (st == v1::JOB_STATE_RUNNING) reply->set_running_jobs(reply->running_jobs() + 1);
+        if (st == v1::JOB_STATE_WAITING) reply->set_waiting_jobs(reply->waiting_jobs() + 1);
     }
 }
 
@@ -792,6 +836,15 @@ bool JobManager::memory_blocked(const JobData& job) const {
         if (!lacks_memory_for(job, id)) return false;
     }
     return any_live;
+}
+
+v1::JobState JobManager::shown_state(const JobData& job) const {
+    const JobState state = scheduler_.state(job.row.id);
+    // A job that was ever leased stays Running in the scheduler (and the store): shown as
+    // RUNNING while nobody renders it, it would look stuck.
+    if (!is_terminal(state) && memory_blocked(job) && !scheduler_.job_has_lease(job.row.id))
+        return v1::JOB_STATE_WAITING;
+    return v1::JobState(state);
 }
 
 std::string JobManager::memory_waiting(const JobData& job) const {
@@ -1077,6 +1130,79 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
 void JobManager::tick() {
     advance();
     flush_checkpoints(false);
+    apply_retention();
+    collect_unreferenced_assets();
+}
+
+void JobManager::collect_unreferenced_assets() {
+    const double grace = options_.unreferenced_asset_seconds;
+    if (grace <= 0) return;
+    const TimePoint now = clock_();
+    const double every = std::clamp(grace / 4, 0.5, 60.0);
+    if (last_asset_sweep_ &&
+        std::chrono::duration<double>(now - *last_asset_sweep_).count() < every)
+        return;
+    last_asset_sweep_ = now;
+    std::vector<std::string> removed;
+    uint64_t freed = 0;
+    {
+        // Under mu_: a submit pins its assets under mu_ before it checks that they exist, and
+        // stores its job under mu_, so every asset a job names or will name is seen here.
+        std::lock_guard lock(mu_);
+        std::set<std::string> wanted;
+        for (const auto& [id, job] : jobs_)
+            for (const v1::BundleFile& f : job->request.bundle().files()) wanted.insert(f.sha256());
+        for (const auto& [sha, n] : submitting_assets_) wanted.insert(sha);
+        const int64_t cutoff = now_unix_ms() - int64_t(grace * 1000);
+        for (const std::string& sha : assets_.list()) {
+            if (wanted.count(sha)) continue;
+            if (const std::optional<uint64_t> n = assets_.remove_if_untouched_since(sha, cutoff)) {
+                removed.push_back(sha);
+                freed += *n;
+                metrics_.asset_collected(*n);
+                Log("info", "asset_collected").kv("sha256", sha).kv("bytes", *n);
+            }
+        }
+        if (!removed.empty())
+            store_or_log("assets", std::to_string(removed.size()),
+                         [&] { store_.delete_assets(removed); });
+    }
+    if (!removed.empty())
+        Log("info", "assets_collected")
+            .kv("count", removed.size())
+            .kv("bytes_freed", freed)
+            .kv("grace_seconds", grace);
+}
+
+void JobManager::apply_retention() {
+    const double retain = options_.retain_finished_seconds;
+    if (retain <= 0) return;
+    std::vector<std::string> expired;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t cutoff = now_unix_ms() - int64_t(retain * 1000);
+        for (const auto& [id, job] : jobs_)
+            if (is_terminal(scheduler_.state(id)) && job->row.finished_unix_ms > 0 &&
+                job->row.finished_unix_ms <= cutoff)
+                expired.push_back(id);
+    }
+    // Each through DeleteJob's own code: the same rows, folders and unshared assets go.
+    uint64_t deleted = 0, assets = 0, freed = 0;
+    for (const std::string& id : expired) {
+        v1::DeleteJobReply reply;
+        // NOT_FOUND: a client deleted it meanwhile.
+        if (!delete_job(id, &reply, "retention").ok()) continue;
+        metrics_.job_expired();
+        ++deleted;
+        assets += reply.assets_removed();
+        freed += reply.bytes_freed();
+    }
+    if (deleted > 0)
+        Log("info", "retention")
+            .kv("jobs_deleted", deleted)
+            .kv("assets_removed", assets)
+            .kv("bytes_freed", freed)
+            .kv("retain_seconds", retain);
 }
 
 void JobManager::advance() {
@@ -1290,7 +1416,8 @@ std::string JobManager::metrics_text() {
         }
         for (const auto& [id, job] : jobs_) {
             const JobState state = scheduler_.state(id);
-            if (size_t(state) < s.jobs_by_state.size()) ++s.jobs_by_state[size_t(state)];
+            const size_t shown = size_t(shown_state(*job));
+            if (shown < s.jobs_by_state.size()) ++s.jobs_by_state[shown];
             if (is_terminal(state)) continue;
             JobSnapshot js;
             js.id = id;

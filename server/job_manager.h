@@ -56,6 +56,14 @@ struct ServerOptions {
     // A job refused for memory by every live worker (each refused it, or is known to have a
     // smaller limit than it needs) FAILS once that has lasted this long (docs/service.md).
     double memory_wait_seconds = 300;
+    // Retention (docs/service.md, "Deleting jobs"): a finished, failed or cancelled job is
+    // deleted, as DeleteJob deletes it, once it finished this long ago; 0 keeps jobs until a
+    // client deletes them. Checked at every tick() (a scan of the jobs in memory).
+    double retain_finished_seconds = 0;
+    // An uploaded asset that no job references is removed once it was last uploaded or named
+    // in a HasAssets request this long ago (a client uploaded and never submitted); 0 never.
+    // Swept by tick() every quarter of this (0.5 s to 60 s).
+    double unreferenced_asset_seconds = 86400;
     // For tests and measurements (--report-delay): a report whose values are received waits
     // this long before it is merged, as over a slow network or on a busy server; a worker that
     // disconnects meanwhile cancels it (it is not merged, and its lease expires).
@@ -74,9 +82,12 @@ class JobManager {
     grpc::Status cancel(const std::string& job_id, v1::Job* job);
     // Deletes a finished, failed or cancelled job (FAILED_PRECONDITION otherwise: cancel it
     // first): its rows, scene folder, checkpoints and results, and the assets of its bundle
-    // that no other job references (the store's size goes down by theirs). An asset uploaded
-    // but not yet in any submitted job is kept.
-    grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply);
+    // that no other job references and no submit in progress names (the store's size goes
+    // down by theirs). An asset uploaded but not yet in any submitted job is kept (the asset
+    // sweep removes it after unreferenced_asset_seconds).
+    // `reason` goes to the log line ("request", or "retention" for the rule above).
+    grpc::Status delete_job(const std::string& job_id, v1::DeleteJobReply* reply,
+                            const char* reason = "request");
     // The EXR to stream for FetchResult; `temporary` files (previews) are deleted by the caller.
     grpc::Status result_file(const v1::FetchResultRequest& request, std::filesystem::path* file,
                              bool* temporary);
@@ -97,8 +108,10 @@ class JobManager {
     // The Prometheus text exposition of the server's metrics (server/metrics.h).
     std::string metrics_text();
     ServerMetrics& metrics() { return metrics_; }
+    // Lists the missing assets; the present ones are touched (the client is about to submit a
+    // job naming them: the asset sweep's grace period starts again).
     void has_assets(const v1::HasAssetsRequest& request, v1::HasAssetsReply* reply);
-    // Records an uploaded asset.
+    // Records an uploaded asset (and touches it, on the manager's clock).
     void asset_added(const std::string& sha256, uint64_t size);
 
     // --- worker protocol ---
@@ -130,8 +143,9 @@ class JobManager {
     // as a lost lease of a worker that rendered (toward kMaxLostRenderingWorkers).
     void report_stream_idle(const std::string& lease_id);
 
-    // Expires leases, closes time budgets, finishes complete frames and writes the checkpoints
-    // that are due. Called periodically (a report does all but the checkpoints).
+    // Expires leases, closes time budgets, finishes complete frames, writes the checkpoints
+    // that are due and applies the retention rule. Called periodically, from one thread (a
+    // report does all but the checkpoints and the retention).
     void tick();
     // Writes the checkpoint of every frame that merged since its last one and saves the render
     // time of unfinished frames (SIGTERM).
@@ -235,16 +249,30 @@ class JobManager {
     // The job was refused for memory and no live worker (seen within the lease timeout) can
     // take it; false without live workers (mu_ held).
     bool memory_blocked(const JobData& job) const;
+    // The state clients see: WAITING (never stored) for an unfinished job that is
+    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
+    v1::JobState shown_state(const JobData& job) const;
     // Job.waiting for a memory-blocked job (mu_ held).
     std::string memory_waiting(const JobData& job) const;
     // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).
     void fail_memory_blocked();
+    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
+    // moves it too): the time of the manager's start plus the clock's time since.
+    int64_t now_unix_ms() const;
+    // Deletes the jobs past the retention time (retain_finished_seconds).
+    void apply_retention();
+    // Removes the assets no job references and no submit in progress names, untouched for
+    // unreferenced_asset_seconds (tick()'s thread only: it paces itself).
+    void collect_unreferenced_assets();
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);
 
     ServerOptions options_;
     Scheduler::ClockFn clock_;
+    TimePoint start_clock_;
+    int64_t start_unix_ms_ = 0;
+    std::optional<TimePoint> last_asset_sweep_;  // tick()'s thread only
     ServerMetrics metrics_;
     JobStore store_;
     AssetStore assets_;
@@ -255,6 +283,9 @@ class JobManager {
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;
     std::map<std::string, WorkerInfo> workers_;
+    // The assets named by submits in progress, with how many (under mu_): neither the asset
+    // sweep nor a job's deletion removes them.
+    std::map<std::string, int> submitting_assets_;
     int64_t next_sequence_ = 1;
     std::mutex finish_mu_;  // one frame finishes at a time
 };

@@ -77,6 +77,14 @@ class Statement {
     bool owned_ = true;
 };
 
+// Whether `table` has a column `column` (stores from older versions lack newer columns).
+bool has_column(sqlite3* db, const char* table, const char* column) {
+    Statement s(db, (std::string("PRAGMA table_info(") + table + ")").c_str());
+    while (s.step())
+        if (s.str(1) == column) return true;
+    return false;
+}
+
 }  // namespace
 
 JobStore::JobStore(const std::filesystem::path& database) {
@@ -93,7 +101,10 @@ JobStore::JobStore(const std::filesystem::path& database) {
     exec(R"(CREATE TABLE IF NOT EXISTS jobs (
         id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT, state INTEGER NOT NULL,
         priority INTEGER NOT NULL, request BLOB NOT NULL, width INTEGER, height INTEGER,
-        error TEXT, submitted_ms INTEGER))");
+        error TEXT, submitted_ms INTEGER, finished_ms INTEGER))");
+    // Stores made before the retention rule lack finished_ms: added (NULL reads as 0).
+    if (!has_column(db_, "jobs", "finished_ms"))
+        exec("ALTER TABLE jobs ADD COLUMN finished_ms INTEGER");
     exec(R"(CREATE TABLE IF NOT EXISTS frames (
         job_id TEXT NOT NULL, idx INTEGER NOT NULL, done INTEGER NOT NULL DEFAULT 0,
         elapsed REAL NOT NULL DEFAULT 0, PRIMARY KEY (job_id, idx)))");
@@ -164,10 +175,13 @@ void JobStore::update_job_priority(const std::string& job_id, int priority) {
     s.run();
 }
 
-void JobStore::update_job_state(const std::string& job_id, int state, const std::string& error) {
+void JobStore::update_job_state(const std::string& job_id, int state, const std::string& error,
+                                int64_t finished_ms) {
     std::lock_guard lock(mu_);
-    Statement s(db_, "UPDATE jobs SET state = ?2, error = ?3 WHERE id = ?1");
-    s.text(1, job_id).bind(2, int64_t(state)).text(3, error);
+    Statement s(db_,
+                "UPDATE jobs SET state = ?2, error = ?3, "
+                "finished_ms = CASE WHEN ?4 > 0 THEN ?4 ELSE finished_ms END WHERE id = ?1");
+    s.text(1, job_id).bind(2, int64_t(state)).text(3, error).bind(4, finished_ms);
     s.run();
 }
 
@@ -182,7 +196,7 @@ std::vector<JobRow> JobStore::load_jobs() {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "SELECT id, seq, name, state, priority, request, width, height, error, "
-                "submitted_ms FROM jobs ORDER BY seq");
+                "submitted_ms, COALESCE(finished_ms, 0) FROM jobs ORDER BY seq");
     std::vector<JobRow> out;
     while (s.step()) {
         JobRow r;
@@ -196,6 +210,7 @@ std::vector<JobRow> JobStore::load_jobs() {
         r.height = int(s.i64(7));
         r.error = s.str(8);
         r.submitted_unix_ms = s.i64(9);
+        r.finished_unix_ms = s.i64(10);
         out.push_back(std::move(r));
     }
     return out;
@@ -302,6 +317,22 @@ void JobStore::delete_job(const std::string& job_id, const std::vector<std::stri
             s.text(1, job_id);
             s.run();
         }
+        for (const std::string& sha : assets) {
+            Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
+            s.text(1, sha);
+            s.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
+void JobStore::delete_assets(const std::vector<std::string>& assets) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
         for (const std::string& sha : assets) {
             Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
             s.text(1, sha);

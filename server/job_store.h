@@ -27,6 +27,9 @@ struct JobRow {
     int width = 0, height = 0;
     std::string error;
     int64_t submitted_unix_ms = 0;
+    // When the job reached DONE, FAILED or CANCELLED (0: not yet, or a store written before
+    // this column existed), for the retention rule (server --retain-finished).
+    int64_t finished_unix_ms = 0;
 };
 
 struct FrameRow {
@@ -44,7 +47,9 @@ class JobStore {
 
     void insert_job(const JobRow& job, uint32_t frame_count);
     void update_job_priority(const std::string& job_id, int priority);
-    void update_job_state(const std::string& job_id, int state, const std::string& error);
+    // `finished_ms`: when a terminal state was reached (0 leaves the recorded time).
+    void update_job_state(const std::string& job_id, int state, const std::string& error,
+                          int64_t finished_ms = 0);
     void update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed);
     std::vector<JobRow> load_jobs();
     std::vector<FrameRow> load_frames(const std::string& job_id);
@@ -61,6 +66,9 @@ class JobStore {
                     bool done, double elapsed);
 
     void add_asset(const std::string& sha256, uint64_t size);
+    // The rows of assets removed from the asset store with no job (never submitted, or their
+    // jobs deleted), in one transaction.
+    void delete_assets(const std::vector<std::string>& assets);
     // In one transaction: the job's row, its frames, merged ranges and leases, and the rows of
     // `assets` (those the job alone referenced, removed from the asset store).
     void delete_job(const std::string& job_id, const std::vector<std::string>& assets);

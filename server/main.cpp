@@ -66,6 +66,45 @@ double parse_seconds(const std::string& flag, const std::string& text) {
     return v;
 }
 
+// A duration for the retention options: a number of seconds, or one with a unit s, m, h or
+// d ("90", "30m", "7d"); "0" or "off" turns the rule off (returns 0).
+double parse_duration(const std::string& flag, const std::string& text) {
+    if (text == "0" || text == "off") return 0;
+    double unit = 1;
+    std::string number = text;
+    if (!text.empty()) {
+        switch (text.back()) {
+            case 's':
+                unit = 1;
+                break;
+            case 'm':
+                unit = 60;
+                break;
+            case 'h':
+                unit = 3600;
+                break;
+            case 'd':
+                unit = 86400;
+                break;
+            default:
+                unit = 0;
+        }
+        if (unit > 0)
+            number.pop_back();
+        else
+            unit = 1;
+    }
+    double v = 0;
+    try {
+        v = parse_number<double>(flag, number) * unit;
+    } catch (const UsageError&) {
+        throw UsageError(flag + " expects a duration (90, 30m, 12h, 7d) or off, got " + text);
+    }
+    if (!(v > 0) || v > 10 * 365 * 86400.0)
+        throw UsageError(flag + " expects a duration in (0, 3650d] or off, got " + text);
+    return v;
+}
+
 ArgumentParser make_parser(Options& o) {
     ArgumentParser p;
     p.value({"--listen"}, "HOST:PORT", "address to serve on (required; port 0: any free port)",
@@ -140,6 +179,21 @@ ArgumentParser make_parser(Options& o) {
             "refusal's message (default 300); refusals never count toward the poison rule",
             [&](const std::string& v) {
                 o.server.memory_wait_seconds = parse_seconds("--memory-wait", v);
+            });
+    p.value({"--retain-finished"}, "DURATION",
+            "delete a finished, failed or cancelled job (rows, folders, results, assets no "
+            "other job uses, as `client delete`) this long after it finished: seconds or "
+            "30m, 12h, 7d (default off: jobs stay until deleted)",
+            [&](const std::string& v) {
+                o.server.retain_finished_seconds = parse_duration("--retain-finished", v);
+            });
+    p.value({"--unreferenced-asset-grace"}, "DURATION",
+            "remove an uploaded asset that no job references once it was last uploaded or "
+            "named in HasAssets this long ago (a client that uploaded and never submitted): "
+            "seconds or 30m, 12h, 7d, or off (default 24h)",
+            [&](const std::string& v) {
+                o.server.unreferenced_asset_seconds =
+                    parse_duration("--unreferenced-asset-grace", v);
             });
     p.value({"--max-transfer-streams"}, "N",
             "at most N clients' UploadAsset and FetchResult streams open at once, and N "

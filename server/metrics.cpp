@@ -26,6 +26,7 @@ const char* state_label(size_t state) {
         case JobState::Failed:
             return "failed";
     }
+    if (state == 6) return "waiting";  // v1::JOB_STATE_WAITING: shown, never stored
     return "unknown";
 }
 
@@ -42,7 +43,12 @@ prometheus::Histogram::BucketBoundaries byte_buckets() {
 ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry>()) {
     auto& r = *registry_;
     jobs_ =
-        &BuildGauge().Name("render_jobs").Help("Jobs known to the server, by state").Register(r);
+        &BuildGauge()
+             .Name("render_jobs")
+             .Help(
+                 "Jobs known to the server, by state (waiting: every live worker refused it for "
+                 "memory and none holds a lease of it; not counted as running)")
+             .Register(r);
     for (size_t s = 1; s < jobs_by_state_.size(); ++s)
         jobs_by_state_[s] = &jobs_->Add({{"state", state_label(s)}});
     asset_store_bytes_ = &BuildGauge()
@@ -96,6 +102,27 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                                       "limit); not failures: the job waits for a larger worker")
                                   .Register(r)
                                   .Add({});
+    jobs_expired_ = &BuildCounter()
+                         .Name("render_jobs_expired_total")
+                         .Help(
+                             "Finished, failed or cancelled jobs deleted by the retention rule "
+                             "(server --retain-finished), as DeleteJob deletes them")
+                         .Register(r)
+                         .Add({});
+    assets_collected_ = &BuildCounter()
+                             .Name("render_assets_collected_total")
+                             .Help(
+                                 "Uploaded assets that no job referenced, removed after the grace "
+                                 "period (server --unreferenced-asset-grace)")
+                             .Register(r)
+                             .Add({});
+    assets_collected_bytes_ = &BuildCounter()
+                                   .Name("render_assets_collected_bytes_total")
+                                   .Help(
+                                       "The bytes of the assets render_assets_collected_total "
+                                       "counts")
+                                   .Register(r)
+                                   .Add({});
     reports_merged_ = &BuildCounter()
                            .Name("render_reports_merged_total")
                            .Help("Worker reports whose sums were merged into a frame")

@@ -39,7 +39,8 @@ struct JobSnapshot {
 };
 
 struct MetricsSnapshot {
-    std::array<uint64_t, 6> jobs_by_state{};  // indexed by JobState (1..5)
+    // Indexed by the state clients see (v1::JobState 1..6: JobState's, and 6 for WAITING).
+    std::array<uint64_t, 7> jobs_by_state{};
     uint64_t queued_iterations = 0;
     uint64_t asset_store_bytes = 0;  // what --max-store-size counts
     uint64_t active_leases = 0;
@@ -64,6 +65,13 @@ class ServerMetrics {
     void report_received(uint64_t bytes);
     // An uploaded asset's bytes.
     void asset_received(uint64_t bytes);
+    // A finished, failed or cancelled job deleted by the retention rule (--retain-finished).
+    void job_expired() { jobs_expired_->Increment(); }
+    // An uploaded asset no job referenced, removed after the grace period.
+    void asset_collected(uint64_t bytes) {
+        assets_collected_->Increment();
+        assets_collected_bytes_->Increment(double(bytes));
+    }
 
     // Sets the gauges from `snapshot` and returns the whole exposition (text format 0.0.4).
     std::string exposition(const MetricsSnapshot& snapshot);
@@ -74,7 +82,7 @@ class ServerMetrics {
     std::mutex mu_;  // exposition() and the per-worker/per-job children
     std::shared_ptr<prometheus::Registry> registry_;
     prometheus::Family<prometheus::Gauge>* jobs_;
-    std::array<prometheus::Gauge*, 6> jobs_by_state_{};
+    std::array<prometheus::Gauge*, 7> jobs_by_state_{};
     prometheus::Gauge* queued_iterations_;
     prometheus::Gauge* asset_store_bytes_;
     prometheus::Gauge* workers_connected_;
@@ -84,6 +92,9 @@ class ServerMetrics {
     prometheus::Counter* leases_requeued_;
     prometheus::Counter* leases_failed_;
     prometheus::Counter* leases_refused_memory_;
+    prometheus::Counter* jobs_expired_;
+    prometheus::Counter* assets_collected_;
+    prometheus::Counter* assets_collected_bytes_;
     prometheus::Counter* reports_merged_;
     prometheus::Family<prometheus::Counter>* reports_dropped_;
     prometheus::Counter* bytes_reports_;

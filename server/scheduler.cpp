@@ -417,4 +417,10 @@ std::vector<std::string> Scheduler::worker_leases(const std::string& worker_id) 
     return out;
 }
 
+bool Scheduler::job_has_lease(const std::string& job_id) const {
+    for (const auto& [id, lease] : leases_)
+        if (lease.grant.job_id == job_id) return true;
+    return false;
+}
+
 }  // namespace render::server

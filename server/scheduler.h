@@ -141,6 +141,8 @@ class Scheduler {
     // Lease ids currently held by a worker.
     std::vector<std::string> worker_leases(const std::string& worker_id) const;
     size_t active_lease_count() const { return leases_.size(); }
+    // Whether any worker holds a lease of the job now.
+    bool job_has_lease(const std::string& job_id) const;
     const LeaseCounters& lease_counters() const { return counters_; }
     // Iterations of unfinished jobs not handed out yet: ranges waiting to be leased again plus
     // those below the iteration target never leased (a pure time budget counts its pending

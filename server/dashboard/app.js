@@ -161,6 +161,7 @@ function drawWorkers(cluster) {
   }
   document.getElementById("summary").textContent =
     `${cluster.queued_jobs} queued, ${cluster.running_jobs} running, ` +
+    `${cluster.waiting_jobs || 0} waiting for memory, ` +
     `${(cluster.workers || []).length} workers`;
 }
 

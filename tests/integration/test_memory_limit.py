@@ -16,6 +16,7 @@ the jobs, and the same workers then render a job that fits, to an image equal to
 4 MiB worker refuses a vcm job, which waits, and a larger worker started later renders it to an
 image equal to `render`'s."""
 
+import json
 import os
 import subprocess
 import sys
@@ -70,7 +71,8 @@ class MemoryLimit(cluster.ClusterTestCase):
     def test_job_refused_for_memory_waits_for_a_larger_worker(self):
         P = cluster.pb()
         c = self.new_cluster(heartbeat=0.5, server_args=["--memory-wait", "600",
-                                                         "--metrics", "127.0.0.1:0"])
+                                                         "--metrics", "127.0.0.1:0",
+                                                         "--http", "127.0.0.1:0"])
         c.start_server()
         small = c.start_worker(threads=1, extra=["--max-memory", "4M"])
         c.wait_workers_registered(1)
@@ -95,6 +97,25 @@ class MemoryLimit(cluster.ClusterTestCase):
         self.assertEqual(metrics["render_leases_failed_total"], 0)
         self.assertGreater(metrics[f'render_job_waiting_for_memory_bytes{{job="{job.id}"}}'],
                            4 << 20)
+        # Leased once (refused), no lease held: shown as WAITING, not RUNNING, everywhere.
+        self.assertEqual(j.state, P.JOB_STATE_WAITING)
+        self.assertEqual((metrics['render_jobs{state="waiting"}'],
+                          metrics['render_jobs{state="running"}']), (1, 0))
+        status = c.api.cluster_status()
+        self.assertEqual((status.waiting_jobs, status.running_jobs, status.queued_jobs),
+                         (1, 0, 0))
+        listed = subprocess.run([cluster.binary("client"), "--server", c.address, "list"],
+                                capture_output=True, text=True, timeout=60)
+        self.assertEqual(listed.returncode, 0, listed.stderr)
+        row = next(line for line in listed.stdout.splitlines() if line.startswith(job.id))
+        self.assertIn(" WAITING ", row, listed.stdout)
+        shown = subprocess.run([cluster.binary("client"), "--server", c.address, "status"],
+                               capture_output=True, text=True, timeout=60)
+        self.assertIn("0 queued, 0 running, 1 waiting for memory job(s)", shown.stdout)
+        _, _, body = cluster.http_get(c.http_addresses["http"], "/api/jobs")
+        api_jobs = json.loads(body.decode())
+        api_job = next(x for x in api_jobs["jobs"] if x["id"] == job.id)
+        self.assertEqual(api_job["state"], "JOB_STATE_WAITING")  # the dashboard's source
 
         # A worker with enough memory joins and renders it; the small one was not offered the
         # job again (one refusal in the log).

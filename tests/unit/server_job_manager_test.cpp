@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <functional>
+#include <thread>
 
 #include <filesystem>
 
@@ -548,7 +550,7 @@ TEST_F(ManagerTest, AJobRefusedForMemoryByEveryWorkerFailsAfterTheMemoryWait) {
     clock.advance(59);
     m.tick();
     ASSERT_TRUE(m.get(job.id(), &job).ok());
-    EXPECT_EQ(job.state(), v1::JOB_STATE_RUNNING) << job.error();
+    EXPECT_EQ(job.state(), v1::JOB_STATE_WAITING) << job.error();
     EXPECT_NE(job.waiting().find("waiting for a worker with more than 4.0 MiB of memory: the "
                                  "job needs at least 10.0 MiB (refused for memory by 1 worker;"),
               std::string::npos)
@@ -732,4 +734,248 @@ TEST_F(ManagerTest, ASlowCheckpointSpacesTheNextOnes) {
     }
     JobManager m(options, now);
     EXPECT_EQ(iterations_done(m, id), 3u);
+}
+
+namespace {
+
+// Leases and reports as worker `worker` until nothing more is granted.
+void render_all(ManagerTest& t, JobManager& m, const std::string& worker) {
+    for (int i = 0; i < 100; ++i) {
+        const v1::LeaseReply reply = ManagerTest::lease_for(m, worker);
+        if (!reply.granted()) return;
+        ASSERT_TRUE(t.render_and_report(m, reply.lease()));
+    }
+    FAIL() << "the job never stopped granting leases";
+}
+
+bool job_exists(JobManager& m, const std::string& id) {
+    v1::Job job;
+    return m.get(id, &job).ok();
+}
+
+}  // namespace
+
+// Retention (--retain-finished 1 h), on an injected clock: each job is deleted an hour after
+// it finished (not after it was submitted), through DeleteJob's code (rows, folders), counted
+// in the metrics, and the finish time survives a restart. (The manager's wall clock starts at
+// the real time of its construction, so the times below keep 10 s of margin.)
+TEST_F(ManagerTest, RetentionDeletesJobsAnHourAfterTheyFinished) {
+    options.retain_finished_seconds = 3600;
+    FakeClock clock;
+    std::string done_id, cancelled_id, running_id;
+    {
+        JobManager m(options, [&] { return clock.now; });
+        v1::Job job;
+        ASSERT_TRUE(m.submit(request(m, 3), &job).ok());
+        done_id = job.id();
+        render_all(*this, m, "w-1");
+        ASSERT_TRUE(m.get(done_id, &job).ok());
+        ASSERT_EQ(job.state(), v1::JOB_STATE_DONE);
+        m.tick();
+    }
+    // A restart: the finish time comes from the store.
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 1000), &job).ok());  // never finishes: never deleted
+    running_id = job.id();
+    clock.advance(1800);  // submitted and cancelled half an hour after the first finished
+    ASSERT_TRUE(m.submit(request(m, 3), &job).ok());
+    cancelled_id = job.id();
+    ASSERT_TRUE(m.cancel(cancelled_id, &job).ok());
+    m.tick();
+    EXPECT_TRUE(fs::exists(dir / "jobs" / done_id));
+    clock.advance(1790);  // 59:50 after the first finished
+    m.tick();
+    EXPECT_TRUE(job_exists(m, done_id));
+    clock.advance(20);  // 60:10
+    m.tick();
+    EXPECT_FALSE(job_exists(m, done_id));
+    EXPECT_FALSE(fs::exists(dir / "jobs" / done_id));
+    EXPECT_FALSE(fs::exists(dir / "results" / done_id));
+    EXPECT_TRUE(job_exists(m, cancelled_id));
+    EXPECT_NE(m.metrics_text().find("render_jobs_expired_total 1\n"), std::string::npos);
+    clock.advance(1800);  // 60:10 after the cancel
+    m.tick();
+    EXPECT_FALSE(job_exists(m, cancelled_id));
+    EXPECT_TRUE(job_exists(m, running_id));
+    EXPECT_NE(m.metrics_text().find("render_jobs_expired_total 2\n"), std::string::npos);
+    // The shared scene asset stays with the job that still uses it.
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+}
+
+// Without --retain-finished (the default) nothing is ever deleted by time.
+TEST_F(ManagerTest, WithoutRetentionFinishedJobsStay) {
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 2), &job).ok());
+    render_all(*this, m, "w-1");
+    clock.advance(10 * 365 * 86400.0);
+    m.tick();
+    EXPECT_TRUE(job_exists(m, job.id()));
+}
+
+// The asset sweep (--unreferenced-asset-grace 1 h) on an injected clock: an asset uploaded and
+// never submitted goes an hour after it was last uploaded or named in HasAssets; an asset a job
+// references stays; the store's size and the metrics follow.
+TEST_F(ManagerTest, AssetsNoJobReferencesGoAfterTheGracePeriod) {
+    options.unreferenced_asset_seconds = 3600;
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 1000), &job).ok());
+    const std::string orphan = "never submitted";
+    const std::string sha = upload(m, orphan);
+    m.asset_added(sha, orphan.size());
+    const uint64_t stored = m.assets().stored_bytes();
+    m.tick();
+    clock.advance(3590);
+    m.tick();
+    EXPECT_TRUE(m.assets().has(sha));
+    // A client asks HasAssets at 59:50: it is about to submit a job naming the asset.
+    v1::HasAssetsRequest ask;
+    ask.add_sha256(sha);
+    v1::HasAssetsReply missing;
+    m.has_assets(ask, &missing);
+    EXPECT_EQ(missing.missing_size(), 0);
+    clock.advance(70);  // 61:00 after the upload, 1:10 after HasAssets (a sweep is due: the
+    m.tick();           // sweeps come every quarter of the grace, at most every 60 s)
+    EXPECT_TRUE(m.assets().has(sha));
+    clock.advance(3600);  // 61:10 after HasAssets
+    m.tick();
+    EXPECT_FALSE(m.assets().has(sha));
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));  // the job's
+    EXPECT_EQ(m.assets().stored_bytes(), stored - orphan.size());
+    const std::string text = m.metrics_text();
+    EXPECT_NE(text.find("render_assets_collected_total 1\n"), std::string::npos) << text;
+    EXPECT_NE(
+        text.find("render_assets_collected_bytes_total " + std::to_string(orphan.size()) + "\n"),
+        std::string::npos);
+    m.has_assets(ask, &missing);
+    EXPECT_EQ(missing.missing_size(), 1);  // the client uploads it again
+}
+
+// A submit in progress pins its bundle's assets: sweeps that run while it validates (here its
+// 400 frames, each a scene load) never remove them, though no stored job references them yet
+// and they are far past the grace period; the job is accepted and its assets stay.
+TEST_F(ManagerTest, TheAssetSweepNeverRemovesTheAssetsOfASubmitInProgress) {
+    options.unreferenced_asset_seconds = 1;
+    std::atomic<int64_t> now_ms{0};
+    auto clock = [&] { return TimePoint{} + std::chrono::milliseconds(now_ms.load()); };
+    JobManager m(options, clock);
+    v1::SubmitJobRequest r = request(m, 1);
+    for (int i = 0; i < 400; ++i)
+        (*r.add_frames()->mutable_defines())["r"] = std::to_string(0.001 * (i + 1));
+    std::atomic<bool> done{false};
+    grpc::Status status;
+    v1::Job job;
+    std::thread submit([&] {
+        status = m.submit(r, &job);
+        done = true;
+    });
+    // The sweeps start once the submit has checked its assets and placed its files (its job
+    // folder exists); a sweep before that may remove them, and the submit then fails cleanly
+    // with FAILED_PRECONDITION (the client uploads them again).
+    while (!done.load() && fs::is_empty(dir / "jobs"))
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    int sweeps_during_submit = 0;
+    while (!done.load()) {
+        now_ms += 10'000;  // every asset is 10 s older: past the 1-s grace
+        m.tick();          // a sweep every call (it paces itself by 0.5 s of this clock)
+        if (!done.load()) ++sweeps_during_submit;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    submit.join();
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+    // Not a proof by itself: the submit must have been swept over (the load of 400 frames
+    // takes far longer than a tick).
+    EXPECT_GT(sweeps_during_submit, 0);
+    // Once stored, the job references it: later sweeps keep it too.
+    now_ms += 10'000;
+    m.tick();
+    EXPECT_TRUE(m.assets().has(sha256_hex(kScene)));
+}
+
+// A job every live worker refused for memory shows WAITING (not RUNNING, though it was leased)
+// once no worker holds a lease of it, in GetJob, ListJobs, ClusterStatus and the metrics; with
+// a lease still held it shows RUNNING; a larger worker's lease makes it RUNNING again.
+TEST_F(ManagerTest, AJobRefusedForMemoryWithNoLeaseHeldShowsWaiting) {
+    FakeClock clock;
+    options.memory_wait_seconds = 600;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    const v1::LeaseReply a = lease_for(m, "w-small");  // rendered
+    const v1::LeaseReply b = lease_for(m, "w-small");  // refused for memory
+    ASSERT_TRUE(a.granted());
+    ASSERT_TRUE(b.granted());
+    refuse_for_memory(m, "w-small", b, 4 << 20);
+    auto shown = [&] {
+        v1::Job j;
+        EXPECT_TRUE(m.get(job.id(), &j).ok());
+        return j;
+    };
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_RUNNING);  // lease a is still rendering
+    EXPECT_NE(shown().waiting(), "");
+    ASSERT_TRUE(render_and_report(m, a.lease()));
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_WAITING);
+    v1::ListJobsReply list;
+    m.list(&list);
+    ASSERT_EQ(list.jobs_size(), 1);
+    EXPECT_EQ(list.jobs(0).state(), v1::JOB_STATE_WAITING);
+    v1::ClusterStatusReply status;
+    m.cluster_status(&status);
+    EXPECT_EQ(status.waiting_jobs(), 1u);
+    EXPECT_EQ(status.running_jobs(), 0u);
+    EXPECT_EQ(status.queued_jobs(), 0u);
+    std::string text = m.metrics_text();
+    EXPECT_NE(text.find("render_jobs{state=\"waiting\"} 1\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("render_jobs{state=\"running\"} 0\n"), std::string::npos);
+    // Not final: a larger worker takes it.
+    const v1::LeaseReply c = lease_for(m, "w-large");
+    ASSERT_TRUE(c.granted());
+    EXPECT_EQ(shown().state(), v1::JOB_STATE_RUNNING);
+    EXPECT_EQ(shown().waiting(), "");
+    text = m.metrics_text();
+    EXPECT_NE(text.find("render_jobs{state=\"running\"} 1\n"), std::string::npos) << text;
+    EXPECT_NE(text.find("render_jobs{state=\"waiting\"} 0\n"), std::string::npos);
+}
+
+// A report the worker gave up on, told in a heartbeat as a lease failure while the worker
+// holds (and heartbeats) its next lease, is queued again at once: another worker gets its
+// range without the clock moving (before, it waited for the lease timeout, postponed by the
+// worker's heartbeats of its next lease).
+TEST_F(ManagerTest, AReportGivenUpIsLeasedAgainAtOnce) {
+    FakeClock clock;
+    JobManager m(options, [&] { return clock.now; });
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    // Two known workers: a lease failure on the only one would fail the job (the poison rule,
+    // ALeaseFailedOnTheOnlyWorkerFailsTheJob).
+    v1::RegisterWorkerReply one, two;
+    m.register_worker({}, &one);
+    m.register_worker({}, &two);
+    const std::string w1 = one.worker_id(), w2 = two.worker_id();
+    const v1::LeaseReply given_up = lease_for(m, w1);
+    const v1::LeaseReply next = lease_for(m, w1);
+    ASSERT_TRUE(given_up.granted());
+    ASSERT_TRUE(next.granted());
+    v1::HeartbeatRequest hb;
+    hb.set_worker_id(w1);
+    hb.add_lease_ids(next.lease().lease_id());
+    v1::LeaseFailure* f = hb.add_failed_leases();
+    f->set_lease_id(given_up.lease().lease_id());
+    f->set_error("the worker could not deliver its report: INVALID_ARGUMENT");
+    v1::HeartbeatReply reply;
+    ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
+    EXPECT_EQ(reply.cancelled_lease_ids_size(), 0);  // the next lease goes on
+    const v1::LeaseReply again = lease_for(m, w2);
+    ASSERT_TRUE(again.granted());
+    EXPECT_EQ(again.lease().first_iteration(), given_up.lease().first_iteration());
+    EXPECT_EQ(again.lease().end_iteration(), given_up.lease().end_iteration());
+    // The given-up lease's report, should it arrive after all, is dropped (its lease is void).
+    EXPECT_FALSE(render_and_report(m, given_up.lease()));
+    EXPECT_TRUE(render_and_report(m, again.lease()));
+    EXPECT_TRUE(render_and_report(m, next.lease()));
 }
