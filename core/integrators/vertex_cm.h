@@ -145,7 +145,9 @@ inline constexpr size_t kLightRayBytesBound = 104;     // a J2 light ray (LightR
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one
 // iteration to the next (vertex_cm.cpp).
-struct IterationStorage;
+namespace vcm_detail {
+struct IterationStorage;  // vcm_iteration.h
+}  // namespace vcm_detail
 
 class VertexConnectionMerging final : public Integrator {
   public:
@@ -172,7 +174,7 @@ class VertexConnectionMerging final : public Integrator {
     // first do not fault in hundreds of MB of fresh pages; calls on one integrator from
     // several threads take turns.
     mutable std::mutex storage_mutex_;
-    mutable std::unique_ptr<IterationStorage> storage_;
+    mutable std::unique_ptr<vcm_detail::IterationStorage> storage_;
 };
 
 }  // namespace render
