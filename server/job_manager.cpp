@@ -798,7 +798,13 @@ void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailu
     auto job = find(grant->job_id);
     if (!job || is_terminal(scheduler_.state(grant->job_id))) return;
     job->progressed_leases.erase(grant->lease_id);
-    job->failed_workers.insert(worker_id);
+    // An undelivered report is a transport fault after a render that worked: counted like a
+    // lease lost while rendering, so one worker's unlucky link does not fail the job, while a
+    // job whose reports no server accepts still fails at the larger limit.
+    if (failure.report_undelivered())
+        job->lost_rendering_workers.insert(worker_id);
+    else
+        job->failed_workers.insert(worker_id);
     job->last_failure = error;
     fail_if_poison(*job, grant->job_id);
 }

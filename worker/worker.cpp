@@ -254,7 +254,8 @@ bool Worker::heartbeat(const std::string& lease_id, const v1::WorkerRates* rates
 }
 
 void Worker::report_failure(const std::string& lease_id, const std::string& error,
-                            uint64_t memory_needed, uint64_t memory_limit) {
+                            uint64_t memory_needed, uint64_t memory_limit,
+                            bool report_undelivered) {
     grpc::ClientContext context;
     prepare_context(context, options_.token, kRpcTimeout);
     v1::HeartbeatRequest request;
@@ -264,6 +265,7 @@ void Worker::report_failure(const std::string& lease_id, const std::string& erro
     failure->set_error(error);
     failure->set_memory_needed(memory_needed);
     failure->set_memory_limit(memory_limit);
+    failure->set_report_undelivered(report_undelivered);
     v1::HeartbeatReply reply;
     grpc::Status status = stub_->Heartbeat(&context, request, &reply);
     if (!status.ok())
@@ -535,7 +537,8 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
             // the lease lives on while this worker heartbeats its next one, as a heartbeat
             // extends every lease of its worker.
             report_failure(lease.lease_id(),
-                           "the worker could not deliver its report: " + describe(status));
+                           "the worker could not deliver its report: " + describe(status), 0, 0,
+                           /*report_undelivered=*/true);
             return Outcome::Failed;
         }
         // Plain sleep: a first SIGTERM must not cut short the delivery of finished work.

@@ -53,9 +53,11 @@ class Worker {
     // Tells the server that this worker cannot render the lease (best effort: if the server
     // does not hear it, the lease expires as before).
     // memory_needed/memory_limit: set for a refusal for memory (MemoryLimitExceeded), which the
-    // server does not count toward failing the job.
+    // server does not count toward failing the job; report_undelivered: the range was rendered
+    // but its report could not be delivered (LeaseFailure.report_undelivered).
     void report_failure(const std::string& lease_id, const std::string& error,
-                        uint64_t memory_needed = 0, uint64_t memory_limit = 0);
+                        uint64_t memory_needed = 0, uint64_t memory_limit = 0,
+                        bool report_undelivered = false);
     // Sends a finished lease's sums, retrying while the lease may still be alive (runs on
     // report_in_flight_'s thread).
     Outcome report(const v1::Lease& lease, const struct RangeResult& result);

@@ -50,6 +50,7 @@ class FakeServer:
         self.lock = threading.Lock()
         self.events = []        # (what, lease_id, detail) in order
         self.failures = {}      # lease_id -> LeaseFailure.error
+        self.undelivered = {}   # lease_id -> LeaseFailure.report_undelivered
         self.leases = []        # granted lease ids
         self.merged = []        # (lease_id, count) of accepted reports
         self.changed = threading.Condition(self.lock)
@@ -93,6 +94,7 @@ class FakeServer:
         for f in request.failed_leases:
             with self.lock:
                 self.failures[f.lease_id] = f.error
+                self.undelivered[f.lease_id] = f.report_undelivered
             self.note("failure", f.lease_id, f.error)
         return cluster.pb().HeartbeatReply()
 
@@ -140,6 +142,8 @@ class WorkerGivesUpReport(cluster.ClusterTestCase):
                                      ("lease", "L-2"), ("report", "L-2")])
             self.assertIn("the worker could not deliver its report", fake.failures["L-1"])
             self.assertIn("the fake server rejects this report", fake.failures["L-1"])
+            # Marked as a delivery fault, which the server does not count as the job's failure.
+            self.assertTrue(fake.undelivered["L-1"])
             self.assertEqual(fake.merged, [("L-2", END - FIRST)])
             with open(worker.log_path, errors="replace") as f:
                 log = f.read()

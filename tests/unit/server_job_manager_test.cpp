@@ -946,6 +946,50 @@ TEST_F(ManagerTest, AJobRefusedForMemoryWithNoLeaseHeldShowsWaiting) {
 // holds (and heartbeats) its next lease, is queued again at once: another worker gets its
 // range without the clock moving (before, it waited for the lease timeout, postponed by the
 // worker's heartbeats of its next lease).
+// An undelivered report is a transport fault, not the job's: on the only known worker it
+// does not fail the job (a render failure there would: ALeaseFailedOnTheOnlyWorkerFailsTheJob);
+// the range goes back to the queue and the same worker renders it again. Reports that no
+// server accepts still fail the job once ten distinct workers could not deliver one.
+TEST_F(ManagerTest, AnUndeliveredReportOnTheOnlyWorkerDoesNotFailTheJob) {
+    JobManager m(options);
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 50), &job).ok());
+    auto give_up = [&](const std::string& worker) {
+        v1::LeaseRequest lr;
+        lr.set_worker_id(worker);
+        v1::LeaseReply lease;
+        EXPECT_TRUE(m.lease(lr, &lease).ok());
+        EXPECT_TRUE(lease.granted());
+        v1::HeartbeatRequest hb;
+        hb.set_worker_id(worker);
+        v1::LeaseFailure* f = hb.add_failed_leases();
+        f->set_lease_id(lease.lease().lease_id());
+        f->set_error("the worker could not deliver its report: RESOURCE_EXHAUSTED");
+        f->set_report_undelivered(true);
+        v1::HeartbeatReply reply;
+        EXPECT_TRUE(m.heartbeat(hb, &reply).ok());
+        return lease;
+    };
+    const v1::LeaseReply first = give_up("w-1");
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_NE(job.state(), v1::JOB_STATE_FAILED) << job.error();
+    v1::LeaseRequest lr;
+    lr.set_worker_id("w-1");
+    v1::LeaseReply again;
+    ASSERT_TRUE(m.lease(lr, &again).ok());
+    ASSERT_TRUE(again.granted());
+    EXPECT_EQ(again.lease().first_iteration(), first.lease().first_iteration());
+    EXPECT_TRUE(render_and_report(m, again.lease()));  // a merge clears the count
+    for (int w = 2; w <= 11; ++w) {
+        ASSERT_TRUE(m.get(job.id(), &job).ok());
+        ASSERT_NE(job.state(), v1::JOB_STATE_FAILED) << "after " << w - 2 << " workers";
+        give_up("w-" + std::to_string(w));
+    }
+    ASSERT_TRUE(m.get(job.id(), &job).ok());
+    EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+    EXPECT_NE(job.error().find("RESOURCE_EXHAUSTED"), std::string::npos) << job.error();
+}
+
 TEST_F(ManagerTest, AReportGivenUpIsLeasedAgainAtOnce) {
     FakeClock clock;
     JobManager m(options, [&] { return clock.now; });
@@ -967,6 +1011,7 @@ TEST_F(ManagerTest, AReportGivenUpIsLeasedAgainAtOnce) {
     v1::LeaseFailure* f = hb.add_failed_leases();
     f->set_lease_id(given_up.lease().lease_id());
     f->set_error("the worker could not deliver its report: INVALID_ARGUMENT");
+    f->set_report_undelivered(true);
     v1::HeartbeatReply reply;
     ASSERT_TRUE(m.heartbeat(hb, &reply).ok());
     EXPECT_EQ(reply.cancelled_lease_ids_size(), 0);  // the next lease goes on
