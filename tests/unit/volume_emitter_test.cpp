@@ -47,13 +47,9 @@ testing::ChiSquareFamily family;
 constexpr double kSigmaT[3] = {0.5, 1.0, 4.0};
 constexpr double kRadiance[3] = {1.0, 2.0, 0.5};
 
+// The homogeneous "glow" of tests/support/emitting_grid_medium.h (kSigmaT, kRadiance above).
 std::string glow(const std::string& albedo) {
-    return R"(<medium type="homogeneous" id="glow">
-    <rgb name="sigma_t" value="0.5, 1, 4"/>
-    <float name="albedo" value=")" +
-           albedo + R"("/>
-    <rgb name="radiance" value="1, 2, 0.5"/>
-  </medium>)";
+    return testing::emitting_medium_xml(/*grid=*/false, albedo);
 }
 
 // volume_emission_test's absorbing unit sphere: every pixel sees the chord 2 sqrt(1 - y^2).
