@@ -114,12 +114,20 @@ class WorkerKilled(cluster.ClusterTestCase):
         before = c.api.get_job(job.id).frames[0].iterations_done
         for w in first:
             w.kill()
-        time.sleep(LEASE_TIMEOUT + 2.5)  # the three leases expire and are counted
+        # The three leases expire and are counted. Waited for rather than slept on: beside a
+        # busy test (the chaos soak) the server's expiry tick came later than LEASE_TIMEOUT +
+        # 2.5 s and only two were counted yet.
+        def lost_leases():
+            with open(c.server.log_path, "rb") as f:
+                return f.read().count(b"event=lease_lost ")
+        time.sleep(LEASE_TIMEOUT + 2.5)
+        cluster.wait_until(lambda: lost_leases() >= 3, timeout=30,
+                           what="the three killed workers' leases to expire")
+        time.sleep(1.0)  # a fourth (wrong) loss would show by now
         after = c.api.get_job(job.id)
         self.assertEqual(after.frames[0].iterations_done, before,
                          "a report merged between the kills; make the leases longer")
-        with open(c.server.log_path, "rb") as f:
-            self.assertEqual(f.read().count(b"event=lease_lost "), 3)
+        self.assertEqual(lost_leases(), 3)
         self.assertEqual(after.state, P.JOB_STATE_RUNNING, after.error)
 
         c.start_workers(2, threads=1)
