@@ -88,11 +88,11 @@ struct SubpathState {
     float origin_joint_pdf = 0;
     bool origin_in_medium = false;
     float carried_connection = 0;
-    // Joint (J2) connections on the light's emission ray: the position before origin_previous,
-    // the light-ray distance densities of the origin vertex and of its predecessor (Joint2Vertex);
-    // on eye subpaths the J1 share of the connection term the last scatter added to dVC (vcm_mis.h,
-    // carried_eye_joint2_term), and, after arriving at a light, the J2 term the emission weight
-    // adds to dVC (there the vertex the segment left is the light-side vertex of a J2 junction).
+    // Joint (J2) connections on the light path's rays: the position before origin_previous, the
+    // light-ray distance densities of the origin vertex and of its predecessor (Joint2Vertex);
+    // on eye subpaths the J1 share of the connection term the last scatter added to dVC
+    // (vcm_mis.h, carried_eye_joint2_term), completed at the next arrival
+    // (add_arrival_joint2_term).
     Vec3 origin_previous2;
     float origin_light_ray_pdf = 0;
     float origin_previous_light_ray_pdf = 0;
@@ -167,13 +167,13 @@ struct Vertex {
     }
 };
 
-// Joint (J2) connections' state of a subpath vertex, which resample the first light vertex on
-// the light's emission ray (docs/media.md): the position `previous` was reached from; this
+// Joint (J2) connections' state of a subpath vertex, which resample a light vertex on the light
+// path's ray that reached it (docs/media.md): the position `previous` was reached from; this
 // vertex's distance density from `previous` where J2 can resample it there (a medium vertex of
-// a homogeneous medium reached in one piece from a finite light's point, on either subpath: 0
-// elsewhere), and the same of `previous`. Stored light vertices keep it in a side array indexed
-// like them (IterationStorage::joint2_vertices), filled only with J2, so that the stored vertex
-// does not pay for it when J2 is off.
+// a homogeneous medium reached in one piece from a scattering vertex or a finite light's point,
+// on either subpath: 0 elsewhere), and the same of `previous`. Stored light vertices keep it in a
+// side array indexed like them (IterationStorage::joint2_vertices), filled only with J2, so that
+// the stored vertex does not pay for it when J2 is off.
 struct Joint2Vertex {
     Vec3 previous2;
     float light_ray_pdf = 0;
@@ -203,7 +203,7 @@ static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
 
 // Which technique produced a connection: the plain one, J1 (the eye vertex sampled toward the
-// light vertex) or J2 (the light vertex resampled on the emission ray as well).
+// light vertex) or J2 (the light vertex resampled on its light ray as well).
 enum class JointKind { None, J1, J2 };
 
 // Visibility and distance-sampling densities of a connection segment. Without media the
@@ -542,6 +542,17 @@ class Iteration {
     void joint_connections(const Ray& ray, const SubpathState& state, uint32_t first, uint32_t end,
                            uint32_t rays_first, uint32_t rays_end, Rng& rng, RenderStats& stats,
                            Add&& add) const;
+    // Eye subpaths arriving at x in one piece from state.origin (|cos| cos_in at x, distance
+    // density distance_pdf): the J2 term of the junction whose light ray would start at x (at a
+    // light's point should the path end there, or at a scattering vertex of the light subpath),
+    // which every technique with x on the light side counts (vcm_mis.h, add_eye_joint2_term).
+    void add_arrival_joint2_term(MisQuantities& mis, const SubpathState& state, const Vec3& x,
+                                 float cos_in, float distance_pdf) const;
+    // J2 of the junction toward the camera at eye vertex v, joined through `link` (one piece)
+    // to the light-side point y: v resampled on the light ray from y toward it, its successor
+    // toward the camera by J1 (vcm_mis.h, eye_joint2_term); 0 where J2 cannot resample v.
+    float eye_joint2_toward(const MisQuantities& eye_mis, const SubpathVertex& v, const Vec3& y,
+                            const Link& link) const;
     // The eye subpath arrived at v: its connection term gains the J1 technique of the junction
     // toward the camera (vcm_mis.h, include_joint_junction).
     void include_joint_junction(MisQuantities& mis, const SubpathState& state,
@@ -564,7 +575,7 @@ class Iteration {
                                                     RenderStats& stats,
                                                     JointKind joint = JointKind::None) const;
     // J2: q = p_B2 / p_distance of the light-side vertex `x` of a junction, resampled on the
-    // emission ray from the light point `light_point` (x's distance density from there:
+    // light ray from `light_point` (a light's point or a scattering vertex; x's density from there:
     // light_ray_pdf, 0 where J2 cannot resample it), the eye ray from `eye_origin` through
     // `eye_side`; 0 without J2.
     float light_joint2_ratio(const Vec3& light_point, const Vec3& x, float light_ray_pdf,
@@ -715,7 +726,7 @@ class Iteration {
     uint64_t ic_light_path_count_;
     float ic_connection_scale_;  // 1 / ic_light_path_count_: the caches average over those paths
     bool joint_;                 // joint (J1) connections (bpt, vcm in a scene with media)
-    bool joint2_;                // and J2 on the emission ray (bpt only)
+    bool joint2_;                // and J2 on the light path's rays (bpt only)
     size_t ic_vertex_count_ = 0;
 
     IterationStorage& storage_;

@@ -78,16 +78,8 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
             joint_pdf_l(v.p, state.origin, state.origin_previous), cos_in, seg.densities.toward_end,
             light_joint2_ratio(state.origin_previous2, state.origin_previous,
                                state.origin_previous_light_ray_pdf, v.p, state.origin));
-    // Eye subpaths: the vertex the segment left is the light-side vertex of a J2 junction whose
-    // light ray starts here (at a light's point should the path end here, or at a scattering
-    // vertex of the light subpath); every technique that has this vertex on the light side
-    // counts it (vcm_mis.h, add_eye_joint2_term).
-    if (joint2_ && mode == TransportMode::Radiance && state.carried_eye_joint2 > 0 &&
-        seg.one_piece && state.origin_in_medium && state.medium && state.medium->is_homogeneous())
-        mis_.add_eye_joint2_term(state.mis, state.carried_eye_joint2,
-                                 joint2_pdf_l(scene_.bounding_sphere(), v.p, state.origin,
-                                              state.origin_previous2, state.origin_previous),
-                                 cos_in, seg.densities.toward_end);
+    if (mode == TransportMode::Radiance && seg.one_piece)
+        add_arrival_joint2_term(state.mis, state, v.p, cos_in, seg.densities.toward_end);
     // Light subpaths: the P-B2D term of the vertex this segment left (the segment from here is
     // the query that covers it).
     if (mode == TransportMode::Importance)
@@ -342,8 +334,8 @@ bool Iteration::sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& r
     if (joint_)
         state.carried_connection =
             mis_.carried_connection_term(state.mis, cos_out, bs->pdf_w.forward, bs->delta);
-    // Eye subpaths (J2 on the emission ray): the J1 share of the term this scatter adds, for
-    // the emission weight should the next vertex be a light (light subpaths ignore it).
+    // Eye subpaths (J2): the J1 share of the term this scatter adds, completed at the next
+    // arrival (add_arrival_joint2_term; light subpaths ignore it).
     state.carried_eye_joint2 =
         joint2_ && v.in_medium() && v.medium->is_homogeneous()
             ? mis_.carried_eye_joint2_term(state.mis, v.camera_joint_ratio, cos_out,
@@ -456,7 +448,7 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     if (joint_ && light->is_finite() && state.origin_joint_pdf > 0)
         joint_ratio =
             joint_pdf_l(state.origin_previous, state.origin, hit_point) / state.origin_joint_pdf;
-    // (J2 on the emission ray, the vertex before the hit point resampled on it, is in dVC:
+    // (J2 of the vertex before the hit point, resampled on the light's ray, is in dVC:
     // next_vertex added it on arriving here.)
     return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
                                               le.pdf_emission_w * pick_probability, joint_ratio);
@@ -511,15 +503,10 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVe
     if (joint_ && v.joint_distance_pdf > 0 && std::isfinite(ls.distance))
         joint_ratio =
             joint_pdf_l(v.previous, v.p, v.p + ls.wi * ls.distance) / v.joint_distance_pdf;
-    // J2 of the junction toward the camera, v resampled on the light's emission ray toward it.
-    float eye_joint2 = 0;
-    if (joint2_ && v.camera_joint_ratio > 0 && v.in_medium() && v.medium->is_homogeneous() &&
-        std::isfinite(ls.distance) && l.one_piece && l.densities.toward_start > 0)
-        eye_joint2 =
-            mis_.eye_joint2_term(eye_mis, v.camera_joint_ratio,
-                                 joint2_pdf_l(scene_.bounding_sphere(), v.p + ls.wi * ls.distance,
-                                              v.p, v.joint2.previous2, v.previous) /
-                                     l.densities.toward_start);
+    // J2 of the junction toward the camera, v resampled on the ray from the light's point.
+    const float eye_joint2 = std::isfinite(ls.distance)
+                                 ? eye_joint2_toward(eye_mis, v, v.p + ls.wi * ls.distance, l)
+                                 : 0.0f;
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
     const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
                                     .bsdf_reverse_w = pdf_w.reverse,
@@ -585,24 +572,16 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             l.densities.toward_end > 0)
             light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
     }
-    // J2 of this junction (the light vertex resampled on the emission ray) and of the one
-    // before it (the light vertex's predecessor resampled there, the light vertex by J1).
+    // J2 of this junction (the light vertex resampled on the light ray that reached it) and of
+    // the one before it (the light vertex's predecessor resampled there, the light vertex by J1).
     float joint2_ratio = 0, light_joint2 = 0;
-    if (joint_ratio > 0 && w2.light_ray_pdf > 0)
-        joint2_ratio = joint2_pdf_l(scene_.bounding_sphere(), w.previous, w.p, v.previous, v.p) /
-                       w2.light_ray_pdf;
+    if (joint_ratio > 0)
+        joint2_ratio = light_joint2_ratio(w.previous, w.p, w2.light_ray_pdf, v.previous, v.p);
     if (light_joint_ratio > 0)
         light_joint2 =
             light_joint2_ratio(w2.previous2, w.previous, w2.previous_light_ray_pdf, v.p, w.p);
-    // J2 of the junction toward the camera: v resampled on the light ray from w toward it (the
-    // connection segment, in one piece), its successor toward the camera by J1.
-    float eye_joint2 = 0;
-    if (joint2_ && v.camera_joint_ratio > 0 && v.in_medium() && v.medium->is_homogeneous() &&
-        l.one_piece && l.densities.toward_start > 0)
-        eye_joint2 = mis_.eye_joint2_term(
-            eye_mis, v.camera_joint_ratio,
-            joint2_pdf_l(scene_.bounding_sphere(), w.p, v.p, v.joint2.previous2, v.previous) /
-                l.densities.toward_start);
+    // J2 of the junction toward the camera: v resampled on the connection segment from w.
+    const float eye_joint2 = eye_joint2_toward(eye_mis, v, w.p, l);
     // Eqs. (40) and (41).
     const ConnectionTechnique technique{
         .eye_pdf_a = eye_pdf_a,
@@ -647,6 +626,28 @@ Rgb Iteration::connect_vertices(const LightVertex& lv, const Joint2Vertex& light
         connection_terms(lv, light_joint2, v, wo, eye_mis, rng, stats);
     if (!t) return Rgb(0.0f);
     return t->unoccluded * visibility(t->link, t->ray, stats);
+}
+
+void Iteration::add_arrival_joint2_term(MisQuantities& mis, const SubpathState& state,
+                                        const Vec3& x, float cos_in, float distance_pdf) const {
+    if (!joint2_ || !(state.carried_eye_joint2 > 0) || !state.origin_in_medium || !state.medium ||
+        !state.medium->is_homogeneous())
+        return;
+    mis_.add_eye_joint2_term(mis, state.carried_eye_joint2,
+                             joint2_pdf_l(scene_.bounding_sphere(), x, state.origin,
+                                          state.origin_previous2, state.origin_previous),
+                             cos_in, distance_pdf);
+}
+
+float Iteration::eye_joint2_toward(const MisQuantities& eye_mis, const SubpathVertex& v,
+                                   const Vec3& y, const Link& link) const {
+    if (!joint2_ || !(v.camera_joint_ratio > 0) || !v.in_medium() || !v.medium->is_homogeneous() ||
+        !link.one_piece || !(link.densities.toward_start > 0))
+        return 0.0f;
+    return mis_.eye_joint2_term(
+        eye_mis, v.camera_joint_ratio,
+        joint2_pdf_l(scene_.bounding_sphere(), y, v.p, v.joint2.previous2, v.previous) /
+            link.densities.toward_start);
 }
 
 void Iteration::include_joint_junction(MisQuantities& mis, const SubpathState& state,
@@ -707,14 +708,8 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         j.v.joint_distance_pdf = densities.toward_end;
         j.mis = state.mis;
         mis_.arrive(j.mis, t_ray * t_ray, true, 1.0f, densities.toward_end, densities.toward_start);
-        // As next_vertex: the J2 term of the junction two steps toward the camera, whose light
-        // ray would start here (the first piece is one piece).
-        if (joint2_ && state.carried_eye_joint2 > 0 && state.origin_in_medium &&
-            medium->is_homogeneous())
-            mis_.add_eye_joint2_term(j.mis, state.carried_eye_joint2,
-                                     joint2_pdf_l(scene_.bounding_sphere(), z, state.origin,
-                                                  state.origin_previous2, state.origin_previous),
-                                     1.0f, densities.toward_end);
+        // As next_vertex (the first piece is one piece).
+        add_arrival_joint2_term(j.mis, state, z, 1.0f, densities.toward_end);
         include_joint_junction(j.mis, state, j.v);
         return j;
     };
