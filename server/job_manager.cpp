@@ -580,11 +580,7 @@ Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* rep
                           "job " + job_id + " is still queued or running: cancel it first");
         std::set<std::string> mine;
         for (const v1::BundleFile& f : job->request.bundle().files()) mine.insert(f.sha256());
-        for (const auto& [id, other] : jobs_)
-            if (id != job_id)
-                for (const v1::BundleFile& f : other->request.bundle().files())
-                    mine.erase(f.sha256());
-        for (const auto& [sha, n] : submitting_assets_) mine.erase(sha);
+        for (const std::string& sha : assets_in_use(job_id)) mine.erase(sha);
         orphans.assign(mine.begin(), mine.end());
         scheduler_.remove_job(job_id);
         jobs_.erase(job_id);
@@ -1140,6 +1136,15 @@ void JobManager::tick() {
     collect_unreferenced_assets();
 }
 
+std::set<std::string> JobManager::assets_in_use(const std::string& except_job) const {
+    std::set<std::string> used;
+    for (const auto& [id, job] : jobs_)
+        if (id != except_job)
+            for (const v1::BundleFile& f : job->request.bundle().files()) used.insert(f.sha256());
+    for (const auto& [sha, n] : submitting_assets_) used.insert(sha);
+    return used;
+}
+
 void JobManager::collect_unreferenced_assets() {
     const double grace = options_.unreferenced_asset_seconds;
     if (grace <= 0) return;
@@ -1155,10 +1160,7 @@ void JobManager::collect_unreferenced_assets() {
         // Under mu_: a submit pins its assets under mu_ before it checks that they exist, and
         // stores its job under mu_, so every asset a job names or will name is seen here.
         std::lock_guard lock(mu_);
-        std::set<std::string> wanted;
-        for (const auto& [id, job] : jobs_)
-            for (const v1::BundleFile& f : job->request.bundle().files()) wanted.insert(f.sha256());
-        for (const auto& [sha, n] : submitting_assets_) wanted.insert(sha);
+        const std::set<std::string> wanted = assets_in_use();
         const int64_t cutoff = now_unix_ms() - int64_t(grace * 1000);
         for (const std::string& sha : assets_.list()) {
             if (wanted.count(sha)) continue;

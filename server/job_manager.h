@@ -264,6 +264,9 @@ class JobManager {
     // Removes the assets no job references and no submit in progress names, untouched for
     // unreferenced_asset_seconds (tick()'s thread only: it paces itself).
     void collect_unreferenced_assets();
+    // The assets a job other than `except_job` names, or a submit in progress has pinned
+    // (caller holds mu_): what neither a deletion nor the asset sweep may remove.
+    std::set<std::string> assets_in_use(const std::string& except_job = {}) const;
     std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
     std::shared_ptr<JobData> find(const std::string& job_id);

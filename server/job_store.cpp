@@ -317,11 +317,7 @@ void JobStore::delete_job(const std::string& job_id, const std::vector<std::stri
             s.text(1, job_id);
             s.run();
         }
-        for (const std::string& sha : assets) {
-            Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
-            s.text(1, sha);
-            s.run();
-        }
+        delete_asset_rows(assets);
         exec("COMMIT");
     } catch (...) {
         exec("ROLLBACK");
@@ -329,15 +325,19 @@ void JobStore::delete_job(const std::string& job_id, const std::vector<std::stri
     }
 }
 
+void JobStore::delete_asset_rows(const std::vector<std::string>& assets) {
+    for (const std::string& sha : assets) {
+        Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
+        s.text(1, sha);
+        s.run();
+    }
+}
+
 void JobStore::delete_assets(const std::vector<std::string>& assets) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
-        for (const std::string& sha : assets) {
-            Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
-            s.text(1, sha);
-            s.run();
-        }
+        delete_asset_rows(assets);
         exec("COMMIT");
     } catch (...) {
         exec("ROLLBACK");

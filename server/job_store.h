@@ -83,6 +83,8 @@ class JobStore {
     void exec(const char* sql);
     // Records one merged range; the caller holds mu_.
     void insert_merged_range(const std::string& job_id, uint32_t frame, Range range);
+    // The rows of `assets`, inside the caller's transaction (delete_job, delete_assets).
+    void delete_asset_rows(const std::vector<std::string>& assets);
     // A frame's merged ranges replaced by `ranges`, inside the caller's transaction.
     void replace_merged_ranges(const std::string& job_id, uint32_t frame,
                                const std::vector<Range>& ranges);
