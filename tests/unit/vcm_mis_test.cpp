@@ -913,6 +913,32 @@ class MisSumTest : public ::testing::Test {
     }
 
     // Checks both properties for one family (with the listed techniques' weights).
+    // Query beams (P-B2D) beside BPT, VCM, BPM and alone, with a beam radius unlike the point
+    // radius (as UPBP's schedules have it): the merge factor of a medium vertex is then per
+    // vertex, added at the next arrival on light subpaths. Photon beams (B-B1D) beside BPT,
+    // beside everything (UPBP), beside BPM and alone; long and short beams; both constants
+    // eta_1 of the spec (SmallUPBP's r / 2 and the kernel's support 2 r).
+    void check_beam_families(int power, double radius, double eta_surface, double eta_volume) {
+        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
+        for (const auto& [vc, vm, name] :
+             {std::tuple{true, false, "BPT+PB2D"}, std::tuple{true, true, "VCM+PB2D"},
+              std::tuple{false, true, "BPM+PB2D"}, std::tuple{false, false, "PB2D"}})
+            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
+        const double r_1 = 0.5 * radius;
+        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
+            for (const bool short_beams : {false, true}) {
+                SCOPED_TRACE(::testing::Message() << "eta_1 " << eta_1 << ", "
+                                                  << (short_beams ? "short" : "long") << " beams");
+                for (const auto& [vc, vm, qb, name] :
+                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
+                      std::tuple{true, true, eta_beam, "UPBP (all)"},
+                      std::tuple{false, true, 0.0, "BPM+BB1D"},
+                      std::tuple{false, false, 0.0, "BB1D"}})
+                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0, qb,
+                                 eta_1 * kLightPaths, short_beams);
+            }
+    }
+
     void check_family(int power, bool use_vc, bool use_vm, double eta_surface, double eta_volume,
                       const char* name, int joint = 0, double eta_beam = 0,
                       double eta_photon_beam = 0, bool short_beams = false) {
@@ -1081,33 +1107,8 @@ TEST_F(MisSumTest, WeightsOfAllTechniquesSumToOneInAMedium) {
                         check_family(power, true, true, eta_surface, eta_volume, "VCM+J1", 1);
                         check_family(power, true, true, eta_surface, eta_volume, "VCM+J1 s>=1", 2);
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
-                        // Query beams (P-B2D) beside BPT, VCM, BPM and alone: the merge factor
-                        // of a medium vertex is then per vertex, added at the next arrival on
-                        // light subpaths. The beam radius differs from the point radius, as
-                        // UPBP's schedules do.
-                        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
-                        for (const auto& [vc, vm, name] : {std::tuple{true, false, "BPT+PB2D"},
-                                                           std::tuple{true, true, "VCM+PB2D"},
-                                                           std::tuple{false, true, "BPM+PB2D"},
-                                                           std::tuple{false, false, "PB2D"}})
-                            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
-                        // Photon beams (B-B1D) beside BPT, beside everything (UPBP), beside
-                        // BPM and alone; long and short beams; both constants eta_1 of the
-                        // spec (SmallUPBP's r / 2 and the kernel's support 2 r).
-                        const double r_1 = 0.5 * radius;
-                        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
-                            for (const bool short_beams : {false, true})
-                                for (const auto& [vc, vm, qb, name] :
-                                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
-                                      std::tuple{true, true, eta_beam, "UPBP (all)"},
-                                      std::tuple{false, true, 0.0, "BPM+BB1D"},
-                                      std::tuple{false, false, 0.0, "BB1D"}}) {
-                                    SCOPED_TRACE(::testing::Message()
-                                                 << "eta_1 " << eta_1 << ", "
-                                                 << (short_beams ? "short" : "long") << " beams");
-                                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0,
-                                                 qb, eta_1 * kLightPaths, short_beams);
-                                }
+                        // Query beams and photon beams beside each family.
+                        check_beam_families(power, radius, eta_surface, eta_volume);
                         ++checked;
                         with_medium_vertex += medium_vertex;
                     }
@@ -1252,7 +1253,6 @@ TEST_F(MisSumTest, VolumeLightWeightsSumToOneWithBeams) {
                         const double eta_surface = kPi * radius * radius * kLightPaths;
                         const double eta_volume =
                             4.0 / 3.0 * kPi * radius * radius * radius * kLightPaths;
-                        const double eta_beam = kPi * 0.25 * radius * radius * kLightPaths;
                         SCOPED_TRACE(::testing::Message()
                                      << "fog " << fog << ", path of " << materials.size()
                                      << " vertices, trial " << trial << ", radius " << radius
@@ -1260,25 +1260,7 @@ TEST_F(MisSumTest, VolumeLightWeightsSumToOneWithBeams) {
                         check_family(power, true, false, eta_surface, eta_volume, "BPT");
                         check_family(power, true, true, eta_surface, eta_volume, "VCM");
                         check_family(power, false, true, eta_surface, eta_volume, "BPM");
-                        for (const auto& [vc, vm, name] : {std::tuple{true, false, "BPT+PB2D"},
-                                                           std::tuple{true, true, "VCM+PB2D"},
-                                                           std::tuple{false, true, "BPM+PB2D"},
-                                                           std::tuple{false, false, "PB2D"}})
-                            check_family(power, vc, vm, eta_surface, eta_volume, name, 0, eta_beam);
-                        const double r_1 = 0.5 * radius;
-                        for (const double eta_1 : {0.5 * r_1, 2.0 * r_1})
-                            for (const bool short_beams : {false, true}) {
-                                SCOPED_TRACE(::testing::Message()
-                                             << "eta_1 " << eta_1 << ", "
-                                             << (short_beams ? "short" : "long") << " beams");
-                                for (const auto& [vc, vm, qb, name] :
-                                     {std::tuple{true, false, 0.0, "BPT+BB1D"},
-                                      std::tuple{true, true, eta_beam, "UPBP (all)"},
-                                      std::tuple{false, true, 0.0, "BPM+BB1D"},
-                                      std::tuple{false, false, 0.0, "BB1D"}})
-                                    check_family(power, vc, vm, eta_surface, eta_volume, name, 0,
-                                                 qb, eta_1 * kLightPaths, short_beams);
-                            }
+                        check_beam_families(power, radius, eta_surface, eta_volume);
                         ++checked;
                     }
             }
