@@ -31,10 +31,19 @@ Scene::Scene() {
     rtc_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(rtc_scene_, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(rtc_scene_, RTC_BUILD_QUALITY_HIGH);
+    // Shadow rays go through a second BVH over the same geometries, built without ROBUST:
+    // its traversal takes about a third less time, and an occlusion test only answers yes or
+    // no, which the two BVHs give differently only for a ray within float rounding of a
+    // triangle's edge or a node's box (docs/performance.md, "Since: shadow rays"). MEDIUM
+    // quality: HIGH's spatial splits cost build time the shadow rays do not win back.
+    occlusion_scene_ = rtcNewScene(device_);
+    rtcSetSceneFlags(occlusion_scene_, RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(occlusion_scene_, RTC_BUILD_QUALITY_MEDIUM);
 }
 
 Scene::~Scene() {
     instances_.clear();  // their groups' Embree scenes go before the device
+    if (occlusion_scene_) rtcReleaseScene(occlusion_scene_);
     if (rtc_scene_) rtcReleaseScene(rtc_scene_);
     if (device_) rtcReleaseDevice(device_);
 }
@@ -75,6 +84,7 @@ void Scene::commit() {
     if (committed_) return;
     for (const auto& shape : shapes_) {
         unsigned id = shape->attach(device_, rtc_scene_);
+        also_for_occlusion(id);
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
         bounds_.expand(shape->bounds());
@@ -82,6 +92,7 @@ void Scene::commit() {
     }
     for (const auto& instance : instances_) {
         const unsigned id = instance->attach(device_, rtc_scene_);
+        also_for_occlusion(id);
         if (id >= geometry_to_instance_.size()) geometry_to_instance_.resize(id + 1, nullptr);
         geometry_to_instance_[id] = instance.get();
         bounds_.expand(instance->bounds());
@@ -89,6 +100,7 @@ void Scene::commit() {
     }
     has_media_ = has_media_ || camera_medium_;
     rtcCommitScene(rtc_scene_);
+    rtcCommitScene(occlusion_scene_);
     if (bounds_.empty()) {
         // Only infinite lights (or nothing): a unit sphere around the camera keeps the
         // infinite-light emission disk well defined.
@@ -165,11 +177,16 @@ float Scene::closest_hit_distance(const Ray& ray) const {
     return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? kInfinity : rh.ray.tfar;
 }
 
+void Scene::also_for_occlusion(unsigned geometry_id) {
+    // Embree shares a geometry between scenes: its buffers and callbacks are not copied.
+    rtcAttachGeometry(occlusion_scene_, rtcGetGeometry(rtc_scene_, geometry_id));
+}
+
 bool Scene::occluded(const Ray& ray) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay r = to_rtc_ray(ray);
-    rtcOccluded1(rtc_scene_, &context, &r);
+    rtcOccluded1(occlusion_scene_, &context, &r);
     return r.tfar < 0;
 }
 

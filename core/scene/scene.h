@@ -1,7 +1,8 @@
 #pragma once
 
-// The renderable scene: geometry in one Embree scene, materials, lights, camera, and the render
-// settings the scene file carried. Built once (commit()), immutable and thread-safe afterwards.
+// The renderable scene: geometry in Embree (one BVH for closest hits, one for shadow rays),
+// materials, lights, camera, and the render settings the scene file carried. Built once
+// (commit()), immutable and thread-safe afterwards.
 
 #include <embree3/rtcore.h>
 
@@ -127,11 +128,16 @@ class Scene {
     const SceneSphere& bounding_sphere() const { return sphere_; }
     // The committed Embree scene, for benchmarks that compare against bare Embree queries.
     RTCScene embree_scene() const { return rtc_scene_; }
+    // The Embree scene occluded() queries: the same geometries in a BVH built without ROBUST.
+    RTCScene embree_occlusion_scene() const { return occlusion_scene_; }
     const Aabb& bounds() const { return bounds_; }
 
   private:
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
+    RTCScene occlusion_scene_ = nullptr;  // the same geometries, for occluded()
+    // Attaches rtc_scene_'s geometry `geometry_id` to occlusion_scene_ as well.
+    void also_for_occlusion(unsigned geometry_id);
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;
     std::vector<std::unique_ptr<Shape>> shapes_;
     std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
