@@ -1,8 +1,9 @@
 // Ray queries: closest-hit and occlusion rays per second through Scene::intersect/occluded
 // ("ours": Embree plus filling the SurfaceInteraction) and through bare rtcIntersect1 /
 // rtcOccluded1 on the same RTCScene ("embree"), over the same precomputed rays (bench_scenes.h).
-// The ratio of the two is the cost of our wrapper. "embree-robust" is rtcOccluded1 on the
-// closest-hit BVH (built with ROBUST) instead of the occlusion BVH: what the latter gains.
+// The ratio of the two is the cost of our wrapper. For occlusion, "embree" is rtcOccluded1 on
+// the closest-hit BVH, which holds every geometry; occluded() queries a BVH of its own, built
+// without ROBUST, and tests the scene's first two analytic shapes itself (core/scene/scene.h).
 
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
@@ -58,9 +59,8 @@ void occluded_ours(benchmark::State& state, const std::string& name) {
     state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
 }
 
-// Bare rtcOccluded1 on `rtc`: the scene's occlusion BVH ("embree"), or the closest-hit BVH
-// built with ROBUST ("embree-robust", what occluded() queried before it had its own).
-void occluded_on(benchmark::State& state, const std::string& name, RTCScene rtc) {
+void occluded_embree(benchmark::State& state, const std::string& name) {
+    const RTCScene rtc = scene(name).embree_scene();
     const std::vector<Ray>& rays = bench::rays(name).shadow;
     for (auto _ : state) {
         int blocked = 0;
@@ -76,14 +76,6 @@ void occluded_on(benchmark::State& state, const std::string& name, RTCScene rtc)
     state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
 }
 
-void occluded_embree(benchmark::State& state, const std::string& name) {
-    occluded_on(state, name, scene(name).embree_occlusion_scene());
-}
-
-void occluded_embree_robust(benchmark::State& state, const std::string& name) {
-    occluded_on(state, name, scene(name).embree_scene());
-}
-
 [[maybe_unused]] const bool registered = [] {
     for (const std::string& name : ray_scene_names()) {
         benchmark::RegisterBenchmark(("rays/closest/ours/" + name).c_str(), closest_ours, name);
@@ -91,8 +83,6 @@ void occluded_embree_robust(benchmark::State& state, const std::string& name) {
         benchmark::RegisterBenchmark(("rays/occluded/ours/" + name).c_str(), occluded_ours, name);
         benchmark::RegisterBenchmark(("rays/occluded/embree/" + name).c_str(), occluded_embree,
                                      name);
-        benchmark::RegisterBenchmark(("rays/occluded/embree-robust/" + name).c_str(),
-                                     occluded_embree_robust, name);
     }
     return true;
 }();

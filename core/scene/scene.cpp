@@ -10,6 +10,7 @@
 #include "core/scene/embree_ray.h"
 #include "core/scene/volume_emitter.h"
 #include "core/shapes/instance.h"
+#include "core/shapes/user_geometry.h"
 
 namespace render {
 namespace {
@@ -31,11 +32,12 @@ Scene::Scene() {
     rtc_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(rtc_scene_, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(rtc_scene_, RTC_BUILD_QUALITY_HIGH);
-    // Shadow rays go through a second BVH over the same geometries, built without ROBUST:
-    // its traversal takes about a third less time, and an occlusion test only answers yes or
-    // no, which the two BVHs give differently only for a ray within float rounding of a
-    // triangle's edge or a node's box (docs/performance.md, "Since: shadow rays"). MEDIUM
-    // quality: HIGH's spatial splits cost build time the shadow rays do not win back.
+    // Shadow rays go through a second BVH over the same geometries (but the direct occluders,
+    // see occluded()), built without ROBUST: its traversal takes about a third less time, and
+    // an occlusion test only answers yes or no, which the two BVHs give differently only for
+    // a ray within float rounding of a triangle's edge or a node's box (docs/performance.md,
+    // "Since: shadow rays"). MEDIUM quality: HIGH's spatial splits cost build time the shadow
+    // rays do not win back.
     occlusion_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(occlusion_scene_, RTC_SCENE_FLAG_NONE);
     rtcSetSceneBuildQuality(occlusion_scene_, RTC_BUILD_QUALITY_MEDIUM);
@@ -84,7 +86,11 @@ void Scene::commit() {
     if (committed_) return;
     for (const auto& shape : shapes_) {
         unsigned id = shape->attach(device_, rtc_scene_);
-        also_for_occlusion(id);
+        const auto* analytic = dynamic_cast<const AnalyticShape*>(shape.get());
+        if (analytic && direct_occluders_.size() < kMaxDirectOccluders)
+            direct_occluders_.push_back(analytic);
+        else
+            also_for_occlusion(id);
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
         bounds_.expand(shape->bounds());
@@ -183,6 +189,12 @@ void Scene::also_for_occlusion(unsigned geometry_id) {
 }
 
 bool Scene::occluded(const Ray& ray) const {
+    // The same test with the same numbers as the shapes' Embree callbacks
+    // (core/shapes/user_geometry.cpp), without Embree's traversal around it.
+    const float origin[3] = {ray.origin.x, ray.origin.y, ray.origin.z};
+    const float direction[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
+    for (const AnalyticShape* shape : direct_occluders_)
+        if (shape->nearest_hit(origin, direction, ray.t_min, ray.t_max)) return true;
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay r = to_rtc_ray(ray);

@@ -23,6 +23,7 @@
 
 namespace render {
 
+class AnalyticShape;
 class Instance;
 class Medium;
 
@@ -128,14 +129,18 @@ class Scene {
     const SceneSphere& bounding_sphere() const { return sphere_; }
     // The committed Embree scene, for benchmarks that compare against bare Embree queries.
     RTCScene embree_scene() const { return rtc_scene_; }
-    // The Embree scene occluded() queries: the same geometries in a BVH built without ROBUST.
-    RTCScene embree_occlusion_scene() const { return occlusion_scene_; }
     const Aabb& bounds() const { return bounds_; }
 
   private:
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
     RTCScene occlusion_scene_ = nullptr;  // the same geometries, for occluded()
+    // The first analytic shapes (spheres, disks; not those of instanced groups), which
+    // occluded() tests itself instead of through occlusion_scene_: Embree's traversal of its
+    // user-geometry BVH costs more per shadow ray than two direct tests (a third of
+    // occluded()'s instructions on the SmallVCM boxes). Past two, the BVH's culling wins.
+    static constexpr size_t kMaxDirectOccluders = 2;
+    std::vector<const AnalyticShape*> direct_occluders_;
     // Attaches rtc_scene_'s geometry `geometry_id` to occlusion_scene_ as well.
     void also_for_occlusion(unsigned geometry_id);
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;

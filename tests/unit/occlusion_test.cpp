@@ -1,7 +1,9 @@
 // Scene::occluded queries its own BVH (built without Embree's ROBUST flag, core/scene/scene.cpp)
 // while Scene::intersect and closest_hit_distance query the ROBUST one. Both hold the same
 // geometries, so a segment must be blocked exactly when the closest hit lies before its end,
-// on every kind of geometry (triangles, analytic spheres, rectangles, instances).
+// on every kind of geometry (triangles, analytic spheres, rectangles, instances), whether
+// occluded() tests an analytic shape itself (the first two) or through its BVH (veach-mis has
+// more spheres).
 //
 // Random segments (fixed seeds) from points in the scene's bounds: the closest hit along the
 // whole ray is t_hit, and the segment ends at t_max = t_hit * (0.5 + u), u uniform in [0, 1),
@@ -73,7 +75,7 @@ INSTANTIATE_TEST_SUITE_P(Scenes, OcclusionAgreesWithClosestHit,
                                          "smallvcm/2-gbs_p.xml",
                                          "bitterli/cornell-box/scene_v3.xml",
                                          "bitterli/veach-bidir/scene_v3.xml",
-                                         "tests/instances.xml"),
+                                         "bitterli/veach-mis/scene_v3.xml", "tests/instances.xml"),
                          [](const testing::TestParamInfo<std::string>& info) {
                              std::string name;
                              for (char c : info.param)
