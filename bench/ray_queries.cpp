@@ -3,7 +3,7 @@
 // rtcOccluded1 on the same RTCScene ("embree"), over the same precomputed rays (bench_scenes.h).
 // The ratio of the two is the cost of our wrapper. For occlusion, "embree" is rtcOccluded1 on
 // the closest-hit BVH, which holds every geometry; occluded() queries a BVH of its own, built
-// without ROBUST, and tests the scene's first two analytic shapes itself (core/scene/scene.h).
+// without ROBUST, and tests up to four analytic shapes itself (core/scene/scene.h).
 
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>

@@ -32,12 +32,12 @@ Scene::Scene() {
     rtc_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(rtc_scene_, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(rtc_scene_, RTC_BUILD_QUALITY_HIGH);
-    // Shadow rays go through a second BVH over the same geometries (but the direct occluders,
-    // see occluded()), built without ROBUST: its traversal takes about a third less time, and
-    // an occlusion test only answers yes or no, which the two BVHs give differently only for
-    // a ray within float rounding of a triangle's edge or a node's box (docs/performance.md,
-    // "Since: shadow rays"). MEDIUM quality: HIGH's spatial splits cost build time the shadow
-    // rays do not win back.
+    // Shadow rays go through a second BVH over the same geometries (but the directly tested
+    // analytic shapes, scene.h), built without ROBUST: its traversal takes about a third less time,
+    // and an occlusion test only answers yes or no, which the two BVHs give differently only for a
+    // ray within float rounding of a triangle's edge or a node's box (docs/performance.md, "Since:
+    // shadow rays"). MEDIUM quality: HIGH's spatial splits cost build time the shadow rays do not
+    // win back.
     occlusion_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(occlusion_scene_, RTC_SCENE_FLAG_NONE);
     rtcSetSceneBuildQuality(occlusion_scene_, RTC_BUILD_QUALITY_MEDIUM);
@@ -84,10 +84,14 @@ const Light* Scene::add_light(std::unique_ptr<Light> light) {
 
 void Scene::commit() {
     if (committed_) return;
+    size_t analytic_shapes = 0;
+    for (const auto& shape : shapes_)
+        analytic_shapes += dynamic_cast<const AnalyticShape*>(shape.get()) ? 1 : 0;
+    const bool direct = analytic_shapes <= kMaxDirectOccluders;
     for (const auto& shape : shapes_) {
         unsigned id = shape->attach(device_, rtc_scene_);
         const auto* analytic = dynamic_cast<const AnalyticShape*>(shape.get());
-        if (analytic && direct_occluders_.size() < kMaxDirectOccluders)
+        if (analytic && direct)
             direct_occluders_.push_back(analytic);
         else
             also_for_occlusion(id);

@@ -135,11 +135,13 @@ class Scene {
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
     RTCScene occlusion_scene_ = nullptr;  // the same geometries, for occluded()
-    // The first analytic shapes (spheres, disks; not those of instanced groups), which
-    // occluded() tests itself instead of through occlusion_scene_: Embree's traversal of its
-    // user-geometry BVH costs more per shadow ray than two direct tests (a third of
-    // occluded()'s instructions on the SmallVCM boxes). Past two, the BVH's culling wins.
-    static constexpr size_t kMaxDirectOccluders = 2;
+    // The analytic shapes (spheres, disks; not those of instanced groups) when there are at
+    // most kMaxDirectOccluders of them: occluded() tests them itself instead of through
+    // occlusion_scene_, since Embree's traversal of a user-geometry BVH costs more per shadow
+    // ray than a few direct tests (170-290 instructions before any callback on the SmallVCM
+    // boxes; veach-mis's four small spheres cost the same either way). With more, the BVH's
+    // culling wins and all of them stay in it.
+    static constexpr size_t kMaxDirectOccluders = 4;
     std::vector<const AnalyticShape*> direct_occluders_;
     // Attaches rtc_scene_'s geometry `geometry_id` to occlusion_scene_ as well.
     void also_for_occlusion(unsigned geometry_id);

@@ -2,8 +2,8 @@
 // while Scene::intersect and closest_hit_distance query the ROBUST one. Both hold the same
 // geometries, so a segment must be blocked exactly when the closest hit lies before its end,
 // on every kind of geometry (triangles, analytic spheres, rectangles, instances), whether
-// occluded() tests an analytic shape itself (the first two) or through its BVH (veach-mis has
-// more spheres).
+// occluded() tests the analytic shapes itself (at most four of them: the boxes, veach-mis) or
+// through its BVH (more than four: the scene of six spheres below; those of instanced groups).
 //
 // Random segments (fixed seeds) from points in the scene's bounds: the closest hit along the
 // whole ray is t_hit, and the segment ends at t_max = t_hit * (0.5 + u), u uniform in [0, 1),
@@ -17,12 +17,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/scene.h"
+#include "core/shapes/sphere.h"
 
 namespace render {
 namespace {
@@ -70,12 +72,29 @@ TEST_P(OcclusionAgreesWithClosestHit, AlongRandomSegments) {
                 a.blocked, a.disagreements);
 }
 
+// More analytic shapes than occluded() tests itself: all of them go through the BVH.
+TEST(Occlusion, SixSpheresInTheBvhAgreeWithClosestHits) {
+    Scene scene;
+    scene.set_camera(PerspectiveCamera(Transform(), 45, 'x', 4, 4));
+    Rng rng(StreamKey{.seed = 7, .iteration = 1, .stream = 0});
+    for (int i = 0; i < 6; ++i)
+        scene.add_shape(std::make_unique<Sphere>(rng.next_3d() * 4.0f, 0.3f + rng.next_1d(), false,
+                                                 "s" + std::to_string(i)),
+                        nullptr);
+    scene.commit();
+    const Agreement a = compare_occlusion_with_closest_hits(scene, 20261127, 100000);
+    EXPECT_GT(a.tested, 90000);
+    EXPECT_GT(a.blocked, a.tested / 10);
+    EXPECT_EQ(a.disagreements, 0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenes, OcclusionAgreesWithClosestHit,
                          testing::Values("smallvcm/0-gbs_s.xml", "smallvcm/1-glm_c.xml",
                                          "smallvcm/2-gbs_p.xml",
                                          "bitterli/cornell-box/scene_v3.xml",
                                          "bitterli/veach-bidir/scene_v3.xml",
-                                         "bitterli/veach-mis/scene_v3.xml", "tests/instances.xml"),
+                                         "bitterli/veach-mis/scene_v3.xml", "tests/instances.xml",
+                                         "tests/instances-flat.xml"),
                          [](const testing::TestParamInfo<std::string>& info) {
                              std::string name;
                              for (char c : info.param)
