@@ -40,6 +40,7 @@
 #include "server/job_manager.h"
 #include "server/job_service.h"
 #include "server/worker_service.h"
+#include "service/process_setup.h"
 #include "service/transport_security.h"
 
 namespace {
@@ -308,6 +309,7 @@ std::string shown_host(std::string host) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    render::service::prepare_grpc_process();
     Options options = parse(argc, argv);
 
     // Signals are taken by sigwait below; block them before gRPC starts its threads.

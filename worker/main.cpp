@@ -15,6 +15,7 @@
 #include "core/base/memory_budget.h"
 #include "core/util/arguments.h"
 #include "core/util/log.h"
+#include "service/process_setup.h"
 #include "service/rpc.h"
 #include "worker/worker.h"
 
@@ -99,6 +100,7 @@ std::filesystem::path default_cache() {
 }  // namespace
 
 int main(int argc, char** argv) {
+    render::service::prepare_grpc_process();
     WorkerOptions options;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) options.server = env;
     std::string token;
