@@ -127,10 +127,11 @@ class JobManager {
     // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
     // layers' sums one after the other (empty for a job without layers); `odd_sum` empty when
     // the header omits it. `values`, if given, holds the spans' storage: it is freed once the
-    // sums are added, before a frame the report completes is written (memory).
+    // sums are added, before a frame the report completes is written (memory), and the memory
+    // malloc keeps of the report's transfer is returned to the system then.
     grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
                         std::span<const double> odd_sum, std::span<const double> layer_sums,
-                        bool* merged, std::vector<double>* values = nullptr);
+                        bool* merged, std::unique_ptr<double[]>* values = nullptr);
     // Reports of one job are received and merged one at a time: each holds a frame's whole
     // sums in memory until it is merged, so a job's memory stays its frames' sums plus one
     // report's, however many workers report at once. Blocks until the job of `lease_id` has no
