@@ -48,7 +48,11 @@ FrameAccumulator::FrameAccumulator(int width, int height, LayerMode layers)
     : width_(width), height_(height) {
     result_.sum = AccumulationBuffer(width, height);
     result_.odd_sum = AccumulationBuffer(width, height);
-    result_.layers = TechniqueLayers(layers, width, height);
+    // TechniqueLayers(mode, w, h) fills its layers from a temporary frame-sized buffer, made
+    // even when there are none: at a 4K frame's first report that was a fourth buffer of a
+    // frame's values beside the sums and the report (a peak of 2x the sums for one-iteration
+    // reports). A job without layers keeps the empty default.
+    if (layers != LayerMode::None) result_.layers = TechniqueLayers(layers, width, height);
 }
 
 namespace {
