@@ -1,7 +1,5 @@
 #include "server/job_manager.h"
 
-#include <malloc.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -1126,13 +1124,7 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         .kv("checkpoint_us",
             std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
     // The report's values are in the sums: free them before a completed frame's EXR is made.
-    // The transfer's 1 MiB messages were parsed on gRPC's threads, whose malloc arenas keep
-    // freed memory for reuse (~0.2x a 4K frame's sums after a report, which the next report's
-    // values would come on top of): give it back (docs/performance.md, render-farm case).
-    if (values) {
-        values->reset();
-        malloc_trim(0);
-    }
+    if (values) values->reset();
     advance();
     return Status::OK;
 }

@@ -127,8 +127,7 @@ class JobManager {
     // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
     // layers' sums one after the other (empty for a job without layers); `odd_sum` empty when
     // the header omits it. `values`, if given, holds the spans' storage: it is freed once the
-    // sums are added, before a frame the report completes is written (memory), and the memory
-    // malloc keeps of the report's transfer is returned to the system then.
+    // sums are added, before a frame the report completes is written (memory).
     grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
                         std::span<const double> odd_sum, std::span<const double> layer_sums,
                         bool* merged, std::unique_ptr<double[]>* values = nullptr);
