@@ -31,6 +31,10 @@ class TriangleMesh final : public Shape {
     unsigned attach(RTCDevice device, RTCScene scene) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                           HitDetail detail, SurfaceInteraction& si) const override;
+    // What fill_interaction does, without the virtual call: defined inline in
+    // core/shapes/triangle_mesh_hit.h for Scene::intersect.
+    void fill_hit(const Ray& ray, float t, unsigned prim_id, float u, float v, HitDetail detail,
+                  SurfaceInteraction& si) const;
     Aabb bounds() const override;
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;
@@ -57,6 +61,7 @@ class TriangleMesh final : public Shape {
     // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate
     // one: computed once here instead of at every hit (a cross product and a square root).
     std::vector<Vec3> face_normals_;
+    bool has_degenerate_ = false;  // some face normal is zero (hits then face the ray)
     std::vector<Vec3> normals_;
     std::vector<Vec2> uvs_;
     std::vector<uint32_t> indices_;
