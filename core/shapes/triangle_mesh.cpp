@@ -64,6 +64,24 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
     }
     area_ = float(total);
     triangle_distribution_ = Distribution1D(std::move(areas));
+    keep_flat_frames();
+}
+
+void TriangleMesh::keep_flat_frames() {
+    // At most twice the memory of the vertex normals they replace (equal for unshared vertices,
+    // 1.5x for the rectangle and the cube; a finely tessellated plane would take 6x).
+    if (normals_.empty() || triangle_count() * sizeof(Frame) > 2 * normals_.size() * sizeof(Vec3))
+        return;
+    std::vector<Frame> frames(triangle_count());
+    for (size_t i = 0; i < triangle_count(); ++i) {
+        const Vec3& n = normals_[indices_[3 * i]];
+        if (!(n == normals_[indices_[3 * i + 1]] && n == normals_[indices_[3 * i + 2]]) ||
+            length_squared(n) == 0)
+            return;  // smooth somewhere (or a broken normal): interpolate at every hit
+        frames[i] = Frame::from_normal(flip_normals_ ? -n : n);
+    }
+    flat_frames_ = std::move(frames);
+    normals_ = {};
 }
 
 unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
@@ -90,6 +108,11 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
 void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                                     HitDetail detail, SurfaceInteraction& si) const {
     fill_hit(ray, t, prim_id, u, v, detail, si);
+}
+
+Vec3 TriangleMesh::facing_normal(const Vec3& ng, const Ray& ray) const {
+    if (ng.x != 0 || ng.y != 0 || ng.z != 0) return ng;
+    return flip_normals_ ? ray.direction : ray.direction * -1.0f;
 }
 
 void TriangleMesh::tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const {

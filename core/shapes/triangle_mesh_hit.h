@@ -19,24 +19,24 @@ inline void TriangleMesh::fill_hit(const Ray& ray, float t, unsigned prim_id, fl
     si.p = p0 * b0 + p1 * u + p2 * v;
     si.t = t;
     Vec3 ng = face_normals_[prim_id];
-    if (has_degenerate_) [[unlikely]] {
-        if (ng.x == 0 && ng.y == 0 && ng.z == 0) {  // degenerate: face the ray
-            ng = ray.direction * -1.0f;
-            if (flip_normals_) ng = -ng;
-        }
-    }
+    if (has_degenerate_) [[unlikely]]
+        ng = facing_normal(ng, ray);
     si.geometric_normal = ng;
 
-    Vec3 ns = ng;
-    if (!normals_.empty()) {
-        const Vec3 n = normals_[i0] * b0 + normals_[i1] * u + normals_[i2] * v;
-        const float nlen = length(n);
-        if (nlen > 0 && std::isfinite(nlen)) {
-            ns = n / nlen;
-            if (flip_normals_) ns = -ns;
+    if (!flat_frames_.empty()) {
+        si.shading = flat_frames_[prim_id];
+    } else {
+        Vec3 ns = ng;
+        if (!normals_.empty()) {
+            const Vec3 n = normals_[i0] * b0 + normals_[i1] * u + normals_[i2] * v;
+            const float nlen = length(n);
+            if (nlen > 0 && std::isfinite(nlen)) {
+                ns = n / nlen;
+                if (flip_normals_) ns = -ns;
+            }
         }
+        si.shading = Frame::from_normal(ns);
     }
-    si.shading = Frame::from_normal(ns);
     if (uv_wanted(*this, detail)) {
         si.uv = uv_of(prim_id, u, v);
         tangents_of(prim_id, si.dpdu, si.dpdv);
