@@ -31,6 +31,7 @@
 #include "core/util/arguments.h"
 #include "core/util/sha256.h"
 #include "render.grpc.pb.h"
+#include "service/process_setup.h"
 #include "service/rpc.h"
 
 namespace {
@@ -626,6 +627,7 @@ int bundle_command(const std::vector<std::string>& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    render::service::prepare_grpc_process();
     std::string server, token, tls_ca, tls_server_name;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) server = env;
     std::vector<std::string> rest;

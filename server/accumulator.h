@@ -39,8 +39,9 @@ class FrameAccumulator {
     const IterationResult& result() const { return result_; }
     const IntervalSet& ranges() const { return ranges_; }
     uint64_t count() const { return result_.count; }
-    // Estimated relative error of the current mean (1 when unknown).
-    double relative_error() const;
+    // Estimated relative error of the current mean (1 when unknown): estimate_relative_error
+    // of result(), computed by add() in its pass over the sums (and by load()), not per call.
+    double relative_error() const { return relative_error_; }
     // The mean image so far (black when nothing is merged), and its layers' means.
     Image average() const;
     std::vector<NamedLayer> layer_averages() const;
@@ -55,6 +56,7 @@ class FrameAccumulator {
     int width_ = 0, height_ = 0;
     IterationResult result_;
     IntervalSet ranges_;
+    double relative_error_ = 1.0;
 };
 
 // Writes `image` (and `layers`) as EXR with the metadata through core (no OpenImageIO here).

@@ -1015,7 +1015,7 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
 
 Status JobManager::report(const v1::ReportHeader& header, std::span<const double> sum,
                           std::span<const double> odd_sum, std::span<const double> layer_sums,
-                          bool* merged, std::vector<double>* values) {
+                          bool* merged, std::unique_ptr<double[]>* values) {
     *merged = false;
     LeaseGrant grant;
     std::shared_ptr<JobData> job;
@@ -1124,7 +1124,7 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         .kv("checkpoint_us",
             std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
     // The report's values are in the sums: free them before a completed frame's EXR is made.
-    if (values) std::vector<double>().swap(*values);
+    if (values) values->reset();
     advance();
     return Status::OK;
 }

@@ -130,7 +130,7 @@ class JobManager {
     // sums are added, before a frame the report completes is written (memory).
     grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
                         std::span<const double> odd_sum, std::span<const double> layer_sums,
-                        bool* merged, std::vector<double>* values = nullptr);
+                        bool* merged, std::unique_ptr<double[]>* values = nullptr);
     // Reports of one job are received and merged one at a time: each holds a frame's whole
     // sums in memory until it is merged, so a job's memory stays its frames' sums plus one
     // report's, however many workers report at once. Blocks until the job of `lease_id` has no

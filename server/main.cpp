@@ -1,7 +1,8 @@
 // `server`: the render service's gRPC frontend.
 //
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
-//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--checkpoint-seconds SECONDS]
+//          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--max-lease-seconds SECONDS]
+//          [--checkpoint-seconds SECONDS]
 //          [--max-job-assets SIZE] [--max-store-size SIZE] [--stream-idle-timeout SECONDS]
 //          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
@@ -40,6 +41,7 @@
 #include "server/job_manager.h"
 #include "server/job_service.h"
 #include "server/worker_service.h"
+#include "service/process_setup.h"
 #include "service/transport_security.h"
 
 namespace {
@@ -129,6 +131,13 @@ ArgumentParser make_parser(Options& o) {
             "leases merge (and refresh previews) more often, at more report traffic",
             [&](const std::string& v) {
                 o.server.target_lease_seconds = parse_seconds("--lease-seconds", v);
+            });
+    p.value({"--max-lease-seconds"}, "SECONDS",
+            "a lease of several iterations lasts at most this long at the worker's measured "
+            "rate (default 30; one iteration longer than this is a lease of its own): longer "
+            "leases send fewer reports of a large frame, and lose more when a worker dies",
+            [&](const std::string& v) {
+                o.server.max_lease_seconds = parse_seconds("--max-lease-seconds", v);
             });
     p.value({"--checkpoint-seconds"}, "SECONDS",
             "write a frame's merged sums to its checkpoint at most this often (default 30; 0: "
@@ -308,6 +317,7 @@ std::string shown_host(std::string host) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    render::service::prepare_grpc_process();
     Options options = parse(argc, argv);
 
     // Signals are taken by sigwait below; block them before gRPC starts its threads.

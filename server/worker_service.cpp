@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <span>
 #include <thread>
 
@@ -116,11 +117,15 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     const auto receiving = std::chrono::steady_clock::now();
     const auto waited = receiving - wait_start;
     // sum, odd_sum (unless omitted), then the layers' sums: one float64 sequence, split after
-    // it is complete.
+    // it is complete, and merged only then (a report that fails half-way changes nothing). The
+    // buffer is not zeroed first (a pass over up to a whole frame's sums): every byte is
+    // written by the chunks before it is read, which `received == expected` checks. Each
+    // value is checked to be finite as soon as its last byte arrives, not in a pass of its own.
     const size_t sums = header.odd_sum_omitted() ? 1 : 2;
-    std::vector<double> values(n * (sums + layers));
-    const size_t expected = values.size() * sizeof(double);
-    size_t received = 0;
+    const size_t count = n * (sums + layers);
+    std::unique_ptr<double[]> values(new double[count]);
+    const size_t expected = count * sizeof(double);
+    size_t received = 0, checked = 0;
     while (reader->Read(&chunk)) {
         guard->progress();
         if (chunk.has_header())
@@ -130,8 +135,12 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
             return Status(StatusCode::INVALID_ARGUMENT, "report has more than the expected " +
                                                             std::to_string(expected) +
                                                             " bytes of values");
-        std::memcpy(reinterpret_cast<char*>(values.data()) + received, data.data(), data.size());
+        std::memcpy(reinterpret_cast<char*>(values.get()) + received, data.data(), data.size());
         received += data.size();
+        for (; checked < received / sizeof(double); ++checked)
+            if (!std::isfinite(values[checked]))
+                return Status(StatusCode::INVALID_ARGUMENT,
+                              "report value " + std::to_string(checked) + " is not finite");
     }
     if (guard->timed_out()) {
         manager_.report_stream_idle(header.lease_id());
@@ -155,11 +164,7 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
                           std::to_string(expected) + " (sum, " +
                           (sums == 2 ? "odd_sum and " : "no odd_sum, ") + std::to_string(layers) +
                           " layers, " + std::to_string(n) + " float64 each)");
-    for (size_t i = 0; i < values.size(); ++i)
-        if (!std::isfinite(values[i]))
-            return Status(StatusCode::INVALID_ARGUMENT,
-                          "report value " + std::to_string(i) + " is not finite");
-    const std::span<const double> all(values);
+    const std::span<const double> all(values.get(), count);
     const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, (sums - 1) * n),
                                   layer_sums = all.subspan(sums * n);
     const auto received_at = std::chrono::steady_clock::now();

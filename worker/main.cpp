@@ -1,6 +1,7 @@
 // `worker`: leases ranges of iterations from a render server, renders them, reports the sums.
 //
-//   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR] [--max-memory SIZE]
+//   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR] [--cache-max-size SIZE]
+//          [--max-memory SIZE]
 //          [--tls-ca FILE [--tls-server-name NAME]]
 
 #include <csignal>
@@ -14,6 +15,7 @@
 #include "core/base/memory_budget.h"
 #include "core/util/arguments.h"
 #include "core/util/log.h"
+#include "service/process_setup.h"
 #include "service/rpc.h"
 #include "worker/worker.h"
 
@@ -47,6 +49,13 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, 
             "asset cache (default: $XDG_CACHE_HOME/render-worker, else ~/.cache/render-worker, "
             "else /tmp/render-worker-$UID)",
             [&](const std::string& v) { o.cache_dir = v; });
+    p.value({"--cache-max-size"}, "SIZE",
+            "bound on the asset cache, e.g. 20G (default 8G; 0: none): before fetching a job's "
+            "assets the worker removes the least recently used job folders and assets until "
+            "they fit; never the job in use",
+            [&](const std::string& v) {
+                o.cache_max_bytes = v == "0" ? 0 : parse_size_flag("--cache-max-size", v);
+            });
     p.value({"--tls-ca"}, "FILE",
             "connect with TLS, trusting the CA certificate(s) in FILE (PEM; default: env "
             "RENDER_TLS_CA). Without it the connection is plaintext, and a token is only sent "
@@ -91,6 +100,7 @@ std::filesystem::path default_cache() {
 }  // namespace
 
 int main(int argc, char** argv) {
+    render::service::prepare_grpc_process();
     WorkerOptions options;
     if (const char* env = std::getenv("RENDER_SERVER"); env && *env) options.server = env;
     std::string token;

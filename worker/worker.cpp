@@ -99,7 +99,7 @@ Worker::Worker(WorkerOptions options)
     : options_(std::move(options)),
       channel_(make_channel(options_.server, options_.tls)),
       stub_(v1::WorkerService::NewStub(channel_)),
-      cache_(options_.cache_dir) {}
+      cache_(options_.cache_dir, options_.cache_max_bytes) {}
 
 void Worker::nap(double seconds) {
     auto until = Clock::now() + std::chrono::duration<double>(seconds);
@@ -295,18 +295,23 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     RenderSettings settings;
     std::string job_folder;  // the job's folder in this worker's cache
     try {
-        std::filesystem::path scene_file = cache_.prepare_job(
-            lease.job_id(), lease.bundle(),
-            [this](const std::string& sha, const std::function<void(const std::string&)>& sink) {
-                return fetch_asset(sha, sink);
-            });
-        std::filesystem::path job_dir = scene_file;
-        for (const auto& part : std::filesystem::path(lease.bundle().scene_path())) {
-            (void)part;
-            job_dir = job_dir.parent_path();
+        {
+            // Held until the scene is loaded: no worker sharing the cache prunes the folder
+            // meanwhile (the loaded scene no longer needs it).
+            AssetCache::Use folder =
+                cache_.prepare_job(lease.job_id(), lease.bundle(),
+                                   [this](const std::string& sha,
+                                          const std::function<void(const std::string&)>& sink) {
+                                       return fetch_asset(sha, sink);
+                                   });
+            std::filesystem::path job_dir = folder.scene_file();
+            for (const auto& part : std::filesystem::path(lease.bundle().scene_path())) {
+                (void)part;
+                job_dir = job_dir.parent_path();
+            }
+            job_folder = job_dir.string();
+            scene = &scene_for(lease, folder.scene_file());
         }
-        job_folder = job_dir.string();
-        scene = &scene_for(lease, scene_file);
         // The same resolution as `render`'s: defaults, the scene's values, the options.
         const v1::RenderSettings& s = lease.settings();
         settings = resolve_render_settings(job_algorithm(s.algorithm(), scene->settings.integrator),

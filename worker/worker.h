@@ -18,12 +18,18 @@
 
 namespace render::service {
 
+// 8 GiB: under the 10 Gi emptyDir of deploy/kubernetes/worker-deployment.yaml.
+inline constexpr uint64_t kDefaultCacheMaxBytes = uint64_t(8) << 30;
+
 struct WorkerOptions {
     std::string server;  // HOST:PORT
     int threads = 0;     // 0 = all cores
     std::string token;
     ClientTls tls;  // plaintext unless tls.tls
     std::filesystem::path cache_dir;
+    // The bound on the asset cache's size (0: none): least recently used job folders and
+    // assets go first; the job in use never (worker/asset_cache.h).
+    uint64_t cache_max_bytes = kDefaultCacheMaxBytes;
     // The memory a job's scene and film may take (0: the machine's available memory when the
     // scene is loaded). A scene estimated to need more fails its job with that message.
     uint64_t max_memory = 0;

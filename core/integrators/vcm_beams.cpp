@@ -2,6 +2,8 @@
 
 #include "core/integrators/vcm_iteration.h"
 
+#include <numeric>
+
 namespace render::vcm_detail {
 
 void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
@@ -114,12 +116,14 @@ namespace {
 // passed t (exact in a homogeneous medium; exactly 1 where the pass weight is one), or in a
 // chromatic grid the sampling walk's pass weight at t, replayed from its random state (an
 // unbiased weight: E[w(t) 1{passed t}] = T(t), Medium::replay_pass_weight).
+// `replay` is the beam's replay state (null where no beam of the iteration replays: then this
+// beam does not either).
 Rgb beam_transmittance(const Medium* medium, const Ray& beam, float t, bool short_beams,
-                       const PhotonBeam& b, Rng& rng) {
+                       const BeamReplay* replay, Rng& rng) {
     if (short_beams && !medium->is_homogeneous())
         return medium->pass_weight_is_one()
                    ? Rgb(1.0f)
-                   : medium->replay_pass_weight(beam, b.replay_t_max, t, b.replay);
+                   : medium->replay_pass_weight(beam, replay->t_max, t, replay->rng);
     const Rgb tr = medium->transmittance(beam, t, rng);  // homogeneous: exact, draws nothing
     if (!short_beams) return tr;
     return tr / std::max(medium->probability_pass(beam, t), 1e-35f);
@@ -135,8 +139,9 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
                                   const SampledSegment& seg, uint64_t path_index, uint32_t& piece,
                                   Rng& rng, RenderStats& stats) const {
     const bool short_beams = config_.short_photon_beams;
-    std::vector<PhotonBeam>& out = storage_.photon_beam_staging.local();
+    PhotonBeamStaging& out = storage_.photon_beam_staging.local();
     PhotonBeam beam;
+    std::optional<BeamReplay> replay;  // set where the beam replays its walk
     beam.line.direction = ray.direction;
     beam.weight = from.throughput;
     beam.before = SegmentDensityBuilder(from.in_medium);
@@ -151,7 +156,11 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
         beam.line.length = std::min(length, kMaxPhotonBeamLength);
         beam.medium = medium;
         beam.offset = offset;
-        out.push_back(beam);
+        if (replay || !out.replays.empty()) {
+            out.replays.resize(out.beams.size());
+            out.replays.push_back(replay.value_or(BeamReplay{}));
+        }
+        out.beams.push_back(beam);
     };
     const Medium* medium = from.medium;
     // One piece that ends where the sample ended (short beams, or any beam ending at a
@@ -161,8 +170,7 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
         if (!medium) return;
         if (replays_walk(medium)) {
             if (!seg.first_piece_rng) return;
-            beam.replay = *seg.first_piece_rng;
-            beam.replay_t_max = seg.first_piece_t_max;
+            replay = BeamReplay{*seg.first_piece_rng, seg.first_piece_t_max};
         }
         emit(ray, medium, seg.distance, 0.0f);
         return;
@@ -196,8 +204,7 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
             if (replays_walk(medium)) {
                 // Only as the segment's first piece, and nothing after it (beam_segment).
                 if (crossing > 0 || !seg.first_piece_rng) return;
-                beam.replay = *seg.first_piece_rng;
-                beam.replay_t_max = seg.first_piece_t_max;
+                replay = BeamReplay{*seg.first_piece_rng, seg.first_piece_t_max};
                 emit(r, medium, end, offset);
                 return;
             }
@@ -228,13 +235,49 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
 
 void Iteration::build_photon_beams() {
     std::vector<PhotonBeam>& beams = storage_.photon_beams;
+    std::vector<BeamReplay>& replays = storage_.photon_beam_replays;
     beams.clear();
-    for (std::vector<PhotonBeam>& staged : storage_.photon_beam_staging) {
-        beams.insert(beams.end(), staged.begin(), staged.end());
-        staged.clear();
+    replays.clear();
+    bool replaying = false;
+    for (const PhotonBeamStaging& staged : storage_.photon_beam_staging)
+        replaying = replaying || !staged.replays.empty();
+    for (PhotonBeamStaging& staged : storage_.photon_beam_staging) {
+        if (replaying) {
+            staged.replays.resize(staged.beams.size());
+            replays.insert(replays.end(), staged.replays.begin(), staged.replays.end());
+        }
+        beams.insert(beams.end(), staged.beams.begin(), staged.beams.end());
+        staged.beams.clear();
+        staged.replays.clear();
     }
-    std::sort(beams.begin(), beams.end(),
-              [](const PhotonBeam& a, const PhotonBeam& b) { return a.order < b.order; });
+    // In order (the orders are distinct: any sort gives the same sequence), the replay states
+    // with their beams.
+    if (!replaying) {
+        std::sort(beams.begin(), beams.end(),
+                  [](const PhotonBeam& a, const PhotonBeam& b) { return a.order < b.order; });
+    } else {
+        std::vector<uint32_t> from(beams.size());  // the beam that goes to place k
+        std::iota(from.begin(), from.end(), 0u);
+        std::sort(from.begin(), from.end(),
+                  [&](uint32_t a, uint32_t b) { return beams[a].order < beams[b].order; });
+        // Each cycle of the permutation in turn, moving the records along it.
+        for (uint32_t k = 0; k < from.size(); ++k) {
+            if (from[k] == k) continue;
+            PhotonBeam beam = beams[k];
+            const BeamReplay replay = replays[k];
+            uint32_t place = k;
+            while (from[place] != k) {
+                const uint32_t next = from[place];
+                beams[place] = beams[next];
+                replays[place] = replays[next];
+                from[place] = place;
+                place = next;
+            }
+            beams[place] = beam;
+            replays[place] = replay;
+            from[place] = place;
+        }
+    }
     std::vector<BeamLine>& lines = storage_.photon_beam_lines;
     lines.clear();
     lines.reserve(beams.size());
@@ -339,7 +382,10 @@ void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
             // a short beam reaches it), the query's, sigma_s and the phase function at x,
             // and the kernel's 1 / sin(theta), formed as weight / sin(theta): the weight
             // is proportional to sin(theta) (ALGORITHMS-NEXT.md 4.4).
-            const Rgb beam_tr = beam_transmittance(medium, beam_ray, a.t_beam, short_beams, b, rng);
+            const Rgb beam_tr = beam_transmittance(
+                medium, beam_ray, a.t_beam, short_beams,
+                storage_.photon_beam_replays.empty() ? nullptr : &storage_.photon_beam_replays[i],
+                rng);
             const Rgb tr = transmittance * medium->transmittance(piece, a.t_ray, rng);
             sum += tr * beam_tr * b.weight * medium->sigma_s(x) * (p * (weight / a.sin_theta));
         };

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <cstddef>
 #include <functional>
 #include <optional>
 #include <span>
@@ -114,10 +115,12 @@ struct SubpathState {
 // a phase function scatters. Medium vertices have no normal: cosines are 1, and the vertex
 // measure is volume instead of area (core/integrators/vcm_mis.h).
 struct Vertex {
+    // The medium and the position first: with what a merge reads of a stored light vertex,
+    // they lie in its first cache line (LightVertex), and a merge in a medium reads both.
+    const Medium* medium = nullptr;  // the medium the path arrived in
     Vec3 p;
     Vec3 n;  // geometric normal; zero in a medium
     const Shape* shape = nullptr;
-    const Medium* medium = nullptr;  // the medium the path arrived in
     // std::optional's interface, 8 bytes smaller; the next float fills its tail padding.
     [[no_unique_address]] OptionalSurfaceBsdf bsdf;
     // Eye subpaths with query beams (P-B2D): this medium vertex's merge factor of that
@@ -188,19 +191,27 @@ struct SubpathVertex : Vertex {
     float camera_joint_ratio = 0;
 };
 
-// A stored light-subpath vertex with a non-delta BSDF or in a medium.
-struct LightVertex {
-    [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
-    Vec3 wo;                              // toward the previous vertex of the light subpath
+// A stored light-subpath vertex with a non-delta BSDF or in a medium. A merge (Iteration::merge)
+// tests path_length, evaluates the eye vertex's BSDF toward wo, weighs with mis and adds
+// throughput, and in a medium reads vertex.medium and vertex.p: all in the first 40 + 20 bytes,
+// which alignas(64) keeps in one cache line, so that a candidate costs one line (it cost two,
+// with these fields behind the vertex). Only J1 (vertex.previous, finite_light) and photon beams
+// (vertex.photon_beam, vertex.arrival_distance) read the third line. Still 192 bytes: three lines.
+struct alignas(64) LightVertex {
+    Vec3 wo;  // toward the previous vertex of the light subpath
     Rgb throughput;
     int path_length;
     MisQuantities mis;
-    bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
+    [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
+    bool finite_light = true;             // the subpath starts at a point (J1 at s = 1 needs one)
 };
 static_assert(sizeof(Joint2Vertex) <= kJoint2VertexBytesBound,
               "Joint2Vertex grew: raise kJoint2VertexBytesBound (the memory estimate uses it)");
 static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
+static_assert(sizeof(LightVertex) % 64 == 0 &&
+                  offsetof(LightVertex, vertex) + offsetof(Vertex, p) + sizeof(Vec3) <= 64,
+              "a merge's fields of LightVertex (wo to vertex.p) no longer fit its first line");
 
 // Which technique produced a connection: the plain one, J1 (the eye vertex sampled toward the
 // light vertex) or J2 (the light vertex resampled on its light ray as well).
@@ -246,13 +257,29 @@ struct PhotonBeam {
     float carried_query_beam = 0, carried_photon_beam = 0;
     int path_length = 0;  // segments of the light path with the beam's
     bool apply_distance = true;
-    // A short beam in a chromatic grid (Iteration::replays_walk): the random state its sampling
-    // walk started with and that walk's t_max, replayed to the closest approach for its weight.
-    float replay_t_max = 0;
-    Rng replay{StreamKey{}};
 };
 static_assert(sizeof(PhotonBeam) <= kPhotonBeamBytesBound,
               "PhotonBeam grew: raise kPhotonBeamBytesBound (the memory estimate uses it)");
+
+// A short photon beam in a chromatic grid (Iteration::replays_walk): the random state its
+// sampling walk started with and that walk's t_max, replayed to the closest approach for its
+// weight (Medium::replay_pass_weight). Kept in a side array indexed like the beams
+// (IterationStorage::photon_beam_replays), filled only in an iteration where a beam replays, so
+// that the beams of other scenes do not carry it.
+struct BeamReplay {
+    Rng rng{StreamKey{}};
+    float t_max = 0;
+};
+static_assert(sizeof(BeamReplay) <= kBeamReplayBytesBound,
+              "BeamReplay grew: raise kBeamReplayBytesBound (the memory estimate uses it)");
+
+// One thread's photon beams while the light paths are traced (IterationStorage).
+struct PhotonBeamStaging {
+    std::vector<PhotonBeam> beams;
+    // Empty until one of the thread's beams replays; from then on one per beam (the beams before
+    // it get a default one that nothing reads).
+    std::vector<BeamReplay> replays;
+};
 
 // The squared distance clamp of VPL connections in (1-based, global) iteration i; 0 unclamped.
 inline double vpl_clamp_squared(const BidirectionalConfig& config, const Scene& scene,
@@ -333,8 +360,11 @@ struct IterationStorage {
     std::unique_ptr<PointsAlongRay> beam_lookup;
     // Photon beams: gathered per thread while the light paths are traced, then put in order
     // (photon_beams, and their lines for the lookup).
-    tbb::enumerable_thread_specific<std::vector<PhotonBeam>> photon_beam_staging;
+    tbb::enumerable_thread_specific<PhotonBeamStaging> photon_beam_staging;
     std::vector<PhotonBeam> photon_beams;
+    // The beams' replay states, indexed like photon_beams, where a beam of the iteration
+    // replays its walk (else empty).
+    std::vector<BeamReplay> photon_beam_replays;
     std::vector<BeamLine> photon_beam_lines;
     // Their lookup: a uniform grid (measured 3-4x faster per query than the Embree BVH,
     // docs/media.md), or the BVH in an iteration where a beam leaves the scene's box (a beam

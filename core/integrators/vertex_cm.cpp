@@ -186,8 +186,12 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
             if (use_vc_ || use_vm_ || many_lights_) {
-                vertices.push_back(LightVertex{*v, wo, state.throughput, state.path_length,
-                                               state.mis, state.is_finite_light});
+                vertices.push_back(LightVertex{.wo = wo,
+                                               .throughput = state.throughput,
+                                               .path_length = state.path_length,
+                                               .mis = state.mis,
+                                               .vertex = *v,
+                                               .finite_light = state.is_finite_light});
                 if (joint2) joint2->push_back(v->joint2);
             }
             if ((use_vc_ || light_trace_only_) && state.path_length + 1 <= max_length_)
@@ -840,12 +844,13 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
     Rgb sum(0.0f);
-    // What a merge reads of a light vertex lies between its wo and its MIS quantities: at most
-    // two cache lines.
+    // What a merge reads of a light vertex is its first cache line (LightVertex), and its last
+    // where J1 (vertex.previous) or photon beams (vertex.photon_beam) take part in the weight.
+    const bool last_line = (joint_ && v.joint_distance_pdf > 0) || v.photon_beam > 0;
     auto prefetch = [&](uint32_t i) {
         const LightVertex& lv = light_vertices_[i];
-        __builtin_prefetch(&lv.wo);
-        __builtin_prefetch(reinterpret_cast<const char*>(&lv.mis + 1) - 1);
+        __builtin_prefetch(&lv);
+        if (last_line) __builtin_prefetch(&lv.finite_light);
     };
     grid.for_each_within_radius(v.p, prefetch, [&](uint32_t i) {
         const LightVertex& lv = light_vertices_[i];

@@ -140,7 +140,8 @@ struct PhotonBeamInspection {
 // so a record that grows past its bound fails the build instead of the estimate.
 inline constexpr size_t kLightVertexBytesBound = 192;  // a stored light vertex (LightVertex)
 inline constexpr size_t kJoint2VertexBytesBound = 20;  // J2's state of one (Joint2Vertex)
-inline constexpr size_t kPhotonBeamBytesBound = 144;   // a photon beam (PhotonBeam)
+inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
+inline constexpr size_t kBeamReplayBytesBound = 24;    // its replay state, where it has one
 inline constexpr size_t kLightRayBytesBound = 104;     // a J2 light ray (LightRay)
 
 // The buffers of an iteration (light vertices, splats, merging grids), kept from one

@@ -24,6 +24,10 @@ constexpr uint64_t kMergeIndexBytes = 52;
 // upbp, per stored vertex (any of them may lie in a medium): a photon beam, and the query
 // beams' Embree BVH over the medium vertices as balls (~128 B per primitive).
 constexpr uint64_t kVolumeEstimatorBytes = kPhotonBeamBytes + 128;
+// Short photon beams in a chromatic grid keep their walk's replay state beside them
+// (BeamReplay, one per beam in such an iteration). The estimate does not see the scene's media,
+// so it charges it wherever short beams are on.
+constexpr uint64_t kBeamReplayBytes = kBeamReplayBytesBound;
 // The light pass's chunks (vertex_cm.cpp: 256 light paths each, 4 in flight per thread), whose
 // vertices are copied into the iteration's arrays.
 constexpr uint64_t kLightPathsPerChunk = 256;
@@ -87,6 +91,8 @@ IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings
         uint64_t per_vertex = kLightVertexBytes;
         if (merges) per_vertex += kMergeIndexBytes;
         if (name == "upbp") per_vertex += kVolumeEstimatorBytes;
+        if (name == "upbp" && settings.photon_beams && settings.short_photon_beams)
+            per_vertex += kBeamReplayBytes;
         part(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
              std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
                  " stored vertices x " + std::to_string(per_vertex) + " B");

@@ -10,6 +10,7 @@
 #include "core/scene/embree_ray.h"
 #include "core/scene/volume_emitter.h"
 #include "core/shapes/instance.h"
+#include "core/shapes/triangle_mesh_hit.h"
 #include "core/shapes/user_geometry.h"
 
 namespace render {
@@ -97,6 +98,8 @@ void Scene::commit() {
             also_for_occlusion(id);
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
+        if (id >= geometry_to_mesh_.size()) geometry_to_mesh_.resize(id + 1, nullptr);
+        geometry_to_mesh_[id] = dynamic_cast<const TriangleMesh*>(shape.get());
         bounds_.expand(shape->bounds());
         has_media_ = has_media_ || shape->interior || shape->exterior;
     }
@@ -164,6 +167,8 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) 
     if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID)
         geometry_to_instance_[rh.hit.instID[0]]->fill_interaction(
             ray, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
+    else if (const TriangleMesh* mesh = geometry_to_mesh_[rh.hit.geomID])
+        mesh->fill_hit(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
     else
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, detail, si);

@@ -41,6 +41,8 @@ struct SceneSettings {
     int sample_count = 16;  // sampler sample_count (iterations, one sample per pixel each)
 };
 
+class TriangleMesh;
+
 class Scene {
   public:
     Scene();
@@ -148,6 +150,9 @@ class Scene {
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;
     std::vector<std::unique_ptr<Shape>> shapes_;
     std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
+    // Embree geometry id -> the shape if it is a triangle mesh, else null: intersect() fills
+    // mesh hits inline (TriangleMesh::fill_hit) instead of through the virtual call.
+    std::vector<const TriangleMesh*> geometry_to_mesh_;
     std::vector<std::unique_ptr<Instance>> instances_;
     std::vector<const Instance*> geometry_to_instance_;  // Embree geometry id -> instance
     std::vector<std::unique_ptr<Light>> lights_;

@@ -5,7 +5,7 @@
 
 #include "core/base/error.h"
 #include "core/sampling/warp.h"
-#include "core/shapes/uv_wanted.h"
+#include "core/shapes/triangle_mesh_hit.h"
 
 namespace render {
 
@@ -56,12 +56,32 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
         const Vec3 ng = cross(p1 - p0, p2 - p0);
         const float len = length(ng);
         if (len > 0) face_normals_[i] = flip_normals_ ? -(ng / len) : ng / len;
+        const Vec3& n = face_normals_[i];
+        if (n.x == 0 && n.y == 0 && n.z == 0) has_degenerate_ = true;
         float a = 0.5f * len;
         areas[i] = std::isfinite(a) ? a : 0.0f;
         total += areas[i];
     }
     area_ = float(total);
     triangle_distribution_ = Distribution1D(std::move(areas));
+    keep_flat_frames();
+}
+
+void TriangleMesh::keep_flat_frames() {
+    // At most twice the memory of the vertex normals they replace (equal for unshared vertices,
+    // 1.5x for the rectangle and the cube; a finely tessellated plane would take 6x).
+    if (normals_.empty() || triangle_count() * sizeof(Frame) > 2 * normals_.size() * sizeof(Vec3))
+        return;
+    std::vector<Frame> frames(triangle_count());
+    for (size_t i = 0; i < triangle_count(); ++i) {
+        const Vec3& n = normals_[indices_[3 * i]];
+        if (!(n == normals_[indices_[3 * i + 1]] && n == normals_[indices_[3 * i + 2]]) ||
+            length_squared(n) == 0)
+            return;  // smooth somewhere (or a broken normal): interpolate at every hit
+        frames[i] = Frame::from_normal(flip_normals_ ? -n : n);
+    }
+    flat_frames_ = std::move(frames);
+    normals_ = {};
 }
 
 unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
@@ -87,41 +107,12 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
 
 void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                                     HitDetail detail, SurfaceInteraction& si) const {
-    uint32_t i0 = indices_[3 * prim_id], i1 = indices_[3 * prim_id + 1],
-             i2 = indices_[3 * prim_id + 2];
-    const Vec3 &p0 = positions_[i0], &p1 = positions_[i1], &p2 = positions_[i2];
-    float b0 = 1.0f - u - v;
-    // Interpolating the vertices is more accurate than origin + t * direction far from the
-    // ray origin.
-    si.p = p0 * b0 + p1 * u + p2 * v;
-    si.t = t;
-    Vec3 ng = face_normals_[prim_id];
-    if (ng.x == 0 && ng.y == 0 && ng.z == 0) {  // degenerate: face the ray
-        ng = ray.direction * -1.0f;
-        if (flip_normals_) ng = -ng;
-    }
-    si.geometric_normal = ng;
+    fill_hit(ray, t, prim_id, u, v, detail, si);
+}
 
-    Vec3 ns = ng;
-    if (!normals_.empty()) {
-        Vec3 n = normals_[i0] * b0 + normals_[i1] * u + normals_[i2] * v;
-        float nlen = length(n);
-        if (nlen > 0 && std::isfinite(nlen)) {
-            ns = n / nlen;
-            if (flip_normals_) ns = -ns;
-        }
-    }
-    si.shading = Frame::from_normal(ns);
-    if (uv_wanted(*this, detail)) {
-        si.uv = uv_of(prim_id, u, v);
-        tangents_of(prim_id, si.dpdu, si.dpdv);
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
-    }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+Vec3 TriangleMesh::facing_normal(const Vec3& ng, const Ray& ray) const {
+    if (ng.x != 0 || ng.y != 0 || ng.z != 0) return ng;
+    return flip_normals_ ? ray.direction : ray.direction * -1.0f;
 }
 
 void TriangleMesh::tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const {

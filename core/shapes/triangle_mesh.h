@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "core/base/shape.h"
+#include "core/math/frame.h"
 #include "core/math/transform.h"
 #include "core/sampling/distribution.h"
 
@@ -31,6 +32,10 @@ class TriangleMesh final : public Shape {
     unsigned attach(RTCDevice device, RTCScene scene) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                           HitDetail detail, SurfaceInteraction& si) const override;
+    // What fill_interaction does, without the virtual call: defined inline in
+    // core/shapes/triangle_mesh_hit.h for Scene::intersect.
+    void fill_hit(const Ray& ray, float t, unsigned prim_id, float u, float v, HitDetail detail,
+                  SurfaceInteraction& si) const;
     Aabb bounds() const override;
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;
@@ -52,12 +57,24 @@ class TriangleMesh final : public Shape {
   private:
     // dp/du and dp/dv of triangle `tri` (constant over it; zero for degenerate uv).
     void tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const;
+    // ng, or for a degenerate triangle (zero ng) the reverse ray direction (flipped if
+    // flip_normals_). Out of line: only meshes with degenerate triangles call it.
+    Vec3 facing_normal(const Vec3& ng, const Ray& ray) const;
+    // Replaces normals_ by flat_frames_ if the mesh is flat-shaded.
+    void keep_flat_frames();
 
     std::vector<Vec3> positions_;
     // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate
     // one: computed once here instead of at every hit (a cross product and a square root).
     std::vector<Vec3> face_normals_;
-    std::vector<Vec3> normals_;
+    bool has_degenerate_ = false;  // some face normal is zero (hits then face the ray)
+    std::vector<Vec3> normals_;    // per vertex; empty when none or when flat_frames_ holds them
+    // Shading frame of each triangle when every triangle's three vertex normals are equal (a
+    // flat-shaded mesh such as the rectangle or the cube): a hit copies it instead of
+    // interpolating three normals, renormalising (which gave the same normal up to rounding)
+    // and building the frame. 36 bytes per triangle, what three unshared vertex normals take;
+    // kept only where that is at most twice the vertex normals' memory. Empty otherwise.
+    std::vector<Frame> flat_frames_;
     std::vector<Vec2> uvs_;
     std::vector<uint32_t> indices_;
     bool flip_normals_;

@@ -93,6 +93,25 @@ TEST(IterationMemory, EachAlgorithmChargesWhatItStores) {
               estimate_iteration_memory(settings_for("vpl"), w, h, 2).bytes + (w * h / 16) * 64);
 }
 
+// Short photon beams may replay their sampling walk (a chromatic grid), whose state lives in a
+// side array beside the beams (one BeamReplay per beam); long beams never replay, and without
+// photon beams there is nothing to replay.
+TEST(IterationMemory, ShortPhotonBeamsChargeTheirReplayStates) {
+    const RenderSettings short_beams = settings_for("upbp");
+    ASSERT_TRUE(short_beams.photon_beams && short_beams.short_photon_beams);
+    RenderSettings long_beams = short_beams;
+    long_beams.short_photon_beams = false;
+    RenderSettings no_beams = short_beams;
+    no_beams.photon_beams = false;
+    const uint64_t paths = 256u * 256u;
+    const uint64_t vertices = assumed_light_vertices_per_path(short_beams);
+    EXPECT_EQ(estimate_iteration_memory(short_beams, 256, 256, 2).bytes -
+                  estimate_iteration_memory(long_beams, 256, 256, 2).bytes,
+              paths * vertices * kBeamReplayBytesBound);
+    EXPECT_EQ(estimate_iteration_memory(no_beams, 256, 256, 2).bytes,
+              estimate_iteration_memory(long_beams, 256, 256, 2).bytes);
+}
+
 TEST(IterationMemory, TheMessageNamesTheAlgorithmTheEstimateAndWhatLowersIt) {
     const IterationMemoryEstimate e = estimate_iteration_memory(settings_for("vcm", 10), 64, 64, 1);
     EXPECT_NE(e.what.find("vcm's working memory per iteration (estimated " + format_bytes(e.bytes)),

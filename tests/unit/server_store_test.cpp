@@ -3,9 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <random>
 
+#include "core/render/render_iterations.h"
 #include "core/util/sha256.h"
 #include "server/accumulator.h"
 #include "server/asset_store.h"
@@ -214,4 +217,53 @@ TEST(FrameAccumulator, OneIterationReportsMayOmitTheOddSum) {
     EXPECT_EQ(derived.result().odd_count, 1u);
     EXPECT_EQ(derived.relative_error(), sent.relative_error());
     EXPECT_THROW(derived.add({3, 5}, odd_image, {}, {}, 1, {}), std::invalid_argument);
+}
+
+// The accumulator estimates the relative error in the addition's pass (one pass over the sums
+// per report, not two): the value must be estimate_relative_error's of the merged sums bit for
+// bit after every kind of report (several iterations, one odd or even iteration without its odd
+// sum), and after a checkpoint is read back. Values span 1e-6..1e3 so that the rounding of
+// the sums' terms would show a different order or operation.
+TEST(FrameAccumulator, TheFusedErrorEstimateEqualsCoresBitForBit) {
+    fs::path dir = temp_dir("ckpt-error");
+    constexpr int kWidth = 64, kHeight = 32;
+    const size_t n = size_t(kWidth) * kHeight * 3;
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> exponent(-6.0, 3.0);
+    auto image = [&] {
+        std::vector<double> v(n);
+        for (double& x : v) x = std::pow(10.0, exponent(rng));
+        return v;
+    };
+    FrameAccumulator acc(kWidth, kHeight);
+    EXPECT_EQ(acc.relative_error(), 1.0);  // nothing merged
+    // [1, 2) alone: only odd iterations, the estimate is unknown (1).
+    const std::vector<double> first = image();
+    acc.add({1, 2}, first, {}, {}, 1, {});
+    EXPECT_EQ(acc.relative_error(), 1.0);
+    EXPECT_EQ(render::estimate_relative_error(acc.result()), 1.0);
+    // [2, 3) even, odd sum omitted; [3, 6) sent with its odd sum; [6, 7) even; [7, 8) odd.
+    acc.add({2, 3}, image(), {}, {}, 0, {});
+    EXPECT_EQ(acc.relative_error(), render::estimate_relative_error(acc.result()));
+    EXPECT_GT(acc.relative_error(), 0.0);
+    EXPECT_LT(acc.relative_error(), 1.0);
+    std::vector<double> three = image(), odd_of_three = image();
+    for (size_t i = 0; i < n; ++i) three[i] += odd_of_three[i];  // 3 and 5 odd, 4 even
+    acc.add({3, 6}, three, odd_of_three, {}, 2, {});
+    EXPECT_EQ(acc.relative_error(), render::estimate_relative_error(acc.result()));
+    acc.add({6, 7}, image(), {}, {}, 0, {});
+    EXPECT_EQ(acc.relative_error(), render::estimate_relative_error(acc.result()));
+    acc.add({7, 8}, image(), {}, {}, 1, {});
+    const double merged = acc.relative_error();
+    EXPECT_EQ(merged, render::estimate_relative_error(acc.result()));
+    acc.save(dir / "f.ckpt", 1.0);
+    EXPECT_EQ(FrameAccumulator::load(dir / "f.ckpt", nullptr).relative_error(), merged);
+    // A black frame has no relative error (0), as in core.
+    FrameAccumulator black(2, 1);
+    const std::vector<double> zeros(6, 0.0);
+    black.add({1, 2}, zeros, {}, {}, 1, {});
+    black.add({2, 3}, zeros, {}, {}, 0, {});
+    EXPECT_EQ(black.relative_error(), 0.0);
+    EXPECT_EQ(render::estimate_relative_error(black.result()), 0.0);
+    fs::remove_all(dir);
 }

@@ -84,6 +84,62 @@ TEST(TriangleMesh, MirroringTransformKeepsTheNormalOfTheInverseTranspose) {
     EXPECT_NEAR(si.shading.n.z, -1.0f, 1e-6f);
 }
 
+// A rectangle whose four vertex normals all equal `n` (object space), tilted away from its
+// face normal so that a hit using the face normal instead would be caught.
+MeshData rectangle_with_normals(const Vec3& n) {
+    MeshData data = make_rectangle_mesh();
+    data.normals.assign(4, n);
+    return data;
+}
+
+bool orthonormal(const Frame& f) {
+    return std::abs(dot(f.s, f.t)) < 1e-6f && std::abs(dot(f.s, f.n)) < 1e-6f &&
+           std::abs(dot(f.t, f.n)) < 1e-6f && std::abs(length(f.s) - 1) < 1e-6f &&
+           std::abs(length(f.t) - 1) < 1e-6f && std::abs(length(f.n) - 1) < 1e-6f;
+}
+
+// Flat-shaded meshes (equal vertex normals on every triangle) keep one shading frame per
+// triangle instead of interpolating at each hit (docs/performance.md, issue 16): hits must report
+// the transformed vertex normal (flipped with flip_normals) and an orthonormal frame around it,
+// as interpolation did up to rounding.
+TEST(TriangleMesh, FlatShadedMeshesReportTheVertexNormalsFrame) {
+    const Vec3 object_n = normalize(Vec3(0.3f, -0.2f, 1.0f));
+    const Transform to_world = Transform::rotate(normalize(Vec3(1, 2, 3)), 37.0f);
+    const Vec3 expected = normalize(to_world.apply_normal(object_n));
+    for (bool flip : {false, true}) {
+        auto scene = scene_with(std::make_unique<TriangleMesh>(rectangle_with_normals(object_n),
+                                                               to_world, flip, false, "flat"));
+        const Vec3 centre = to_world.apply_point(Vec3(0, 0, 0));
+        const Vec3 face = normalize(to_world.apply_normal(Vec3(0, 0, 1)));
+        for (const Vec3 target :
+             {Vec3(0.5f, -0.7f, 0), Vec3(-0.9f, 0.8f, 0), Vec3(0.1f, 0.2f, 0)}) {
+            const Vec3 p = to_world.apply_point(target);
+            SurfaceInteraction si;
+            ASSERT_TRUE(scene->intersect(Ray(p + face * 2.0f, face * -1.0f), si));
+            const Vec3 want = flip ? -expected : expected;
+            EXPECT_NEAR(si.shading.n.x, want.x, 1e-6f) << "flip " << flip;
+            EXPECT_NEAR(si.shading.n.y, want.y, 1e-6f) << "flip " << flip;
+            EXPECT_NEAR(si.shading.n.z, want.z, 1e-6f) << "flip " << flip;
+            EXPECT_TRUE(orthonormal(si.shading));
+            EXPECT_NEAR(length(si.p - centre), length(p - centre), 1e-5f);
+        }
+    }
+}
+
+// One vertex normal differing makes the mesh smooth: hits interpolate again.
+TEST(TriangleMesh, AMeshWithOneSmoothTriangleInterpolatesItsNormals) {
+    MeshData data = rectangle_with_normals(Vec3(0, 0, 1));
+    data.normals[2] = normalize(Vec3(1, 0, 1));  // corner (1, 1), shared by both triangles
+    auto scene = scene_with(std::make_unique<TriangleMesh>(data, Transform(), false, false, "s"));
+    SurfaceInteraction si;
+    // Near corner (1, 1) the interpolated normal leans toward +x; at corner (-1, -1) it is +z.
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(0.9f, 0.9f, 1), Vec3(0, 0, -1)), si));
+    EXPECT_GT(si.shading.n.x, 0.5f);
+    EXPECT_TRUE(orthonormal(si.shading));
+    ASSERT_TRUE(scene->intersect(Ray(Vec3(-0.99f, -0.99f, 1), Vec3(0, 0, -1)), si));
+    EXPECT_LT(si.shading.n.x, 0.01f);
+}
+
 TEST(TriangleMesh, RejectsBadIndices) {
     MeshData data = make_rectangle_mesh();
     data.indices.push_back(0);
