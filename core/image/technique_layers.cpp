@@ -30,7 +30,10 @@ std::vector<std::string> TechniqueLayers::names(LayerMode mode) {
 
 TechniqueLayers::TechniqueLayers(LayerMode mode, int width, int height)
     : mode_(mode), names_(names(mode)) {
-    buffers_.assign(names_.size(), AccumulationBuffer(width, height));
+    // One buffer per layer, each made in place: no frame-sized prototype, which without
+    // layers would be allocated and zeroed only to be thrown away.
+    buffers_.reserve(names_.size());
+    for (size_t i = 0; i < names_.size(); ++i) buffers_.emplace_back(width, height);
 }
 
 int TechniqueLayers::index(Technique kind, int s, int t) const {
