@@ -11,9 +11,9 @@ uint64_t mesh_vertex_bytes(uint64_t vertices, bool normals, bool uvs) {
 }
 
 uint64_t mesh_triangle_bytes(uint64_t triangles) {
-    // Indices, Embree's closest-hit BVH, and the shadow rays' BVH (core/scene/scene.cpp:
-    // 71 B per triangle measured on water-caustic's 102,938-triangle mesh).
-    return saturating_product(triangles, 12 + 64 + 72);
+    // Indices and Embree's closest-hit BVH. The shadow rays' BVH, built only for scenes of at
+    // most Scene::kMaxShadowBvhTriangles, is charged by Scene::commit.
+    return saturating_product(triangles, 12 + 64);
 }
 
 void check_mesh_counts(const std::string& name, uint64_t vertices, uint64_t triangles) {

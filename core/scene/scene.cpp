@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/base/properties.h"
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
@@ -85,16 +86,22 @@ const Light* Scene::add_light(std::unique_ptr<Light> light) {
 
 void Scene::commit() {
     if (committed_) return;
-    size_t analytic_shapes = 0;
-    for (const auto& shape : shapes_)
+    size_t analytic_shapes = 0, triangles = 0;
+    for (const auto& shape : shapes_) {
         analytic_shapes += dynamic_cast<const AnalyticShape*>(shape.get()) ? 1 : 0;
-    const bool direct = analytic_shapes <= kMaxDirectOccluders;
+        if (const auto* mesh = dynamic_cast<const TriangleMesh*>(shape.get()))
+            triangles += mesh->triangle_count();
+    }
+    shadow_bvh_ = triangles <= kMaxShadowBvhTriangles;
+    if (shadow_bvh_)
+        charge_scene_memory(kShadowBvhBytesPerTriangle * triangles, "the shadow rays' BVH");
+    const bool direct = shadow_bvh_ && analytic_shapes <= kMaxDirectOccluders;
     for (const auto& shape : shapes_) {
         unsigned id = shape->attach(device_, rtc_scene_);
         const auto* analytic = dynamic_cast<const AnalyticShape*>(shape.get());
         if (analytic && direct)
             direct_occluders_.push_back(analytic);
-        else
+        else if (shadow_bvh_)
             also_for_occlusion(id);
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
@@ -105,7 +112,7 @@ void Scene::commit() {
     }
     for (const auto& instance : instances_) {
         const unsigned id = instance->attach(device_, rtc_scene_);
-        also_for_occlusion(id);
+        if (shadow_bvh_) also_for_occlusion(id);
         if (id >= geometry_to_instance_.size()) geometry_to_instance_.resize(id + 1, nullptr);
         geometry_to_instance_[id] = instance.get();
         bounds_.expand(instance->bounds());
@@ -207,7 +214,7 @@ bool Scene::occluded(const Ray& ray) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRay r = to_rtc_ray(ray);
-    rtcOccluded1(occlusion_scene_, &context, &r);
+    rtcOccluded1(shadow_bvh_ ? occlusion_scene_ : rtc_scene_, &context, &r);
     return r.tfar < 0;
 }
 

@@ -45,6 +45,13 @@ class TriangleMesh;
 
 class Scene {
   public:
+    // The shadow rays' BVH costs ~72 B per triangle (docs/performance.md, "Since: shadow rays
+    // through their own BVH"). It is built only for scenes of at most this many top-level
+    // triangles (at most ~72 MiB); a larger scene keeps its memory and sends shadow rays through
+    // the closest-hit BVH, as before, with every analytic shape in it.
+    static constexpr size_t kMaxShadowBvhTriangles = size_t(1) << 20;
+    static constexpr uint64_t kShadowBvhBytesPerTriangle = 72;
+
     Scene();
     ~Scene();
     Scene(const Scene&) = delete;
@@ -144,6 +151,7 @@ class Scene {
     // boxes; veach-mis's four small spheres cost the same either way). With more, the BVH's
     // culling wins and all of them stay in it.
     static constexpr size_t kMaxDirectOccluders = 4;
+    bool shadow_bvh_ = false;
     std::vector<const AnalyticShape*> direct_occluders_;
     // Attaches rtc_scene_'s geometry `geometry_id` to occlusion_scene_ as well.
     void also_for_occlusion(unsigned geometry_id);

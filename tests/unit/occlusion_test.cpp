@@ -20,11 +20,13 @@
 #include <memory>
 #include <string>
 
+#include "core/base/memory_budget.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/scene.h"
 #include "core/shapes/sphere.h"
+#include "core/shapes/triangle_mesh.h"
 
 namespace render {
 namespace {
@@ -77,15 +79,64 @@ TEST(Occlusion, SixSpheresInTheBvhAgreeWithClosestHits) {
     Scene scene;
     scene.set_camera(PerspectiveCamera(Transform(), 45, 'x', 4, 4));
     Rng rng(StreamKey{.seed = 7, .iteration = 1, .stream = 0});
-    for (int i = 0; i < 6; ++i)
-        scene.add_shape(std::make_unique<Sphere>(rng.next_3d() * 4.0f, 0.3f + rng.next_1d(), false,
-                                                 "s" + std::to_string(i)),
-                        nullptr);
+    for (int i = 0; i < 6; ++i) {
+        // Appended, not "s" + std::to_string(i): GCC 12 warns falsely (-Wrestrict) on that.
+        std::string name = "s";
+        name += std::to_string(i);
+        scene.add_shape(
+            std::make_unique<Sphere>(rng.next_3d() * 4.0f, 0.3f + rng.next_1d(), false, name),
+            nullptr);
+    }
     scene.commit();
     const Agreement a = compare_occlusion_with_closest_hits(scene, 20261127, 100000);
     EXPECT_GT(a.tested, 90000);
     EXPECT_GT(a.blocked, a.tested / 10);
     EXPECT_EQ(a.disagreements, 0);
+}
+
+// A wavy grid of quads on [0, 4]^2 (two triangles each), n x n quads, and two spheres: a
+// scene whose shadow rays see triangles and analytic shapes.
+std::unique_ptr<Scene> wavy_grid_scene(int n) {
+    MeshData data;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+            const float x = 4.0f * float(i) / float(n), y = 4.0f * float(j) / float(n);
+            data.positions.push_back(Vec3(x, y, 0.3f * std::sin(3 * x) * std::cos(2 * y)));
+        }
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1),
+                           d = c + 1;
+            data.indices.insert(data.indices.end(), {a, b, d, a, d, c});
+        }
+    auto scene = std::make_unique<Scene>();
+    scene->set_camera(PerspectiveCamera(Transform(), 45, 'x', 4, 4));
+    scene->add_shape(
+        std::make_unique<TriangleMesh>(std::move(data), Transform(), false, false, "grid"),
+        nullptr);
+    scene->add_shape(std::make_unique<Sphere>(Vec3(1, 1, 0.5f), 0.4f, false, "a"), nullptr);
+    scene->add_shape(std::make_unique<Sphere>(Vec3(3, 2, 0.2f), 0.6f, false, "b"), nullptr);
+    return scene;
+}
+
+// The shadow rays' BVH is built, and charged to the scene's memory, only up to
+// Scene::kMaxShadowBvhTriangles top-level triangles; a larger scene sends its shadow rays through
+// the closest-hit BVH (every analytic shape in it) and is charged nothing more. Both agree with
+// the closest hits.
+TEST(Occlusion, TheShadowRaysBvhIsBuiltAndChargedOnlyForSmallScenes) {
+    for (const int n : {64, 725}) {
+        const uint64_t triangles = 2 * uint64_t(n) * uint64_t(n);
+        const bool small = triangles <= Scene::kMaxShadowBvhTriangles;
+        auto scene = wavy_grid_scene(n);
+        SceneMemoryBudget budget(0, "test");
+        scene->commit();
+        EXPECT_EQ(budget.charged(), small ? Scene::kShadowBvhBytesPerTriangle * triangles : 0)
+            << triangles << " triangles";
+        const Agreement a = compare_occlusion_with_closest_hits(*scene, 20261127, 20000);
+        EXPECT_GT(a.tested, 18000);
+        EXPECT_GT(a.blocked, a.tested / 10);
+        EXPECT_LE(a.disagreements, a.tested / 10000) << triangles << " triangles";
+    }
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, OcclusionAgreesWithClosestHit,
