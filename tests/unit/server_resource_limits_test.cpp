@@ -23,6 +23,7 @@
 #include "core/render/job_limits.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "core/scene/scene.h"
 #include "core/util/sha256.h"
 #include "server/asset_store.h"
 #include "server/validation.h"
@@ -426,8 +427,8 @@ TEST(MemoryBudget, ChargesUpToTheLimitAndRefusesPastIt) {
 // refusal for memory, which the server does not count against the job (docs/service.md).
 TEST(MemoryBudget, AMeshOverTheBudgetStaysAMemoryRefusalThroughTheLoader) {
     TempDir dir;
-    dir.write("m.ply", ply_header(3, 1) + std::string(3 * 12, '\0') +
-                           std::string(1, char(3)) + std::string(12, '\0'));
+    dir.write("m.ply", ply_header(3, 1) + std::string(3 * 12, '\0') + std::string(1, char(3)) +
+                           std::string(12, '\0'));
     const std::string scene =
         "<scene version=\"3.0.0\"><shape type=\"ply\"><string name=\"filename\" "
         "value=\"m.ply\"/></shape></scene>";
@@ -567,7 +568,8 @@ TEST(MemoryBudget, PbrtInlineMeshIsCharged) {
         "AttributeEnd\n";
     const uint64_t mesh = mesh_vertex_bytes(3, true, true) + mesh_triangle_bytes(1);
     {
-        SceneMemoryBudget budget(mesh, "test");
+        // The mesh, and the shadow rays' BVH over its triangle (charged by Scene::commit).
+        SceneMemoryBudget budget(mesh + Scene::kShadowBvhBytesPerTriangle, "test");
         EXPECT_NO_THROW(pbrt::load_scene_from_string(scene, dir.path()));
     }
     SceneMemoryBudget budget(mesh - 1, "test");
