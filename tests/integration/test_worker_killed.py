@@ -100,7 +100,9 @@ class WorkerKilled(cluster.ClusterTestCase):
         first = c.start_workers(3, threads=1)
         c.wait_workers_registered(3)
         scene = cluster.cornell_box()
-        iterations, resolution = 3000, (24, 24)
+        # Enough for three 8-s leases at once even on an idle machine (~1,700 iterations each
+        # there); 3000 fitted in two, and the third worker never held one.
+        iterations, resolution = 6000, (24, 24)
         job = c.api.submit(scene, algorithm=ALGO, iterations=iterations, resolution=resolution,
                            seed=SEED, name="preempted")
 
