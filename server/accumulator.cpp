@@ -57,30 +57,6 @@ FrameAccumulator::FrameAccumulator(int width, int height, LayerMode layers)
 
 namespace {
 
-// The sums of estimate_relative_error (core/render) over a frame, taken in the addition's pass
-// so that a report costs one pass over the frame's sums, not two. Same operations in the same
-// order as that function: the value is bit for bit its value (unit test
-// TheFusedErrorEstimateEqualsCoresBitForBit).
-class ErrorSums {
-  public:
-    ErrorSums(uint64_t count, uint64_t odd_count)
-        : n_odd_(double(odd_count)), n_even_(double(count - odd_count)), n_(double(count)) {}
-    void add(double sum, double odd) {
-        const double mean_odd = odd / n_odd_, mean_even = (sum - odd) / n_even_;
-        const double mean = sum / n_;
-        diff2_ += (mean_odd - mean_even) * (mean_odd - mean_even);
-        mean2_ += mean * mean;
-    }
-    double relative_error() const {
-        if (mean2_ <= 0) return 0.0;
-        return 0.5 * std::sqrt(diff2_ / mean2_);
-    }
-
-  private:
-    double n_odd_, n_even_, n_;
-    double diff2_ = 0, mean2_ = 0;
-};
-
 // Adds with `update(i)` (which adds value i and returns the new sum and odd sum) over n values,
 // and returns the new relative error (1 while the odd or the even iterations are none).
 template <class Update>
@@ -89,7 +65,7 @@ double add_and_estimate(size_t n, uint64_t count, uint64_t odd_count, Update&& u
         for (size_t i = 0; i < n; ++i) update(i);
         return 1.0;
     }
-    ErrorSums error(count, odd_count);
+    RelativeErrorSums error(count, odd_count);  // estimate_relative_error's, in this pass
     for (size_t i = 0; i < n; ++i) {
         const auto [sum, odd] = update(i);
         error.add(sum, odd);

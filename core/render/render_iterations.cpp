@@ -103,20 +103,11 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
 double estimate_relative_error(const IterationResult& result) {
     uint64_t even_count = result.count - result.odd_count;
     if (result.odd_count == 0 || even_count == 0) return 1.0;
-    // Means of odd and even iterations; their difference has variance ~ 4 var(mean).
     const auto& sum = result.sum.values();
     const auto& odd = result.odd_sum.values();
-    double n_odd = double(result.odd_count), n_even = double(even_count);
-    double diff2 = 0, mean2 = 0;
-    for (size_t i = 0; i < sum.size(); ++i) {
-        double mean_odd = odd[i] / n_odd, mean_even = (sum[i] - odd[i]) / n_even;
-        double mean = sum[i] / double(result.count);
-        diff2 += (mean_odd - mean_even) * (mean_odd - mean_even);
-        mean2 += mean * mean;
-    }
-    if (mean2 <= 0) return 0.0;
-    // The full mean's error is half the half-means' difference (two independent halves).
-    return 0.5 * std::sqrt(diff2 / mean2);
+    RelativeErrorSums error(result.count, result.odd_count);
+    for (size_t i = 0; i < sum.size(); ++i) error.add(sum[i], odd[i]);
+    return error.relative_error();
 }
 
 }  // namespace render

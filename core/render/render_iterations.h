@@ -3,6 +3,7 @@
 // The one entry point through which every image is rendered (DESIGN.md, iteration contract):
 // a pure function of (scene, settings, frame, [first, end)).
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 
@@ -56,6 +57,28 @@ class IterationRenderer {
   private:
     struct State;
     std::unique_ptr<State> state_;
+};
+
+// The sums behind estimate_relative_error, pixel value by pixel value (`sum` over all `count`
+// iterations, `odd` over the `odd_count` odd ones; both must be > 0 and odd_count < count): the
+// means of odd and even iterations, whose difference has variance ~ 4 var(mean). The server
+// takes them in the pass that adds a report (server/accumulator.cpp).
+class RelativeErrorSums {
+  public:
+    RelativeErrorSums(uint64_t count, uint64_t odd_count)
+        : n_odd_(double(odd_count)), n_even_(double(count - odd_count)), n_(double(count)) {}
+    void add(double sum, double odd) {
+        const double mean_odd = odd / n_odd_, mean_even = (sum - odd) / n_even_;
+        const double mean = sum / n_;
+        diff2_ += (mean_odd - mean_even) * (mean_odd - mean_even);
+        mean2_ += mean * mean;
+    }
+    // The full mean's error is half the half-means' difference (two independent halves).
+    double relative_error() const { return mean2_ <= 0 ? 0.0 : 0.5 * std::sqrt(diff2_ / mean2_); }
+
+  private:
+    double n_odd_, n_even_, n_;
+    double diff2_ = 0, mean2_ = 0;
 };
 
 // Estimated relative error of the mean image from the even/odd half sums: the RMS of the
