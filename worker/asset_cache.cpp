@@ -89,6 +89,7 @@ struct CacheContents {
     std::map<Key, Inode> inodes;
     std::vector<Asset> assets;
     std::vector<Job> jobs;
+    std::vector<std::pair<fs::path, Key>> temporary;  // tmp/: files being fetched, or left over
     uint64_t bytes = 0;
 
     // Counts a regular file; returns its key, or nothing if it is not one (or vanished).
@@ -136,7 +137,7 @@ struct CacheContents {
         }
         ec.clear();
         for (fs::directory_iterator it(dir / "tmp", ec), end; !ec && it != end; it.increment(ec))
-            c.add(it->path());
+            if (auto key = c.add(it->path())) c.temporary.emplace_back(it->path(), *key);
         return c;
     }
 };
@@ -289,10 +290,9 @@ AssetCache::PruneResult AssetCache::prune(uint64_t budget, const std::string& ke
     result.bytes_before = c.bytes;
     // Nobody fetches or links while the lock is held exclusively: temporary files are
     // leftovers of a process that died.
-    std::error_code ec;
-    for (fs::directory_iterator it(dir_ / "tmp", ec), end; !ec && it != end; it.increment(ec))
-        if (auto key = c.add(it->path())) c.remove_link(it->path(), *key);
+    for (const auto& [path, key] : c.temporary) c.remove_link(path, key);
 
+    std::error_code ec;
     auto by_use = [](const auto& a, const auto& b) { return a.used_ns < b.used_ns; };
     std::sort(c.assets.begin(), c.assets.end(), by_use);
     std::erase_if(c.jobs, [&](const CacheContents::Job& job) { return job.id == keep; });
