@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -57,23 +58,75 @@ FrameAccumulator::FrameAccumulator(int width, int height, LayerMode layers)
 
 namespace {
 
-// Adds with `update(i)` (which adds value i and returns the new sum and odd sum) over n values,
-// and returns the new relative error (1 while the odd or the even iterations are none).
-template <class Update>
-double add_and_estimate(size_t n, uint64_t count, uint64_t odd_count, Update&& update) {
-    if (odd_count == 0 || odd_count == count) {
-        for (size_t i = 0; i < n; ++i) update(i);
-        return 1.0;
-    }
-    RelativeErrorSums error(count, odd_count);  // estimate_relative_error's, in this pass
-    for (size_t i = 0; i < n; ++i) {
-        const auto [sum, odd] = update(i);
-        error.add(sum, odd);
-    }
-    return error.relative_error();
-}
+// Values per block when a report is added block by block: 1 MiB per part read.
+constexpr size_t kBlockValues = size_t(1) << 17;
 
 }  // namespace
+
+template <class Block>
+void FrameAccumulator::add_blocks(Range range, bool odd_derived, uint64_t odd_count,
+                                  const RenderStats& stats, Block&& block) {
+    const size_t n = value_count();
+    double* s = result_.sum.values().data();
+    double* o = result_.odd_sum.values().data();
+    const uint64_t count = result_.count + range.size();
+    const uint64_t odds = result_.odd_count + odd_count;
+    // The relative error (1 while the odd or the even iterations are none) is estimated in
+    // the addition's pass: the same sums in the same order as estimate_relative_error.
+    const bool estimate = odds != 0 && odds != count;
+    RelativeErrorSums error(count, odds);
+    // One pass per block: `update(i)` adds value i and returns the new sum and odd sum.
+    auto pass = [&](size_t m, auto&& update) {
+        if (!estimate) {
+            for (size_t i = 0; i < m; ++i) update(i);
+            return;
+        }
+        for (size_t i = 0; i < m; ++i) {
+            const auto [sum, odd] = update(i);
+            error.add(sum, odd);
+        }
+    };
+    using Pair = std::pair<double, double>;
+    for (size_t first = 0; first < n; first += kBlockValues) {
+        const size_t m = std::min(kBlockValues, n - first);
+        const double* sum = block(0, first, m).data();
+        double* sb = s + first;
+        double* ob = o + first;
+        if (!odd_derived) {
+            const double* odd = block(n, first, m).data();
+            pass(m, [&](size_t i) {
+                sb[i] += sum[i];
+                ob[i] += odd[i];
+                return Pair{sb[i], ob[i]};
+            });
+        } else if (odd_count == 1) {
+            pass(m, [&](size_t i) {
+                sb[i] += sum[i];
+                ob[i] += sum[i];
+                return Pair{sb[i], ob[i]};
+            });
+        } else {
+            pass(m, [&](size_t i) {
+                sb[i] += sum[i];
+                return Pair{sb[i], ob[i]};
+            });
+        }
+    }
+    relative_error_ = estimate ? error.relative_error() : 1.0;
+    const size_t layers_at = (odd_derived ? 1 : 2) * n;
+    for (size_t l = 0; l < layer_count(); ++l) {
+        double* values = result_.layers.buffer(l).values().data();
+        for (size_t first = 0; first < n; first += kBlockValues) {
+            const size_t m = std::min(kBlockValues, n - first);
+            const double* add = block(layers_at + l * n, first, m).data();
+            for (size_t i = 0; i < m; ++i) values[first + i] += add[i];
+        }
+    }
+    result_.count = count;
+    result_.odd_count = odds;
+    result_.stats += stats;
+    ranges_.add(range);
+}
 
 void FrameAccumulator::add(Range range, std::span<const double> sum,
                            std::span<const double> odd_sum, std::span<const double> layer_sums,
@@ -83,37 +136,25 @@ void FrameAccumulator::add(Range range, std::span<const double> sum,
     if (sum.size() != n || (odd_sum.size() != n && !odd_derived) ||
         layer_sums.size() != layer_count() * n)
         throw std::invalid_argument("accumulator: buffer size mismatch");
-    double* s = result_.sum.values().data();
-    double* o = result_.odd_sum.values().data();
-    const uint64_t count = result_.count + range.size();
-    const uint64_t odds = result_.odd_count + odd_count;
-    using Pair = std::pair<double, double>;
-    if (!odd_derived) {
-        relative_error_ = add_and_estimate(n, count, odds, [&](size_t i) {
-            s[i] += sum[i];
-            o[i] += odd_sum[i];
-            return Pair{s[i], o[i]};
-        });
-    } else if (odd_count == 1) {
-        relative_error_ = add_and_estimate(n, count, odds, [&](size_t i) {
-            s[i] += sum[i];
-            o[i] += sum[i];
-            return Pair{s[i], o[i]};
-        });
-    } else {
-        relative_error_ = add_and_estimate(n, count, odds, [&](size_t i) {
-            s[i] += sum[i];
-            return Pair{s[i], o[i]};
-        });
-    }
-    for (size_t l = 0; l < layer_count(); ++l) {
-        auto& values = result_.layers.buffer(l).values();
-        for (size_t i = 0; i < n; ++i) values[i] += layer_sums[l * n + i];
-    }
-    result_.count = count;
-    result_.odd_count = odds;
-    result_.stats += stats;
-    ranges_.add(range);
+    const size_t layers_at = (odd_derived ? 1 : 2) * n;
+    add_blocks(range, odd_derived, odd_count, stats, [&](size_t offset, size_t first, size_t m) {
+        if (offset == 0) return sum.subspan(first, m);
+        if (offset < layers_at) return odd_sum.subspan(first, m);
+        return layer_sums.subspan(offset - layers_at + first, m);
+    });
+}
+
+void FrameAccumulator::add(Range range, const ReportValues& values, bool odd_omitted,
+                           uint64_t odd_count, const RenderStats& stats) {
+    const size_t n = value_count();
+    if (odd_omitted && !(range.size() == 1 && odd_count <= 1))
+        throw std::invalid_argument("accumulator: odd_sum omitted for a range of several");
+    if (!values.complete() || values.count() != ((odd_omitted ? 1 : 2) + layer_count()) * n)
+        throw std::invalid_argument("accumulator: buffer size mismatch");
+    std::vector<double> scratch_sum, scratch_other;
+    add_blocks(range, odd_omitted, odd_count, stats, [&](size_t offset, size_t first, size_t m) {
+        return values.block(offset + first, m, offset == 0 ? scratch_sum : scratch_other);
+    });
 }
 
 Image FrameAccumulator::average() const {

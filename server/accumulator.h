@@ -13,6 +13,7 @@
 
 #include "core/render/render_iterations.h"
 #include "server/interval_set.h"
+#include "server/report_values.h"
 
 namespace render::server {
 
@@ -35,6 +36,11 @@ class FrameAccumulator {
     // iteration) and zero otherwise, exactly what the worker would have sent.
     void add(Range range, std::span<const double> sum, std::span<const double> odd_sum,
              std::span<const double> layer_sums, uint64_t odd_count, const RenderStats& stats);
+    // The same from a received report's values (sum, odd_sum unless `odd_omitted`, then the
+    // layers' sums), read block by block: a spooled report is never whole in memory. The sums
+    // are the same, bit for bit, as from spans of the same values.
+    void add(Range range, const ReportValues& values, bool odd_omitted, uint64_t odd_count,
+             const RenderStats& stats);
 
     const IterationResult& result() const { return result_; }
     const IntervalSet& ranges() const { return ranges_; }
@@ -53,6 +59,12 @@ class FrameAccumulator {
     static FrameAccumulator load(const std::filesystem::path& file, double* elapsed_seconds);
 
   private:
+    // Both add()s: `block(offset, first, n)` gives values [first, first + n) of the part that
+    // starts at `offset` in the report's sequence (sum at 0, odd_sum at value_count(), ...).
+    template <class Block>
+    void add_blocks(Range range, bool odd_derived, uint64_t odd_count, const RenderStats& stats,
+                    Block&& block);
+
     int width_ = 0, height_ = 0;
     IterationResult result_;
     IntervalSet ranges_;

@@ -153,6 +153,10 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     fs::create_directories(options_.store / "jobs");
     fs::create_directories(options_.store / "checkpoints");
     fs::create_directories(options_.store / "results");
+    // A spooled report's file is unlinked when made (server/report_values.h); where the file
+    // system has no O_TMPFILE it had a name for an instant, which a crash may have left.
+    std::error_code ignored;
+    fs::remove_all(report_spool_folder(), ignored);
     restore();
 }
 
@@ -1013,9 +1017,7 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
     return Status::OK;
 }
 
-Status JobManager::report(const v1::ReportHeader& header, std::span<const double> sum,
-                          std::span<const double> odd_sum, std::span<const double> layer_sums,
-                          bool* merged, std::unique_ptr<double[]>* values) {
+Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values, bool* merged) {
     *merged = false;
     LeaseGrant grant;
     std::shared_ptr<JobData> job;
@@ -1058,7 +1060,7 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         stats.non_finite = header.non_finite();
         stats.vpl_candidates = header.vpl_candidates();
         stats.vpl_accepted = std::min(header.vpl_accepted(), header.vpl_candidates());
-        frame.acc->add(grant.range, sum, odd_sum, layer_sums, header.odd_count(), stats);
+        frame.acc->add(grant.range, values, header.odd_sum_omitted(), header.odd_count(), stats);
         frame.relative_error = frame.acc->relative_error();
         frame.non_finite = frame.acc->result().stats.non_finite;
         if (frame.history.size() >= kMaxHistory) {
@@ -1124,7 +1126,7 @@ Status JobManager::report(const v1::ReportHeader& header, std::span<const double
         .kv("checkpoint_us",
             std::chrono::duration_cast<std::chrono::microseconds>(checkpoint_time).count());
     // The report's values are in the sums: free them before a completed frame's EXR is made.
-    if (values) values->reset();
+    values.release();
     advance();
     return Status::OK;
 }

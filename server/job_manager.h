@@ -68,6 +68,12 @@ struct ServerOptions {
     // this long before it is merged, as over a slow network or on a busy server; a worker that
     // disconnects meanwhile cancels it (it is not merged, and its lease expires).
     double report_delay_seconds = 0;
+    // A report whose values are at least this many bytes is spooled to a file in the store's
+    // spool folder while it arrives, not held in memory (server/report_values.h): a running
+    // frame then costs its sums plus blocks rather than its sums plus a whole report. The
+    // default spools a 1920x1080 report of several iterations (100 MB) and keeps a 1280x720
+    // one (44 MB) in memory; 0 spools every report, SIZE_MAX none.
+    uint64_t spool_reports_above = uint64_t(64) << 20;
 };
 
 class JobManager {
@@ -124,13 +130,12 @@ class JobManager {
     // for a late or duplicate report, which is answered merged=false.
     grpc::Status check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
                               bool* drop);
-    // Merges a report's sums exactly once; `merged` false when dropped. `layer_sums`: the
-    // layers' sums one after the other (empty for a job without layers); `odd_sum` empty when
-    // the header omits it. `values`, if given, holds the spans' storage: it is freed once the
-    // sums are added, before a frame the report completes is written (memory).
-    grpc::Status report(const v1::ReportHeader& header, std::span<const double> sum,
-                        std::span<const double> odd_sum, std::span<const double> layer_sums,
-                        bool* merged, std::unique_ptr<double[]>* values = nullptr);
+    // Merges a report's sums exactly once; `merged` false when dropped. `values`: sum, odd_sum
+    // unless the header omits it, then the layers' sums (ReportValues), complete; they are
+    // released once added, before a frame the report completes is written (memory).
+    grpc::Status report(const v1::ReportHeader& header, ReportValues&& values, bool* merged);
+    // Where large reports are spooled while they arrive (ServerOptions::spool_reports_above).
+    std::filesystem::path report_spool_folder() const { return options_.store / "spool"; }
     // Reports of one job are received and merged one at a time: each holds a frame's whole
     // sums in memory until it is merged, so a job's memory stays its frames' sums plus one
     // report's, however many workers report at once. Blocks until the job of `lease_id` has no

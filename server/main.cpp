@@ -3,7 +3,8 @@
 //   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
 //          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--max-lease-seconds SECONDS]
 //          [--checkpoint-seconds SECONDS]
-//          [--max-job-assets SIZE] [--max-store-size SIZE] [--stream-idle-timeout SECONDS]
+//          [--max-job-assets SIZE] [--max-store-size SIZE] [--spool-reports-above SIZE]
+//          [--stream-idle-timeout SECONDS]
 //          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT]
@@ -174,6 +175,17 @@ ArgumentParser make_parser(Options& o) {
             "RESOURCE_EXHAUSTED before a byte is written",
             [&](const std::string& v) {
                 o.server.max_store_size = parse_size_flag("--max-store-size", v);
+            });
+    p.value({"--spool-reports-above"}, "SIZE",
+            "a report of at least SIZE bytes of values is written to a file in the store while "
+            "it arrives and merged from there, instead of held in memory beside the frame's "
+            "sums (K, M, G or T suffix; default 64M: a 1920x1080 report of several iterations "
+            "is spooled; 0: every report; off: none)",
+            [&](const std::string& v) {
+                o.server.spool_reports_above = v == "off" ? UINT64_MAX
+                                               : v == "0"
+                                                   ? 0
+                                                   : parse_size_flag("--spool-reports-above", v);
             });
     p.value({"--stream-idle-timeout"}, "SECONDS",
             "cancel an UploadAsset, FetchResult, FetchAsset, Report or WatchJob stream that "

@@ -1,15 +1,14 @@
 #include "server/worker_service.h"
 
 #include <chrono>
-#include <cmath>
-#include <cstring>
 #include <memory>
-#include <span>
+#include <optional>
 #include <thread>
 
 #include "core/util/log.h"
 #include "core/util/sha256.h"
 #include "server/job_service.h"
+#include "server/report_values.h"
 
 namespace render::server {
 
@@ -116,31 +115,36 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     }
     const auto receiving = std::chrono::steady_clock::now();
     const auto waited = receiving - wait_start;
-    // sum, odd_sum (unless omitted), then the layers' sums: one float64 sequence, split after
-    // it is complete, and merged only then (a report that fails half-way changes nothing). The
-    // buffer is not zeroed first (a pass over up to a whole frame's sums): every byte is
-    // written by the chunks before it is read, which `received == expected` checks. Each
-    // value is checked to be finite as soon as its last byte arrives, not in a pass of its own.
+    // sum, odd_sum (unless omitted), then the layers' sums: one float64 sequence, merged only
+    // once it is complete (a report that fails half-way changes nothing). A large report is
+    // spooled to a file while it arrives (server/report_values.h, --spool-reports-above), so
+    // that the frame's sums and a whole report are not in memory at once. Each value is
+    // checked to be finite as soon as its last byte arrives, not in a pass of its own.
     const size_t sums = header.odd_sum_omitted() ? 1 : 2;
     const size_t count = n * (sums + layers);
-    std::unique_ptr<double[]> values(new double[count]);
     const size_t expected = count * sizeof(double);
-    size_t received = 0, checked = 0;
+    std::optional<ReportValues> values;
+    if (expected >= manager_.options().spool_reports_above) {
+        try {
+            values.emplace(ReportValues::spooled(manager_.report_spool_folder(), count));
+        } catch (const std::exception& e) {
+            // Received in memory, as a smaller report would be: the server's memory, not the
+            // report, pays for a spool folder it cannot write.
+            Log("warn", "report_spool_failed").kv("lease", header.lease_id()).kv("error", e.what());
+        }
+    }
+    if (!values) values.emplace(ReportValues::in_memory(count));
     while (reader->Read(&chunk)) {
         guard->progress();
         if (chunk.has_header())
             return Status(StatusCode::INVALID_ARGUMENT, "a report has exactly one header");
-        const std::string& data = chunk.values();
-        if (received + data.size() > expected)
-            return Status(StatusCode::INVALID_ARGUMENT, "report has more than the expected " +
-                                                            std::to_string(expected) +
-                                                            " bytes of values");
-        std::memcpy(reinterpret_cast<char*>(values.get()) + received, data.data(), data.size());
-        received += data.size();
-        for (; checked < received / sizeof(double); ++checked)
-            if (!std::isfinite(values[checked]))
-                return Status(StatusCode::INVALID_ARGUMENT,
-                              "report value " + std::to_string(checked) + " is not finite");
+        bool spool_failed = false;
+        if (std::string error = values->append(chunk.values(), &spool_failed); !error.empty()) {
+            if (spool_failed) Log("error", "report_spool_failed").kv("error", error);
+            // A full spool disk is the server's trouble: the worker sends the report again.
+            return Status(spool_failed ? StatusCode::UNAVAILABLE : StatusCode::INVALID_ARGUMENT,
+                          error);
+        }
     }
     if (guard->timed_out()) {
         manager_.report_stream_idle(header.lease_id());
@@ -158,20 +162,18 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         Log("warn", "report_cancelled").kv("lease", header.lease_id());
         return Status(StatusCode::CANCELLED, "report cancelled");
     }
+    const size_t received = values->received_bytes();
     if (received != expected)
         return Status(StatusCode::INVALID_ARGUMENT,
                       "report has " + std::to_string(received) + " bytes of values, expected " +
                           std::to_string(expected) + " (sum, " +
                           (sums == 2 ? "odd_sum and " : "no odd_sum, ") + std::to_string(layers) +
                           " layers, " + std::to_string(n) + " float64 each)");
-    const std::span<const double> all(values.get(), count);
-    const std::span<const double> sum = all.subspan(0, n), odd_sum = all.subspan(n, (sums - 1) * n),
-                                  layer_sums = all.subspan(sums * n);
     const auto received_at = std::chrono::steady_clock::now();
     manager_.metrics().report_received(header.ByteSizeLong() + received);
     bool merged = false;
-    if (Status s = manager_.report(header, sum, odd_sum, layer_sums, &merged, &values); !s.ok())
-        return s;
+    const bool spooled = values->is_spooled();
+    if (Status s = manager_.report(header, std::move(*values), &merged); !s.ok()) return s;
     reply->set_merged(merged);
     // Cost of a report for the performance report (docs/performance.md): bytes on the wire
     // (header + values), time spent receiving the chunks and time spent merging (accumulate +
@@ -185,7 +187,8 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
         .kv("receive_us", std::chrono::duration_cast<us>(received_at - receiving).count())
         .kv("merge_us",
             std::chrono::duration_cast<us>(std::chrono::steady_clock::now() - received_at).count())
-        .kv("merged", merged ? 1 : 0);
+        .kv("merged", merged ? 1 : 0)
+        .kv("spooled", spooled ? 1 : 0);
     return Status::OK;
 }
 

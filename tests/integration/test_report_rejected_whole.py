@@ -9,8 +9,15 @@ sends, for one lease, in small chunks (so that the failures come after many chun
   2. the right sum and half of the odd sum, then the stream ends: refused;
   3. the right report: merged.
 A real worker renders the rest. The job's image must equal `render`'s: any part of reports 1
-or 2 in the sums would add their range a second time (or a NaN) and show."""
+or 2 in the sums would add their range a second time (or a NaN) and show.
 
+Twice: with the reports held in memory (the server's default for reports this small) and
+spooled to a file in the store while they arrive (`--spool-reports-above 0`,
+server/report_values.h). The chunks are 2045 bytes, so values are split between chunks (the
+spool checks a value when its last byte arrives). Spooled, no file may be left in the store's
+spool folder (the files are unlinked: they must not even have a name)."""
+
+import os
 import sys
 
 import grpc
@@ -21,7 +28,7 @@ import cluster  # noqa: E402
 from test_duplicate_report import FakeWorker, W, H, SEED, ALGO, odd_count, range_sum  # noqa: E402
 
 ITERATIONS = 8
-SMALL_CHUNK = 2048  # bytes: 12 chunks per 32x32 float64 RGB buffer
+SMALL_CHUNK = 2045  # bytes: ~12 chunks per 32x32 float64 RGB buffer, splitting values
 
 
 def report_chunks(lease_id, first, end, values):
@@ -45,7 +52,22 @@ class ReportRejectedWhole(cluster.ClusterTestCase):
         print(f"{what}: {caught.exception.details()}")
 
     def test_a_report_that_fails_half_way_changes_nothing(self):
-        c = self.new_cluster()
+        self.check_whole_or_nothing(server_args=())
+
+    def test_a_spooled_report_that_fails_half_way_changes_nothing(self):
+        c = self.check_whole_or_nothing(server_args=("--spool-reports-above", "0"))
+        with open(c.server.log_path, "rb") as f:
+            received = [line for line in f if b"event=report_received" in line]
+        self.assertTrue(received, "the server logged no merged report")
+        self.assertTrue(all(b"spooled=1" in line for line in received),
+                        "a report was not spooled with --spool-reports-above 0")
+
+    def spool_files(self, c):
+        folder = os.path.join(c.store, "spool")
+        return os.listdir(folder) if os.path.isdir(folder) else []
+
+    def check_whole_or_nothing(self, server_args):
+        c = self.new_cluster(server_args=server_args)
         c.start_server()
         scene = cluster.cornell_box()
         fake = FakeWorker(c.api)
@@ -64,6 +86,7 @@ class ReportRejectedWhole(cluster.ClusterTestCase):
         half = odd_values[:len(odd_values) // 2].tobytes()
         self.refused(c.api, report_chunks(lease.lease_id, a, b, sum_bytes + half),
                      "a report whose stream ends half-way through its odd sum")
+        self.assertEqual(self.spool_files(c), [], "a refused report left a file behind")
         fake.heartbeat([lease.lease_id])
         self.assertTrue(fake.report(lease.lease_id, a, b, sum_, odd),
                         "the whole report was not merged after the refused ones")
@@ -72,6 +95,8 @@ class ReportRejectedWhole(cluster.ClusterTestCase):
         out = c.api.fetch_to(job.id, c.path("out.exr"))
         ref = cluster.render_reference(scene, ALGO, ITERATIONS, (W, H), SEED)
         print("image:", self.assertImagesMatch(out, ref))
+        self.assertEqual(self.spool_files(c), [], "a merged report left a file behind")
+        return c
 
 
 if __name__ == "__main__":

@@ -114,7 +114,12 @@ struct ManagerTest : ::testing::Test {
         EXPECT_EQ(n, 8u * 6u * 3u);
         EXPECT_EQ(layers, 0u);
         bool merged = false;
-        EXPECT_TRUE(m.report(h, r.sum.values(), r.odd_sum.values(), {}, &merged).ok());
+        ReportValues values = ReportValues::in_memory(2 * n);
+        for (const auto* part : {&r.sum.values(), &r.odd_sum.values()})
+            EXPECT_EQ(values.append({reinterpret_cast<const char*>(part->data()),
+                                     part->size() * sizeof(double)}),
+                      "");
+        EXPECT_TRUE(m.report(h, std::move(values), &merged).ok());
         return merged;
     }
 };

@@ -1,0 +1,150 @@
+#include "server/report_values.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <utility>
+
+namespace render::server {
+
+namespace {
+
+std::string system_error(const std::string& what) {
+    return what + ": " + std::strerror(errno);
+}
+
+// An unlinked file in `dir`: O_TMPFILE where the file system has it (the file never has a
+// name), else a named file unlinked at once.
+int open_unlinked(const std::filesystem::path& dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec)
+        throw std::runtime_error("cannot make the report spool folder " + dir.string() + ": " +
+                                 ec.message());
+    int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+    if (fd >= 0) return fd;
+    std::string name = (dir / "report-XXXXXX").string();
+    fd = ::mkostemp(name.data(), O_CLOEXEC);
+    if (fd < 0)
+        throw std::runtime_error(
+            system_error("cannot make a report spool file in " + dir.string()));
+    ::unlink(name.c_str());
+    return fd;
+}
+
+}  // namespace
+
+ReportValues ReportValues::in_memory(size_t count) {
+    ReportValues v;
+    v.count_ = count;
+    // Not zeroed (a pass over up to a whole frame's sums): every value is written by the
+    // stream before it is read, which complete() checks.
+    v.memory_.reset(new double[count]);
+    return v;
+}
+
+ReportValues ReportValues::spooled(const std::filesystem::path& dir, size_t count) {
+    ReportValues v;
+    v.count_ = count;
+    v.dir_ = dir;
+    v.fd_ = open_unlinked(dir);
+    return v;
+}
+
+ReportValues::ReportValues(ReportValues&& other) noexcept {
+    *this = std::move(other);
+}
+
+ReportValues& ReportValues::operator=(ReportValues&& other) noexcept {
+    if (this == &other) return *this;
+    release();
+    count_ = std::exchange(other.count_, 0);
+    received_ = std::exchange(other.received_, 0);
+    memory_ = std::move(other.memory_);
+    fd_ = std::exchange(other.fd_, -1);
+    dir_ = std::move(other.dir_);
+    std::memcpy(partial_, other.partial_, sizeof partial_);
+    return *this;
+}
+
+ReportValues::~ReportValues() {
+    release();
+}
+
+void ReportValues::release() {
+    memory_.reset();
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    count_ = 0;
+    received_ = 0;
+}
+
+std::string ReportValues::append(std::string_view bytes, bool* spool_failed) {
+    const size_t expected = count_ * sizeof(double);
+    if (bytes.size() > expected - received_)
+        return "report has more than the expected " + std::to_string(expected) + " bytes of values";
+    const size_t begin = received_;
+    auto not_finite = [](size_t index) {
+        return "report value " + std::to_string(index) + " is not finite";
+    };
+    if (memory_) {
+        std::memcpy(reinterpret_cast<char*>(memory_.get()) + begin, bytes.data(), bytes.size());
+        received_ += bytes.size();
+        for (size_t i = begin / sizeof(double); i < received_ / sizeof(double); ++i)
+            if (!std::isfinite(memory_[i])) return not_finite(i);
+        return "";
+    }
+    for (size_t written = 0; written < bytes.size();) {
+        const ssize_t n = ::write(fd_, bytes.data() + written, bytes.size() - written);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) {
+            if (spool_failed) *spool_failed = true;
+            return system_error("cannot spool the report to " + dir_.string());
+        }
+        written += size_t(n);
+    }
+    received_ += bytes.size();
+    // Check each value whose last byte arrived: a value split between chunks is completed
+    // from the bytes kept in partial_.
+    size_t offset = begin, at = 0;
+    while (offset < received_) {
+        const size_t in_value = offset % sizeof(double);
+        const size_t take = std::min(sizeof(double) - in_value, bytes.size() - at);
+        std::memcpy(partial_ + in_value, bytes.data() + at, take);
+        offset += take;
+        at += take;
+        if (offset % sizeof(double) == 0) {
+            double value;
+            std::memcpy(&value, partial_, sizeof value);
+            if (!std::isfinite(value)) return not_finite(offset / sizeof(double) - 1);
+        }
+    }
+    return "";
+}
+
+std::span<const double> ReportValues::block(size_t first, size_t n,
+                                            std::vector<double>& scratch) const {
+    if (first > received_ / sizeof(double) || n > received_ / sizeof(double) - first)
+        throw std::out_of_range("report values " + std::to_string(first) + " + " +
+                                std::to_string(n) + " were not received");
+    if (memory_) return {memory_.get() + first, n};
+    scratch.resize(n);
+    char* out = reinterpret_cast<char*>(scratch.data());
+    const size_t size = n * sizeof(double);
+    for (size_t done = 0; done < size;) {
+        const ssize_t r =
+            ::pread(fd_, out + done, size - done, off_t((first * sizeof(double)) + done));
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0)
+            throw std::runtime_error(
+                system_error("cannot read the report spooled in " + dir_.string()));
+        done += size_t(r);
+    }
+    return scratch;
+}
+
+}  // namespace render::server
