@@ -108,21 +108,27 @@ std::string ReportValues::append(std::string_view bytes, bool* spool_failed) {
         written += size_t(n);
     }
     received_ += bytes.size();
-    // Check each value whose last byte arrived: a value split between chunks is completed
-    // from the bytes kept in partial_.
-    size_t offset = begin, at = 0;
-    while (offset < received_) {
-        const size_t in_value = offset % sizeof(double);
-        const size_t take = std::min(sizeof(double) - in_value, bytes.size() - at);
-        std::memcpy(partial_ + in_value, bytes.data() + at, take);
-        offset += take;
-        at += take;
-        if (offset % sizeof(double) == 0) {
-            double value;
-            std::memcpy(&value, partial_, sizeof value);
-            if (!std::isfinite(value)) return not_finite(offset / sizeof(double) - 1);
-        }
+    // Check each value whose last byte arrived: first the value split by the previous chunk,
+    // completed from the bytes kept in partial_, then the chunk's whole values, then keep the
+    // first bytes of one it splits.
+    const char* data = bytes.data();
+    const char* const data_end = data + bytes.size();
+    size_t index = begin / sizeof(double);
+    double value;
+    if (const size_t have = begin % sizeof(double); have > 0) {
+        const size_t take = std::min(sizeof(double) - have, bytes.size());
+        std::memcpy(partial_ + have, data, take);
+        data += take;
+        if (have + take < sizeof(double)) return "";
+        std::memcpy(&value, partial_, sizeof value);
+        if (!std::isfinite(value)) return not_finite(index);
+        ++index;
     }
+    for (; data_end - data >= ptrdiff_t(sizeof(double)); data += sizeof(double), ++index) {
+        std::memcpy(&value, data, sizeof value);
+        if (!std::isfinite(value)) return not_finite(index);
+    }
+    std::memcpy(partial_, data, size_t(data_end - data));
     return "";
 }
 
