@@ -404,8 +404,13 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("(`render_bench --benchmark_list_tests` lists them; `--benchmark_filter=REGEX` runs a "
         "subset.)")
 
-    # --- ray queries
+    # Issue 16's targets in one table, written by hand from the sections below; carried over.
     add("")
+    L.extend(hand_written_sections(path, (ISSUE_16_TITLE,)))
+
+    # --- ray queries
+    if L[-1].strip():
+        add("")
     add("## Ray queries")
     add("")
     add("Rays/s of one thread over a fixed ray set per scene (`bench/ray_queries.cpp`, "
@@ -667,9 +672,15 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     else:
         add("Not measured in this run.")
     add("")
-    # Measured by hand with scripts/farm-bench (its commands are in it); carry it over.
-    L.extend(hand_written_sections(path, ("### Costs that grow with the work (the render-farm "
-                                          "case)",), level="### "))
+    # Measured by hand (scripts/farm-bench, farm_sim, scripts/farm-scaling; their commands are
+    # in them); carry them over.
+    L.extend(hand_written_sections(path, ("### Abseil's deadlock detection off (2026-11-27)",
+                                          "### Reports in the background (issue 16: the worker "
+                                          "overlaps)",
+                                          "### Costs that grow with the work (the render-farm "
+                                          "case)",
+                                          "### Farm scaling: 1 to 8 workers (issue 16)"),
+                                   level="### "))
     # The "Start-up" and "Per-iteration allocations" sections are measured by hand (their
     # commands are in them); carry them over.
     L.extend(hand_written_sections(path, ("## Closest hits through Scene::intersect (issue 16)",
@@ -678,6 +689,9 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
                                           "(issue 16)")))
     L.extend(reference.document_lines(path, reference_result))
     path.write_text("\n".join(L) + "\n")
+
+
+ISSUE_16_TITLE = "## Issue 16: where each target stands"
 
 
 def hand_written_sections(path, titles=("## Start-up",), level="## "):
