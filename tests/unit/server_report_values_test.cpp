@@ -20,6 +20,7 @@
 
 #include "core/render/render_iterations.h"
 #include "server/accumulator.h"
+#include "tests/support/temp_dir.h"
 
 using namespace render;
 using namespace render::server;
@@ -28,11 +29,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path temp_dir(const std::string& name) {
-    fs::path dir = fs::temp_directory_path() /
-                   ("server_report_values_test_" + name + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
+    return render::testing::fresh_temp_dir("server_report_values_test", name);
 }
 
 std::vector<double> random_values(size_t n, uint64_t seed) {

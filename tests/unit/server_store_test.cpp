@@ -14,6 +14,7 @@
 #include "server/asset_store.h"
 #include "server/job_store.h"
 #include "server/validation.h"
+#include "tests/support/temp_dir.h"
 
 using namespace render;
 using namespace render::server;
@@ -21,11 +22,7 @@ namespace fs = std::filesystem;
 
 namespace {
 fs::path temp_dir(const std::string& name) {
-    fs::path dir = fs::temp_directory_path() /
-                   ("server_store_test_" + name + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
+    return render::testing::fresh_temp_dir("server_store_test", name);
 }
 }  // namespace
 
