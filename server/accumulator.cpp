@@ -6,12 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <stdexcept>
 #include <utility>
 
 #include "core/image/exr_io.h"
+#include "core/util/log.h"
 
 namespace render::server {
 
@@ -152,9 +154,21 @@ void FrameAccumulator::add(Range range, const ReportValues& values, bool odd_omi
     if (!values.complete() || values.count() != ((odd_omitted ? 1 : 2) + layer_count()) * n)
         throw std::invalid_argument("accumulator: buffer size mismatch");
     std::vector<double> scratch_sum, scratch_other;
-    add_blocks(range, odd_omitted, odd_count, stats, [&](size_t offset, size_t first, size_t m) {
-        return values.block(offset + first, m, offset == 0 ? scratch_sum : scratch_other);
-    });
+    try {
+        add_blocks(
+            range, odd_omitted, odd_count, stats, [&](size_t offset, size_t first, size_t m) {
+                return values.block(offset + first, m, offset == 0 ? scratch_sum : scratch_other);
+            });
+    } catch (const std::exception& e) {
+        // A spooled report's file could not be read back (a disk error): some of its blocks
+        // may already be in the sums, and floating-point sums cannot be un-added exactly, so
+        // the sums no longer match their ranges. Going on would merge wrong values (and the
+        // worker's retry would add them again). The server stops instead: restarted, it
+        // resumes from the frame's checkpoint and leases again what merged since, as after any
+        // crash, so nothing is lost or counted twice.
+        Log("error", "report_unreadable").kv("error", e.what()).kv("action", "abort");
+        std::abort();
+    }
 }
 
 Image FrameAccumulator::average() const {
