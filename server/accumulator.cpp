@@ -14,6 +14,7 @@
 
 #include "core/image/exr_io.h"
 #include "core/util/log.h"
+#include "server/write_all.h"
 
 namespace render::server {
 
@@ -36,13 +37,8 @@ void get(std::ifstream& in, T& v, const std::filesystem::path& file) {
 }
 
 void write_all(int fd, const char* data, size_t size, const std::filesystem::path& file) {
-    while (size > 0) {
-        ssize_t n = ::write(fd, data, size);
-        if (n < 0)
-            throw std::runtime_error("cannot write " + file.string() + ": " + std::strerror(errno));
-        data += n;
-        size -= size_t(n);
-    }
+    if (!server::write_all(fd, data, size))
+        throw std::runtime_error("cannot write " + file.string() + ": " + std::strerror(errno));
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "core/base/memory_budget.h"
+#include "server/write_all.h"
 
 namespace render::server {
 
@@ -152,14 +153,8 @@ std::string AssetStore::Upload::write(const std::string& data) {
         return "asset " + sha256_ + " has more than the declared " + std::to_string(size_) +
                " bytes";
     hash_.update(data);
-    const char* p = data.data();
-    size_t left = data.size();
-    while (left > 0) {
-        ssize_t n = ::write(fd_, p, left);
-        if (n < 0) return std::string("cannot write asset: ") + std::strerror(errno);
-        p += n;
-        left -= size_t(n);
-    }
+    if (!write_all(fd_, data.data(), data.size()))
+        return std::string("cannot write asset: ") + std::strerror(errno);
     received_ += data.size();
     return {};
 }

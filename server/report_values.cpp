@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "server/write_all.h"
+
 namespace render::server {
 
 namespace {
@@ -98,14 +100,9 @@ std::string ReportValues::append(std::string_view bytes, bool* spool_failed) {
             if (!std::isfinite(memory_[i])) return not_finite(i);
         return "";
     }
-    for (size_t written = 0; written < bytes.size();) {
-        const ssize_t n = ::write(fd_, bytes.data() + written, bytes.size() - written);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) {
-            if (spool_failed) *spool_failed = true;
-            return system_error("cannot spool the report to " + dir_.string());
-        }
-        written += size_t(n);
+    if (!write_all(fd_, bytes.data(), bytes.size())) {
+        if (spool_failed) *spool_failed = true;
+        return system_error("cannot spool the report to " + dir_.string());
     }
     received_ += bytes.size();
     // Check each value whose last byte arrived: first the value split by the previous chunk,
