@@ -15,7 +15,7 @@
 #include "bench/bench_scenes.h"
 #include "core/integrators/beam_grid.h"
 #include "core/integrators/beams_along_ray.h"
-#include "core/integrators/vertex_cm.h"
+#include "core/integrators/bidirectional/bidirectional_integrator.h"
 #include "core/media/medium_interface.h"
 #include "core/render/algorithms.h"
 #include "core/render/render_options.h"
@@ -42,7 +42,7 @@ const BeamInput& beam_input(const std::string& name, bool long_beams) {
     RenderSettings settings = resolve_render_settings(
         "upbp", {{"photon_beam_length", long_beams ? "long" : "short"}}, s.settings);
     const std::unique_ptr<Integrator> integrator = make_integrator(settings);
-    const auto& upbp = dynamic_cast<const VertexConnectionMerging&>(*integrator);
+    const auto& upbp = dynamic_cast<const BidirectionalIntegrator&>(*integrator);
     PhotonBeamInspection beams = upbp.inspect_photon_beams(s, IterationKey{7, 0, 1});
     in.beams = std::move(beams.lines);
     in.radius = float(beams.radius);

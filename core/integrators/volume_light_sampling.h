@@ -9,7 +9,7 @@
 #include <cmath>
 
 #include "core/integrators/direct_light.h"
-#include "core/integrators/vcm_mis.h"
+#include "core/integrators/bidirectional/vcm_mis.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 #include "core/scene/volume_emitter.h"

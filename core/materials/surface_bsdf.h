@@ -68,7 +68,7 @@ class SurfaceBsdf {
 };
 
 // std::optional<SurfaceBsdf> without optional's separate engaged flag (8 bytes with padding):
-// empty is a null BSDF pointer. Stored light vertices hold one each (vertex_cm.cpp), so a
+// empty is a null BSDF pointer. Stored light vertices hold one each (bidirectional/subpath.h), so a
 // smaller record is a smaller iteration. The subset of std::optional's interface they use.
 class OptionalSurfaceBsdf {
   public:

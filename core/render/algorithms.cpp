@@ -3,9 +3,10 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "core/integrators/bidirectional/bidirectional_integrator.h"
 #include "core/integrators/eyelight.h"
+#include "core/integrators/many_lights/many_light_integrator.h"
 #include "core/integrators/path_tracer.h"
-#include "core/integrators/vertex_cm.h"
 #include "core/integrators/volumetric_path_tracer.h"
 #include "core/media/medium.h"
 #include "core/render/render_options.h"
@@ -15,33 +16,32 @@ namespace render {
 
 namespace {
 
-BidirectionalConfig bidirectional_config(BidirectionalMode mode, const RenderSettings& s) {
+// The settings every algorithm of the bidirectional family reads.
+BidirectionalConfig bidirectional_config(BidirectionalAlgorithm algorithm,
+                                         const RenderSettings& s) {
     BidirectionalConfig config;
-    config.mode = mode;
-    config.max_depth = s.max_depth;
-    config.rr_depth = s.rr_depth;
-    config.radius_factor = s.radius_factor;
-    config.alpha = s.alpha;
-    config.light_path_count = s.light_path_count;
+    config.algorithm = algorithm;
+    config.subpaths = {
+        .max_depth = s.max_depth, .rr_depth = s.rr_depth, .light_path_count = s.light_path_count};
+    config.merging = {.radius_factor = s.radius_factor, .alpha = s.alpha};
     config.mis_power = s.mis_power;
     return config;
 }
 
-template <BidirectionalMode mode>
+template <BidirectionalAlgorithm algorithm>
 std::unique_ptr<Integrator> make_bidirectional(const RenderSettings& s) {
-    return std::make_unique<VertexConnectionMerging>(bidirectional_config(mode, s));
+    return std::make_unique<BidirectionalIntegrator>(bidirectional_config(algorithm, s));
 }
 
 // vpl and ic: the VPLs (light paths per iteration) and their clamp; each adds its own options.
-BidirectionalConfig many_light_config(BidirectionalMode mode, const RenderSettings& s) {
-    BidirectionalConfig config;
-    config.mode = mode;
-    config.max_depth = s.max_depth;
-    config.rr_depth = s.rr_depth;
-    config.light_path_count = s.vpl_paths;
-    config.vpl_clamp = s.vpl_clamp;
-    config.vpl_clamp_schedule =
-        s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed;
+ManyLightConfig many_light_config(ManyLightEstimator estimator, const RenderSettings& s) {
+    ManyLightConfig config;
+    config.estimator = estimator;
+    config.subpaths = {
+        .max_depth = s.max_depth, .rr_depth = s.rr_depth, .light_path_count = s.vpl_paths};
+    config.clamp = {
+        .factor = s.vpl_clamp,
+        .schedule = s.vpl_clamp_shrinking ? VplClampSchedule::Shrinking : VplClampSchedule::Fixed};
     return config;
 }
 
@@ -80,7 +80,7 @@ const std::vector<Algorithm>& table() {
              "light tracing (homogeneous and grid media, emitting media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kConnecting,
-         .create = make_bidirectional<BidirectionalMode::LightTracing>},
+         .create = make_bidirectional<BidirectionalAlgorithm::LightTracing>},
         {.name = "bpt",
          .description =
              "bidirectional path tracing (homogeneous and grid media, emitting media in closed "
@@ -93,29 +93,27 @@ const std::vector<Algorithm>& table() {
                       {{"joint_connections", "on"}},
                       {{"joint_connections", "all"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Bpt, s);
-             config.ic_connections = s.ic_connections;
-             config.joint_connections = s.joint_connections;
-             config.joint2_connections = s.joint2_connections;
-             config.ic_light_paths = s.ic_light_paths;
-             config.ic_record_density = s.ic_record_density;
-             config.ic_samples = s.connection_samples;
-             config.ic_heuristic = s.ic_heuristic;
-             return std::make_unique<VertexConnectionMerging>(config);
+             BidirectionalConfig config = bidirectional_config(BidirectionalAlgorithm::Bpt, s);
+             config.joint = {.j1 = s.joint_connections, .j2 = s.joint2_connections};
+             config.ic_connections = {.enabled = s.ic_connections, .light_paths = s.ic_light_paths};
+             config.cache = {.record_density = s.ic_record_density,
+                             .samples = s.connection_samples,
+                             .heuristic = s.ic_heuristic};
+             return std::make_unique<BidirectionalIntegrator>(config);
          }},
         {.name = "ppm",
          .description = "progressive photon mapping (homogeneous and grid media: photon points; "
                         "emitting media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
-         .create = make_bidirectional<BidirectionalMode::Ppm>},
+         .create = make_bidirectional<BidirectionalAlgorithm::Ppm>},
         {.name = "bpm",
          .description =
              "bidirectional photon mapping (homogeneous and grid media, emitting media in closed "
              "shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
-         .create = make_bidirectional<BidirectionalMode::Bpm>},
+         .create = make_bidirectional<BidirectionalAlgorithm::Bpm>},
         {.name = "vcm",
          .description = "vertex connection and merging (homogeneous and grid media, emitting "
                         "media in closed shapes)",
@@ -129,9 +127,9 @@ const std::vector<Algorithm>& table() {
                  throw std::invalid_argument(
                      "--joint-connections all (J2 connections) is bpt only: vcm's merge weights "
                      "have no J2 factors; use --joint-connections on (J1) with vcm");
-             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
-             config.joint_connections = s.joint_connections;
-             return std::make_unique<VertexConnectionMerging>(config);
+             BidirectionalConfig config = bidirectional_config(BidirectionalAlgorithm::Vcm, s);
+             config.joint.j1 = s.joint_connections;
+             return std::make_unique<BidirectionalIntegrator>(config);
          }},
         {.name = "upbp",
          .description =
@@ -156,17 +154,17 @@ const std::vector<Algorithm>& table() {
                        {"photon_beam_length", "long"},
                        {"photon_beam_eta", "2r"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config = bidirectional_config(BidirectionalMode::Vcm, s);
-             config.vertex_connections = s.vertex_connections;
-             config.surface_merging = s.surface_merging;
-             config.photon_points = s.photon_points;
-             config.query_beams = s.query_beams;
-             config.photon_beams = s.photon_beams;
-             config.short_photon_beams = s.short_photon_beams;
-             config.photon_beam_eta = s.photon_beam_eta;
-             config.volume_radius_factor = s.volume_radius_factor;
-             config.volume_alpha = s.volume_alpha;
-             return std::make_unique<VertexConnectionMerging>(config);
+             BidirectionalConfig config = bidirectional_config(BidirectionalAlgorithm::Upbp, s);
+             config.upbp = {.vertex_connections = s.vertex_connections,
+                            .surface_merging = s.surface_merging,
+                            .photon_points = s.photon_points,
+                            .query_beams = s.query_beams,
+                            .photon_beams = s.photon_beams,
+                            .short_photon_beams = s.short_photon_beams,
+                            .photon_beam_eta = s.photon_beam_eta,
+                            .volume_radius_factor = s.volume_radius_factor,
+                            .volume_alpha = s.volume_alpha};
+             return std::make_unique<BidirectionalIntegrator>(config);
          }},
         {.name = "vpl",
          .aliases = {"instant_radiosity"},
@@ -175,11 +173,11 @@ const std::vector<Algorithm>& table() {
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
                      "vpl_distribution", "importance_records", "vpl_min_probability"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config = many_light_config(BidirectionalMode::Vpl, s);
-             config.vpl_importance = s.vpl_importance;
-             config.importance_records = s.importance_records;
-             config.vpl_min_probability = s.vpl_min_probability;
-             return std::make_unique<VertexConnectionMerging>(config);
+             ManyLightConfig config = many_light_config(ManyLightEstimator::Vpl, s);
+             config.importance = {.enabled = s.vpl_importance,
+                                  .records = s.importance_records,
+                                  .min_probability = s.vpl_min_probability};
+             return std::make_unique<ManyLightIntegrator>(config);
          }},
         {.name = "ic",
          .aliases = {"importance_caching"},
@@ -190,13 +188,13 @@ const std::vector<Algorithm>& table() {
                      "ic_record_density", "ic_samples", "ic_heuristic", "ic_optimise",
                      "ic_distributions"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             BidirectionalConfig config = many_light_config(BidirectionalMode::Ic, s);
-             config.ic_record_density = s.ic_record_density;
-             config.ic_samples = s.ic_samples;
-             config.ic_heuristic = s.ic_heuristic;
-             config.ic_power_only = s.ic_power_only;
-             config.ic_optimise = s.ic_optimise;
-             return std::make_unique<VertexConnectionMerging>(config);
+             ManyLightConfig config = many_light_config(ManyLightEstimator::Ic, s);
+             config.cache = {.record_density = s.ic_record_density,
+                             .samples = s.ic_samples,
+                             .heuristic = s.ic_heuristic,
+                             .power_only = s.ic_power_only,
+                             .optimise = s.ic_optimise};
+             return std::make_unique<ManyLightIntegrator>(config);
          }},
         {.name = "eyelight",
          .description = "debug shading: |cos| at the first hit (surfaces only)",

@@ -4,14 +4,16 @@
 #include <thread>
 
 #include "core/base/memory_budget.h"
-#include "core/integrators/vertex_cm.h"
+#include "core/integrators/bidirectional/record_bounds.h"
 #include "core/render/algorithms.h"
 
 namespace render {
 
 namespace {
 
-// Sizes of vertex_cm.cpp's stored records: bounds that file checks with static_assert.
+using namespace bidirectional;  // the record bounds
+
+// Sizes of the iteration's stored records: bounds its headers check with static_assert.
 // A stored light vertex (LightVertex: the vertex, its direction, throughput and MIS values).
 constexpr uint64_t kLightVertexBytes = kLightVertexBytesBound;
 // A photon beam (PhotonBeam), its line for the lookup (BeamLine) and its references in the
@@ -28,8 +30,8 @@ constexpr uint64_t kVolumeEstimatorBytes = kPhotonBeamBytes + 128;
 // (BeamReplay, one per beam in such an iteration). The estimate does not see the scene's media,
 // so it charges it wherever short beams are on.
 constexpr uint64_t kBeamReplayBytes = kBeamReplayBytesBound;
-// The light pass's chunks (vertex_cm.cpp: 256 light paths each, 4 in flight per thread), whose
-// vertices are copied into the iteration's arrays.
+// The light pass's chunks (bidirectional/light_pass.cpp: 256 light paths each, 4 in flight per
+// thread), whose vertices are copied into the iteration's arrays.
 constexpr uint64_t kLightPathsPerChunk = 256;
 constexpr uint64_t kChunksInFlightPerThread = 4;
 // Each thread's own buffers whatever the algorithm: tiles, sample arenas, Embree's ray
@@ -96,9 +98,9 @@ IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings
         part(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
              std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
                  " stored vertices x " + std::to_string(per_vertex) + " B");
-        // bpt's J2 keeps each light path's rays in homogeneous media (vertex_cm.cpp's LightRay:
-        // the emission ray and one per scattering vertex, up to V + 1, and the path's 4-B end)
-        // and each stored vertex's J2 state in a side array (Joint2Vertex), in the chunks too.
+        // bpt's J2 keeps each light path's rays in homogeneous media (iteration_storage.h's
+        // LightRay: the emission ray and one per scattering vertex, up to V + 1, and the path's 4-B
+        // end) and each stored vertex's J2 state in a side array (Joint2Vertex), in the chunks too.
         const bool joint2 =
             name == "bpt" && settings.joint_connections && settings.joint2_connections;
         const uint64_t joint2_per_path = joint2

@@ -16,7 +16,7 @@
 #include <map>
 #include <vector>
 
-#include "core/integrators/vcm_mis.h"
+#include "core/integrators/bidirectional/vcm_mis.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 

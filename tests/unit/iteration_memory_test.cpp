@@ -7,10 +7,11 @@
 #include <gtest/gtest.h>
 
 #include "core/base/memory_budget.h"
-#include "core/integrators/vertex_cm.h"
+#include "core/integrators/bidirectional/record_bounds.h"
 
 namespace render {
 namespace {
+using namespace bidirectional;  // the record bounds
 
 RenderSettings settings_for(const std::string& algorithm, int max_depth = -1, int rr_depth = 5) {
     RenderSettings s;

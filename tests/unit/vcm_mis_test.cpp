@@ -3,7 +3,7 @@
 // For explicit paths (camera, a few vertices with diffuse, glossy and mirror BSDFs or in a
 // medium, and an area, point, directional or constant light) the test runs the subpath
 // recursions of vcm_mis.h along the path from both ends, exactly as the integrator
-// (vertex_cm.cpp) does while tracing, and evaluates the weight of every technique that can
+// (core/integrators/bidirectional/) does while tracing, and evaluates the weight of every technique that can
 // produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
 // (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex, and in fog the
 // J1 joint connections (every junction with a medium vertex on the eye side, s = 1 included)
@@ -28,7 +28,7 @@
 // so the segment toward such a light crosses the fog only up to the ball (the vacuum beyond is
 // passed with probability one), and its densities are those of that length.
 
-#include "core/integrators/vcm_mis.h"
+#include "core/integrators/bidirectional/vcm_mis.h"
 
 #include <gtest/gtest.h>
 
@@ -79,7 +79,7 @@ struct PathVertex {
     bool specular = false;
 
     bool in_medium() const { return phase != nullptr; }
-    // |cos| as the densities use it: 1 in the medium (vertex_cm.cpp's Vertex::cos).
+    // |cos| as the densities use it: 1 in the medium (subpath.h, Vertex::cos).
     float cos(const Vec3& w) const { return phase ? 1.0f : abs_dot(n, w); }
 };
 
@@ -478,7 +478,7 @@ class MisSumTest : public ::testing::Test {
         MisQuantities q = end_.volume ? start_volume_light_mis(mis, end_.direct_pdf_a)
                                       : mis.start_light(end_.direct_pdf_a, end_.emission_pdf_w,
                                                         end_.cos_light, end_.delta);
-        float carried = 0;         // J1: the previous vertex's connection term (vertex_cm.cpp)
+        float carried = 0;         // J1: the previous vertex's connection term (segments.cpp)
         float carried_beam = 0;    // P-B2D: the previous vertex's scatter factor
         float carried_photon = 0;  // B-B1D: the previous vertex's deferred term
         for (size_t i = 0; i < m; ++i) {
@@ -741,7 +741,7 @@ class MisSumTest : public ::testing::Test {
                      // J1 of the junction whose eye-side vertex is i, sampled from i + 1.
                      .light_joint_ratio = joint_ratio(int(i), int(i) + 1)});
             }
-            case TechniqueKind::QueryBeam: {  // vertex_cm.cpp, query_beams
+            case TechniqueKind::QueryBeam: {  // beams.cpp, query_beams
                 // The eye subpath as if it had arrived at the photon's projection on the query
                 // (here the photon itself), with the distance density left to the weight.
                 const size_t i = t.vertex;
@@ -760,7 +760,7 @@ class MisSumTest : public ::testing::Test {
                      .photon_beam = mis.photon_beam_light_term(beam_sin(i), 1.0f, light_distance(i),
                                                                beam_sigma_t(i))});
             }
-            case TechniqueKind::PhotonBeam: {  // vertex_cm.cpp, photon_beams
+            case TechniqueKind::PhotonBeam: {  // beams.cpp, photon_beams
                 // Both subpaths as if they had arrived at the closest approach (here the vertex
                 // itself), their distance densities left to the weight.
                 const size_t i = t.vertex;

@@ -8,7 +8,7 @@
 #include <cmath>
 #include <string>
 
-#include "core/integrators/vertex_cm.h"
+#include "core/integrators/many_lights/many_light_integrator.h"
 #include "core/integrators/vpl_distribution.h"
 #include "core/render/algorithms.h"
 #include "core/render/render_iterations.h"
@@ -172,7 +172,7 @@ TEST(VplImportance, EveryCandidatesEstimateMatchesItsImageIntegral) {
         "vpl", {{"vpl_distribution", "importance"}, {"vpl_paths", "16"}}, scene->settings);
     settings.importance_records = 20000;  // beyond the option's usual range: a tight estimate
     const auto integrator = make_integrator(settings);
-    const auto& vpl = dynamic_cast<const VertexConnectionMerging&>(*integrator);
+    const auto& vpl = dynamic_cast<const ManyLightIntegrator&>(*integrator);
     const VplSelection selection = vpl.inspect_vpl_selection(*scene, IterationKey{11, 0, 3});
     ASSERT_GE(selection.candidates.size(), 8u);
     ASSERT_EQ(selection.importance_records, 20000);
@@ -273,7 +273,7 @@ TEST(Vpl, VplsBehindTheShadingPointContributeNothing) {
         {"vpl_distribution", "importance"}, {"vpl_min_probability", "1"}, {"vpl_paths", "1024"}};
     RenderSettings settings = resolve_render_settings("vpl", options, with_plate->settings);
     const auto integrator = make_integrator(settings);
-    const VplSelection selection = dynamic_cast<const VertexConnectionMerging&>(*integrator)
+    const VplSelection selection = dynamic_cast<const ManyLightIntegrator&>(*integrator)
                                        .inspect_vpl_selection(*with_plate, IterationKey{5, 0, 1});
     int behind = 0;
     for (const VplCandidate& c : selection.candidates)

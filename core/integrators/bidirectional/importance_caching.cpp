@@ -1,129 +1,12 @@
-// Many-light rendering in the bidirectional family's Iteration: VPL connections, the
-// importance-driven VPL selection and importance caching.
-
-#include "core/integrators/vcm_iteration.h"
+// Importance caching (ic, and bpt's ic connections): the records' tables over the light
+// vertices, and the draw of light vertices from the mixtures of the nearest records.
+#include "core/integrators/bidirectional/iteration.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_pipeline.h>
-#include <tbb/task_arena.h>
 
-namespace render::vcm_detail {
-
-Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
-                              Rng& rng, RenderStats& stats) const {
-    const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
-    if (!g) return Rgb(0.0f);
-    const Vertex& w = lv.vertex;
-    const Vec3& d = g->d;
-    // A VPL connection is the only technique for its paths: weight 1, and the estimator
-    // averages over the N_L light paths of the iteration.
-    const float geometry =
-        v.shading_cos(d) * w.shading_cos(d) / std::max(g->dist2, clamp2) * vpl_scale_;
-    const Rgb contribution = g->eye.f * g->light.f * geometry;
-    if (contribution.is_black()) return Rgb(0.0f);
-    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
-    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
-    return contribution * visibility(l, ray, stats);
-}
-
-std::optional<Iteration::Record> Iteration::trace_record(uint64_t index, RenderStats& stats) const {
-    Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kRecordStreamBase + index});
-    const Vec2 u = rng.next_2d();
-    return trace_record_at(Vec2(u.x * float(camera_.width()), u.y * float(camera_.height())), rng,
-                           stats);
-}
-
-std::optional<Iteration::Record> Iteration::trace_record_at(Vec2 position, Rng& rng,
-                                                            RenderStats& stats) const {
-    std::vector<Record> records;
-    trace_records_at(position, 1, rng, stats, records);
-    if (records.empty()) return std::nullopt;
-    return std::move(records.front());
-}
-
-void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats& stats,
-                                 std::vector<Record>& out) const {
-    const size_t wanted = out.size() + size_t(count);
-    Ray ray = camera_.generate_ray(position);
-    const Vec3 camera_direction = ray.direction;
-    SubpathState state;
-    state.throughput = Rgb(1.0f);
-    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
-    state.medium = scene_.camera_medium();
-    float distance = 0;
-    for (;; ++state.path_length) {
-        SampledSegment seg;
-        std::optional<SubpathVertex> v =
-            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
-        if (!v || state.path_length >= max_length_) return;
-        distance += seg.distance;
-        if (v->has_non_delta()) {
-            out.push_back(Record{*v, -ray.direction, state.throughput, state.path_length, distance,
-                                 camera_direction, state.mis});
-            if (out.size() == wanted) return;
-        }
-        if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return;
-    }
-}
-
-std::vector<double> Iteration::estimate_vpl_importance(RenderStats& stats) const {
-    std::vector<Record> records;
-    for (int j = 0; j < config_.importance_records; ++j)
-        if (std::optional<Record> r = trace_record(uint64_t(j), stats)) records.push_back(*r);
-    const float clamp2 = record_clamp2();
-    std::vector<double> phi(light_vertices_.size(), 0.0);
-    tbb::combinable<RenderStats> local_stats;
-    using Range = tbb::blocked_range<size_t>;
-    tbb::parallel_for(Range(0, light_vertices_.size()), [&](const Range& range) {
-        RenderStats& local = local_stats.local();
-        for (size_t k = range.begin(); k < range.end(); ++k) {
-            const LightVertex& lv = light_vertices_[k];
-            Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kImportanceStreamBase + k});
-            double sum = 0;
-            for (const Record& r : records) {
-                if (lv.path_length + 1 + r.path_length > max_length_) continue;
-                const Rgb c = r.throughput * lv.throughput *
-                              vpl_connection(lv, r.vertex, r.wo, clamp2, rng, local);
-                const double y = c.luminance();
-                if (std::isfinite(y) && y > 0) sum += y;
-            }
-            phi[k] = sum / double(config_.importance_records);
-        }
-    });
-    local_stats.combine_each([&](const RenderStats& s) { stats += s; });
-    return phi;
-}
-
-void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
-    const size_t candidates = light_vertices_.size();
-    stats.vpl_candidates += candidates;
-    if (candidates == 0) return;
-    const std::vector<double> phi = estimate_vpl_importance(stats);
-    // Keep candidate k with P_k (fixed before any draw, so E[kept / P_k] = 1 for each k).
-    const std::vector<double> keep = vpl_keep_probabilities(phi, config_.vpl_min_probability);
-    BlockVector<LightVertex> kept;
-    for (size_t k = 0; k < candidates; ++k) {
-        const double p = keep[k];
-        Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kAcceptStreamBase + k});
-        const bool accepted = p >= 1.0 || double(rng.next_1d()) < p;
-        if (inspection) {
-            const LightVertex& lv = light_vertices_[k];
-            inspection->candidates.push_back(VplCandidate{lv.vertex.p, lv.vertex.n, lv.wo,
-                                                          lv.vertex.bsdf, lv.throughput,
-                                                          lv.path_length, phi[k], p, accepted});
-        }
-        if (!accepted) continue;
-        LightVertex v = light_vertices_[k];
-        v.throughput = v.throughput * float(1.0 / p);
-        kept.push_back(std::move(v));
-    }
-    stats.vpl_accepted += kept.size();
-    light_vertices_ = std::move(kept);
-    path_ends_.clear();  // vpl connects to every vertex; paths are no longer needed
-}
+namespace render::bidirectional {
 
 IcRecordTables Iteration::record_tables(const Record& r, float radius,
                                         std::span<const uint8_t> mask, Rng& rng,
@@ -133,8 +16,8 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
     const float clamp2 = record_clamp2();
     for (size_t k = 0; k < m; ++k) {
         const LightVertex& lv = light_vertices_[k];
-        if (lv.path_length + 1 + r.path_length > max_length_) continue;
-        if (ic_connections_) {
+        if (lv.path_length + 1 + r.path_length > plan_.max_length) continue;
+        if (plan_.ic_connections) {
             // bpt: the table entries are the connection's own MIS-weighted contribution at the
             // record (the weight tames the 1 / d^2 of nearby vertices, so no clamp).
             const std::optional<ConnectionTerms> t =
@@ -170,20 +53,20 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
 }
 
 void Iteration::build_importance_cache(RenderStats& stats) {
-    // Paths are concatenated in order, so the first ic_light_path_count_ paths' vertices are a
+    // Paths are concatenated in order, so the first plan_.ic_light_path_count paths' vertices are a
     // prefix of light_vertices_.
-    ic_vertex_count_ = path_ends_.empty() ? 0 : path_ends_[ic_light_path_count_ - 1];
+    ic_vertex_count_ = path_ends_.empty() ? 0 : path_ends_[plan_.ic_light_path_count - 1];
     const size_t m = ic_vertex_count_;
     path_ends_.clear();  // importance caching draws from the cached vertices; no paths needed
-    ic_weighting_.heuristic = config_.ic_heuristic;
-    if (config_.ic_power_only) {
+    ic_weighting_.heuristic = plan_.cache.heuristic;
+    if (plan_.cache.power_only) {
         // The baseline the paper compares with: no records; every shading point draws all
         // 4 n of its VPLs from one distribution proportional to the VPLs' power (its C slot:
         // with no record, the mixture is the fallback alone).
         std::vector<double> power(m);
         for (size_t k = 0; k < m; ++k) power[k] = light_vertices_[k].throughput.luminance();
         ic_fallback_ = ImportanceTable(power);
-        ic_samples_ = IcSampleCounts{{0, 0, 0, 4 * config_.ic_samples}};
+        ic_samples_ = IcSampleCounts{{0, 0, 0, 4 * plan_.cache.samples}};
         return;
     }
     // C: every VPL that carries power, the same mask at every record and in the fallback (a
@@ -192,7 +75,7 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     for (size_t k = 0; k < m; ++k) mask[k] = !light_vertices_[k].throughput.is_black();
     ic_fallback_ = conservative_table(mask);
     ic_samples_ = IcSampleCounts{
-        {config_.ic_samples, config_.ic_samples, config_.ic_samples, config_.ic_samples}};
+        {plan_.cache.samples, plan_.cache.samples, plan_.cache.samples, plan_.cache.samples}};
     ic_lookup_.lambda = ic_default_lambda(2.0 * scene_.bounding_sphere().radius);
     if (m == 0) return;
 
@@ -200,11 +83,11 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     // the tables would exceed kIcTableBytes.
     // ic shades only the first non-delta eye vertex; bpt connects at every eye vertex, so its
     // record paths go on and hold records at their first few non-delta vertices.
-    const int per_path = ic_connections_ ? kIcConnectionRecordsPerPath : 1;
+    const int per_path = plan_.ic_connections ? kIcConnectionRecordsPerPath : 1;
     const int width = camera_.width(), height = camera_.height();
     const double table_bytes = 4.0 * double(m + 1) * sizeof(double) * per_path;
     // The density counts records: bpt's record paths are per_path times sparser.
-    double cell = 1.0 / std::sqrt(config_.ic_record_density / per_path);
+    double cell = 1.0 / std::sqrt(plan_.cache.record_density / per_path);
     cell = std::max(cell, std::sqrt(double(width) * height * table_bytes / kIcTableBytes));
     const int nx = std::max(1, int(std::ceil(width / cell))),
               ny = std::max(1, int(std::ceil(height / cell)));
@@ -244,7 +127,7 @@ void Iteration::build_importance_cache(RenderStats& stats) {
         }
     }
     ic_tables_.resize(usable.size());
-    const bool optimise = config_.ic_optimise && config_.ic_heuristic == IcHeuristic::AlphaMax;
+    const bool optimise = plan_.cache.optimise && plan_.cache.heuristic == IcHeuristic::AlphaMax;
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, usable.size()), [&](const tbb::blocked_range<size_t>& range) {
             RenderStats& local = local_stats.local();
@@ -260,4 +143,26 @@ void Iteration::build_importance_cache(RenderStats& stats) {
     ic_tree_ = IcRecordTree(std::move(points));
 }
 
-}  // namespace render::vcm_detail
+void Iteration::draw_from_importance_caches(const Vertex& v, int eye_length, Rng& rng,
+                                            FunctionRef<Rgb(const LightVertex&)> term,
+                                            ContributionSink add) const {
+    if (ic_vertex_count_ == 0 || ic_fallback_.empty()) return;
+    const IcNeighbours near = ic_tree_.nearest(v.p, v.n, ic_lookup_);
+    std::array<const IcRecordTables*, kIcMaxRecords> tables{};
+    for (int i = 0; i < near.count; ++i) tables[size_t(i)] = &ic_tables_[near.index[size_t(i)]];
+    const IcMixture mixture(
+        std::span<const IcRecordTables* const>(tables.data(), size_t(near.count)), ic_fallback_);
+    for (IcType t : kIcTypes) {
+        if (mixture.empty(t)) continue;
+        for (int s = 0; s < ic_samples_[t]; ++s) {
+            const double u_record = double(rng.next_1d());
+            const size_t k = mixture.sample(t, u_record, next_double(rng));
+            const double factor = ic_sample_factor(t, mixture.pmfs(k), ic_samples_, ic_weighting_);
+            const LightVertex& lv = light_vertices_[k];
+            if (!(factor > 0) || lv.path_length + 1 + eye_length > plan_.max_length) continue;
+            add(lv.path_length + 1, term(lv) * float(factor));
+        }
+    }
+}
+
+}  // namespace render::bidirectional

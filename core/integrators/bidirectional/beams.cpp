@@ -1,10 +1,10 @@
 // Query beams (P-B2D) and photon beams (B-B1D) of the bidirectional family's Iteration.
 
-#include "core/integrators/vcm_iteration.h"
+#include "core/integrators/bidirectional/iteration.h"
 
 #include <numeric>
 
-namespace render::vcm_detail {
+namespace render::bidirectional {
 
 void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
                                            TransportMode mode) const {
@@ -33,7 +33,7 @@ Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                                   query_beams_in_piece(ray, state, medium, piece, t_end, before,
                                                        transmittance, rng, sum);
                               });
-    return sum * beam_normalization_;
+    return sum * plan_.beam_normalization;
 }
 
 void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
@@ -49,7 +49,7 @@ void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
     lookup.for_each_near(query, [&](uint32_t i, float t, float) {
         const LightVertex& lv = light_vertices_[medium_index_[i]];
         if (lv.vertex.medium != medium) return;  // a photon of another medium
-        if (lv.path_length + state.path_length > max_length_) return;
+        if (lv.path_length + state.path_length > plan_.max_length) return;
         const Vec3 x = piece.at(t);
         const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
         if (!(p > 0)) return;
@@ -138,7 +138,7 @@ constexpr float kMaxPhotonBeamLength = 4 * kMaxSceneCoordinate;
 void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
                                   const SampledSegment& seg, uint64_t path_index, uint32_t& piece,
                                   Rng& rng, RenderStats& stats) const {
-    const bool short_beams = config_.short_photon_beams;
+    const bool short_beams = plan_.short_photon_beams;
     PhotonBeamStaging& out = storage_.photon_beam_staging.local();
     PhotonBeam beam;
     std::optional<BeamReplay> replay;  // set where the beam replays its walk
@@ -282,7 +282,7 @@ void Iteration::build_photon_beams() {
     lines.clear();
     lines.reserve(beams.size());
     for (const PhotonBeam& b : beams) lines.push_back(b.line);
-    const float r = float(photon_beam_radius_);
+    const float r = float(plan_.photon_beam_radius);
     Aabb box = scene_.bounds();
     box.lo = box.lo - Vec3(r);
     box.hi = box.hi + Vec3(r);
@@ -313,7 +313,7 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                                   photon_beams_in_piece(ray, state, medium, piece, t_end, before,
                                                         transmittance, rng, sum);
                               });
-    return sum * photon_beam_normalization_;
+    return sum * plan_.photon_beam_normalization;
 }
 
 void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
@@ -331,8 +331,8 @@ void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, 
                                       photon_beams_in_piece(ray, state, medium, piece, t_end,
                                                             before, transmittance, rng, photon_sum);
                               });
-    query_sum = query_sum * beam_normalization_;
-    photon_sum = photon_sum * photon_beam_normalization_;
+    query_sum = query_sum * plan_.beam_normalization;
+    photon_sum = photon_sum * plan_.photon_beam_normalization;
 }
 
 void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
@@ -340,14 +340,14 @@ void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
                                       const SegmentDensityBuilder& before, const Rgb& transmittance,
                                       Rng& rng, Rgb& sum) const {
     const std::vector<PhotonBeam>& beams = storage_.photon_beams;
-    const bool short_beams = config_.short_photon_beams;
+    const bool short_beams = plan_.short_photon_beams;
     {
         Ray query = piece;
         query.t_max = t_end;
         auto gather = [&](uint32_t i, const BeamApproach& a) {
             const PhotonBeam& b = beams[i];
             if (b.medium != medium) return;  // a beam of another medium
-            if (b.path_length + state.path_length > max_length_) return;
+            if (b.path_length + state.path_length > plan_.max_length) return;
             const Vec3 x = piece.at(a.t_ray);
             const float sigma_t = medium->sigma_t(x).average();
             if (!(sigma_t > 0)) return;
@@ -396,4 +396,4 @@ void Iteration::photon_beams_in_piece(const Ray& ray, const SubpathState& state,
     }
 }
 
-}  // namespace render::vcm_detail
+}  // namespace render::bidirectional

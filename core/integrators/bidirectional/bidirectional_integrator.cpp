@@ -1,0 +1,47 @@
+#include "core/integrators/bidirectional/bidirectional_integrator.h"
+
+#include "core/integrators/bidirectional/iteration.h"
+
+namespace render {
+
+using bidirectional::Iteration;
+using bidirectional::IterationStorage;
+
+BidirectionalIntegrator::BidirectionalIntegrator(const BidirectionalConfig& config)
+    : config_(config), storage_(std::make_unique<IterationStorage>()) {}
+
+BidirectionalIntegrator::~BidirectionalIntegrator() = default;
+
+void BidirectionalIntegrator::render_iteration(const Scene& scene, const IterationKey& key,
+                                               AccumulationBuffer& target, TechniqueLayers* layers,
+                                               RenderStats& stats) const {
+    std::lock_guard lock(storage_mutex_);
+    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
+                        *storage_);
+    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
+        iteration.trace_light_paths(stats, bidirectional::splats_into(target, layers, stats));
+        if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(stats);
+    }
+    const int width = scene.camera().width(), height = scene.camera().height();
+    for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
+        return iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
+    });
+}
+
+PhotonBeamInspection BidirectionalIntegrator::inspect_photon_beams(const Scene& scene,
+                                                                   const IterationKey& key) const {
+    PhotonBeamInspection out;
+    if (config_.algorithm != BidirectionalAlgorithm::Upbp || !config_.upbp.photon_beams ||
+        (scene.lights().empty() && scene.volume_lights().empty()))
+        return out;
+    IterationStorage storage;
+    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
+                        storage);
+    RenderStats stats;
+    iteration.trace_light_paths(stats, [](std::span<const bidirectional::Splat>) {});
+    out.lines = storage.photon_beam_lines;
+    out.radius = iteration.photon_beam_radius();
+    return out;
+}
+
+}  // namespace render

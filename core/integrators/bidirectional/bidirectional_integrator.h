@@ -1,0 +1,56 @@
+#pragma once
+
+// The bidirectional family on one set of MIS quantities: light tracing, bidirectional path
+// tracing, progressive photon mapping, bidirectional photon mapping, vertex connection and
+// merging (Georgiev, Krivanek, Davidovic and Slusallek 2012) and unified points, beams and paths
+// (Krivanek et al. 2014). The implementation follows the technical report "Implementing Vertex
+// Connection and Merging" (Georgiev 2012, below "the report"): every subpath carries the
+// recursive partial weights dVCM, dVC and dVM, from which every technique's MIS weight is
+// computed locally. The algorithms differ only in which techniques they enable: the
+// configuration (config.h) says which, the iteration's plan (iteration_plan.h) holds the result.
+
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "core/integrators/beams_along_ray.h"
+#include "core/integrators/bidirectional/config.h"
+#include "core/integrators/integrator.h"
+
+namespace render {
+
+// One iteration's photon beams as the beam lookup sees them (upbp with photon beams), for the
+// benchmark of the lookup (bench/beam_lookup.cpp).
+struct PhotonBeamInspection {
+    std::vector<BeamLine> lines;
+    double radius = 0;
+};
+
+namespace bidirectional {
+struct IterationStorage;  // iteration_storage.h
+}  // namespace bidirectional
+
+class BidirectionalIntegrator final : public Integrator {
+  public:
+    explicit BidirectionalIntegrator(const BidirectionalConfig& config);
+    ~BidirectionalIntegrator() override;
+
+    void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
+                          TechniqueLayers* layers, RenderStats& stats) const override;
+
+    const BidirectionalConfig& config() const { return config_; }
+
+    // The photon beams of one iteration (upbp with photon beams; empty otherwise), as the
+    // iteration builds them; for benchmarks.
+    PhotonBeamInspection inspect_photon_beams(const Scene& scene, const IterationKey& key) const;
+
+  private:
+    BidirectionalConfig config_;
+    // Reused by each render_iteration (cleared, capacity kept), so that iterations after the
+    // first do not fault in hundreds of MB of fresh pages; calls on one integrator from
+    // several threads take turns.
+    mutable std::mutex storage_mutex_;
+    mutable std::unique_ptr<bidirectional::IterationStorage> storage_;
+};
+
+}  // namespace render

@@ -1,0 +1,51 @@
+#include "core/integrators/many_lights/many_light_integrator.h"
+
+#include "core/integrators/many_lights/many_light_eye_pass.h"
+
+namespace render {
+
+using bidirectional::Iteration;
+using bidirectional::IterationStorage;
+
+ManyLightIntegrator::ManyLightIntegrator(const ManyLightConfig& config)
+    : config_(config), storage_(std::make_unique<IterationStorage>()) {}
+
+ManyLightIntegrator::~ManyLightIntegrator() = default;
+
+void ManyLightIntegrator::render_iteration(const Scene& scene, const IterationKey& key,
+                                           AccumulationBuffer& target, TechniqueLayers* layers,
+                                           RenderStats& stats) const {
+    std::lock_guard lock(storage_mutex_);
+    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
+                        *storage_);
+    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
+        // The light pass's vertices are the VPLs (no splats: nothing connects to the camera).
+        iteration.trace_light_paths(stats, bidirectional::splats_into(target, layers, stats));
+        if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(stats);
+        if (iteration.plan().ic) iteration.build_importance_cache(stats);
+    }
+    const int width = scene.camera().width(), height = scene.camera().height();
+    for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
+        return trace_many_light_eye_path(iteration, pixel, local, LayerSink{layers, pixel});
+    });
+}
+
+VplSelection ManyLightIntegrator::inspect_vpl_selection(const Scene& scene,
+                                                        const IterationKey& key) const {
+    VplSelection selection;
+    if (config_.estimator != ManyLightEstimator::Vpl || !config_.importance.enabled ||
+        scene.lights().empty())
+        return selection;
+    IterationStorage storage;
+    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
+                        storage);
+    RenderStats stats;
+    iteration.trace_light_paths(stats, [](std::span<const bidirectional::Splat>) {});
+    iteration.select_vpls(stats, &selection);
+    selection.light_paths = iteration.light_path_count();
+    selection.importance_records = config_.importance.records;
+    selection.record_distance_clamp = std::sqrt(double(iteration.record_clamp2()));
+    return selection;
+}
+
+}  // namespace render
