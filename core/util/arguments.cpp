@@ -32,13 +32,15 @@ const ArgumentParser::Option* ArgumentParser::find(const std::string& arg,
     return nullptr;
 }
 
-void ArgumentParser::parse(const std::vector<std::string>& args) const {
+size_t ArgumentParser::parse_options(const std::vector<std::string>& args,
+                                     bool stop_at_positional) const {
     for (size_t i = 0; i < args.size(); ++i) {
         const std::string& a = args[i];
         std::string attached;
         const Option* o = a.size() > 1 && a[0] == '-' ? find(a, &attached) : nullptr;
         if (!o) {
             if (a.size() > 1 && a[0] == '-') throw UsageError("unknown option " + a);
+            if (stop_at_positional) return i;
             if (!positional_) throw UsageError("unexpected argument \"" + a + "\"");
             positional_(a);
             continue;
@@ -52,6 +54,15 @@ void ArgumentParser::parse(const std::vector<std::string>& args) const {
             o->on_value(args[++i]);
         }
     }
+    return args.size();
+}
+
+void ArgumentParser::parse(const std::vector<std::string>& args) const {
+    parse_options(args, false);
+}
+
+size_t ArgumentParser::parse_leading(const std::vector<std::string>& args) const {
+    return parse_options(args, true);
 }
 
 void ArgumentParser::parse(int argc, char** argv, int first) const {
@@ -59,11 +70,19 @@ void ArgumentParser::parse(int argc, char** argv, int first) const {
 }
 
 std::string ArgumentParser::help() const {
-    constexpr size_t kColumn = 24, kWidth = 96;
-    std::ostringstream out;
+    std::vector<std::pair<std::string, std::string>> rows;
     for (const Option& o : options_) {
         std::string head = "  " + o.names.front() + (o.metavar.empty() ? "" : " " + o.metavar);
         for (size_t i = 1; i < o.names.size(); ++i) head += ", " + o.names[i];
+        rows.emplace_back(std::move(head), o.help);
+    }
+    return help_rows(rows);
+}
+
+std::string help_rows(const std::vector<std::pair<std::string, std::string>>& rows) {
+    constexpr size_t kColumn = 24, kWidth = 96;
+    std::ostringstream out;
+    for (const auto& [head, help] : rows) {
         out << head;
         size_t column = head.size();
         if (column + 2 > kColumn) {
@@ -71,7 +90,7 @@ std::string ArgumentParser::help() const {
             column = 0;
         }
         // Wrap the help text at word boundaries.
-        std::istringstream words(o.help);
+        std::istringstream words(help);
         std::string word;
         bool line_start = true;
         size_t used = kColumn;

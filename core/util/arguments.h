@@ -36,6 +36,9 @@ class ArgumentParser {
     // flag. Throws UsageError for an unknown option or a missing value.
     void parse(const std::vector<std::string>& args) const;
     void parse(int argc, char** argv, int first = 1) const;
+    // The options before the first positional argument (a command, whose arguments follow),
+    // as parse() does; returns that argument's index (args.size() when there is none).
+    size_t parse_leading(const std::vector<std::string>& args) const;
 
     // "  --name METAVAR    help" lines, aligned, help text wrapped at 96 columns.
     std::string help() const;
@@ -48,10 +51,15 @@ class ArgumentParser {
         FlagHandler on_flag;
     };
     const Option* find(const std::string& arg, std::string* attached) const;
+    size_t parse_options(const std::vector<std::string>& args, bool stop_at_positional) const;
 
     std::vector<Option> options_;
     ValueHandler positional_;
 };
+
+// Help lines: each row's head (indented by the caller, e.g. "  --seed N") followed by its text
+// aligned at column 24 (on the next line when the head is longer), wrapped at 96 columns.
+std::string help_rows(const std::vector<std::pair<std::string, std::string>>& rows);
 
 // Strict number parsing: the whole text must be a number of type T in its range.
 // Throws UsageError naming `what` (usually the flag).

@@ -643,6 +643,42 @@ TEST_F(PbrtTest, IncludeAndImport) {
     EXPECT_EQ(summary.integrator, "bpt");
 }
 
+TEST_F(PbrtTest, ConfinedLoadRefusesFilesOutsideTheFolderAsMitsubaDoes) {
+    // Both loaders check confinement with one FolderConfinement (file_resolver.h): the same
+    // file outside the job's folder is refused with the same message.
+    write("outside.ply", "");
+    write("outside.pbrt", "");
+    write("job/inside.pbrt", "Shape \"sphere\"\n");
+    const fs::path job = dir_ / "job";
+    auto confined_error = [&](const fs::path& scene) -> std::string {
+        try {
+            load_scene(scene, {}, job);
+        } catch (const SceneError& e) {
+            return e.what();
+        }
+        return "(no error)";
+    };
+    const std::string outside = (dir_ / "outside.ply").string() + " is outside " +
+                                fs::weakly_canonical(job).string() +
+                                " (a job reads only the files of its bundle)";
+    const fs::path pbrt_scene = write(
+        "job/scene.pbrt", kHeader + "Shape \"plymesh\" \"string filename\" \"../outside.ply\"\n");
+    EXPECT_EQ(confined_error(pbrt_scene), pbrt_scene.string() + ":5: " + outside);
+    const fs::path xml_scene =
+        write("job/scene.xml",
+              "<scene version=\"3.0.0\"><sensor type=\"perspective\"/>\n<shape type=\"ply\">"
+              "<string name=\"filename\" value=\"../outside.ply\"/></shape></scene>");
+    EXPECT_NE(confined_error(xml_scene).find("parameter \"filename\": " + outside),
+              std::string::npos)
+        << confined_error(xml_scene);
+    EXPECT_EQ(confined_error(write("job/inc.pbrt", kHeader + "Include \"../outside.pbrt\"\n")),
+              (dir_ / "job/inc.pbrt").string() + ":5: " + (dir_ / "outside.pbrt").string() +
+                  " is outside " + fs::weakly_canonical(job).string() +
+                  " (a job reads only the files of its bundle)");
+    EXPECT_NO_THROW(
+        load_scene(write("job/ok.pbrt", kHeader + "Include \"inside.pbrt\"\n"), {}, job));
+}
+
 TEST_F(PbrtTest, DirectiveErrorsNameFileAndLine) {
     EXPECT_NE(world_error("Shape \"sphere\"\nFrobnicate 3\n")
                   .find(at_body_line(2) + " unknown directive \"Frobnicate\""),

@@ -336,6 +336,25 @@ TEST(ArgumentParser, ParsesValuesFlagsAttachedDefinesAndPositionals) {
     EXPECT_NE(p.help().find("--out FILE, -o"), std::string::npos) << p.help();
 }
 
+TEST(ArgumentParser, LeadingOptionsStopAtTheCommand) {
+    // The client's global options: parsed up to the command, whose arguments are its own.
+    std::string server;
+    ArgumentParser p;
+    p.value({"--server"}, "HOST:PORT", "server", [&](const std::string& v) { server = v; });
+    const std::vector<std::string> args = {"--server", "h:1", "fetch", "j", "--out", "x.exr"};
+    EXPECT_EQ(p.parse_leading(args), 2u);
+    EXPECT_EQ(server, "h:1");
+    EXPECT_EQ(p.parse_leading({"--server", "h:2"}), 2u);
+    EXPECT_EQ(p.parse_leading({"list", "--server", "h:3"}), 0u);
+    EXPECT_EQ(server, "h:2");
+    EXPECT_THROW(p.parse_leading({"--bogus", "list"}), UsageError);
+    EXPECT_THROW(p.parse_leading({"--server"}), UsageError);
+    // help_rows: the layout of help(), for tables that are not options (the client's commands).
+    EXPECT_EQ(help_rows({{"  --server HOST:PORT", "server"}}), p.help());
+    EXPECT_EQ(help_rows({{"  a-long-command-synopsis X", "text"}}),
+              "  a-long-command-synopsis X\n" + std::string(24, ' ') + "text\n");
+}
+
 TEST(ArgumentParser, NumbersAreStrict) {
     EXPECT_EQ(parse_number<int>("--n", "42"), 42);
     EXPECT_EQ(parse_number<double>("--x", "1e-3"), 1e-3);

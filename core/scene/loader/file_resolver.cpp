@@ -41,4 +41,24 @@ std::optional<fs::path> FileResolver::resolve(const fs::path& name,
     return std::nullopt;
 }
 
+fs::path canonical_path(const fs::path& p) {
+    std::error_code ec;
+    fs::path c = fs::weakly_canonical(p, ec);
+    return ec ? fs::absolute(p).lexically_normal() : c;
+}
+
+FolderConfinement::FolderConfinement(const fs::path& folder)
+    : confined_(!folder.empty()), root_(confined_ ? canonical_path(folder) : fs::path()) {}
+
+bool FolderConfinement::outside(const fs::path& path) const {
+    if (!confined_) return false;
+    const std::string rel = canonical_path(path).lexically_relative(root_).generic_string();
+    return rel.empty() || rel == ".." || rel.rfind("../", 0) == 0;
+}
+
+std::string FolderConfinement::outside_message(const fs::path& path) const {
+    return path.string() + " is outside " + root_.string() +
+           " (a job reads only the files of its bundle)";
+}
+
 }  // namespace render

@@ -8,9 +8,14 @@
 //
 // The scene loader and the client's bundle collector (client/bundle.cpp) both resolve through
 // this class, so a job carries exactly the files its scene resolves to.
+//
+// Path confinement (the `confine_to` folder of load_scene) is here too: both scene loaders
+// (Mitsuba, core/scene/loader, and pbrt, core/scene/pbrt) check their files with
+// FolderConfinement, so the two refuse a file outside the job's folder with the same message.
 
 #include <filesystem>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace render {
@@ -39,6 +44,28 @@ class FileResolver {
   private:
     std::filesystem::path scene_dir_;
     std::vector<std::filesystem::path> search_paths_;
+};
+
+// `p` with symbolic links resolved (std::filesystem::weakly_canonical); the absolute, lexically
+// normalised `p` when that fails.
+std::filesystem::path canonical_path(const std::filesystem::path& p);
+
+// The only folder a scene may read from. A non-empty `folder` (a loader's `confine_to`)
+// confines: every included file, every plugin's file and every search folder must lie inside
+// it after resolving symbolic links. An empty one confines nothing.
+class FolderConfinement {
+  public:
+    explicit FolderConfinement(const std::filesystem::path& folder);
+
+    // True when `path` (a file or a folder) lies outside the folder; never when unconfined.
+    bool outside(const std::filesystem::path& path) const;
+    // "PATH is outside FOLDER (a job reads only the files of its bundle)": the refusal both
+    // loaders report (after their own prefix) for a path outside() is true of.
+    std::string outside_message(const std::filesystem::path& path) const;
+
+  private:
+    bool confined_ = false;
+    std::filesystem::path root_;
 };
 
 }  // namespace render

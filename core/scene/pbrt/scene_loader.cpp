@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/base/memory_budget.h"
+#include "core/scene/loader/file_resolver.h"
 #include "core/scene/pbrt/builders.h"
 #include "core/scene/pbrt/graphics_state.h"
 #include "core/scene/pbrt/tokenizer.h"
@@ -37,19 +38,10 @@ std::string read_text(const fs::path& path, const SourceLocation& from) {
     return out.str();
 }
 
-fs::path canonical_path(const fs::path& p) {
-    std::error_code ec;
-    fs::path c = fs::weakly_canonical(p, ec);
-    return ec ? fs::absolute(p).lexically_normal() : c;
-}
-
 class Loader {
   public:
     Loader(Scene& scene, fs::path scene_dir, const fs::path& confine_to)
-        : scene_(scene),
-          scene_dir_(std::move(scene_dir)),
-          confined_(!confine_to.empty()),
-          confine_root_(confined_ ? canonical_path(confine_to) : fs::path()) {}
+        : scene_(scene), scene_dir_(std::move(scene_dir)), confinement_(confine_to) {}
 
     void run_file(const fs::path& path, const SourceLocation& from, int depth) {
         if (depth > kMaxIncludeDepth) throw SceneError(from, "includes are nested too deeply");
@@ -77,22 +69,13 @@ class Loader {
   private:
     // ----- helpers -----
 
-    bool outside(const fs::path& path) const {
-        if (!confined_) return false;
-        const std::string rel =
-            canonical_path(path).lexically_relative(confine_root_).generic_string();
-        return rel.empty() || rel == ".." || rel.rfind("../", 0) == 0;
-    }
-
     // pbrt resolves relative names against the main scene file's folder.
     fs::path resolve(const std::string& name, const SourceLocation& where) const {
         if (name.empty()) throw SceneError(where, "empty file name");
         fs::path p(name);
         if (p.is_relative()) p = scene_dir_ / p;
         p = p.lexically_normal();
-        if (outside(p))
-            throw SceneError(where, p.string() + " is outside " + confine_root_.string() +
-                                        " (a job reads only the files of its bundle)");
+        if (confinement_.outside(p)) throw SceneError(where, confinement_.outside_message(p));
         return p;
     }
 
@@ -611,8 +594,7 @@ class Loader {
 
     Scene& scene_;
     fs::path scene_dir_;
-    bool confined_ = false;
-    fs::path confine_root_;
+    FolderConfinement confinement_;
     std::set<std::string> open_files_;
     GraphicsState state_;
     std::vector<std::pair<GraphicsState, SourceLocation>> attributes_;

@@ -1,0 +1,48 @@
+#pragma once
+
+// The client's connection to the server (address, token, stub) and a failed call on it.
+
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "render.grpc.pb.h"
+#include "service/rpc.h"
+
+namespace render::service {
+
+constexpr double kRpcTimeout = 30.0;
+
+struct RpcFailure : std::runtime_error {
+    RpcFailure(const std::string& call, const grpc::Status& s)
+        : std::runtime_error(call + " failed: " + describe(s)), status(s) {}
+    grpc::Status status;
+};
+
+struct Connection {
+    std::string address;
+    std::string token;
+    std::unique_ptr<v1::JobService::Stub> stub;
+
+    void prepare(grpc::ClientContext& context, double timeout = kRpcTimeout) const {
+        prepare_context(context, token, timeout);
+    }
+};
+
+// The connection the global options ask for (empty ones fall back to the environment:
+// RENDER_TOKEN, RENDER_TLS_CA, RENDER_TLS_SERVER_NAME). Nothing, after printing the problem,
+// for an unusable TLS setup or a token that would travel in clear.
+std::optional<Connection> connect_to_server(const std::string& server, const std::string& token,
+                                            const std::string& tls_ca,
+                                            const std::string& tls_server_name);
+
+// Whether the channel is TLS: --tls-ca or env RENDER_TLS_CA.
+bool tls_used(const std::string& tls_ca_flag);
+
+// A hint for a server that cannot be reached: a TLS mismatch shows up as UNAVAILABLE.
+std::string connection_hint(const grpc::Status& status, bool tls);
+
+v1::Job get_job(const Connection& c, const std::string& job_id);
+
+}  // namespace render::service
