@@ -27,8 +27,14 @@ import sys
 import tempfile
 from pathlib import Path
 
-# Folders whose markdown is not the repository's own documentation.
-SKIP_DIRS = {".git", "build", "out", "node_modules", "__pycache__"}
+# Folders whose markdown is not the repository's own documentation: version control, output,
+# and build trees (any folder named build*, or holding a CMakeCache.txt, e.g. with _deps/).
+SKIP_DIRS = {".git", "out", "node_modules", "__pycache__", "_deps", ".cache", ".venv", "venv"}
+
+
+def skipped(parent: Path, name: str) -> bool:
+    return (name in SKIP_DIRS or name.startswith(("build", "cmake-build"))
+            or (parent / name / "CMakeCache.txt").exists())
 
 # [text](target) and ![alt](target); the target up to whitespace or ')'.
 INLINE_LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
@@ -48,7 +54,7 @@ CLEAN_DIRS = ("docs/reference/", "docs/design/")
 def markdown_files(root: Path):
     out = []
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if d not in SKIP_DIRS)
+        dirnames[:] = sorted(d for d in dirnames if not skipped(Path(dirpath), d))
         for name in sorted(filenames):
             if name.endswith(".md"):
                 out.append(Path(dirpath) / name)
@@ -272,7 +278,7 @@ def _copy_markdown_tree(src: Path, dst: Path):
     """A copy of the tree that holds every markdown file and, as empty files, everything a
     link could point to (so that existence checks behave as in the real tree)."""
     for dirpath, dirnames, filenames in os.walk(src):
-        dirnames[:] = [d for d in dirnames if d not in SKIP_DIRS]
+        dirnames[:] = [d for d in dirnames if not skipped(Path(dirpath), d)]
         rel = Path(dirpath).relative_to(src)
         (dst / rel).mkdir(parents=True, exist_ok=True)
         for name in filenames:
