@@ -683,7 +683,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("")
     L.extend(reference.document_lines(path, reference_result))
     handwritten.check_nothing_dropped(path, L)
-    path.write_text("\n".join(L) + "\n")
+    path.write_text("\n".join(L).rstrip("\n") + "\n")
 
 
 # The hand-written page (relative to docs/) and its sections that the generated document links
