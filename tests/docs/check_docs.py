@@ -4,7 +4,7 @@
 1. Every page under docs/ (every *.md but docs/README.md itself) is linked from the index,
    docs/README.md, and from the docs row of the top-level README.md.
 2. Every relative markdown link in the repository's own markdown files (README.md,
-   CHANGELOG.md, docs/**/*.md and every other tracked-looking *.md outside build and output
+   CHANGELOG.md, docs/**/*.md and every other *.md outside version control, output and build
    folders) points to a file or folder that exists inside the repository. Links with a
    scheme (https:, mailto:) and links to an anchor of the same page are not checked; an
    absolute path (/...) counts as outside the repository. A link to a heading of a markdown
@@ -35,6 +35,7 @@ SKIP_DIRS = {".git", "out", "node_modules", "__pycache__", "_deps", ".cache", ".
 def skipped(parent: Path, name: str) -> bool:
     return (name in SKIP_DIRS or name.startswith(("build", "cmake-build"))
             or (parent / name / "CMakeCache.txt").exists())
+
 
 # [text](target) and ![alt](target); the target up to whitespace or ')'.
 INLINE_LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
