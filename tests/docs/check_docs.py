@@ -103,6 +103,13 @@ def anchors(path: Path):
 
 def check_links(root: Path, files):
     problems = []
+    cache = {}
+
+    def anchors_of(page: Path):
+        if page not in cache:
+            cache[page] = anchors(page)
+        return cache[page]
+
     for f in files:
         rel = f.relative_to(root)
         for line, target in links(f.read_text(encoding="utf-8")):
@@ -111,7 +118,7 @@ def check_links(root: Path, files):
             path, _, fragment = target.partition("#")
             path = path.split("?", 1)[0]
             if not path:
-                if fragment and fragment not in anchors(f):
+                if fragment and fragment not in anchors_of(f):
                     problems.append(f"{rel}:{line}: link {target}: no such heading in this page")
                 continue
             if path.startswith("/"):
@@ -126,7 +133,7 @@ def check_links(root: Path, files):
                 continue
             if not resolved.exists():
                 problems.append(f"{rel}:{line}: link {target} points to a missing file")
-            elif fragment and resolved.suffix == ".md" and fragment not in anchors(resolved):
+            elif fragment and resolved.suffix == ".md" and fragment not in anchors_of(resolved):
                 problems.append(f"{rel}:{line}: link {target}: no such heading in "
                                 f"{resolved.relative_to(root).as_posix()}")
     return problems
@@ -238,10 +245,11 @@ def self_test(root: Path) -> int:
          "an issue number"),
     ]
     failed = 0
-    for name, plant, expected in plants:
-        with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
-            copy = Path(tmp) / "repo"
-            _copy_markdown_tree(root, copy)
+    with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
+        copy = Path(tmp) / "repo"
+        _copy_markdown_tree(root, copy)
+        pristine = {f: f.read_bytes() for f in markdown_files(copy)}
+        for name, plant, expected in plants:
             plant(copy)
             reported = check(copy)
             if not any(expected in p for p in reported):
@@ -249,6 +257,15 @@ def self_test(root: Path) -> int:
                 failed += 1
             else:
                 print(f"self-test: planted {name}: reported")
+            # Undo the plant: the markdown files as copied, no other markdown file.
+            for f in markdown_files(copy):
+                if f not in pristine:
+                    f.unlink()
+            for f, data in pristine.items():
+                f.write_bytes(data)
+            if check(copy):
+                print(f"self-test: undoing the planted {name} failed")
+                return 1
     # Links inside code are examples, not links.
     if links("`[x](nowhere.md)`\n\n```\n[y](nowhere.md)\n```\n"):
         print("self-test: a link inside code was taken for a link")
