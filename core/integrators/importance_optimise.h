@@ -1,7 +1,7 @@
 #pragma once
 
 // The "distribution optimisation" of importance caching (thesis "FUBC alpha" vs "unopt";
-// ../shared/ALGORITHMS-NEXT.md section 2.4): at each record, a VPL keeps its entry only in the
+// docs/design/algorithms-next.md section 2.4): at each record, a VPL keeps its entry only in the
 // table of the technique that alpha-max gives it *at that record* (from the record's own
 // pmfs), and every table is renormalised, so no sample drawn near the record is spent on a VPL
 // another technique will be credited with.

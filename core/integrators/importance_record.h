@@ -1,7 +1,7 @@
 #pragma once
 
 // The four per-record VPL distributions of importance caching (Georgiev, Krivanek, Popov,
-// Slusallek, EG 2012; thesis ch. 5; ../shared/ALGORITHMS-NEXT.md section 2.2), as plain
+// Slusallek, EG 2012; thesis ch. 5; docs/design/algorithms-next.md section 2.2), as plain
 // numbers: the integrator computes, for one importance record r and each of the iteration's M
 // VPLs v, the luminances it needs, and this file turns them into tables.
 //   F (full)          ~ lum h(r, v), visibility included

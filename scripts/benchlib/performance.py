@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchlib import reference
+from benchlib import handwritten, reference
 
 SOURCE_DIR = Path(__file__).resolve().parents[2]
 
@@ -404,9 +404,18 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("(`render_bench --benchmark_list_tests` lists them; `--benchmark_filter=REGEX` runs a "
         "subset.)")
 
-    # Issue 16's targets in one table, written by hand from the sections below; carried over.
+    # What was measured by hand lives in the hand-written notes page; link its sections (this
+    # raises when one of them is missing there).
     add("")
-    L.extend(hand_written_sections(path, (ISSUE_16_TITLE,)))
+    add("## Measured by hand")
+    add("")
+    add(f"Measured by hand, each with its command, machine and load, in [{NOTES_PAGE}]"
+        f"({NOTES_PAGE}) (not written by `scripts/bench`); changes since the run above are in "
+        "[CHANGELOG.md](../CHANGELOG.md).")
+    add("")
+    # The notes page is the repository's (also when --out writes elsewhere).
+    L.extend(handwritten.section_links(SOURCE_DIR / "docs" / NOTES_PAGE, NOTES_SECTIONS,
+                                       NOTES_PAGE))
 
     # --- ray queries
     if L[-1].strip():
@@ -457,7 +466,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "and interpolated, and a shading frame built). On the 1 M-triangle mesh those "
             "fetches are cache misses into about 25 MB of vertex and index data, so the wrapper's share does "
             "not shrink with scene size (issue 16's target is 0.92: see \"Closest hits through "
-            "Scene::intersect (issue 16)\" below). ")
+            f"Scene::intersect (issue 16)\" in [{NOTES_PAGE}]({NOTES_PAGE})). ")
     if occluded_ratios:
         add(f"Occlusion rays do no extra work in our wrapper (ratio "
             f"{min(occluded_ratios):.2f}–{max(occluded_ratios):.2f}: noise). ")
@@ -530,7 +539,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         "positions, splats added to the image) on one thread while the others trace later "
         "chunks; the hash grid is built in parallel, then the eye pass is parallel over "
         "16 × 16 tiles (`core/integrators/vertex_cm.cpp`, \"Parallel iteration steps and peak "
-        "memory\" below). What is left per iteration is waiting at the end of each parallel "
+        f"memory\" in [{NOTES_PAGE}]({NOTES_PAGE})). What is left per iteration is waiting at the end of each parallel "
         "phase for its last chunk or tile, and the two threads sharing the memory bus and "
         "the L3 cache.")
     if profiles:
@@ -658,7 +667,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             + (f"at most {server_ms:.0f} ms per report (median)" if server_ms else "little")
             + ", against seconds of rendering per lease; checkpoints are written at most "
             "every 30 s by the server's tick, not by the reports (see *Costs that grow with "
-            "the work* below). "
+            f"the work* in [{NOTES_PAGE}]({NOTES_PAGE})). "
             "The per-job fixed costs are the asset check, each worker's scene load, a lease "
             "round trip per lease, and the first one-iteration lease of every worker (its rate "
             "is unknown until then); the scheduler sizes later leases to at least 3 s of the "
@@ -672,45 +681,23 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     else:
         add("Not measured in this run.")
     add("")
-    # Measured by hand (scripts/farm-bench, farm_sim, scripts/farm-scaling; their commands are
-    # in them); carry them over.
-    L.extend(hand_written_sections(path, ("### Abseil's deadlock detection off (2026-11-27)",
-                                          "### Reports in the background (issue 16: the worker "
-                                          "overlaps)",
-                                          "### Costs that grow with the work (the render-farm "
-                                          "case)",
-                                          "### Farm scaling: 1 to 8 workers (issue 16)"),
-                                   level="### "))
-    # The "Start-up" and "Per-iteration allocations" sections are measured by hand (their
-    # commands are in them); carry them over.
-    L.extend(hand_written_sections(path, ("## Closest hits through Scene::intersect (issue 16)",
-                                          "## Start-up", "## Per-iteration allocations (issue 16)",
-                                          "## Parallel iteration steps and peak memory "
-                                          "(issue 16)")))
     L.extend(reference.document_lines(path, reference_result))
-    path.write_text("\n".join(L) + "\n")
+    handwritten.check_nothing_dropped(path, L)
+    path.write_text("\n".join(L).rstrip("\n") + "\n")
 
 
-ISSUE_16_TITLE = "## Issue 16: where each target stands"
-
-
-def hand_written_sections(path, titles=("## Start-up",), level="## "):
-    """The lines of the named sections of the existing document (up to the next heading of
-    `level` or above)."""
-    try:
-        old = Path(path).read_text().split("\n")
-    except OSError:
-        return []
-    kept, keep = [], False
-    for line in old:
-        if line.startswith("#") and line.split(" ")[0] in ("#" * n for n in
-                                                         range(1, len(level.strip()) + 1)):
-            keep = line.strip() in titles
-        if keep:
-            kept.append(line)
-    while kept and not kept[-1].strip():
-        kept.pop()
-    return kept + [""] if kept else []
+# The hand-written page (relative to docs/) and its sections that the generated document links
+# to, in order. Rename a heading there and here together: section_links raises otherwise.
+NOTES_PAGE = "results/performance-notes.md"
+NOTES_SECTIONS = ("## Issue 16: where each target stands",
+                  "### Abseil's deadlock detection off (2026-11-27)",
+                  "### Reports in the background (issue 16: the worker overlaps)",
+                  "### Costs that grow with the work (the render-farm case)",
+                  "### Farm scaling: 1 to 8 workers (issue 16)",
+                  "## Closest hits through Scene::intersect (issue 16)",
+                  "## Start-up",
+                  "## Per-iteration allocations (issue 16)",
+                  "## Parallel iteration steps and peak memory (issue 16)")
 
 
 # ---------------------------------------------------------------------------------------------

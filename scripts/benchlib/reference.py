@@ -3,9 +3,9 @@ process wall time and peak memory of 16 iterations at 512 x 512 on 2 threads, A/
 medians (issue 16's targets: time <= 0.8x, memory <= 1.2x the reference's).
 
 The project never downloads or builds the reference: `scripts/bench --reference-smallvcm PATH`
-takes a binary built by hand (docs/performance.md, "How the reference binary was built"). Its
-command line is `-s SCENE -a ALGO -i ITERATIONS -o FILE` and nothing else: resolution (512 x 512),
-path length (10 segments), merging radius (0.003 x the scene's bounding-sphere radius, alpha
+takes a binary built by hand (docs/results/performance-notes.md, "How the reference binary was
+built"). Its command line is `-s SCENE -a ALGO -i ITERATIONS -o FILE` and nothing else:
+resolution (512 x 512), path length (10 segments), merging radius (0.003 x the scene's bounding-sphere radius, alpha
 0.75) and the base seed are fixed in its config.hxx, and the thread count is
 omp_get_num_procs(), the CPUs in the process's affinity mask (OMP_NUM_THREADS is overridden by
 its omp_set_num_threads). Both programs therefore run pinned to the same THREADS CPUs. Without
@@ -27,6 +27,8 @@ import statistics
 import subprocess
 import time
 from pathlib import Path
+
+from benchlib import handwritten
 
 # Our scene file for each of SmallVCM's scene ids (its g_SceneConfigs, in order;
 # scenes/smallvcm/README.md): 0 glossy floor + small mirror and glass spheres + sun,
@@ -285,15 +287,19 @@ def efficiency_lines(rows):
     return L + [""]
 
 
-# Written by hand (how the binary was built, what differs between the programs): carried over
-# whenever the section is regenerated.
-HAND_WRITTEN = ("### Where the targets stand, and what limits them",
-                "### Since: shadow rays through their own BVH (issue 16, branch `speed-occ`)",
-                "### Since: smaller stored light vertices (issue 16)",
-                "### Since: the merge's fields in one cache line of the stored light vertex "
-                "(issue 16)",
-                "### How the reference binary was built",
-                "### What the two programs compute differently")
+# Written by hand in docs/results/performance-notes.md (what the comparison means, the changes
+# since, how the binary was built, what differs between the programs): performance.py links to
+# these sections after the generated one and stops with an error when one is missing there.
+NOTES_PAGE = "results/performance-notes.md"  # relative to docs/
+# The generated subsection that links to them (the measured section ends before it).
+NOTES_HEADING = "### Analysis, changes since, how the reference was built"
+NOTES_SECTIONS = ("### Where the targets stand, and what limits them",
+                  "### Since: shadow rays through their own BVH (issue 16, branch `speed-occ`)",
+                  "### Since: smaller stored light vertices (issue 16)",
+                  "### Since: the merge's fields in one cache line of the stored light vertex "
+                  "(issue 16)",
+                  "### How the reference binary was built",
+                  "### What the two programs compute differently")
 
 
 def _split(lines):
@@ -321,17 +327,27 @@ def _subsections(section_lines, titles):
 
 
 def document_lines(path, result):
-    """The section for `result` (or the previous measured one) followed by the hand-written
-    subsections of the document at `path`."""
+    """The section for `result` (or, without one, the previous measured section of the document
+    at `path`). The section is generated only: a ### subsection written into it by hand would
+    be lost, so that raises (move it to docs/results/performance-notes.md)."""
     try:
         old = Path(path).read_text().split("\n")
     except OSError:
         old = []
     _, previous, _ = _split(old)
-    hand = _subsections(previous, HAND_WRITTEN)
-    measured = [line for line in previous if line not in hand] if previous else []
-    body = section(result, _subsections(measured, (TITLE,)) if not result else None)
-    return body + hand
+    hand = [line for line in previous if line.startswith("### ") and line != NOTES_HEADING]
+    if hand:
+        raise RuntimeError(f"{path}: the section {TITLE!r} holds subsections that are not "
+                           "generated and would be lost: " + "; ".join(hand) + ". Move them to "
+                           "docs/results/performance-notes.md (and reference.NOTES_SECTIONS).")
+    body = section(result, _subsections(previous, (TITLE,)) if not result else None)
+    while body and not body[-1].strip():
+        body.pop()
+    # The notes page is the repository's (also when --out writes elsewhere).
+    links = handwritten.section_links(Path(__file__).resolve().parents[2] / "docs" / NOTES_PAGE,
+                                      NOTES_SECTIONS, NOTES_PAGE)
+    return body + ["", NOTES_HEADING, "", f"Written by hand in [{NOTES_PAGE}]({NOTES_PAGE}):",
+                   ""] + links + [""]
 
 
 def replace_in_document(path, result):
