@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "core/base/memory_budget.h"
 #include "core/integrators/bidirectional/bidirectional_integrator.h"
 #include "core/integrators/eyelight.h"
 #include "core/integrators/many_lights/many_light_integrator.h"
 #include "core/integrators/path_tracer.h"
 #include "core/integrators/volumetric_path_tracer.h"
 #include "core/media/medium.h"
+#include "core/render/iteration_memory.h"
 #include "core/render/render_options.h"
 #include "core/scene/scene.h"
 
@@ -50,22 +52,34 @@ const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "light_pa
 const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "light_paths",
                                            "mis",       "radius_factor", "alpha"};
 
+// The working memory of the bidirectional family's rows: its stored light paths.
+template <bool merges, bool volume_estimators = false>
+void light_path_memory(const IterationMemoryInput& in, IterationMemoryParts& parts) {
+    add_light_path_memory(in, {.merges = merges, .volume_estimators = volume_estimators}, parts);
+}
+
+const std::vector<std::string> kAllBenchmarks = {"performance", "convergence"};
+
 // Rows name only the fields they set; the others keep their member defaults (GCC's
 // -Wextra would warn about every omitted field of a designated initializer).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmissing-field-initializers"
-const std::vector<Algorithm>& table() {
+std::vector<Algorithm>& table() {
     // One row per algorithm. A new algorithm: its integrator's own file(s) and a row here.
-    static const std::vector<Algorithm> rows = {
+    static std::vector<Algorithm> rows = {
         {.name = "pt",
          .aliases = {"path"},
+         .pbrt_integrators = {"path"},
          .description = "path tracing with next-event estimation (surfaces only)",
          .options = {"max_depth", "rr_depth"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<PathTracer>(s.max_depth, s.rr_depth);
-         }},
+         },
+         .iteration_memory = no_working_memory,
+         .benchmarks = kAllBenchmarks},
         {.name = "volpt",
          .aliases = {"volpath"},
+         .pbrt_integrators = {"volpath"},
          .description =
              "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
              "media)",
@@ -74,14 +88,21 @@ const std::vector<Algorithm>& table() {
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
                                                            s.jis, s.volpt_technique);
-         }},
+         },
+         .iteration_memory = no_working_memory,
+         .benchmarks = kAllBenchmarks},
         {.name = "lt",
+         .pbrt_integrators = {"lightpath"},
          .description =
              "light tracing (homogeneous and grid media, emitting media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kConnecting,
-         .create = make_bidirectional<BidirectionalAlgorithm::LightTracing>},
+         .create = make_bidirectional<BidirectionalAlgorithm::LightTracing>,
+         // Its light vertices are connected to the camera as they are traced, never stored.
+         .iteration_memory = no_working_memory,
+         .benchmarks = kAllBenchmarks},
         {.name = "bpt",
+         .pbrt_integrators = {"bdpt"},
          .description =
              "bidirectional path tracing (homogeneous and grid media, emitting media in closed "
              "shapes); --connections ic: importance-cached connections",
@@ -100,20 +121,35 @@ const std::vector<Algorithm>& table() {
                              .samples = s.connection_samples,
                              .heuristic = s.ic_heuristic};
              return std::make_unique<BidirectionalIntegrator>(config);
-         }},
+         },
+         .iteration_memory =
+             [](const IterationMemoryInput& in, IterationMemoryParts& parts) {
+                 add_light_path_memory(in, {.joint2_possible = true}, parts);
+                 if (in.settings.ic_connections)
+                     add_importance_cache_memory(
+                         in,
+                         saturating_product(in.settings.ic_light_paths, in.light_vertices_per_path),
+                         parts);
+             },
+         .benchmarks = kAllBenchmarks},
         {.name = "ppm",
+         .pbrt_integrators = {"sppm"},
          .description = "progressive photon mapping (homogeneous and grid media: photon points; "
                         "emitting media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
-         .create = make_bidirectional<BidirectionalAlgorithm::Ppm>},
+         .create = make_bidirectional<BidirectionalAlgorithm::Ppm>,
+         .iteration_memory = light_path_memory<true>,
+         .benchmarks = kAllBenchmarks},
         {.name = "bpm",
          .description =
              "bidirectional photon mapping (homogeneous and grid media, emitting media in closed "
              "shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = kMerging,
-         .create = make_bidirectional<BidirectionalAlgorithm::Bpm>},
+         .create = make_bidirectional<BidirectionalAlgorithm::Bpm>,
+         .iteration_memory = light_path_memory<true>,
+         .benchmarks = kAllBenchmarks},
         {.name = "vcm",
          .description = "vertex connection and merging (homogeneous and grid media, emitting "
                         "media in closed shapes)",
@@ -130,7 +166,9 @@ const std::vector<Algorithm>& table() {
              BidirectionalConfig config = bidirectional_config(BidirectionalAlgorithm::Vcm, s);
              config.joint.j1 = s.joint_connections;
              return std::make_unique<BidirectionalIntegrator>(config);
-         }},
+         },
+         .iteration_memory = light_path_memory<true>,
+         .benchmarks = kAllBenchmarks},
         {.name = "upbp",
          .description =
              "unified points, beams and paths (homogeneous and grid media, emitting media in "
@@ -165,7 +203,10 @@ const std::vector<Algorithm>& table() {
                             .volume_radius_factor = s.volume_radius_factor,
                             .volume_alpha = s.volume_alpha};
              return std::make_unique<BidirectionalIntegrator>(config);
-         }},
+         },
+         // Any stored vertex may lie in a medium: a photon beam and a ball of the query beams'
+         // BVH each.
+         .iteration_memory = light_path_memory<true, true>},
         {.name = "vpl",
          .aliases = {"instant_radiosity"},
          .description = "many-light rendering: virtual point lights from light paths (surfaces "
@@ -178,7 +219,12 @@ const std::vector<Algorithm>& table() {
                                   .records = s.importance_records,
                                   .min_probability = s.vpl_min_probability};
              return std::make_unique<ManyLightIntegrator>(config);
-         }},
+         },
+         .iteration_memory =
+             [](const IterationMemoryInput& in, IterationMemoryParts& parts) {
+                 add_vpl_memory(in, in.settings.vpl_importance, parts);
+             },
+         .benchmarks = {"convergence"}},
         {.name = "ic",
          .aliases = {"importance_caching"},
          .description = "many-light rendering with importance caching: each shading point draws "
@@ -195,13 +241,22 @@ const std::vector<Algorithm>& table() {
                              .power_only = s.ic_power_only,
                              .optimise = s.ic_optimise};
              return std::make_unique<ManyLightIntegrator>(config);
-         }},
+         },
+         .iteration_memory =
+             [](const IterationMemoryInput& in, IterationMemoryParts& parts) {
+                 add_vpl_memory(in, false, parts);
+                 add_importance_cache_memory(
+                     in, saturating_product(in.settings.vpl_paths, in.light_vertices_per_path),
+                     parts);
+             },
+         .benchmarks = {"convergence"}},
         {.name = "eyelight",
          .description = "debug shading: |cos| at the first hit (surfaces only)",
          .create = [](const RenderSettings&) -> std::unique_ptr<Integrator> {
              return std::make_unique<EyeLight>();
          },
-         .physically_based = false},
+         .physically_based = false,
+         .iteration_memory = no_working_memory},
     };
     return rows;
 }
@@ -213,7 +268,33 @@ const std::vector<Algorithm>& algorithms() {
     return table();
 }
 
+void no_working_memory(const IterationMemoryInput&, IterationMemoryParts&) {}
+
+void register_algorithm(Algorithm row) {
+    std::string missing;
+    if (row.name.empty()) missing += " name";
+    if (row.description.empty()) missing += " description";
+    if (!row.create) missing += " create";
+    if (!row.iteration_memory) missing += " iteration_memory";
+    if (!missing.empty())
+        throw std::invalid_argument("algorithm row \"" + row.name + "\" lacks:" + missing);
+    std::vector<std::string> names = row.aliases;
+    names.push_back(row.name);
+    for (const std::string& n : names)
+        if (find_algorithm(n)) throw std::invalid_argument("algorithm name \"" + n + "\" is taken");
+    table().push_back(std::move(row));
+}
+
 const Algorithm* find_algorithm(std::string_view name) {
+    // A pbrt scene's integrator, as its loader names it.
+    constexpr std::string_view kPbrt = "pbrt:";
+    if (name.starts_with(kPbrt)) {
+        const std::string_view pbrt = name.substr(kPbrt.size());
+        for (const Algorithm& a : table())
+            for (const std::string& n : a.pbrt_integrators)
+                if (n == pbrt) return &a;
+        return nullptr;
+    }
     for (const Algorithm& a : table()) {
         if (a.name == name) return &a;
         for (const std::string& alias : a.aliases)

@@ -47,6 +47,10 @@ uint64_t add(uint64_t a, uint64_t b) {
     return a > UINT64_MAX - b ? UINT64_MAX : a + b;
 }
 
+uint64_t add_saturating(uint64_t a, uint64_t b) {
+    return add(a, b);
+}
+
 uint64_t mul(uint64_t a, uint64_t b) {
     return saturating_product(a, b);
 }
@@ -60,83 +64,87 @@ uint64_t assumed_light_vertices_per_path(const RenderSettings& settings) {
     return std::min(uint64_t(std::max(settings.max_depth - 1, 0)), roulette);
 }
 
+void IterationMemoryParts::add(uint64_t part_bytes, const std::string& text) {
+    bytes = add_saturating(bytes, part_bytes);
+    what += ", " + text;
+}
+
 IterationMemoryEstimate estimate_iteration_memory(const RenderSettings& settings, uint64_t width,
                                                   uint64_t height, int threads) {
-    const Algorithm* algorithm = find_algorithm(settings.algorithm);
-    const std::string name = algorithm ? algorithm->name : settings.algorithm;
+    const Algorithm& algorithm = find_algorithm_or_throw(settings.algorithm);
     const uint64_t pixels = mul(width, height);
     const uint64_t thread_count =
         threads > 0 ? uint64_t(threads) : std::max(1u, std::thread::hardware_concurrency());
-    const uint64_t vertices_per_path = assumed_light_vertices_per_path(settings);
 
-    IterationMemoryEstimate e;
-    e.bytes = mul(thread_count, kPerThreadBytes);
-    std::string parts = std::to_string(thread_count) +
-                        (thread_count == 1 ? " thread x " : " threads x ") +
-                        format_bytes(kPerThreadBytes);
-    auto part = [&](uint64_t bytes, const std::string& text) {
-        e.bytes = add(e.bytes, bytes);
-        parts += ", " + text;
-    };
-
+    IterationMemoryParts parts;
+    parts.bytes = mul(thread_count, kPerThreadBytes);
     // Technique layers: a sum per layer in the renderer's result and in its iteration image.
     const uint64_t layers = TechniqueLayers::names(settings.layers).size();
     if (layers > 0)
-        part(mul(layers, film_memory_bytes(width, height, 2)),
-             std::to_string(layers) + " technique layers");
+        parts.add(mul(layers, film_memory_bytes(width, height, 2)),
+                  std::to_string(layers) + " technique layers");
+    algorithm.iteration_memory(IterationMemoryInput{settings, pixels, thread_count,
+                                                    assumed_light_vertices_per_path(settings)},
+                               parts);
 
-    const bool stores_light_paths =
-        name == "bpt" || name == "ppm" || name == "bpm" || name == "vcm" || name == "upbp";
-    const bool merges = name == "ppm" || name == "bpm" || name == "vcm" || name == "upbp";
-    if (stores_light_paths) {
-        const uint64_t paths = settings.light_path_count > 0 ? settings.light_path_count : pixels;
-        uint64_t per_vertex = kLightVertexBytes;
-        if (merges) per_vertex += kMergeIndexBytes;
-        if (name == "upbp") per_vertex += kVolumeEstimatorBytes;
-        if (name == "upbp" && settings.photon_beams && settings.short_photon_beams)
-            per_vertex += kBeamReplayBytes;
-        part(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
-             std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
-                 " stored vertices x " + std::to_string(per_vertex) + " B");
-        // bpt's J2 keeps each light path's rays in homogeneous media (iteration_storage.h's
-        // LightRay: the emission ray and one per scattering vertex, up to V + 1, and the path's 4-B
-        // end) and each stored vertex's J2 state in a side array (Joint2Vertex), in the chunks too.
-        const bool joint2 =
-            name == "bpt" && settings.joint_connections && settings.joint2_connections;
-        const uint64_t joint2_per_path = joint2
-                                             ? add(mul(vertices_per_path + 1, kLightRayBytesBound),
-                                                   mul(vertices_per_path, kJoint2VertexBytesBound))
-                                             : 0;
-        if (joint2) part(mul(paths, add(joint2_per_path, 4)), "J2's light rays and vertex states");
-        const uint64_t chunk_paths =
-            std::min(paths, mul(mul(thread_count, kChunksInFlightPerThread), kLightPathsPerChunk));
-        part(mul(chunk_paths, add(mul(vertices_per_path, kLightVertexBytes), joint2_per_path)),
-             "the light pass's chunks in flight");
-    }
-    const bool many_lights = name == "vpl" || name == "ic";
-    const uint64_t vpls = mul(settings.vpl_paths, vertices_per_path);
-    if (many_lights)
-        part(mul(vpls, kLightVertexBytes), std::to_string(settings.vpl_paths) +
-                                               " VPL paths x up to " +
-                                               std::to_string(vertices_per_path) + " VPLs");
-    if (name == "vpl" && settings.vpl_importance)
-        part(mul(mul(vpls, uint64_t(std::max(settings.importance_records, 0))), sizeof(double)),
-             "the VPL importance records");
-    const bool importance_caches = name == "ic" || (name == "bpt" && settings.ic_connections);
-    if (importance_caches) {
-        const uint64_t records =
-            uint64_t(double(pixels) * std::clamp(settings.ic_record_density, 0.0, 1.0)) + 1;
-        const uint64_t cached =
-            name == "ic" ? vpls : mul(settings.ic_light_paths, vertices_per_path);
-        part(mul(mul(records, cached), kImportanceTableBytes),
-             std::to_string(records) + " importance records x up to " + std::to_string(cached) +
-                 " light vertices");
-    }
-    if (stores_light_paths)
-        parts += "; fewer light paths (--light-paths) or a lower --max-depth need less";
-    e.what = name + "'s working memory per iteration (estimated " + format_bytes(e.bytes) + ": " +
-             parts + ")";
+    IterationMemoryEstimate e;
+    e.bytes = parts.bytes;
+    e.what = algorithm.name + "'s working memory per iteration (estimated " +
+             format_bytes(e.bytes) + ": " + std::to_string(thread_count) +
+             (thread_count == 1 ? " thread x " : " threads x ") + format_bytes(kPerThreadBytes) +
+             parts.what + parts.hint + ")";
     return e;
+}
+
+void add_light_path_memory(const IterationMemoryInput& in, const LightPathStorage& storage,
+                           IterationMemoryParts& parts) {
+    const RenderSettings& settings = in.settings;
+    const uint64_t vertices_per_path = in.light_vertices_per_path;
+    const uint64_t paths = settings.light_path_count > 0 ? settings.light_path_count : in.pixels;
+    uint64_t per_vertex = kLightVertexBytes;
+    if (storage.merges) per_vertex += kMergeIndexBytes;
+    if (storage.volume_estimators) per_vertex += kVolumeEstimatorBytes;
+    if (storage.volume_estimators && settings.photon_beams && settings.short_photon_beams)
+        per_vertex += kBeamReplayBytes;
+    parts.add(add(mul(mul(paths, vertices_per_path), per_vertex), mul(paths, 4)),
+              std::to_string(paths) + " light paths x up to " + std::to_string(vertices_per_path) +
+                  " stored vertices x " + std::to_string(per_vertex) + " B");
+    // bpt's J2 keeps each light path's rays in homogeneous media (iteration_storage.h's
+    // LightRay: the emission ray and one per scattering vertex, up to V + 1, and the path's 4-B
+    // end) and each stored vertex's J2 state in a side array (Joint2Vertex), in the chunks too.
+    const bool joint2 =
+        storage.joint2_possible && settings.joint_connections && settings.joint2_connections;
+    const uint64_t joint2_per_path = joint2 ? add(mul(vertices_per_path + 1, kLightRayBytesBound),
+                                                  mul(vertices_per_path, kJoint2VertexBytesBound))
+                                            : 0;
+    if (joint2) parts.add(mul(paths, add(joint2_per_path, 4)), "J2's light rays and vertex states");
+    const uint64_t chunk_paths =
+        std::min(paths, mul(mul(in.threads, kChunksInFlightPerThread), kLightPathsPerChunk));
+    parts.add(mul(chunk_paths, add(mul(vertices_per_path, kLightVertexBytes), joint2_per_path)),
+              "the light pass's chunks in flight");
+    parts.hint = "; fewer light paths (--light-paths) or a lower --max-depth need less";
+}
+
+void add_vpl_memory(const IterationMemoryInput& in, bool importance_records,
+                    IterationMemoryParts& parts) {
+    const RenderSettings& settings = in.settings;
+    const uint64_t vpls = mul(settings.vpl_paths, in.light_vertices_per_path);
+    parts.add(mul(vpls, kLightVertexBytes),
+              std::to_string(settings.vpl_paths) + " VPL paths x up to " +
+                  std::to_string(in.light_vertices_per_path) + " VPLs");
+    if (importance_records)
+        parts.add(
+            mul(mul(vpls, uint64_t(std::max(settings.importance_records, 0))), sizeof(double)),
+            "the VPL importance records");
+}
+
+void add_importance_cache_memory(const IterationMemoryInput& in, uint64_t cached_vertices,
+                                 IterationMemoryParts& parts) {
+    const uint64_t records =
+        uint64_t(double(in.pixels) * std::clamp(in.settings.ic_record_density, 0.0, 1.0)) + 1;
+    parts.add(mul(mul(records, cached_vertices), kImportanceTableBytes),
+              std::to_string(records) + " importance records x up to " +
+                  std::to_string(cached_vertices) + " light vertices");
 }
 
 }  // namespace render

@@ -135,7 +135,8 @@ const std::vector<RenderOption>& table() {
          .metavar = "on|off",
          .type = OptionType::Choice,
          .help = "upbp: light-path segments in media stored as photon beams and gathered by "
-                 "camera segments with a 1-D kernel (B-B1D; short beams in chromatic grids on one-piece segments only)",
+                 "camera segments with a 1-D kernel (B-B1D; short beams in chromatic grids on "
+                 "one-piece segments only)",
          .choices = {"on", "off"},
          .default_text = "on",
          .apply = [](RenderSettings& s, const std::string& v) { s.photon_beams = v == "on"; },
@@ -654,12 +655,20 @@ std::string render_tables_json() {
         nlohmann::json options = nlohmann::json::array();
         for (const RenderOption& o : table())
             if (algorithm_reads(a, o)) options.push_back(o.name);
+        nlohmann::json variants = nlohmann::json::array();
+        for (const auto& v : a.variants) variants.push_back(v);
         out["algorithms"].push_back({{"name", a.name},
                                      {"aliases", a.aliases},
+                                     {"pbrt_integrators", a.pbrt_integrators},
                                      {"description", a.description},
                                      {"homogeneous_media", a.support.homogeneous_media},
                                      {"grid_media", a.support.grid_media},
-                                     {"options", options}});
+                                     {"emissive_media", a.support.emissive_media},
+                                     {"bounded_emissive_media", a.support.bounded_emissive_media},
+                                     {"physically_based", a.physically_based},
+                                     {"options", options},
+                                     {"variants", variants},
+                                     {"benchmarks", a.benchmarks}});
     }
     out["options"] = nlohmann::json::array();
     for (const RenderOption& o : table()) {

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import functools
+import json
 import math
 import os
 import re
@@ -159,6 +160,20 @@ def render_binary(build_dir: Path) -> Path:
         sys.exit(f"bench: {binary} not found; build it first "
                  f"(cmake --build {build_dir} --target render)")
     return binary
+
+
+def algorithm_table(build_dir: Path) -> dict:
+    """The algorithm and option tables of a build (`render --describe-options`)."""
+    out = subprocess.run([str(render_binary(build_dir)), "--describe-options"], check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def benchmarked_algorithms(build_dir: Path, suite: str) -> list:
+    """The algorithms whose table row names `suite` among its benchmarks, in table order: the
+    suites read them from the build instead of keeping a list (docs/architecture.md)."""
+    return [a["name"] for a in algorithm_table(build_dir)["algorithms"]
+            if suite in a.get("benchmarks", [])]
 
 
 def display_path(path: Path | str) -> str:

@@ -27,7 +27,10 @@ from . import common
 # --------------------------------------------------------------------------------------------
 # The scene table. Add a row to benchmark another scene (e.g. media scenes later).
 
-ALL_ALGOS = ("pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm", "vpl", "vpl+div", "ic")
+# Every series, in table order: the algorithms whose row names the "convergence" suite
+# (Algorithm::benchmarks, read from `render --describe-options` by run()), with the extra series
+# of SERIES_FLAGS after the algorithm they run.
+ALL_ALGOS: list = []
 
 # Series that are an algorithm with options: name -> (algorithm, extra render flags). Both vpl
 # series clamp the connection distance at 1 % of the scene radius with the shrinking schedule
@@ -41,6 +44,16 @@ SERIES_FLAGS = {
     "ic": ("ic", VPL_FLAGS),
 }
 MANY_LIGHT_SERIES = ("vpl", "vpl+div", "ic")
+
+
+def series_from_table(algorithms: list) -> list:
+    """The series of the given algorithms: each algorithm, then the extra series that run it
+    (vpl: vpl+div)."""
+    out = []
+    for algo in algorithms:
+        out.append(algo)
+        out += [name for name, (a, _) in SERIES_FLAGS.items() if a == algo and name != algo]
+    return out
 
 
 def series_command(name: str) -> tuple[str, tuple[str, ...]]:
@@ -529,7 +542,7 @@ def plot_scene(path: Path, scene: BenchScene, series: dict, slopes: dict,
         pts = fitted(series.get(algo, []))
         if not pts:
             continue
-        color, marker = ALGO_STYLE[algo]
+        color, marker = ALGO_STYLE.get(algo, ("tab:gray", "."))  # a new row: any style
         slope = slopes.get(algo)
         label = algo + (f" (slope {slope:.2f})" if slope is not None else "")
         ax.loglog([p["seconds"] for p in pts], [p["relative_mse"] for p in pts],
@@ -826,6 +839,7 @@ def run(*, build_dir: Path, docs_dir: Path, references_dir: Path, scenes: list[B
                      QUICK_MIN_SECONDS if quick else DEFAULT_MIN_SECONDS),
         max_seconds=(max_seconds if max_seconds is not None else
                      QUICK_MAX_SECONDS if quick else DEFAULT_MAX_SECONDS))
+    ALL_ALGOS[:] = series_from_table(common.benchmarked_algorithms(build_dir, "convergence"))
     if algos:
         unknown = set(algos) - set(ALL_ALGOS)
         if unknown:

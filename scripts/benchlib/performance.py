@@ -42,7 +42,6 @@ QUICK_FILTER = ("^(rays/(closest|occluded)/(ours|embree)/cornell-box"
 RAY_SCENES = ["cornell-box", "veach-mis", "veach-bidir", "0-gbs_s", "1-glm_c", "2-gbs_p",
               "3-gbs_b", "procedural-1M"]
 REFERENCE_SCENES = ["0-gbs_s", "1-glm_c", "2-gbs_p", "3-gbs_b"]
-ALGORITHMS = ["pt", "volpt", "lt", "bpt", "ppm", "bpm", "vcm"]
 MEDIA_SCENES = ["isosph", "glasssph", "volumetric-caustic", "smoke"]
 MEDIA_ALGORITHMS = ["volpt", "bpt", "vcm"]
 PERF_TARGETS = ["iteration/1-glm_c/bpt/threads:1", "iteration/1-glm_c/vcm/threads:1"]
@@ -486,9 +485,13 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         "count set by `tbb::global_control` and the settings' task arena "
         "(`bench/iterations.cpp`, names `iteration/<scene>/<algo>/threads:<n>`). Wall-clock "
         "seconds per iteration; *speed-up* is threads:1 / threads:2.")
+    # The algorithms render_bench measured: the table's rows of the "performance" suite
+    # (Algorithm::benchmarks), in table order.
+    algorithms = list(dict.fromkeys(k.split("/")[2] for k in results
+                                    if k.startswith("iteration/") and k.count("/") == 3))
     for scene in REFERENCE_SCENES:
         rows = []
-        for algo in ALGORITHMS:
+        for algo in algorithms:
             one = results.get(f"iteration/{scene}/{algo}/threads:1")
             two = results.get(f"iteration/{scene}/{algo}/threads:2")
             if not one and not two:

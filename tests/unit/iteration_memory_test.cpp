@@ -8,6 +8,7 @@
 
 #include "core/base/memory_budget.h"
 #include "core/integrators/bidirectional/record_bounds.h"
+#include "core/render/algorithms.h"
 
 namespace render {
 namespace {
@@ -92,6 +93,20 @@ TEST(IterationMemory, EachAlgorithmChargesWhatItStores) {
     // ic's importance records: a table entry per record and VPL.
     EXPECT_GT(estimate_iteration_memory(settings_for("ic"), w, h, 2).bytes,
               estimate_iteration_memory(settings_for("vpl"), w, h, 2).bytes + (w * h / 16) * 64);
+}
+
+// Every row of the algorithm table carries its estimate (Algorithm::iteration_memory, required
+// by register_algorithm); an algorithm no row names has none, and the estimate says so instead
+// of charging only the threads (a worker's memory refusal relies on the estimate).
+TEST(IterationMemory, EveryAlgorithmOfTheTableIsEstimatedByItsRow) {
+    for (const Algorithm& a : algorithms()) {
+        const IterationMemoryEstimate e =
+            estimate_iteration_memory(settings_for(a.name), 64, 64, 2);
+        EXPECT_GE(e.bytes, 2u << 20) << a.name;
+        EXPECT_EQ(e.what.rfind(a.name + "'s working memory", 0), 0u) << e.what;
+    }
+    EXPECT_THROW(estimate_iteration_memory(settings_for("no_such_algorithm"), 64, 64, 2),
+                 std::invalid_argument);
 }
 
 // Short photon beams may replay their sampling walk (a chromatic grid), whose state lives in a

@@ -272,7 +272,7 @@ TEST_F(PbrtTest, OptionsBlockSettings) {
     auto scene = load(
         "Integrator \"path\" \"integer maxdepth\" 3 \"bool regularize\" false\n"
         "Sampler \"halton\" \"integer pixelsamples\" 7\nCamera \"perspective\"\nWorldBegin\n");
-    EXPECT_EQ(scene->settings.integrator, "path");
+    EXPECT_EQ(scene->settings.integrator, "pbrt:path");
     EXPECT_EQ(scene->settings.max_depth, 4);  // 3 bounces = 4 segments
     EXPECT_EQ(scene->settings.sample_count, 7);
     EXPECT_EQ(scene->camera().width(), 1280);  // pbrt's default film
@@ -280,10 +280,10 @@ TEST_F(PbrtTest, OptionsBlockSettings) {
         "Sampler \"stratified\" \"integer xsamples\" 2 \"integer ysamples\" 3\n"
         "Integrator \"bdpt\"\nWorldBegin\n");
     EXPECT_EQ(scene->settings.sample_count, 6);
-    EXPECT_EQ(scene->settings.integrator, "bpt");
+    EXPECT_EQ(scene->settings.integrator, "pbrt:bdpt");
     EXPECT_EQ(scene->settings.max_depth, 6);  // pbrt's default maxdepth 5
     scene = load("WorldBegin\n");
-    EXPECT_EQ(scene->settings.integrator, "volpath");  // pbrt's default integrator
+    EXPECT_EQ(scene->settings.integrator, "pbrt:volpath");  // pbrt's default integrator
     EXPECT_EQ(scene->settings.sample_count, 16);
 }
 
@@ -640,7 +640,7 @@ TEST_F(PbrtTest, IncludeAndImport) {
     EXPECT_EQ(summary.files[0], dir_ / "inc/mesh.pbrt");
     EXPECT_EQ(summary.files[1], dir_ / "m.ply");
     EXPECT_EQ(summary.sample_count, 32);
-    EXPECT_EQ(summary.integrator, "bpt");
+    EXPECT_EQ(summary.integrator, "pbrt:bdpt");
 }
 
 TEST_F(PbrtTest, ConfinedLoadRefusesFilesOutsideTheFolderAsMitsubaDoes) {

@@ -18,14 +18,14 @@ void BidirectionalIntegrator::render_iteration(const Scene& scene, const Iterati
     std::lock_guard lock(storage_mutex_);
     Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
                         *storage_);
-    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
-        iteration.trace_light_paths(stats, bidirectional::splats_into(target, layers, stats));
-        if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(stats);
-    }
-    const int width = scene.camera().width(), height = scene.camera().height();
-    for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
-        return iteration.trace_eye_path(pixel, local, LayerSink{layers, pixel});
-    });
+    bidirectional::run_iteration(
+        iteration, scene, target, layers, stats,
+        [&] {
+            if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(stats);
+        },
+        [&](uint64_t pixel, RenderStats& local, const LayerSink& sink) {
+            return iteration.trace_eye_path(pixel, local, sink);
+        });
 }
 
 PhotonBeamInspection BidirectionalIntegrator::inspect_photon_beams(const Scene& scene,

@@ -92,6 +92,16 @@ inline constexpr int kLightChunksInFlightPerThread = 4;
 // estimates, so that each pixel's sum is the same whatever the number of threads.
 SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats);
 
+// One iteration as the integrators run it: the light pass (skipped in a scene without lights),
+// its splats into target and layers; `prepare` (what the integrator builds over the stored light
+// vertices: importance caches, the VPL selection); then eye_path(pixel, stats, sink) for every
+// pixel.
+class Iteration;
+template <class Prepare, class EyePath>
+void run_iteration(Iteration& iteration, const Scene& scene, AccumulationBuffer& target,
+                   TechniqueLayers* layers, RenderStats& stats, Prepare&& prepare,
+                   EyePath&& eye_path);
+
 // Where a pass hands a contribution: s light vertices (the eye's count is the caller's).
 using ContributionSink = FunctionRef<void(int s, const Rgb& contribution)>;
 
@@ -387,6 +397,20 @@ class Iteration {
     std::vector<uint32_t>&surface_index_, &medium_index_;
     HashGrid &surface_grid_, &medium_grid_;
 };
+
+template <class Prepare, class EyePath>
+void run_iteration(Iteration& iteration, const Scene& scene, AccumulationBuffer& target,
+                   TechniqueLayers* layers, RenderStats& stats, Prepare&& prepare,
+                   EyePath&& eye_path) {
+    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
+        iteration.trace_light_paths(stats, splats_into(target, layers, stats));
+        prepare();
+    }
+    for_each_pixel(scene.camera().width(), scene.camera().height(), target, stats,
+                   [&](uint64_t pixel, RenderStats& local) {
+                       return eye_path(pixel, local, LayerSink{layers, pixel});
+                   });
+}
 
 }  // namespace bidirectional
 }  // namespace render

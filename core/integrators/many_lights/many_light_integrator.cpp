@@ -18,16 +18,16 @@ void ManyLightIntegrator::render_iteration(const Scene& scene, const IterationKe
     std::lock_guard lock(storage_mutex_);
     Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
                         *storage_);
-    if (!scene.lights().empty() || !scene.volume_lights().empty()) {
-        // The light pass's vertices are the VPLs (no splats: nothing connects to the camera).
-        iteration.trace_light_paths(stats, bidirectional::splats_into(target, layers, stats));
-        if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(stats);
-        if (iteration.plan().ic) iteration.build_importance_cache(stats);
-    }
-    const int width = scene.camera().width(), height = scene.camera().height();
-    for_each_pixel(width, height, target, stats, [&](uint64_t pixel, RenderStats& local) {
-        return trace_many_light_eye_path(iteration, pixel, local, LayerSink{layers, pixel});
-    });
+    // The light pass's vertices are the VPLs (no splats: nothing connects to the camera).
+    bidirectional::run_iteration(
+        iteration, scene, target, layers, stats,
+        [&] {
+            if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(stats);
+            if (iteration.plan().ic) iteration.build_importance_cache(stats);
+        },
+        [&](uint64_t pixel, RenderStats& local, const LayerSink& sink) {
+            return trace_many_light_eye_path(iteration, pixel, local, sink);
+        });
 }
 
 VplSelection ManyLightIntegrator::inspect_vpl_selection(const Scene& scene,

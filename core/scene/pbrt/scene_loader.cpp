@@ -415,7 +415,7 @@ class Loader {
         world_ = true;
         if (!have_integrator_) {
             // pbrt-v4's default integrator.
-            scene_.settings.integrator = "volpath";
+            scene_.settings.integrator = integrator_name("volpath");
             scene_.settings.max_depth = 6;
         }
         build_camera(d);
@@ -634,10 +634,7 @@ std::unique_ptr<Scene> load(const std::function<void(Loader&)>& run, const fs::p
 }  // namespace
 
 std::string integrator_name(const std::string& pbrt) {
-    if (pbrt == "bdpt") return "bpt";
-    if (pbrt == "lightpath") return "lt";
-    if (pbrt == "sppm") return "ppm";
-    return pbrt;
+    return "pbrt:" + pbrt;
 }
 
 std::unique_ptr<Scene> load_scene(const fs::path& file, const fs::path& confine_to) {

@@ -21,9 +21,9 @@ std::unique_ptr<Scene> load_scene(const std::filesystem::path& file,
 std::unique_ptr<Scene> load_scene_from_string(const std::string& text,
                                               const std::filesystem::path& base_dir);
 
-// pbrt's integrator names as ours (render --algo names or aliases): bdpt -> bpt, lightpath ->
-// lt, sppm -> ppm; path and volpath are aliases already; other names are kept (rendering them
-// needs --algo, as for a Mitsuba integrator that names no algorithm).
+// A pbrt integrator as the scene records it: "pbrt:NAME". The algorithm table maps it
+// (Algorithm::pbrt_integrators: bdpt is bpt, sppm is ppm, ...); a name no row has needs --algo,
+// as a Mitsuba integrator that names no algorithm does.
 std::string integrator_name(const std::string& pbrt_name);
 
 // What the client's bundle needs of a pbrt scene, read without building it.

@@ -91,7 +91,7 @@ void collect(const fs::path& file, const fs::path& scene_dir, int depth,
 
 SceneSummary summarize(const fs::path& file) {
     SceneSummary summary;
-    summary.integrator = "volpath";
+    summary.integrator = integrator_name("volpath");
     std::set<std::string> active, seen;
     const fs::path scene = fs::absolute(file).lexically_normal();
     collect(scene, scene.parent_path(), 0, active, seen, summary);
