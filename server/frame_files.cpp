@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <exception>
+#include <stdexcept>
 
 #include "core/render/image_metadata.h"
 #include "core/util/log.h"
@@ -62,6 +63,32 @@ bool FrameFiles::checkpoint_due(const FrameData& frame, TimePoint now) const {
     return !frame.checkpoint_clock ||
            std::chrono::duration<double>(now - *frame.checkpoint_clock).count() >=
                checkpoint_interval(frame);
+}
+
+bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
+                                 size_t layers, FrameData& frame, FramePlan& plan) const {
+    const fs::path ckpt = checkpoint_path(job_id, index);
+    if (!fs::exists(ckpt)) return false;
+    try {
+        double elapsed = 0;
+        auto acc = std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
+        if (acc->width() != width || acc->height() != height)
+            throw std::runtime_error("checkpoint size differs from the job's");
+        if (acc->layer_count() != layers)
+            throw std::runtime_error("checkpoint layers differ from the job's");
+        plan.merged = acc->ranges();
+        plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
+        frame.relative_error = acc->relative_error();
+        frame.non_finite = acc->result().stats.non_finite;
+        frame.acc = std::move(acc);
+        return true;
+    } catch (const std::exception& e) {
+        Log("error", "checkpoint_unreadable")
+            .kv("job", job_id)
+            .kv("frame", index)
+            .kv("error", e.what());
+        return false;
+    }
 }
 
 bool FrameFiles::save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,

@@ -80,6 +80,12 @@ class FrameFiles {
     double checkpoint_interval(const FrameData& frame) const;
     // A dirty frame's checkpoint is due at `now` (frame.mu held).
     bool checkpoint_due(const FrameData& frame, TimePoint now) const;
+    // At restart: loads the frame's checkpoint, if any, into `frame` (its sums, error and
+    // non-finite count) and `plan` (the ranges it holds, and its render time if longer),
+    // provided it has the job's film size and layer count. Returns false without one, or
+    // when it cannot be read (logged): the frame then starts afresh.
+    bool load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
+                         size_t layers, FrameData& frame, FramePlan& plan) const;
 
   private:
     std::filesystem::path store_;

@@ -111,32 +111,14 @@ void JobManager::restore() {
             plan.budget_seconds = s.time_budget_seconds();
             plan.elapsed_seconds = fr.elapsed_seconds;
             plan.done = fr.done;
-            fs::path ckpt = frame_files_.checkpoint_path(id, fr.index);
             if (fr.done || is_terminal(state)) {
                 for (const Range& r : store_.merged_ranges(id, fr.index)) plan.merged.add(r);
-            } else if (fs::exists(ckpt)) {
-                try {
-                    double elapsed = 0;
-                    auto acc =
-                        std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
-                    if (acc->width() != job->row.width || acc->height() != job->row.height)
-                        throw std::runtime_error("checkpoint size differs from the job's");
-                    if (acc->layer_count() != TechniqueLayers::names(job->settings.layers).size())
-                        throw std::runtime_error("checkpoint layers differ from the job's");
-                    plan.merged = acc->ranges();
-                    plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
-                    data->relative_error = acc->relative_error();
-                    data->non_finite = acc->result().stats.non_finite;
-                    data->acc = std::move(acc);
-                } catch (const std::exception& e) {
-                    Log("error", "checkpoint_unreadable")
-                        .kv("job", id)
-                        .kv("frame", fr.index)
-                        .kv("error", e.what());
-                }
-                store_.set_merged_ranges(id, fr.index, plan.merged.ranges());
             } else {
-                store_.set_merged_ranges(id, fr.index, {});
+                // What the last checkpoint holds is merged; what merged after it is leased again.
+                frame_files_.load_checkpoint(id, fr.index, job->row.width, job->row.height,
+                                             TechniqueLayers::names(job->settings.layers).size(),
+                                             *data, plan);
+                store_.set_merged_ranges(id, fr.index, plan.merged.ranges());
             }
             plans.push_back(std::move(plan));
             job->frames.push_back(std::move(data));

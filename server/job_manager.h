@@ -184,14 +184,15 @@ class JobManager {
         std::mutex report_mu;  // held by the report being received and merged (report_slot)
     };
 
+    // --- jobs (job_manager.cpp) ---
     void restore();
-    // Writes the checkpoints that are due (all dirty ones with `all`).
-    void flush_checkpoints(bool all);
-    // Expires leases and finishes complete frames (tick() without the checkpoints).
-    void advance();
-    void fill_job(const JobData& job, v1::Job* out) const;                   // mu_ held
+    std::shared_ptr<JobData> find(const std::string& job_id);
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
-    void finish_frame(const std::string& job_id, uint32_t frame);
+    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
+    // moves it too): the time of the manager's start plus the clock's time since.
+    int64_t now_unix_ms() const;
+
+    // --- the worker protocol and the failure policy (job_manager_workers.cpp) ---
     // A worker could not render a lease: its range is queued again, and the job FAILS by the
     // poison rule (server/failure_policy.h); a refusal for memory is recorded instead.
     void lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure);  // mu_ held
@@ -210,14 +211,17 @@ class JobManager {
     // The job was refused for memory and no live worker (seen within the lease timeout) can
     // take it; false without live workers (mu_ held).
     bool memory_blocked(const JobData& job) const;
-    // The state clients see: WAITING (never stored) for an unfinished job that is
-    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
-    v1::JobState shown_state(const JobData& job) const;
     // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).
     void fail_memory_blocked();
-    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
-    // moves it too): the time of the manager's start plus the clock's time since.
-    int64_t now_unix_ms() const;
+
+    // --- frames (job_manager_frames.cpp) ---
+    // Expires leases and finishes complete frames (tick() without the checkpoints).
+    void advance();
+    // Writes the checkpoints that are due (all dirty ones with `all`).
+    void flush_checkpoints(bool all);
+    void finish_frame(const std::string& job_id, uint32_t frame);
+
+    // --- housekeeping (job_manager_housekeeping.cpp) ---
     // Deletes the jobs past the retention time (retain_finished_seconds).
     void apply_retention();
     // Removes the assets no job references and no submit in progress names, untouched for
@@ -226,7 +230,12 @@ class JobManager {
     // The assets a job other than `except_job` names, or a submit in progress has pinned
     // (caller holds mu_): what neither a deletion nor the asset sweep may remove.
     std::set<std::string> assets_in_use(const std::string& except_job = {}) const;
-    std::shared_ptr<JobData> find(const std::string& job_id);
+
+    // --- views (job_manager_views.cpp) ---
+    void fill_job(const JobData& job, v1::Job* out) const;  // mu_ held
+    // The state clients see: WAITING (never stored) for an unfinished job that is
+    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
+    v1::JobState shown_state(const JobData& job) const;
 
     ServerOptions options_;
     Scheduler::ClockFn clock_;
