@@ -6,9 +6,11 @@
 
 #include <fstream>
 #include <map>
+#include <string>
 
 #include "core/render/job_limits.h"
 #include "server/submission_check.h"
+#include "tests/support/server_test_scene.h"
 #include "tests/support/temp_dir.h"
 
 using namespace render;
@@ -18,21 +20,14 @@ namespace v1 = render::v1;
 
 namespace {
 
-const char* kScene = R"(<scene version="3.0.0">
-  <default name="r" value="0.5"/>
-  <sensor type="perspective">
-    <float name="fov" value="60"/>
-    <transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/></transform>
-    <sampler type="independent"><integer name="sample_count" value="7"/></sampler>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="2"/>
-    <boolean name="flip_normals" value="true"/>
-    <bsdf type="diffuse"><rgb name="reflectance" value="$r"/></bsdf>
-    <emitter type="area"><rgb name="radiance" value="0.5"/></emitter>
-  </shape>
-</scene>)";
+// The server tests' scene with a sample_count of 7, the iterations a job takes by default.
+std::string scene_with_seven_samples() {
+    std::string scene = render::testing::kServerTestScene;
+    const std::string sampler =
+        R"(<sampler type="independent"><integer name="sample_count" value="7"/></sampler>)";
+    scene.insert(scene.find("</sensor>"), sampler);
+    return scene;
+}
 
 struct SubmissionCheckTest : ::testing::Test {
     fs::path dir;
@@ -40,7 +35,7 @@ struct SubmissionCheckTest : ::testing::Test {
         dir = render::testing::fresh_temp_dir(
             "server_submission_check_test",
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        std::ofstream(dir / "scene.xml") << kScene;
+        std::ofstream(dir / "scene.xml") << scene_with_seven_samples();
     }
     void TearDown() override { fs::remove_all(dir); }
 
