@@ -3,6 +3,15 @@
 // The server's state behind both gRPC services: jobs (persisted in the JobStore), the
 // scheduler's lease table, the frames' sums and checkpoints, finished EXRs, workers.
 // Thread-safe. Returns grpc::Status with precise codes for bad requests.
+//
+// The manager holds the locks and wires the parts together; each part is its own file:
+// submission checking (submission_check.h), the failure policy (failure_policy.h), the
+// workers (worker_registry.h), frames and checkpoints (frame_files.h). Its own definitions
+// are split by concern: job_manager.cpp (jobs: restore, submit, state), job_manager_workers.cpp
+// (the worker protocol and failures), job_manager_reports.cpp (merging reports),
+// job_manager_frames.cpp (checkpoints, finished frames, previews), job_manager_housekeeping.cpp
+// (deletion, retention, the asset sweep) and job_manager_views.cpp (what clients, the
+// dashboard and metrics see).
 
 #include <grpcpp/grpcpp.h>
 
@@ -20,11 +29,14 @@
 #include "render.pb.h"
 #include "server/accumulator.h"
 #include "server/asset_store.h"
+#include "server/failure_policy.h"
+#include "server/frame_files.h"
 #include "server/job_store.h"
 #include "server/metrics.h"
 #include "server/scheduler.h"
 #include "server/stream_guard.h"
 #include "server/validation.h"
+#include "server/worker_registry.h"
 
 namespace render::server {
 
@@ -104,11 +116,7 @@ class JobManager {
     // preview; FAILED_PRECONDITION while nothing has merged.
     grpc::Status preview_image(const std::string& job_id, uint32_t frame, Image* image);
     // A frame's estimated relative error after each merged report, against its render time.
-    struct ErrorPoint {
-        double seconds = 0;
-        uint64_t iterations = 0;
-        double relative_error = 1;
-    };
+    using ErrorPoint = server::ErrorPoint;
     grpc::Status error_history(const std::string& job_id, uint32_t frame,
                                std::vector<ErrorPoint>* points);
     // The Prometheus text exposition of the server's metrics (server/metrics.h).
@@ -167,103 +175,53 @@ class JobManager {
     const ServerOptions& options() const { return options_; }
 
   private:
-    struct FrameData {
-        std::mutex mu;
-        std::unique_ptr<FrameAccumulator> acc;  // null until something merges, or when done
-        std::atomic<double> relative_error{1.0};
-        std::atomic<uint64_t> non_finite{0};
-        std::vector<ErrorPoint> history;  // under mu (kept to kMaxHistory points)
-        // Merged since the last checkpoint (set under mu; read without it to skip clean frames).
-        std::atomic<bool> dirty{false};
-        // When the interval to the next checkpoint started: the last checkpoint, or the first
-        // merge of this run (under mu).
-        std::optional<TimePoint> checkpoint_clock;
-        double last_checkpoint_seconds = 0;  // how long the last checkpoint took (under mu)
-    };
     struct JobData {
         JobRow row;
         v1::SubmitJobRequest request;  // settings resolved
         RenderSettings settings;       // what the request's complete options give (job_settings)
         std::vector<std::unique_ptr<FrameData>> frames;
-        // Workers that reported a lease of this job as failed since its last merged report,
-        // those whose lease of it expired (the worker died or hung on it) in that time, and
-        // the last error (in memory: a restarted server counts afresh).
-        std::set<std::string> failed_workers;
-        std::set<std::string> lost_workers;
-        std::string last_failure;
-        // Leases of this job whose worker reported rendering progress (a heartbeat with
-        // measured rates), and the workers that lost such a lease: a worker killed from
-        // outside (preempted, rolled, OOM-killed for another process) while rendering fine,
-        // which counts toward failing the job far later than a worker that died before it
-        // rendered an iteration (a poison scene).
-        std::set<std::string> progressed_leases;
-        std::set<std::string> lost_rendering_workers;
+        JobFailures failures;  // the poison and memory-wait bookkeeping (under mu_)
         std::mutex report_mu;  // held by the report being received and merged (report_slot)
-        // Workers that refused a lease of this job for memory, with their limits; the largest
-        // estimate a refusal reported, and its message (in memory, like the failures above).
-        // Such refusals are not failures: the job waits for a worker with more memory.
-        std::map<std::string, uint64_t> memory_refusals;
-        uint64_t memory_needed = 0;
-        std::string memory_error;
-        // Since when no live worker could take the job (memory_blocked), for memory_wait.
-        std::optional<TimePoint> memory_blocked_since;
-    };
-    struct WorkerInfo {
-        std::string host;
-        uint32_t threads = 0;
-        std::string version;
-        int64_t last_seen_unix_ms = 0;
-        v1::WorkerRates rates;      // from the latest heartbeat with rates or merged report
-        uint64_t memory_limit = 0;  // from its latest refusal for memory; 0 = unknown
     };
 
+    // --- jobs (job_manager.cpp) ---
     void restore();
-    // Writes the frame's checkpoint and records its ranges in the store; frame.mu held, and
-    // frame.acc set. Returns false (logged) when it could not be written.
-    bool save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
-                         double elapsed, const char* reason);
-    // Writes the checkpoints that are due (all dirty ones with `all`).
-    void flush_checkpoints(bool all);
-    // How long a frame waits between checkpoints: checkpoint_seconds, or kCheckpointCostFactor
-    // times its last checkpoint's duration if longer (frame.mu held).
-    double checkpoint_interval(const FrameData& frame) const;
-    // Expires leases and finishes complete frames (tick() without the checkpoints).
-    void advance();
-    void fill_job(const JobData& job, v1::Job* out) const;                   // mu_ held
+    std::shared_ptr<JobData> find(const std::string& job_id);
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
-    void finish_frame(const std::string& job_id, uint32_t frame);
-    void touch_worker(const std::string& worker_id);  // mu_ held
-    // A worker could not render a lease: its range is queued again, and the job FAILS once
-    // min(kMaxReportingWorkers = 2, known workers) distinct workers failed it.
+    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
+    // moves it too): the time of the manager's start plus the clock's time since.
+    int64_t now_unix_ms() const;
+
+    // --- the worker protocol and the failure policy (job_manager_workers.cpp) ---
+    // A worker could not render a lease: its range is queued again, and the job FAILS by the
+    // poison rule (server/failure_policy.h); a refusal for memory is recorded instead.
     void lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure);  // mu_ held
     // A lease of the job expired: its worker died or stopped heartbeating while rendering it.
-    // The job FAILS once kMaxFailedWorkers distinct workers failed it or lost it (a crash
-    // is not told apart from a worker taken away, so every known worker is not enough).
     void lease_lost(const LeaseGrant& grant);  // mu_ held
     // Marks these leases of the worker as having rendered iterations (mu_ held).
     void note_lease_progress(const std::string& worker_id,
                              const google::protobuf::RepeatedPtrField<std::string>& lease_ids);
-    // FAILS `job` if its failed and lost workers reach the limits above.
-    void fail_if_poison(JobData& job, const std::string& job_id);  // mu_ held
+    // FAILS `job` if the poison rule says so (mu_ held).
+    void fail_if_poison(JobData& job, const std::string& job_id);
     // A worker refused a lease for memory: recorded, not counted as a failure (mu_ held).
     void lease_refused_for_memory(const std::string& worker_id, JobData& job,
                                   const v1::LeaseFailure& failure);
-    // The worker cannot take the job for memory: it refused it, or its limit (known from a
-    // refusal) is below what the job needs (mu_ held).
+    // The worker cannot take the job for memory (mu_ held).
     bool lacks_memory_for(const JobData& job, const std::string& worker_id) const;
     // The job was refused for memory and no live worker (seen within the lease timeout) can
     // take it; false without live workers (mu_ held).
     bool memory_blocked(const JobData& job) const;
-    // The state clients see: WAITING (never stored) for an unfinished job that is
-    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
-    v1::JobState shown_state(const JobData& job) const;
-    // Job.waiting for a memory-blocked job (mu_ held).
-    std::string memory_waiting(const JobData& job) const;
     // FAILS the jobs that stayed memory-blocked for memory_wait_seconds (mu_ held).
     void fail_memory_blocked();
-    // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
-    // moves it too): the time of the manager's start plus the clock's time since.
-    int64_t now_unix_ms() const;
+
+    // --- frames (job_manager_frames.cpp) ---
+    // Expires leases and finishes complete frames (tick() without the checkpoints).
+    void advance();
+    // Writes the checkpoints that are due (all dirty ones with `all`).
+    void flush_checkpoints(bool all);
+    void finish_frame(const std::string& job_id, uint32_t frame);
+
+    // --- housekeeping (job_manager_housekeeping.cpp) ---
     // Deletes the jobs past the retention time (retain_finished_seconds).
     void apply_retention();
     // Removes the assets no job references and no submit in progress names, untouched for
@@ -272,9 +230,12 @@ class JobManager {
     // The assets a job other than `except_job` names, or a submit in progress has pinned
     // (caller holds mu_): what neither a deletion nor the asset sweep may remove.
     std::set<std::string> assets_in_use(const std::string& except_job = {}) const;
-    std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
-    std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
-    std::shared_ptr<JobData> find(const std::string& job_id);
+
+    // --- views (job_manager_views.cpp) ---
+    void fill_job(const JobData& job, v1::Job* out) const;  // mu_ held
+    // The state clients see: WAITING (never stored) for an unfinished job that is
+    // memory-blocked and that no worker holds a lease of, else the scheduler's (mu_ held).
+    v1::JobState shown_state(const JobData& job) const;
 
     ServerOptions options_;
     Scheduler::ClockFn clock_;
@@ -283,6 +244,7 @@ class JobManager {
     std::optional<TimePoint> last_asset_sweep_;  // tick()'s thread only
     ServerMetrics metrics_;
     JobStore store_;
+    FrameFiles frame_files_;
     AssetStore assets_;
     StreamGuards client_streams_;
     StreamGuards worker_streams_;
@@ -290,7 +252,7 @@ class JobManager {
     mutable std::mutex mu_;
     Scheduler scheduler_;
     std::map<std::string, std::shared_ptr<JobData>> jobs_;
-    std::map<std::string, WorkerInfo> workers_;
+    WorkerRegistry workers_;
     // The assets named by submits in progress, with how many (under mu_): neither the asset
     // sweep nor a job's deletion removes them.
     std::map<std::string, int> submitting_assets_;

@@ -177,7 +177,7 @@ class Metrics(cluster.ClusterTestCase):
         self.assertEqual(w.active_leases, 1)
 
         # The worker gives the lease up: failed and requeued, not expired. It is the only
-        # worker the server knows, so the job FAILS (server/job_manager.cpp, lease_failed).
+        # worker the server knows, so the job FAILS (server/failure_policy.h, the poison rule).
         api.call(api.workers.Heartbeat,
                  P.HeartbeatRequest(worker_id=worker_id, failed_leases=[
                      P.LeaseFailure(lease_id=first.lease_id, error="planted failure")]))

@@ -14,6 +14,7 @@
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/sha256.h"
 #include "server/job_manager.h"
+#include "tests/support/server_test_scene.h"
 
 using namespace render;
 using namespace render::server;
@@ -22,20 +23,7 @@ namespace v1 = render::v1;
 
 namespace {
 
-const char* kScene = R"(<scene version="3.0.0">
-  <default name="r" value="0.5"/>
-  <sensor type="perspective">
-    <float name="fov" value="60"/>
-    <transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, 1" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
-  </sensor>
-  <shape type="sphere">
-    <float name="radius" value="2"/>
-    <boolean name="flip_normals" value="true"/>
-    <bsdf type="diffuse"><rgb name="reflectance" value="$r"/></bsdf>
-    <emitter type="area"><rgb name="radiance" value="0.5"/></emitter>
-  </shape>
-</scene>)";
+const char* kScene = render::testing::kServerTestScene;
 
 struct ManagerTest : ::testing::Test {
     fs::path dir;

@@ -1,0 +1,97 @@
+#pragma once
+
+// A job's frames in memory and on disk: the merged sums of an unfinished frame and its
+// checkpoint (written at most every checkpoint interval, so that a crash loses at most that
+// much; docs/service.md), and a finished frame's EXR.
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/render/render_options.h"
+#include "render.pb.h"
+#include "server/accumulator.h"
+#include "server/job_store.h"
+#include "server/scheduler.h"
+
+namespace render::server {
+
+namespace v1 = ::render::v1;
+
+// A frame's estimated relative error after a merged report, against its render time.
+struct ErrorPoint {
+    double seconds = 0;
+    uint64_t iterations = 0;
+    double relative_error = 1;
+};
+
+struct FrameData {
+    std::mutex mu;
+    std::unique_ptr<FrameAccumulator> acc;  // null until something merges, or when done
+    std::atomic<double> relative_error{1.0};
+    std::atomic<uint64_t> non_finite{0};
+    std::vector<ErrorPoint> history;  // under mu (kept to kMaxHistory points)
+    // Merged since the last checkpoint (set under mu; read without it to skip clean frames).
+    std::atomic<bool> dirty{false};
+    // When the interval to the next checkpoint started: the last checkpoint, or the first
+    // merge of this run (under mu).
+    std::optional<TimePoint> checkpoint_clock;
+    double last_checkpoint_seconds = 0;  // how long the last checkpoint took (under mu)
+
+    // Appends a point to the error history (mu held), thinning it when full.
+    void record_error(const ErrorPoint& point);
+};
+
+// Points of a frame's error history kept (halved when full).
+inline constexpr size_t kMaxHistory = 512;
+
+// A frame is checkpointed at most every kCheckpointCostFactor times its last checkpoint's
+// duration (and at most every checkpoint_seconds): checkpoints take at most 2 % of the time.
+inline constexpr double kCheckpointCostFactor = 50;
+
+// The EXR header of a frame's image, with the keys `render` writes (image_metadata) plus the
+// job and frame.
+std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
+                                                  const RenderSettings& settings,
+                                                  const std::string& job_id, uint32_t index,
+                                                  const FrameAccumulator& acc, double seconds);
+
+// Where the store keeps frames (`store`/checkpoints/JOB/N.ckpt, `store`/results/JOB/N.exr),
+// and the writing of checkpoints, recorded in the job store.
+class FrameFiles {
+  public:
+    FrameFiles(std::filesystem::path store, JobStore& job_store, Scheduler::ClockFn clock,
+               double checkpoint_seconds);
+
+    std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
+    std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
+    // Writes the frame's checkpoint and records its ranges in the store; frame.mu held, and
+    // frame.acc set. Returns false (logged) when it could not be written.
+    bool save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
+                         double elapsed, const char* reason) const;
+    // How long a frame waits between checkpoints: checkpoint_seconds, or kCheckpointCostFactor
+    // times its last checkpoint's duration if longer (frame.mu held).
+    double checkpoint_interval(const FrameData& frame) const;
+    // A dirty frame's checkpoint is due at `now` (frame.mu held).
+    bool checkpoint_due(const FrameData& frame, TimePoint now) const;
+    // At restart: loads the frame's checkpoint, if any, into `frame` (its sums, error and
+    // non-finite count) and `plan` (the ranges it holds, and its render time if longer),
+    // provided it has the job's film size and layer count. Returns false without one, or
+    // when it cannot be read (logged): the frame then starts afresh.
+    bool load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
+                         size_t layers, FrameData& frame, FramePlan& plan) const;
+
+  private:
+    std::filesystem::path store_;
+    JobStore& job_store_;
+    Scheduler::ClockFn clock_;
+    double checkpoint_seconds_;
+};
+
+}  // namespace render::server

@@ -1,0 +1,126 @@
+// What clients, the dashboard and the metrics see of the job manager's state: jobs with their
+// progress and ETA, the cluster's workers, the Prometheus snapshot (server/metrics.h).
+
+#include "server/job_manager.h"
+
+#include <algorithm>
+
+#include "server/job_manager_detail.h"
+
+namespace render::server {
+
+using grpc::Status;
+using namespace detail;
+
+void JobManager::fill_job(const JobData& job, v1::Job* out) const {
+    out->Clear();
+    out->set_id(job.row.id);
+    out->set_name(job.row.name);
+    out->set_state(shown_state(job));
+    out->set_priority(job.row.priority);
+    *out->mutable_settings() = job.request.settings();
+    out->set_error(job.row.error);
+    out->set_submitted_unix_ms(job.row.submitted_unix_ms);
+    if (!is_terminal(scheduler_.state(job.row.id)) && memory_blocked(job))
+        out->set_waiting(job.failures.memory_waiting(options_.memory_wait_seconds));
+    const v1::RenderSettings& s = job.request.settings();
+    for (uint32_t i = 0; i < job.frames.size(); ++i) {
+        FrameProgress p = scheduler_.progress(job.row.id, i);
+        v1::FrameStatus* f = out->add_frames();
+        f->set_index(i);
+        f->set_iterations_done(p.merged);
+        f->set_iterations_target(p.target);
+        f->set_relative_error(job.frames[i]->relative_error.load());
+        double rate = p.elapsed_seconds > 0 ? double(p.merged) / p.elapsed_seconds : 0;
+        f->set_iterations_per_second(rate);
+        double eta = 0;
+        if (!p.done) {
+            if (p.target > 0 && rate > 0)
+                eta = double(p.target - std::min(p.target, p.merged)) / rate;
+            if (s.time_budget_seconds() > 0) {
+                double left = std::max(0.0, s.time_budget_seconds() - p.elapsed_seconds);
+                eta = p.target > 0 && rate > 0 ? std::min(eta, left) : left;
+            }
+        }
+        f->set_eta_seconds(eta);
+        f->set_done(p.done);
+        f->set_render_seconds(p.elapsed_seconds);
+    }
+}
+
+v1::JobState JobManager::shown_state(const JobData& job) const {
+    const JobState state = scheduler_.state(job.row.id);
+    // A job that was ever leased stays Running in the scheduler (and the store): shown as
+    // RUNNING while nobody renders it, it would look stuck.
+    if (!is_terminal(state) && memory_blocked(job) && !scheduler_.job_has_lease(job.row.id))
+        return v1::JOB_STATE_WAITING;
+    return v1::JobState(state);
+}
+
+void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, w] : workers_.all()) {
+        v1::WorkerStatus* s = reply->add_workers();
+        s->set_worker_id(id);
+        s->set_host(w.host);
+        s->set_threads(w.threads);
+        s->set_last_seen_unix_ms(w.last_seen_unix_ms);
+        auto leases = scheduler_.worker_leases(id);
+        if (!leases.empty()) s->set_lease_id(leases.front());
+        s->set_active_leases(uint32_t(leases.size()));
+        *s->mutable_rates() = w.rates;
+    }
+    for (const auto& [id, job] : jobs_) {
+        const v1::JobState st = shown_state(*job);
+        if (st == v1::JOB_STATE_QUEUED) reply->set_queued_jobs(reply->queued_jobs() + 1);
+        if (st == v1::JOB_STATE_RUNNING) reply->set_running_jobs(reply->running_jobs() + 1);
+        if (st == v1::JOB_STATE_WAITING) reply->set_waiting_jobs(reply->waiting_jobs() + 1);
+    }
+}
+
+std::string JobManager::metrics_text() {
+    MetricsSnapshot s;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t now = unix_ms();
+        const auto connected_ms = int64_t(options_.lease_timeout_seconds * 1000);
+        for (const auto& [id, w] : workers_.all()) {
+            if (now - w.last_seen_unix_ms > connected_ms) continue;
+            WorkerSnapshot ws;
+            ws.id = id;
+            ws.host = w.host;
+            ws.threads = w.threads;
+            ws.iterations_per_second = w.rates.iterations_per_second();
+            ws.samples_per_second = w.rates.samples_per_second();
+            ws.rays_per_second = w.rates.rays_per_second();
+            ws.active_leases = uint32_t(scheduler_.worker_leases(id).size());
+            s.workers.push_back(std::move(ws));
+        }
+        for (const auto& [id, job] : jobs_) {
+            const JobState state = scheduler_.state(id);
+            const size_t shown = size_t(shown_state(*job));
+            if (shown < s.jobs_by_state.size()) ++s.jobs_by_state[shown];
+            if (is_terminal(state)) continue;
+            JobSnapshot js;
+            js.id = id;
+            js.relative_error = 0;
+            if (memory_blocked(*job))
+                js.memory_wanted_bytes = double(job->failures.memory_needed());
+            for (uint32_t i = 0; i < job->frames.size(); ++i) {
+                const FrameProgress p = scheduler_.progress(id, i);
+                if (!p.done && p.elapsed_seconds > 0)
+                    js.iterations_per_second += double(p.merged) / p.elapsed_seconds;
+                js.relative_error =
+                    std::max(js.relative_error, job->frames[i]->relative_error.load());
+            }
+            s.jobs.push_back(std::move(js));
+        }
+        s.queued_iterations = scheduler_.queued_iterations();
+        s.asset_store_bytes = assets_.stored_bytes();
+        s.active_leases = scheduler_.active_lease_count();
+        s.leases = scheduler_.lease_counters();
+    }
+    return metrics_.exposition(s);
+}
+
+}  // namespace render::server
