@@ -538,14 +538,17 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         "pipeline whose last stage gathers each chunk in chunk order (vertices, grid "
         "positions, splats added to the image) on one thread while the others trace later "
         "chunks; the hash grid is built in parallel, then the eye pass is parallel over "
-        "16 × 16 tiles (`core/integrators/vertex_cm.cpp`, \"Parallel iteration steps and peak "
+        "16 × 16 tiles (`core/integrators/bidirectional/light_pass.cpp` and "
+        "`core/integrators/pixel_loop.h`, "
+        "\"Parallel iteration steps and peak "
         f"memory\" in [{NOTES_PAGE}]({NOTES_PAGE})). What is left per iteration is waiting at the end of each parallel "
         "phase for its last chunk or tile, and the two threads sharing the memory bus and "
         "the L3 cache.")
     if profiles:
         add("")
-        add("In the profiles below, `VertexConnectionMerging::render_iteration` and "
-            "`Iteration::trace_eye_path` include what the compiler inlined into them (the eye "
+        add("In the profiles below, `BidirectionalIntegrator::render_iteration` (named "
+            "`VertexConnectionMerging::render_iteration` in profiles recorded before the "
+            "integrators were split) and `Iteration::trace_eye_path` include what the compiler inlined into them (the eye "
             "pass, MIS weights, connections, merging visits, adding splats); kernel symbols such "
             "as `pvm_irq_enable` are time the virtual machine spent in the kernel and hypervisor "
             "(page faults of the per-iteration buffers, and preemption by other load), and "

@@ -60,7 +60,7 @@ struct SubpathState {
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
 // a phase function scatters. Medium vertices have no normal: cosines are 1, and the vertex
-// measure is volume instead of area (core/integrators/vcm_mis.h).
+// measure is volume instead of area (core/integrators/bidirectional/vcm_mis.h).
 struct Vertex {
     // The medium and the position first: with what a merge reads of a stored light vertex,
     // they lie in its first cache line (LightVertex), and a merge in a medium reads both.
