@@ -3,7 +3,7 @@
 // The algorithm table: one row per light-transport algorithm, with its name, aliases (scene-file
 // integrator names), what scenes it renders correctly, the options it reads and its factory.
 // Every list of algorithms, every "supported: ..." message and the --help text are derived from
-// it (docs/architecture.md, "adding an integrator").
+// it (docs/design/architecture.md, "adding an integrator").
 
 #include <map>
 #include <memory>
@@ -26,7 +26,7 @@ struct SceneSupport {
     bool grid_media = false;      // heterogeneous (grid) media
     bool emissive_media = false;  // media that emit (`radiance`)
     // Emitting media inside closed shapes only: they become lights (Scene::volume_lights,
-    // docs/media.md "Emitting media as lights"); an unbounded emitting medium is refused.
+    // docs/design/media.md "Emitting media as lights"); an unbounded emitting medium is refused.
     bool bounded_emissive_media = false;
 };
 

@@ -6,7 +6,7 @@
 // the settings alone, before anything is rendered, so that a worker (or `render
 // --max-memory`) charges it to its SceneMemoryBudget and a job that would not fit fails with a
 // message instead of the kernel killing the process. Calibration against measured peaks:
-// docs/reliability.md, "The memory budget".
+// docs/guide/reliability.md, "The memory budget".
 
 #include <cstdint>
 #include <string>

@@ -290,7 +290,7 @@ def efficiency_lines(rows):
 # Written by hand in docs/results/performance-notes.md (what the comparison means, the changes
 # since, how the binary was built, what differs between the programs): performance.py links to
 # these sections after the generated one and stops with an error when one is missing there.
-NOTES_PAGE = "results/performance-notes.md"  # relative to docs/
+NOTES_PAGE = "performance-notes.md"  # relative to docs/results/, beside performance.md
 # The generated subsection that links to them (the measured section ends before it).
 NOTES_HEADING = "### Analysis, changes since, how the reference was built"
 NOTES_SECTIONS = ("### Where the targets stand, and what limits them",
@@ -344,8 +344,8 @@ def document_lines(path, result):
     while body and not body[-1].strip():
         body.pop()
     # The notes page is the repository's (also when --out writes elsewhere).
-    links = handwritten.section_links(Path(__file__).resolve().parents[2] / "docs" / NOTES_PAGE,
-                                      NOTES_SECTIONS, NOTES_PAGE)
+    notes = Path(__file__).resolve().parents[2] / "docs" / "results" / NOTES_PAGE
+    links = handwritten.section_links(notes, NOTES_SECTIONS, NOTES_PAGE)
     return body + ["", NOTES_HEADING, "", f"Written by hand in [{NOTES_PAGE}]({NOTES_PAGE}):",
                    ""] + links + [""]
 

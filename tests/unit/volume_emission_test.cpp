@@ -1,5 +1,5 @@
 // Emission inside participating media (`radiance` on homogeneous and heterogeneous media,
-// docs/media.md "Emission in media") in volpt, against closed forms:
+// docs/design/media.md "Emission in media") in volpt, against closed forms:
 //   - an emitting, absorbing sphere seen from outside: L = L_e (sigma_a / sigma_t)
 //     (1 - exp(-sigma_t chord)) per channel;
 //   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit

@@ -118,7 +118,7 @@ struct Vertex {
 };
 
 // Joint (J2) connections' state of a subpath vertex, which resample a light vertex on the light
-// path's ray that reached it (docs/media.md): the position `previous` was reached from; this
+// path's ray that reached it (docs/design/media.md): the position `previous` was reached from; this
 // vertex's distance density from `previous` where J2 can resample it there (a medium vertex of
 // a homogeneous medium reached in one piece from a scattering vertex or a finite light's point,
 // on either subpath: 0 elsewhere), and the same of `previous`. Stored light vertices keep it in a
