@@ -679,7 +679,8 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "lease while the other core may idle. 2 × 1 workers render whole iterations "
             "independently, so the serial steps of a bidirectional iteration (previous "
             "sections) do not idle a core — on an idle machine that is what lets 2 × 1 beat "
-            "one 2-thread process (docs/guide/service.md measured 16.4 s against 21.8 s for 64 "
+            "one 2-thread process (docs/results/service-measurements.md measured 16.4 s against "
+            "21.8 s for 64 "
             "iterations); under other load the ratio is dominated by how the cores were shared.")
     else:
         add("Not measured in this run.")

@@ -1,6 +1,7 @@
 """Ours against the VCM reference implementation (SmallVCM) on its four Cornell boxes: whole-
 process wall time and peak memory of 16 iterations at 512 x 512 on 2 threads, A/B alternated,
-medians (issue 16's targets: time <= 0.8x, memory <= 1.2x the reference's).
+medians (the speed targets: time <= 0.8x, memory <= 1.2x the reference's;
+docs/results/performance-notes.md).
 
 The project never downloads or builds the reference: `scripts/bench --reference-smallvcm PATH`
 takes a binary built by hand (docs/results/performance-notes.md, "How the reference binary was

@@ -1,4 +1,4 @@
-"""Chaos soak (issue 18): three jobs (pt, vcm, volpt on small images) on 3 workers while a driver
+"""Chaos soak (docs/results/reliability-probes.md): three jobs (pt, vcm, volpt on small images) on 3 workers while a driver
 SIGKILLs a random worker every 2-4 s (starting a replacement at once) and SIGKILLs the server
 three times, restarting it on the same store and port.
 

@@ -1,4 +1,4 @@
-"""Deleting a job frees its assets (issue 18, docs/guide/service.md "Deleting jobs").
+"""Deleting a job frees its assets (docs/guide/service.md, "Deleting jobs").
 
 The server never deleted an asset: the store only grew until --max-store-size refused uploads.
 `client delete JOB` (DeleteJob) now deletes a finished, failed or cancelled job: its rows, scene

@@ -499,8 +499,9 @@ TEST_F(ParserTest, GarbageNeverCrashes) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Mitsuba 3 compatibility (issue 15): file resolution, <path>, wrapper integrators, the
-// default lens, spot and thindielectric.
+// Mitsuba 3 compatibility (docs/reference/scene-format.md, "Mitsuba 3 compatibility at a
+// glance"): file resolution, <path>, wrapper integrators, the default lens, spot and
+// thindielectric.
 
 // The horizontal field of view (degrees) of a camera from its image-plane area and aspect.
 float fov_x_of(const Scene& scene) {

@@ -1,5 +1,5 @@
 // Every size a client controls is bounded with a clear error before memory is committed
-// (issue 18, docs/guide/reliability.md "Resource limits"): each limit is tried just past it
+// (docs/guide/reliability.md, "Resource limits"): each limit is tried just past it
 // (refused with a message naming the limit) and, where that is cheap, at it (accepted, or refused
 // only for another reason such as the data that the header announces being absent).
 

@@ -1,7 +1,7 @@
 // Volumetric path tracing against closed-form answers: the furnace filled with a conserving
 // medium, single scattering from a point light in an infinite medium (a 1-D integral computed
-// here to high precision), and the hard cases of issue 6 (dense, thin, grazing, unbounded
-// depth). Every statistical check states its tolerance in standard errors.
+// here to high precision), and the hard cases (dense, thin, grazing, unbounded depth;
+// docs/design/media.md, "Tests"). Every statistical check states its tolerance in standard errors.
 
 #include <gtest/gtest.h>
 
