@@ -465,8 +465,8 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "hit, then for meshes three vertex positions and normals fetched from memory "
             "and interpolated, and a shading frame built). On the 1 M-triangle mesh those "
             "fetches are cache misses into about 25 MB of vertex and index data, so the wrapper's share does "
-            "not shrink with scene size (issue 16's target is 0.92: see \"Closest hits through "
-            f"Scene::intersect (issue 16)\" in [{NOTES_PAGE}]({NOTES_PAGE})). ")
+            "not shrink with scene size (the speed target is 0.92: see \"Closest hits through "
+            f"Scene::intersect\" in [{NOTES_PAGE}]({NOTES_PAGE})). ")
     if occluded_ratios:
         add(f"Occlusion rays do no extra work in our wrapper (ratio "
             f"{min(occluded_ratios):.2f}–{max(occluded_ratios):.2f}: noise). ")
@@ -699,15 +699,17 @@ def document_path(docs_dir) -> Path:
     """The generated page under the docs folder (docs/ by default): a results page, so its
     links are relative to docs/results/ (as common.results_page says)."""
     return Path(docs_dir) / "results" / "performance.md"
-NOTES_SECTIONS = ("## Issue 16: where each target stands",
+
+
+NOTES_SECTIONS = ("## Where each speed target stands",
                   "### Abseil's deadlock detection off (2026-11-27)",
-                  "### Reports in the background (issue 16: the worker overlaps)",
+                  "### Reports in the background (the worker overlaps)",
                   "### Costs that grow with the work (the render-farm case)",
-                  "### Farm scaling: 1 to 8 workers (issue 16)",
-                  "## Closest hits through Scene::intersect (issue 16)",
+                  "### Farm scaling: 1 to 8 workers",
+                  "## Closest hits through Scene::intersect",
                   "## Start-up",
-                  "## Per-iteration allocations (issue 16)",
-                  "## Parallel iteration steps and peak memory (issue 16)")
+                  "## Per-iteration allocations",
+                  "## Parallel iteration steps and peak memory")
 
 
 # ---------------------------------------------------------------------------------------------

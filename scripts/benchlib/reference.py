@@ -204,7 +204,7 @@ def section(result, previous=None):
                 "Not run: `scripts/bench --only reference --reference-smallvcm PATH` compares "
                 "whole-process wall time and peak memory (16 iterations, 512 × 512, 2 threads, "
                 "A/B alternated, medians of 3) with a SmallVCM binary built by hand; the "
-                "project never downloads or builds it. Targets (issue 16): time ≤ 0.8× and peak "
+                "project never downloads or builds it. Targets: time ≤ 0.8× and peak "
                 "memory ≤ 1.2× the reference's on each box, for vcm and bpt.", ""]
     L = [TITLE, ""]
     L.append(f"Whole process (start-up and writing the image included), {result['threads']} "
@@ -295,10 +295,9 @@ NOTES_PAGE = "performance-notes.md"  # relative to docs/results/, beside perform
 # The generated subsection that links to them (the measured section ends before it).
 NOTES_HEADING = "### Analysis, changes since, how the reference was built"
 NOTES_SECTIONS = ("### Where the targets stand, and what limits them",
-                  "### Since: shadow rays through their own BVH (issue 16, branch `speed-occ`)",
-                  "### Since: smaller stored light vertices (issue 16)",
-                  "### Since: the merge's fields in one cache line of the stored light vertex "
-                  "(issue 16)",
+                  "### Shadow rays through their own BVH (branch `speed-occ`)",
+                  "### Smaller stored light vertices",
+                  "### The merge's fields in one cache line of the stored light vertex",
                   "### How the reference binary was built",
                   "### What the two programs compute differently")
 
