@@ -1,4 +1,4 @@
-// The photon-beam lookup of upbp (docs/media.md, "Photon beams in grid media": the figures):
+// The photon-beam lookup of upbp (docs/design/media.md, "Photon beams in grid media": the figures):
 // BeamsAlongRay (Embree user geometry, the default) against UniformBeamGrid (a uniform grid,
 // SmallUPBP's kind of lookup), on one iteration's real photon beams (upbp at its defaults, one
 // light path per pixel, short or long beams) of isosph and the smoke at 128 x 128. build: one

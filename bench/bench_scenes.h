@@ -19,7 +19,7 @@ namespace render::bench {
 const std::vector<std::string>& ray_scene_names();
 // The four reference Cornell boxes of SmallVCM (scenes/smallvcm/*.xml), by stem.
 const std::vector<std::string>& reference_scene_names();
-// The shipped scenes with participating media (docs/media.md).
+// The shipped scenes with participating media (docs/design/media.md).
 const std::vector<std::string>& media_scene_names();
 
 // The scene file of a shipped scene's stem (e.g. "veach-mis", "1-glm_c").

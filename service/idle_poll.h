@@ -8,7 +8,7 @@ namespace render::service {
 // The pause between Lease calls that found no work: 0.3 s at first, growing by half up to 2 s
 // while the farm stays idle, each pause jittered by +-20 % so that a farm started at once does
 // not poll in step. An idle worker polling every 0.3 s cost the server twice the CPU of a busy
-// one (farm_sim, docs/service.md "How many workers one server carries"); 2 s is the most a
+// one (farm_sim, docs/guide/service.md "How many workers one server carries"); 2 s is the most a
 // new job waits for an idle farm to notice it.
 class IdlePoll {
   public:

@@ -1,6 +1,6 @@
 #pragma once
 
-// Transport security of the render service (docs/service.md, "Transport security"): TLS
+// Transport security of the render service (docs/guide/service.md, "Transport security"): TLS
 // credentials for the server (--tls-cert/--tls-key) and for its clients and workers
 // (--tls-ca, --tls-server-name), and the rule for a bearer token over plaintext:
 //

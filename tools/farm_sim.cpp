@@ -1,5 +1,6 @@
 // `farm_sim`: many simulated workers against one real server, to measure how many workers a
-// server carries (docs/service.md, "How many workers one server carries").
+// server carries (docs/results/service-measurements.md, "How many workers one server
+// carries").
 //
 // Each simulated worker is a thread with its own gRPC channel (its own TCP connection, as a
 // real worker process has) that follows the worker protocol of proto/render.proto: register,

@@ -10,7 +10,7 @@
 // cube (the .vol bounding box is [0,1]^3; y is up).
 //
 // --emission writes a flame's emitted radiance on the same grid (RGB .vol, the `radiance`
-// volume of a heterogeneous medium, docs/media.md "Emission in media"): a temperature-like
+// volume of a heterogeneous medium, docs/design/media.md "Emission in media"): a temperature-like
 // field, hottest in a core on the plume's axis just above the floor, falling off with the
 // distance from the axis and with height, mapped to colour by a fire ramp (dark red, orange,
 // yellow-white at the hottest) times K (default 8).

@@ -1,8 +1,9 @@
 #pragma once
 
 // The report of a finished lease, sent by a thread of its own while the worker renders its
-// next lease (issue 16: a report sent in the foreground idled the render threads for its
-// serialisation, transfer and the server's merge). One report is in flight at most: start()
+// next lease: a report sent in the foreground idled the render threads for its serialisation,
+// transfer and the server's merge (docs/results/performance-notes.md, "Reports in the
+// background"). One report is in flight at most: start()
 // waits for the previous one first, so the worker holds at most one report's buffers besides
 // the lease it renders (charged to the memory budget, Worker::process).
 

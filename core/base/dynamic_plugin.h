@@ -1,9 +1,10 @@
 #pragma once
 
 // Loading a plugin: a shared library of our own that core dlopens the first time it is needed,
-// so that programs do not load its heavy dependencies at start-up (docs/performance.md,
-// "Start-up"). Used by the image plugin (core/image/image_plugin.h, OpenImageIO) and the
-// volume plugin (core/media/vdb_plugin.h, OpenVDB).
+// so that programs do not load its heavy dependencies at start-up
+// (docs/results/performance-notes.md, "Start-up"). Used by the image plugin
+// (core/image/image_plugin.h, OpenImageIO) and the volume plugin (core/media/vdb_plugin.h,
+// OpenVDB).
 
 #include <functional>
 #include <string>

@@ -15,8 +15,8 @@ class Shape;
 // frame, materials and emitter always; uv, dp/du and dp/dv only where they are read: by materials
 // that vary over the surface (textures, normal and bump maps: the shading-frame hook and at() in
 // Scene::intersect) or when the caller asks for them (kWithUv). Filling them at every hit was
-// over a quarter of the wrapper's cost over bare Embree (docs/performance.md, "Closest hits
-// through Scene::intersect").
+// over a quarter of the wrapper's cost over bare Embree (docs/results/performance-notes.md,
+// "Closest hits through Scene::intersect").
 enum class HitDetail { kShading, kWithUv };
 
 // A ray's hit on a surface, in world space.

@@ -1,7 +1,8 @@
 #pragma once
 
-// How much memory one scene may take on this machine (issue 18: a scene that needs more memory
-// than a worker has fails its job with a message instead of the kernel killing the worker).
+// How much memory one scene may take on this machine: a scene that needs more memory than a
+// worker has fails its job with a message instead of the kernel killing the worker
+// (docs/guide/reliability.md, "The memory budget").
 //
 // A SceneMemoryBudget, set for the duration of a load on the loading thread, is charged by the
 // loaders with the size of each large buffer before it is allocated (file contents, meshes and

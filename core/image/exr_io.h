@@ -3,8 +3,9 @@
 // Image files. OpenEXR is read and written with OpenEXR itself (linked into render_core);
 // everything else (reading .hdr, .png... and writing the PNG preview) goes through
 // OpenImageIO in the image plugin, a shared library loaded only when such a file is used
-// (core/image/image_plugin.h; docs/performance.md, "Start-up"). This header includes neither
-// library: OIIO and protobuf headers cannot share a translation unit (DEPENDENCIES.md, trap 2).
+// (core/image/image_plugin.h; docs/results/performance-notes.md, "Start-up"). This header includes
+// neither library: OIIO and protobuf headers cannot share a translation unit
+// (DEPENDENCIES.md, trap 2).
 
 #include <filesystem>
 #include <map>

@@ -4,7 +4,7 @@
 // OpenEXR, such as .hdr and .png environment maps, and writing the PNG preview). It is a shared
 // library of its own, librender_image_oiio.so (core/image/oiio_plugin/), loaded with dlopen the
 // first time such a file is read or written, so that programs linking render_core do not load
-// OpenImageIO's ~250 shared libraries at start-up (docs/performance.md, "Start-up").
+// OpenImageIO's ~250 shared libraries at start-up (docs/results/performance-notes.md, "Start-up").
 //
 // The interface is plain C so that nothing but these declarations is shared between the two
 // sides: no exception crosses it, no allocation is freed on the other side. This header does

@@ -2,7 +2,7 @@
 
 // Spectra given as wavelength:value lists, turned into the linear sRGB this renderer works in
 // exactly as Mitsuba 3's RGB variants turn them (src/core/xml.cpp and spectrum.cpp of
-// Mitsuba 3, rewritten; docs/scene-format.md, "Spectra", states the rule):
+// Mitsuba 3, rewritten; docs/reference/scene-format.md, "Spectra", states the rule):
 //   1. values are scaled by 1 / 106.7502593994140625 (Mitsuba's CIE Y normalisation);
 //   2. XYZ = (470 / 1000) * sum over 1000 wavelengths w_i = 360 + 470 i / 999 nm inside
 //      [first, last wavelength] of xyz(w_i) * s(w_i) * (illuminant ? D65(w_i) : 1), with s

@@ -1,7 +1,7 @@
 #pragma once
 
 // The alternative lookup for upbp's photon beams, measured against BeamsAlongRay (Embree user
-// geometry) in bench/beam_lookup.cpp (docs/media.md, "Photon beams in grid media": the
+// geometry) in bench/beam_lookup.cpp (docs/design/media.md, "Photon beams in grid media": the
 // figures). A uniform grid over the beams' bounds (clipped to a given box); each beam is
 // registered in every cell its capsule of radius r overlaps (walked in steps of one cell, each
 // step's box grown by r), and a query walks the cells its segment crosses (3-D DDA), testing

@@ -128,7 +128,8 @@ class HashGrid {
     // The points sorted by bucket, then by index, each with a copy of its position and its id: a
     // bucket's candidates are one sequential read, and a query touches nothing else of a point (the
     // caller's records only for the points within the radius). Queries were bound by the
-    // cache misses of an index, then a position far from its neighbours' (docs/performance.md).
+    // cache misses of an index, then a position far from its neighbours'
+    // (docs/results/performance.md).
     struct Entry {
         Vec3 p;
         uint32_t index;  // the point's id (build's ids[i], or i)

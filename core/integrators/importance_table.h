@@ -1,7 +1,8 @@
 #pragma once
 
 // One discrete distribution over the M VPLs of an iteration, as importance caching builds four
-// of per record (Georgiev et al. EG 2012; docs/algorithms.md, "Importance caching (core)").
+// of per record (Georgiev et al. EG 2012; docs/reference/algorithms.md, "Importance caching
+// (core)").
 //
 // Why not Distribution1D: IC needs (i) cumulative sums and probabilities in double, since with
 // M >= 1e5 VPLs a float CDF (spacing 6e-8 near 1) merges or drops the entries that are far

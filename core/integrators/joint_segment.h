@@ -1,6 +1,6 @@
 #pragma once
 
-// J2, the segment-segment joint connection of bpt (docs/media.md, "J2: segment-segment
+// J2, the segment-segment joint connection of bpt (docs/design/media.md, "J2: segment-segment
 // connections"): the density with which B2 (core/sampling/joint_light_distance.h) samples a
 // light-side vertex x on the light ray from `light_origin` through it, given the eye ray from
 // `eye_origin` through `eye_through` (the eye-side vertex, sampled afterwards by J1). The range

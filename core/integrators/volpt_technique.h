@@ -4,7 +4,8 @@ namespace render {
 
 // Which of volpt's techniques produce the double-scattering paths camera -> c -> b -> light
 // (`--volpt-technique`, a diagnostic for the convergence-rate experiment of joint path sampling,
-// docs/media.md "Joint path sampling"). Every choice is an unbiased estimator of the same image.
+// docs/design/media.md "Joint path sampling"). Every choice is an unbiased estimator of the same
+// image.
 enum class VolptTechnique {
     // The default: distance sampling with light sampling (DL) and phase sampling (DP),
     // equi-angular sampling (EL, with --equiangular on) and joint sampling (J3, with --jis on),

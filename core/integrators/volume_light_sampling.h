@@ -1,15 +1,15 @@
 #pragma once
 
 // Sampling the emitters of the bidirectional family: the scene's lights and its emitting media
-// (Scene::volume_lights, core/scene/volume_emitter.h; docs/media.md "Emitting media as
+// (Scene::volume_lights, core/scene/volume_emitter.h; docs/design/media.md "Emitting media as
 // lights"). A volume light's point takes three numbers, its direction two, so it has routines of
 // its own beside Light::illuminate and Light::emit. Without emitting media every routine here
 // draws what sample_direct_light and Light::emit draw, in the same order.
 
 #include <cmath>
 
-#include "core/integrators/direct_light.h"
 #include "core/integrators/bidirectional/vcm_mis.h"
+#include "core/integrators/direct_light.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
 #include "core/scene/volume_emitter.h"
@@ -41,9 +41,9 @@ inline VolumeLightSample sample_volume_light_start(const VolumeEmitter& emitter,
     return out;
 }
 
-// MIS of a volume light (vcm_mis.h; docs/media.md): the light subpath's start is eqs. (31)-(33)
-// with cos = 1 and the volume density in place of the area density, and the eye's collision
-// estimate at a point y of the medium is eq. (43) with next-event estimation's density
+// MIS of a volume light (vcm_mis.h; docs/design/media.md): the light subpath's start is eqs.
+// (31)-(33) with cos = 1 and the volume density in place of the area density, and the eye's
+// collision estimate at a point y of the medium is eq. (43) with next-event estimation's density
 // direct_pdf_a = P p_V(y) and the light subpath's P p_V(y) / 4 pi. The integrator and
 // volume_emitter_mis_test call these same functions.
 inline MisQuantities start_volume_light_mis(const VcmMis& mis, float direct_pdf_a) {

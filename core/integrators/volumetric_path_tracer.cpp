@@ -359,7 +359,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
             }
             const MediumSample ms = medium->sample(ray, t_end, rng);
             if (medium->is_emissive()) {
-                // Emission along this segment (docs/media.md, "Emission in media"): only the
+                // Emission along this segment (docs/design/media.md, "Emission in media"): only the
                 // path finds it (no technique samples points of emissive media), so its MIS
                 // weight is 1. Like a surface emitter hit at the segment's end, it belongs to
                 // paths of `depth` segments.

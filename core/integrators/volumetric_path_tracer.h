@@ -19,7 +19,7 @@ namespace render {
 //   camera ray's medium pieces in homogeneous media: c on the camera ray, b on a ray from c and
 //   the light point are sampled together so that the geometry terms cancel; combined with the
 //   three techniques above by the power heuristic over four (the weights of every path
-//   camera -> c -> b -> light include J3's density). docs/media.md, "Joint path sampling".
+//   camera -> c -> b -> light include J3's density). docs/design/media.md, "Joint path sampling".
 // `technique` replaces this MIS by single unweighted techniques, for measuring convergence rates
 // (volpt_technique.h).
 // max_depth counts segments as Mitsuba does (medium vertices count, null crossings do not).

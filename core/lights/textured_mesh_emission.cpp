@@ -28,9 +28,9 @@ TexturedMeshEmission::TexturedMeshEmission(const TriangleMesh& mesh, const Textu
     k_ = int(std::clamp(std::floor(std::sqrt(double(kMaxCells) / (2.0 * double(triangles)))), 1.0,
                         16.0));
     const size_t slots = 2 * size_t(k_) * size_t(k_);
-    // The worker's memory budget (issue 18): the cells' weights, pdf and cdf (16 bytes a slot)
-    // and the locator's grid (at most 4 cells a triangle, 4 bytes each, and its lists, a few
-    // entries a triangle), charged before they are allocated.
+    // The worker's memory budget (docs/guide/reliability.md, "The memory budget"): the cells'
+    // weights, pdf and cdf (16 bytes a slot) and the locator's grid (at most 4 cells a triangle, 4
+    // bytes each, and its lists, a few entries a triangle), charged before they are allocated.
     charge_scene_memory(saturating_product(triangles, slots * 16 + 64),
                         "the textured emitter on " + mesh.to_string());
 

@@ -8,7 +8,7 @@
 // *spectral tracking* (Kutz, Habel, Li and Novak 2017, "Spectral and Decomposition Tracking for
 // Rendering Heterogeneous Volumes") for RGB extinction. Transmittance: ratio tracking over the
 // same grid with Russian roulette. See sample() and transmittance() for the estimators and
-// docs/media.md for their weight bounds.
+// docs/design/media.md for their weight bounds.
 
 #include <array>
 #include <memory>
@@ -51,7 +51,7 @@ class HeterogeneousMedium final : public Medium {
     // null events before it with probability prod (1 - P_r), and w = prod sigma_n / (mu (1 -
     // P_r)), so E[w; reached] = E[prod sigma_n / mu] = T(0, t) (ratio tracking's identity);
     // the collisions form a Poisson process of rate mu, so the sum's mean is
-    // integral T sigma_a L_e ds over (0, t_max) (docs/media.md, "Emission in media").
+    // integral T sigma_a L_e ds over (0, t_max) (docs/design/media.md, "Emission in media").
     MediumSample sample(const Ray& ray, float t_max, Rng& rng) const override;
 
     // Ratio tracking: T *= 1 - sigma_t / mu at each tentative collision. Once max(T) < 0.1 the

@@ -32,14 +32,15 @@ struct MediumSample {
     // T(t_max) / P(pass) otherwise. Absorption is part of the weight, never a termination, so
     // the weight may be zero.
     Rgb weight{1.0f};
-    // Emission (docs/media.md, "Emission in media"): an unbiased estimate of the radiance that
-    // the medium emits toward the ray origin from (0, t_max),
+    // Emission (docs/design/media.md, "Emission in media"): an unbiased estimate of the radiance
+    // that the medium emits toward the ray origin from (0, t_max),
     //     integral_0^t_max T(0, s) sigma_a(s) L_e(s) ds,
     // to be multiplied by the throughput *before* `weight`. Zero unless is_emissive().
     Rgb emission{0.0f};
     // For a scattering event: the factor of a source term at t, `weight` without sigma_s(t)
     // (weight = source_weight * sigma_s(t)). The bidirectional family's collision estimator of
-    // emission multiplies it by sigma_a(t) L_e(t) (docs/media.md, "Emitting media as lights").
+    // emission multiplies it by sigma_a(t) L_e(t) (docs/design/media.md, "Emitting media as
+    // lights").
     Rgb source_weight{0.0f};
 };
 
@@ -87,13 +88,13 @@ class Medium {
     // True when sample()'s weight on passing any distance is exactly 1 in every channel, i.e.
     // the probability of passing t is the transmittance T(t) itself (grey extinction sampled by
     // delta tracking). upbp's short photon beams, cut at a sampled distance, then need no
-    // transmittance estimate along the beam: T(t) / P(pass t) = 1 (docs/media.md).
+    // transmittance estimate along the beam: T(t) / P(pass t) = 1 (docs/design/media.md).
     virtual bool pass_weight_is_one() const { return false; }
     // For media whose pass weight is neither one nor in closed form (chromatic grids): the
     // weight w(t) with which sample(ray, t_max, rng), started with this random state, passed t
     // (zero if it stopped before t). E[w(t) 1{passed t}] = T(t) per channel, so a short photon
-    // beam cut where that walk stopped carries w(t) at t (docs/media.md, "Photon beams in grid
-    // media"). Media that never need it return one.
+    // beam cut where that walk stopped carries w(t) at t (docs/design/media.md, "Photon beams in
+    // grid media"). Media that never need it return one.
     virtual Rgb replay_pass_weight(const Ray&, float /*t_max*/, float /*t*/, Rng /*rng*/) const {
         return Rgb(1.0f);
     }

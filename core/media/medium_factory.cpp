@@ -44,7 +44,7 @@ std::shared_ptr<const Medium> make_homogeneous(const Properties& props,
     const Rgb scaled_a = sigma_a * scale, scaled_s = sigma_s * scale;
     if (!(scaled_a + scaled_s).is_finite())
         throw props.error("scale", "the scaled coefficients overflow");
-    // Emitted radiance L_e (source term sigma_a L_e, docs/media.md "Emission in media").
+    // Emitted radiance L_e (source term sigma_a L_e, docs/design/media.md "Emission in media").
     const Rgb radiance = props.get_rgb("radiance", Rgb(0.0f));
     if (!valid_coefficient(radiance)) throw props.error("radiance", "must be finite and >= 0");
     return std::make_shared<HomogeneousMedium>(scaled_a, scaled_s, std::move(phase), radiance);

@@ -1,7 +1,7 @@
 #pragma once
 
 // Registry from scene-file names to phase functions and media (Mitsuba 3 names and
-// parameters; the 0.6 forms of `homogeneous` are accepted too). See docs/scene-format.md.
+// parameters; the 0.6 forms of `homogeneous` are accepted too). See docs/reference/scene-format.md.
 
 #include <map>
 #include <memory>

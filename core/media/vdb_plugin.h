@@ -5,8 +5,8 @@
 // first time a .vdb file is read or written (core/media/vdb_file.cpp), so that programs linking
 // render_core do not load OpenVDB and its ~10 libraries at start-up: relocating libopenvdb's
 // ~69,000 symbols was most of the dynamic loader's work, its 26 MiB of tables were mapped
-// into every process, and log4cplus started a thread pool before main (docs/performance.md,
-// "Start-up").
+// into every process, and log4cplus started a thread pool before main
+// (docs/results/performance-notes.md, "Start-up").
 //
 // As for the image plugin (core/image/image_plugin.h): a plain C interface, no exception
 // crosses it, no allocation is freed on the other side. This header does not include OpenVDB.

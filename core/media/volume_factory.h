@@ -6,7 +6,7 @@
 //                unit cube, identity), filter_type ("trilinear" | "nearest"), wrap_mode
 //                ("clamp" only), use_grid_bbox (boolean, false: place the grid by the file's
 //                bounding box before to_world, as Mitsuba 3's option of that name)
-// See grid_volume.h for the interpolation convention and docs/media.md.
+// See grid_volume.h for the interpolation convention and docs/design/media.md.
 
 #include <memory>
 #include <string>

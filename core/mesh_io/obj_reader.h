@@ -5,7 +5,7 @@
 // fan-triangulated; other statements (o, g, s, usemtl, mtllib, l, p, ...) are ignored.
 // Every distinct (position, uv, normal) index triple becomes one output vertex. Normals (uvs)
 // are kept only if every face vertex references one.
-// Scene format reference: docs/scene-format.md (shape `obj`).
+// Scene format reference: docs/reference/scene-format.md (shape `obj`).
 
 #include <filesystem>
 #include <string>

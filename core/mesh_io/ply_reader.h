@@ -5,7 +5,7 @@
 // coordinates (u v, s t, texture_u texture_v or texture_s texture_t), and the `face` element's
 // index list (`vertex_indices` or `vertex_index`, any integer count and index type). Polygons
 // are fan-triangulated. Other elements and properties are read and ignored.
-// Scene format reference: docs/scene-format.md (shape `ply`).
+// Scene format reference: docs/reference/scene-format.md (shape `ply`).
 
 #include <filesystem>
 #include <string>

@@ -11,7 +11,7 @@
 //   double, then 3 uint32 indices per triangle.
 // Several meshes are concatenated (each with its own uncompressed 4-byte header); the file
 // ends with the byte offset of each mesh (uint64 in version 4, uint32 in version 3) and a
-// uint32 mesh count. Scene format reference: docs/scene-format.md (shape `serialized`).
+// uint32 mesh count. Scene format reference: docs/reference/scene-format.md (shape `serialized`).
 
 #include <cstddef>
 #include <filesystem>

@@ -158,7 +158,7 @@ std::vector<Algorithm>& table() {
                      "joint_connections"},
          .variants = {{{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             // J2's factors in the merge weights are not derived (docs/media.md).
+             // J2's factors in the merge weights are not derived (docs/design/media.md).
              if (s.joint2_connections)
                  throw std::invalid_argument(
                      "--joint-connections all (J2 connections) is bpt only: vcm's merge weights "

@@ -5,7 +5,7 @@
 // memory, the benchmarks that run it and its factory. Every list of algorithms, every
 // "supported: ..." message, the --help text, `render --describe-options` (which the scripts
 // read), the memory estimate and the scene formats' integrator names are derived from it
-// (docs/architecture.md, "Adding an algorithm").
+// (docs/design/architecture.md, "Adding an algorithm").
 
 #include <map>
 #include <memory>
@@ -30,7 +30,7 @@ struct SceneSupport {
     bool grid_media = false;      // heterogeneous (grid) media
     bool emissive_media = false;  // media that emit (`radiance`)
     // Emitting media inside closed shapes only: they become lights (Scene::volume_lights,
-    // docs/media.md "Emitting media as lights"); an unbounded emitting medium is refused.
+    // docs/design/media.md "Emitting media as lights"); an unbounded emitting medium is refused.
     bool bounded_emissive_media = false;
 };
 

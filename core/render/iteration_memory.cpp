@@ -18,7 +18,7 @@ using namespace bidirectional;  // the record bounds
 constexpr uint64_t kLightVertexBytes = kLightVertexBytesBound;
 // A photon beam (PhotonBeam), its line for the lookup (BeamLine) and its references in the
 // lookup's uniform grid (beam_grid.h: 4 B each; measured 31-59 per beam on isosph and the
-// smoke, docs/media.md), with the grid's per-cell arrays (about one cell per beam).
+// smoke, docs/design/media.md), with the grid's per-cell arrays (about one cell per beam).
 constexpr uint64_t kPhotonBeamBytes = kPhotonBeamBytesBound + 32 + 64 * 4 + 12;
 // Merging modes, per stored vertex: its position and index (16 B) in vectors that grow by
 // doubling (x 2), and the hash grid's entry (position and index, 16 B) and cell start.

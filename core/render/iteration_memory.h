@@ -1,12 +1,13 @@
 #pragma once
 
 // An up-front estimate of the memory an algorithm's iterations take besides the scene and the
-// film (issue 18): the light vertices of the bidirectional family and their merging grids,
+// film: the light vertices of the bidirectional family and their merging grids,
 // photon beams, the importance caches' tables and the per-thread buffers. It is computed from
 // the settings alone, before anything is rendered, so that a worker (or `render
 // --max-memory`) charges it to its SceneMemoryBudget and a job that would not fit fails with a
 // message instead of the kernel killing the process. Calibration against measured peaks:
-// docs/reliability.md, "The memory budget".
+// docs/guide/reliability.md, "The memory budget" and "The algorithms' working memory per
+// iteration".
 
 #include <cstdint>
 #include <string>

@@ -251,7 +251,7 @@ const std::vector<RenderOption>& table() {
                  "MIS of every technique; dl: distance and light sampling only, unweighted (no "
                  "equi-angular or joint sampling); j3: joint sampling alone, unweighted, for the "
                  "paths it can produce. Each is unbiased; dl and j3 are for measuring "
-                 "convergence rates (docs/media.md, \"Joint path sampling\")",
+                 "convergence rates (docs/design/media.md, \"Joint path sampling\")",
          .choices = {"all", "dl", "j3"},
          .default_text = "all",
          .apply =
@@ -283,7 +283,7 @@ const std::vector<RenderOption>& table() {
                  "only); combined "
                  "by MIS (bpt, vcm; off by default: on the fog box J1 halves the variance but "
                  "doubles the time per iteration, equal-time error 0.96-1.05x; "
-                 "docs/joint-sampling.md)",
+                 "docs/results/joint-sampling.md)",
          .choices = {"off", "on", "all"},
          .default_text = "off",
          .apply =

@@ -2,7 +2,8 @@
 
 // The render options: every setting that, with the scene and the iteration range, determines an
 // image, defined once. The `render` command line, the client, the server's validation, the
-// worker and the EXR header all read this table (docs/architecture.md, "adding an option"):
+// worker and the EXR header all read this table (docs/design/architecture.md, "One definition per
+// algorithm and per option"):
 //   - command-line flags and their help text (add_render_options),
 //   - the API's generic `options` map (proto/render.proto), validated against it,
 //   - the RenderSettings a worker renders with (resolve_render_settings),

@@ -33,19 +33,19 @@ struct RenderSettings {
     // with distance sampling (off: distance sampling only, for comparisons).
     bool equiangular = true;
     // volpt: joint path sampling (Georgiev et al. 2013) of double scattering on the camera ray in
-    // homogeneous media, combined by MIS with the other techniques (docs/media.md).
+    // homogeneous media, combined by MIS with the other techniques (docs/design/media.md).
     bool jis = true;
     // volpt: which techniques sample double scattering (a diagnostic; All = the MIS above).
     VolptTechnique volpt_technique = VolptTechnique::All;
     // bpt, vcm: joint (J1, vertex-segment) connections from eye segments in homogeneous media,
-    // one more technique in the MIS (docs/media.md, "Joint connections in bpt and vcm").
+    // one more technique in the MIS (docs/design/media.md, "Joint connections in bpt and vcm").
     bool joint_connections = false;
     // bpt: J2 (segment-segment) connections on the light's emission ray beside J1
     // (--joint-connections all).
     bool joint2_connections = false;
     // upbp: whether connections are made, which merges join them (surfaces, photon points P-P3D,
     // query beams P-B2D) and the volume estimators' radius schedule (0: the surfaces' radius_factor
-    // and alpha; docs/media.md, "Points, beams and paths").
+    // and alpha; docs/design/media.md, "Points, beams and paths").
     bool vertex_connections = true;
     bool surface_merging = true;
     bool photon_points = true;

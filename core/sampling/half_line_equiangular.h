@@ -1,8 +1,8 @@
 #pragma once
 
-// U1 of joint path sampling on a half-line (docs/media.md, "Joint path sampling"): a distance
-// t >= 0 along the ray (c, w) with density proportional to 1 / |a - (c + t w)|^2 toward the
-// light point a, i.e. equi-angular sampling over the whole half-line. With t_ca = |a - c| and
+// U1 of joint path sampling on a half-line (docs/design/media.md, "Joint path sampling"): a
+// distance t >= 0 along the ray (c, w) with density proportional to 1 / |a - (c + t w)|^2 toward
+// the light point a, i.e. equi-angular sampling over the whole half-line. With t_ca = |a - c| and
 // theta the angle between w and c -> a (D = t_ca sin theta, delta = t_ca cos theta), the
 // half-line subtends the angle pi - theta seen from a, so
 //     p(t) = D / ((pi - theta) (D^2 + (t - delta)^2)),

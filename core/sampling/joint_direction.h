@@ -1,6 +1,6 @@
 #pragma once
 
-// U2 of joint path sampling (docs/media.md, "Joint path sampling"): the direction w from the
+// U2 of joint path sampling (docs/design/media.md, "Joint path sampling"): the direction w from the
 // first medium vertex c toward the second vertex b, chosen so that the direction carries the
 // marginal of G(a, b) along the whole half-line (c, w) toward the light point a:
 //     integral over t >= 0 of 1 / |a - (c + t w)|^2 = (pi - theta) / (|a - c| sin theta),

@@ -1,8 +1,8 @@
 #pragma once
 
 // U3 of joint path sampling (Georgiev, Krivanek, Hachisuka, Nowrouzezahrai, Jarosz 2013;
-// docs/media.md, "Joint path sampling"): the distance t of the first medium vertex c on an eye
-// ray, chosen before the second vertex b and the light point a are connected, with density
+// docs/design/media.md, "Joint path sampling"): the distance t of the first medium vertex c on an
+// eye ray, chosen before the second vertex b and the light point a are connected, with density
 // proportional to 1 / |a - c(t)|. That is the marginal over b of G(a, b) G(b, c) in an
 // isotropic medium (the integral over all b of 1 / (|a - b|^2 |b - c|^2) is pi^3 / |a - c|), so
 // together with U2 (joint_direction.h) and U1 (equi-angular toward a) the product of the three

@@ -1,7 +1,7 @@
 #pragma once
 
 // B2 of joint path sampling (Georgiev, Krivanek, Hachisuka, Nowrouzezahrai, Jarosz 2013;
-// docs/media.md, "J2: segment-segment connections"): the distance t of the light-side medium
+// docs/design/media.md, "J2: segment-segment connections"): the distance t of the light-side medium
 // vertex b on a light ray (o, w), chosen before the eye-side vertex c is sampled on the eye
 // half-line (e, u) by equi-angular sampling toward b (B1, half_line_equiangular.h).
 //

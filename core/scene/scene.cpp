@@ -37,9 +37,9 @@ Scene::Scene() {
     // Shadow rays go through a second BVH over the same geometries (but the directly tested
     // analytic shapes, scene.h), built without ROBUST: its traversal takes about a third less time,
     // and an occlusion test only answers yes or no, which the two BVHs give differently only for a
-    // ray within float rounding of a triangle's edge or a node's box (docs/performance.md, "Since:
-    // shadow rays"). MEDIUM quality: HIGH's spatial splits cost build time the shadow rays do not
-    // win back.
+    // ray within float rounding of a triangle's edge or a node's box
+    // (docs/results/performance-notes.md, "Shadow rays through their own BVH"). MEDIUM quality:
+    // HIGH's spatial splits cost build time the shadow rays do not win back.
     occlusion_scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(occlusion_scene_, RTC_SCENE_FLAG_NONE);
     rtcSetSceneBuildQuality(occlusion_scene_, RTC_BUILD_QUALITY_MEDIUM);

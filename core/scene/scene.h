@@ -45,10 +45,10 @@ class TriangleMesh;
 
 class Scene {
   public:
-    // The shadow rays' BVH costs ~72 B per triangle (docs/performance.md, "Since: shadow rays
-    // through their own BVH"). It is built only for scenes of at most this many top-level
-    // triangles (at most ~72 MiB); a larger scene keeps its memory and sends shadow rays through
-    // the closest-hit BVH, as before, with every analytic shape in it.
+    // The shadow rays' BVH costs ~72 B per triangle (docs/results/performance-notes.md, "Shadow
+    // rays through their own BVH"). It is built only for scenes of at most this many
+    // top-level triangles (at most ~72 MiB); a larger scene keeps its memory and sends shadow rays
+    // through the closest-hit BVH, as before, with every analytic shape in it.
     static constexpr size_t kMaxShadowBvhTriangles = size_t(1) << 20;
     static constexpr uint64_t kShadowBvhBytesPerTriangle = 72;
 

@@ -1,7 +1,7 @@
 #pragma once
 
-// An emitting medium as a light of the bidirectional family (docs/media.md, "Emitting media as
-// lights"): light subpaths start at points y_0 of the medium, next-event estimation samples such
+// An emitting medium as a light of the bidirectional family (docs/design/media.md, "Emitting media
+// as lights"): light subpaths start at points y_0 of the medium, next-event estimation samples such
 // points, and the eye's collision estimator weighs the emission it finds against both.
 //
 // The region is the medium's bounding box B: the union of the bounds of the shapes that have the

@@ -1,7 +1,8 @@
 #pragma once
 
 // TriangleMesh::fill_hit, inline so that Scene::intersect fills a mesh hit without a virtual
-// call and a call frame (docs/performance.md, "Closest hits through Scene::intersect").
+// call and a call frame (docs/results/performance-notes.md, "Closest hits through
+// Scene::intersect").
 
 #include "core/shapes/triangle_mesh.h"
 #include "core/shapes/uv_wanted.h"

@@ -26,6 +26,16 @@ import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
+# The generated pages are results pages: DOCS/results/NAME.md. Their images stay in DOCS/img/
+# and the pages they link to are in DOCS/design/, DOCS/references/ ..., so the links a
+# generator writes are relative to DOCS/results/ ("../img/...", "../design/media.md").
+RESULTS_DIR = "results"
+
+
+def results_page(docs_dir: Path, name: str) -> Path:
+    """Where a generated page NAME.md goes under the docs folder DOCS_DIR (docs/ by default)."""
+    return Path(docs_dir) / RESULTS_DIR / name
+
 
 # --------------------------------------------------------------------------------------------
 # Machine information

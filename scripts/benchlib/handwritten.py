@@ -1,6 +1,6 @@
 """Links from a generated document to the sections of a hand-written page.
 
-The generated docs/performance.md carries no hand-written text: measurements made by hand live
+The generated docs/results/performance.md carries no hand-written text: measurements made by hand live
 in docs/results/performance-notes.md, and the generated document lists links to their sections.
 These helpers build those links and fail loudly instead of losing anything silently:
 

@@ -1,5 +1,5 @@
 """Joint path sampling in pictures, and its convergence rate (`scripts/bench --only joint-figures`,
-writes docs/joint-figures.md and docs/img/joint-sampling/*.png).
+writes docs/results/joint-figures.md and docs/img/joint-sampling/*.png).
 
 1. Convergence slopes (ALGORITHMS-NEXT.md 3.8 b2). volpt renders the double-scattering paths
    camera -> c -> b -> light of the fog box (point light, max_depth 3; the `s1_t3` layer of
@@ -257,7 +257,7 @@ def write_pictures(docs_dir: Path, figures):
                  {a: (arms[a][0], arms[a][2]) for a in arm_names}),
                 ("whole image", ref_whole, {a: (arms[a][1], arms[a][2]) for a in arm_names})]
         picture_figure(docs_dir / IMAGE_DIR / file, title, rows, arm_names)
-        lines += [f"### {name}", "", f"![{title}]({IMAGE_DIR}/{file})", "",
+        lines += [f"### {name}", "", f"![{title}](../{IMAGE_DIR}/{file})", "",
                   "| arm | iterations | seconds | double scattering MAE / RMSE | "
                   "whole image MAE / RMSE |", "| --- | --- | --- | --- | --- |"]
         for a in arm_names:
@@ -292,7 +292,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
 
     lines = ["# Joint path sampling: pictures and convergence slopes", "",
              "Written by `scripts/bench --only joint-figures` (scripts/benchlib/joint_figures.py);"
-             " do not edit by hand. The technique: [media.md](media.md), \"Joint path sampling\";"
+             " do not edit by hand. The technique: [media.md](../design/media.md), \"Joint path sampling\";"
              " equal-time error ratios: [joint-sampling.md](joint-sampling.md).", "",
              __doc__.strip(), "",
              f"Machine: {machine.get('cpu_model')}, {machine.get('cores')} cores (shared), "
@@ -310,7 +310,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
              f"N >= {slope_cfg['fit_from']}.", "",
              f"Commands (last of each): `{' '.join(commands['slope reference'])}`; "
              f"`{' '.join(commands['slope dl'])}`; `{' '.join(commands['slope j3'])}`", "",
-             f"![mean absolute error against N]({IMAGE_DIR}/slopes.png)", "",
+             f"![mean absolute error against N](../{IMAGE_DIR}/slopes.png)", "",
              "| technique | " + " | ".join(f"N = {n}" for n, _, _ in
                                            next(iter(slopes.values()))["rows"]) + " |",
              "| --- |" + " --- |" * len(next(iter(slopes.values()))["rows"])]
@@ -337,8 +337,8 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
               f"`{' '.join(commands['picture volpt isotropic --jis on'])}`; "
               f"`{' '.join(commands['picture bpt isotropic bpt + J1'])}`", ""]
     lines += write_pictures(docs_dir, figures)
-    docs_dir.mkdir(parents=True, exist_ok=True)
-    out_doc = docs_dir / "joint-figures.md"
+    out_doc = common.results_page(docs_dir, "joint-figures.md")
+    out_doc.parent.mkdir(parents=True, exist_ok=True)
     out_doc.write_text("\n".join(lines) + "\n")
     print(f"bench: wrote {out_doc}")
 

@@ -1,5 +1,5 @@
 """Joint path sampling at equal time: `volpt --jis on` against `--jis off` on the fog box
-(`scripts/bench --only joint-sampling`, writes docs/joint-sampling.md).
+(`scripts/bench --only joint-sampling`, writes docs/results/joint-sampling.md).
 
 Both arms are the same estimator in expectation (the block test
 `Convergence.JointSamplingMatchesVolptWithoutItOnTheFogBox` checks it); joint sampling changes
@@ -66,10 +66,10 @@ PICTURE_LINES = [
     "and false-colour images of its absolute error, for double scattering alone and the whole "
     "image; and the mean absolute error of the unweighted 0-connection and of unweighted joint "
     "sampling against N.", "",
-    "![volpt, isotropic fog box](img/joint-sampling/fog-box-isotropic-volpt.png)", "",
-    "![volpt, fog box with g = 0.9](img/joint-sampling/fog-box-g09-volpt.png)", "",
-    "![bpt with and without J1, isotropic fog box](img/joint-sampling/fog-box-isotropic-bpt.png)",
-    "", "![convergence slopes](img/joint-sampling/slopes.png)", ""]
+    "![volpt, isotropic fog box](../img/joint-sampling/fog-box-isotropic-volpt.png)", "",
+    "![volpt, fog box with g = 0.9](../img/joint-sampling/fog-box-g09-volpt.png)", "",
+    "![bpt with and without J1, isotropic fog box](../img/joint-sampling/fog-box-isotropic-bpt.png)",
+    "", "![convergence slopes](../img/joint-sampling/slopes.png)", ""]
 
 
 def read_layer(path: Path, layer: str):
@@ -189,7 +189,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     lines = ["# Joint path sampling: volpt with and without it", "",
              "Written by `scripts/bench --only joint-sampling` "
              "(scripts/benchlib/joint_sampling.py); do not edit by hand. The technique: "
-             "[media.md](media.md), \"Joint path sampling\".", "", __doc__.strip(), "",
+             "[media.md](../design/media.md), \"Joint path sampling\".", "", __doc__.strip(), "",
              f"Machine: {machine.get('cpu_model')}, {machine.get('cores')} cores, "
              f"{machine.get('date_utc')}; revision {machine.get('source_revision', '?')}; load "
              f"average before {(machine.get('load_average') or ['?'])[0]}. "
@@ -251,7 +251,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
                   for case, (r, se) in vcm_verdicts.items()) + ".", ""]
     lines += PICTURE_LINES
-    docs_dir.mkdir(parents=True, exist_ok=True)
-    out_doc = docs_dir / "joint-sampling.md"
+    out_doc = common.results_page(docs_dir, "joint-sampling.md")
+    out_doc.parent.mkdir(parents=True, exist_ok=True)
     out_doc.write_text("\n".join(lines) + "\n")
     print(f"bench: wrote {out_doc}")

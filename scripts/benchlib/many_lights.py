@@ -1,5 +1,5 @@
 """Many-light rendering at equal time: all VPLs (uniform), importance-driven VPLs and importance
-caching (`scripts/bench --only many-lights`, writes docs/many-lights.md and
+caching (`scripts/bench --only many-lights`, writes docs/results/many-lights.md and
 docs/img/many-lights/).
 
 The four many-light arms are the same estimator in expectation: `vpl` with a fixed clamp (d_min = 1 % of
@@ -23,7 +23,7 @@ measured apart, each where it can be measured well:
 - v: RUNS independent `render --iterations N` runs per arm (own seeds); the per-pixel sample
   variance over the runs (ddof 1) times N estimates one iteration's variance, reported as
   mean over pixels and channels of  variance / (r^2 + 0.01)  (the relative-MSE definition of
-  docs/speed-vs-error.md; r, which only scales the pixels, is a long run of the uniform arm).
+  docs/results/speed-vs-error.md; r, which only scales the pixels, is a long run of the uniform arm).
   VPL errors are heavy-tailed (a VPL near a wall lights a small spot brightly; the brightest
   1 % of pixels carry about half of the total), so many runs are needed; the uncertainty
   shown is the standard error over GROUPS disjoint groups of runs.
@@ -199,7 +199,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                          + " | ".join(f"{m['v'] * m['t'] / t:.3g}" for t in TIMES) + " |")
             print(f"  {name:12s} {arm:10s} v {m['v']:.4g} ± {m['v_se']:.2g}  t {m['t']:.3f} s"
                   f"  kept {m['kept']:.1f} %", flush=True)
-        pictures = " ".join(f"![{name} {arm}](img/many-lights/{name}-{arm}-"
+        pictures = " ".join(f"![{name} {arm}](../img/many-lights/{name}-{arm}-"
                             f"{cfg['picture_time']:g}s.png)" for arm in ARMS)
         lines += ["", f"Equal-time relMSE(uniform) / relMSE(importance) = (v·t)_uniform / "
                   f"(v·t)_importance = **{ratio:.2f} ± {ratio_se:.2f}** (at every time: all "
@@ -219,7 +219,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"{bi['t'] / b['t']:.2f}× the cost.", "",
                   f"Pictures (`--time {cfg['picture_time']:g}`; tone-mapped by `render --png`): "
                   f"{', '.join(ARMS)}, and the scale image.", "",
-                  f"{pictures} ![{name} reference](img/many-lights/{name}-reference.png)", ""]
+                  f"{pictures} ![{name} reference](../img/many-lights/{name}-reference.png)", ""]
     lines += ["## The claims", ""]
     if OCCLUDED_SCENE in verdicts:
         ratio, ratio_se, kept = verdicts[OCCLUDED_SCENE][:3]
@@ -256,7 +256,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
         lines.append(f"- {name}, importance-cached connections: {bpt_ratio:.2f} ± "
                      f"{bpt_ratio_se:.2g}× lower relative MSE than bpt at equal time "
                      f"({v_ratio:.2f}× lower variance per iteration, {t_ratio:.2f}× the cost).")
-    docs_dir.mkdir(parents=True, exist_ok=True)
-    out_doc = docs_dir / "many-lights.md"
+    out_doc = common.results_page(docs_dir, "many-lights.md")
+    out_doc.parent.mkdir(parents=True, exist_ok=True)
     out_doc.write_text("\n".join(lines) + "\n")
     print(f"bench: wrote {out_doc}")

@@ -1,6 +1,6 @@
 """Performance report: runs the Google Benchmark microbenchmarks (build/bin/render_bench, sources
 in bench/), measures the overhead of distribution with a real local cluster, optionally profiles
-one bidirectional iteration with `perf`, and writes docs/performance.md from scratch.
+one bidirectional iteration with `perf`, and writes docs/results/performance.md from scratch.
 
     run(build_dir, docs_dir, quick)   # scripts/bench calls this
 
@@ -27,7 +27,7 @@ from benchlib import handwritten, reference
 
 SOURCE_DIR = Path(__file__).resolve().parents[2]
 
-# The distribution job: the demo's job (docs/service.md), so the figures can be compared.
+# The distribution job: the demo's job (docs/guide/service.md), so the figures can be compared.
 DIST_SCENE = "scenes/smallvcm/1-glm_c.xml"
 DIST_ALGO = "vcm"
 DIST_ITERATIONS = 32
@@ -410,11 +410,11 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("")
     add(f"Measured by hand, each with its command, machine and load, in [{NOTES_PAGE}]"
         f"({NOTES_PAGE}) (not written by `scripts/bench`); changes since the run above are in "
-        "[CHANGELOG.md](../CHANGELOG.md).")
+        "[CHANGELOG.md](../../CHANGELOG.md).")
     add("")
     # The notes page is the repository's (also when --out writes elsewhere).
-    L.extend(handwritten.section_links(SOURCE_DIR / "docs" / NOTES_PAGE, NOTES_SECTIONS,
-                                       NOTES_PAGE))
+    L.extend(handwritten.section_links(SOURCE_DIR / "docs" / "results" / NOTES_PAGE,
+                                       NOTES_SECTIONS, NOTES_PAGE))
 
     # --- ray queries
     if L[-1].strip():
@@ -464,8 +464,8 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "hit, then for meshes three vertex positions and normals fetched from memory "
             "and interpolated, and a shading frame built). On the 1 M-triangle mesh those "
             "fetches are cache misses into about 25 MB of vertex and index data, so the wrapper's share does "
-            "not shrink with scene size (issue 16's target is 0.92: see \"Closest hits through "
-            f"Scene::intersect (issue 16)\" in [{NOTES_PAGE}]({NOTES_PAGE})). ")
+            "not shrink with scene size (the speed target is 0.92: see \"Closest hits through "
+            f"Scene::intersect\" in [{NOTES_PAGE}]({NOTES_PAGE})). ")
     if occluded_ratios:
         add(f"Occlusion rays do no extra work in our wrapper (ratio "
             f"{min(occluded_ratios):.2f}–{max(occluded_ratios):.2f}: noise). ")
@@ -512,7 +512,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             add("| --- | --- | --- | --- | --- | --- |")
             L.extend(rows)
     add("")
-    add("**Participating media** ([media.md](media.md)): seconds per iteration at each media "
+    add("**Participating media** ([media.md](../design/media.md)): seconds per iteration at each media "
         "scene's own resolution, 2 threads (the bidirectional algorithms refuse the smoke's "
         "grid medium). On the surface-only boxes above, `volpt` against `pt` is what the "
         "media-aware path tracer costs on a scene without media.")
@@ -541,14 +541,17 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         "pipeline whose last stage gathers each chunk in chunk order (vertices, grid "
         "positions, splats added to the image) on one thread while the others trace later "
         "chunks; the hash grid is built in parallel, then the eye pass is parallel over "
-        "16 × 16 tiles (`core/integrators/vertex_cm.cpp`, \"Parallel iteration steps and peak "
+        "16 × 16 tiles (`core/integrators/bidirectional/light_pass.cpp` and "
+        "`core/integrators/pixel_loop.h`, "
+        "\"Parallel iteration steps and peak "
         f"memory\" in [{NOTES_PAGE}]({NOTES_PAGE})). What is left per iteration is waiting at the end of each parallel "
         "phase for its last chunk or tile, and the two threads sharing the memory bus and "
         "the L3 cache.")
     if profiles:
         add("")
-        add("In the profiles below, `VertexConnectionMerging::render_iteration` and "
-            "`Iteration::trace_eye_path` include what the compiler inlined into them (the eye "
+        add("In the profiles below, `BidirectionalIntegrator::render_iteration` (named "
+            "`VertexConnectionMerging::render_iteration` in profiles recorded before the "
+            "integrators were split) and `Iteration::trace_eye_path` include what the compiler inlined into them (the eye "
             "pass, MIS weights, connections, merging visits, adding splats); kernel symbols such "
             "as `pvm_irq_enable` are time the virtual machine spent in the kernel and hypervisor "
             "(page faults of the per-iteration buffers, and preemption by other load), and "
@@ -651,7 +654,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
         add("")
         add("Bytes, receive and merge times come from the server's log (`event=report_received "
             "bytes=… iterations=… receive_us=… merge_us=…` and `event=merged … add_us=… "
-            "checkpoint_us=…`, see docs/service.md), medians over all reports of all runs. "
+            "checkpoint_us=…`, see docs/guide/service.md), medians over all reports of all runs. "
             "*receive* runs from the report's header to its last value chunk (the worker's "
             "sending and the loopback transfer); *merge* is the whole of `JobManager::report` "
             "(lease bookkeeping in SQLite, adding the sums, writing the checkpoint file and the "
@@ -661,7 +664,7 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "RGB, 2 × 3 × 8 bytes per pixel whatever the number of iterations in the report "
             "(`sum` alone for a one-iteration report), so the bytes per iteration fall as "
             "leases grow (the scheduler sizes a lease to at least 3 s and at most 30 s of a "
-            "worker's measured rate, docs/service.md).")
+            "worker's measured rate, docs/guide/service.md).")
         add("")
         per_report = [c for c in dist["configs"] if c["merge_us"] is not None]
         server_ms = max(((c["receive_us"] or 0) + c["merge_us"]) / 1e3 for c in per_report) \
@@ -679,7 +682,8 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "lease while the other core may idle. 2 × 1 workers render whole iterations "
             "independently, so the serial steps of a bidirectional iteration (previous "
             "sections) do not idle a core — on an idle machine that is what lets 2 × 1 beat "
-            "one 2-thread process (docs/service.md measured 16.4 s against 21.8 s for 64 "
+            "one 2-thread process (docs/results/service-measurements.md measured 16.4 s against "
+            "21.8 s for 64 "
             "iterations); under other load the ratio is dominated by how the cores were shared.")
     else:
         add("Not measured in this run.")
@@ -691,16 +695,24 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
 
 # The hand-written page (relative to docs/) and its sections that the generated document links
 # to, in order. Rename a heading there and here together: section_links raises otherwise.
-NOTES_PAGE = "results/performance-notes.md"
-NOTES_SECTIONS = ("## Issue 16: where each target stands",
+NOTES_PAGE = "performance-notes.md"  # beside the generated page, docs/results/
+
+
+def document_path(docs_dir) -> Path:
+    """The generated page under the docs folder (docs/ by default): a results page, so its
+    links are relative to docs/results/ (as common.results_page says)."""
+    return Path(docs_dir) / "results" / "performance.md"
+
+
+NOTES_SECTIONS = ("## Where each speed target stands",
                   "### Abseil's deadlock detection off (2026-11-27)",
-                  "### Reports in the background (issue 16: the worker overlaps)",
+                  "### Reports in the background (the worker overlaps)",
                   "### Costs that grow with the work (the render-farm case)",
-                  "### Farm scaling: 1 to 8 workers (issue 16)",
-                  "## Closest hits through Scene::intersect (issue 16)",
+                  "### Farm scaling: 1 to 8 workers",
+                  "## Closest hits through Scene::intersect",
                   "## Start-up",
-                  "## Per-iteration allocations (issue 16)",
-                  "## Parallel iteration steps and peak memory (issue 16)")
+                  "## Per-iteration allocations",
+                  "## Parallel iteration steps and peak memory")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -730,10 +742,10 @@ def run(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm=None) -
         # The raw measurements, so that the document can be rewritten without rerunning
         # (write_from_raw).
         (build_dir / "performance-raw.json").write_text(json.dumps(raw, indent=1))
-        docs_dir.mkdir(parents=True, exist_ok=True)
-        write_document(docs_dir / "performance.md", machine, bench, dist, profiles, quick,
+        document_path(docs_dir).parent.mkdir(parents=True, exist_ok=True)
+        write_document(document_path(docs_dir), machine, bench, dist, profiles, quick,
                        started, raw["seconds"], reference_result)
-        log(f"wrote {docs_dir / 'performance.md'} in {(time.monotonic() - t0) / 60:.1f} min")
+        log(f"wrote {document_path(docs_dir)} in {(time.monotonic() - t0) / 60:.1f} min")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -758,7 +770,7 @@ def wait_for_quiet_machine(limit_seconds=240.0):
 
 def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm) -> None:
     """`scripts/bench --only reference`: measures ours against SmallVCM and rewrites only that
-    section of docs_dir/performance.md (the rest of the document is left as it is)."""
+    section of docs_dir/results/performance.md (the rest of the document is left as it is)."""
     if not reference_smallvcm:
         raise ValueError("--only reference needs --reference-smallvcm PATH")
     bin_dir = Path(build_dir).resolve() / "bin"
@@ -771,15 +783,15 @@ def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_s
     try:
         result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         (Path(build_dir).resolve() / "reference-raw.json").write_text(json.dumps(result, indent=1))
-        reference.replace_in_document(Path(docs_dir) / "performance.md", result)
-        log(f"wrote the SmallVCM section of {Path(docs_dir) / 'performance.md'}")
+        reference.replace_in_document(document_path(docs_dir), result)
+        log(f"wrote the SmallVCM section of {document_path(docs_dir)}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
 
 def write_from_raw(raw_file: Path, docs_dir: Path) -> None:
-    """Rewrites docs_dir/performance.md from a previous run's build/performance-raw.json."""
+    """Rewrites docs_dir/results/performance.md from a previous run's build/performance-raw.json."""
     raw = json.loads(Path(raw_file).read_text())
-    write_document(Path(docs_dir) / "performance.md", raw["machine"], tuple(raw["bench"]),
+    write_document(document_path(docs_dir), raw["machine"], tuple(raw["bench"]),
                    raw["dist"], raw["profiles"], raw["quick"], raw["started"], raw["seconds"],
                    raw.get("reference"))

@@ -1,6 +1,7 @@
 """Ours against the VCM reference implementation (SmallVCM) on its four Cornell boxes: whole-
 process wall time and peak memory of 16 iterations at 512 x 512 on 2 threads, A/B alternated,
-medians (issue 16's targets: time <= 0.8x, memory <= 1.2x the reference's).
+medians (the speed targets: time <= 0.8x, memory <= 1.2x the reference's;
+docs/results/performance-notes.md).
 
 The project never downloads or builds the reference: `scripts/bench --reference-smallvcm PATH`
 takes a binary built by hand (docs/results/performance-notes.md, "How the reference binary was
@@ -203,7 +204,7 @@ def section(result, previous=None):
                 "Not run: `scripts/bench --only reference --reference-smallvcm PATH` compares "
                 "whole-process wall time and peak memory (16 iterations, 512 × 512, 2 threads, "
                 "A/B alternated, medians of 3) with a SmallVCM binary built by hand; the "
-                "project never downloads or builds it. Targets (issue 16): time ≤ 0.8× and peak "
+                "project never downloads or builds it. Targets: time ≤ 0.8× and peak "
                 "memory ≤ 1.2× the reference's on each box, for vcm and bpt.", ""]
     L = [TITLE, ""]
     L.append(f"Whole process (start-up and writing the image included), {result['threads']} "
@@ -290,14 +291,13 @@ def efficiency_lines(rows):
 # Written by hand in docs/results/performance-notes.md (what the comparison means, the changes
 # since, how the binary was built, what differs between the programs): performance.py links to
 # these sections after the generated one and stops with an error when one is missing there.
-NOTES_PAGE = "results/performance-notes.md"  # relative to docs/
+NOTES_PAGE = "performance-notes.md"  # relative to docs/results/, beside performance.md
 # The generated subsection that links to them (the measured section ends before it).
 NOTES_HEADING = "### Analysis, changes since, how the reference was built"
 NOTES_SECTIONS = ("### Where the targets stand, and what limits them",
-                  "### Since: shadow rays through their own BVH (issue 16, branch `speed-occ`)",
-                  "### Since: smaller stored light vertices (issue 16)",
-                  "### Since: the merge's fields in one cache line of the stored light vertex "
-                  "(issue 16)",
+                  "### Shadow rays through their own BVH (branch `speed-occ`)",
+                  "### Smaller stored light vertices",
+                  "### The merge's fields in one cache line of the stored light vertex",
                   "### How the reference binary was built",
                   "### What the two programs compute differently")
 
@@ -344,8 +344,8 @@ def document_lines(path, result):
     while body and not body[-1].strip():
         body.pop()
     # The notes page is the repository's (also when --out writes elsewhere).
-    links = handwritten.section_links(Path(__file__).resolve().parents[2] / "docs" / NOTES_PAGE,
-                                      NOTES_SECTIONS, NOTES_PAGE)
+    notes = Path(__file__).resolve().parents[2] / "docs" / "results" / NOTES_PAGE
+    links = handwritten.section_links(notes, NOTES_SECTIONS, NOTES_PAGE)
     return body + ["", NOTES_HEADING, "", f"Written by hand in [{NOTES_PAGE}]({NOTES_PAGE}):",
                    ""] + links + [""]
 

@@ -1,5 +1,5 @@
 """UPBP's robustness claim at equal time: `bpt`, `vcm` and `upbp` over a sweep of medium density
-(`scripts/bench --only upbp`, writes docs/upbp.md; the estimators: docs/media.md, "Points,
+(`scripts/bench --only upbp`, writes docs/results/upbp.md; the estimators: docs/design/media.md, "Points,
 beams and paths").
 
 The claim to check (ALGORITHMS-NEXT.md 4.6 b): over isosph with sigma_t x 0.1, x 1, x 10 (the
@@ -10,7 +10,7 @@ and query beams only (P-B2D), `upbp` with connections and photon beams only (B-B
 beams, eta_1 = r/2), and `upbp` with everything (connections, surface merges, photon points,
 query beams, photon beams).
 
-Measured per arm, as in docs/joint-sampling.md, on the image without the emitter seen
+Measured per arm, as in docs/results/joint-sampling.md, on the image without the emitter seen
 directly (every arm samples that alike): v, one iteration's variance (the per-pixel
 variance over RUNS independent runs of ITERATIONS iterations, times ITERATIONS; mean over pixels
 and channels; its standard error over GROUPS disjoint groups of runs), and t, render's own
@@ -185,7 +185,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
         lines += ["", f"Best: {winner}; worst: {worst}; upbp (all) has {ratio:.2f}× the best "
                   "arm's equal-time RMSE.", ""]
     plot(docs_dir / "img" / "upbp" / "density-sweep.png", relative)
-    lines += ["## The claim", "", "![equal-time RMSE per arm](img/upbp/density-sweep.png)", ""]
+    lines += ["## The claim", "", "![equal-time RMSE per arm](../img/upbp/density-sweep.png)", ""]
     held = all(worst != "upbp: all" and ratio <= CLAIM_FACTOR for _, _, worst, ratio in verdicts)
     for title, winner, worst, ratio in verdicts:
         lines.append(f"- {title}: best {winner}, worst {worst}; upbp (all) {ratio:.2f}× the "
@@ -193,7 +193,7 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     lines += ["", f"upbp with every estimator it has is never the worst and within "
               f"{CLAIM_FACTOR:g}× of the best at every density: **{'held' if held else 'not held'}**"
               ".", ""]
-    docs_dir.mkdir(parents=True, exist_ok=True)
-    out_doc = docs_dir / "upbp.md"
+    out_doc = common.results_page(docs_dir, "upbp.md")
+    out_doc.parent.mkdir(parents=True, exist_ok=True)
     out_doc.write_text("\n".join(lines) + "\n")
     print(f"bench: wrote {out_doc}")

@@ -24,7 +24,7 @@ def parse_dirs():
 @contextlib.contextmanager
 def quick_bench(only: str, document: str):
     """Runs `scripts/bench --quick --only ONLY --threads 1` into a temporary directory and
-    yields (that directory, the text of DOCUMENT in it); the directory is removed after."""
+    yields (that directory, the text of results/DOCUMENT in it); the directory is removed after."""
     args = parse_dirs()
     with tempfile.TemporaryDirectory(prefix=f"bench-{only}-quick-") as tmp:
         cmd = ["/usr/bin/python3", str(args.source_dir / "scripts" / "bench"), "--quick",
@@ -32,4 +32,4 @@ def quick_bench(only: str, document: str):
                str(args.build_dir)]
         print("running:", " ".join(cmd), flush=True)
         subprocess.run(cmd, check=True)
-        yield Path(tmp), (Path(tmp) / document).read_text()
+        yield Path(tmp), (Path(tmp) / "results" / document).read_text()

@@ -24,7 +24,7 @@ def main():
         for png in ("slopes.png", "fog-box-isotropic-volpt.png", "fog-box-g09-volpt.png",
                     "fog-box-isotropic-bpt.png"):
             assert (images / png).stat().st_size > 0, f"{png} empty"
-            assert f"({joint_figures.IMAGE_DIR}/{png})" in text, f"{png} not referenced"
+            assert f"(../{joint_figures.IMAGE_DIR}/{png})" in text, f"{png} not referenced"
     print("bench.joint_figures_quick: document, tables, verdicts and figures written")
     return 0
 

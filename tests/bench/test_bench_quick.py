@@ -39,7 +39,7 @@ def walk_numbers(value, path="results"):
 
 def check_results(out: Path) -> None:
     """Asserts the files exist and the numbers are sane."""
-    doc = out / "speed-vs-error.md"
+    doc = out / "results" / "speed-vs-error.md"
     img = out / "img" / "speed-vs-error"
     results_file = img / "results.json"
     assert doc.is_file() and doc.stat().st_size > 0, f"missing {doc}"

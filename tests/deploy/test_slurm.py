@@ -6,11 +6,11 @@ configuration: munged (with a fresh key and its own socket), slurmctld and slurm
 proctrack/linuxproc, no cgroups, no accounting). Then, against a real render server on
 127.0.0.1:
 * `sbatch --nodes=1 --cpus-per-task=1 deploy/slurm/render-workers.sbatch` with RENDER_SERVER
-  and RENDER_WORKER_BIN, as docs/deploy.md says; the batch script starts the worker with srun;
+  and RENDER_WORKER_BIN, as docs/guide/deploy.md says; the batch script starts the worker with srun;
 * a Cornell box job submitted to the server is rendered by that worker, and its EXR equals
   `render`'s (same tolerance as the other integration tests: 1e-5 relative);
 * the worker registered with SLURM_CPUS_PER_TASK threads;
-* `scancel --batch --signal=TERM JOB` (the graceful stop of docs/deploy.md) makes the batch
+* `scancel --batch --signal=TERM JOB` (the graceful stop of docs/guide/deploy.md) makes the batch
   shell forward one SIGTERM to the worker step; the worker exits 0, the script prints
   `workers ended (srun status 0)` and the Slurm job ends COMPLETED with exit code 0.
 

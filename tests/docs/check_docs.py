@@ -41,7 +41,7 @@ def skipped(parent: Path, name: str) -> bool:
 INLINE_LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 # [label]: target
 REFERENCE_LINK = re.compile(r"^\s{0,3}\[[^\]]+\]:\s*<?(\S+?)>?(?:\s+.*)?$", re.M)
-FENCE = re.compile(r"^(\s*)(```|~~~).*?^\1\2[^\n]*$", re.M | re.S)
+FENCE = re.compile(r"^([ \t]*)(```|~~~).*?^\1\2[^\n]*$", re.M | re.S)
 INLINE_CODE = re.compile(r"(`+)(?:(?!\1).)+?\1", re.S)
 SCHEME = re.compile(r"^[a-zA-Z][a-zA-Z0-9+.-]*:")
 
@@ -224,17 +224,22 @@ def self_test(root: Path) -> int:
     plants = [
         ("unindexed page", lambda t: (t / "docs" / "orphan.md").write_text("# Orphan\n"),
          "docs/orphan.md: not linked from docs/README.md"),
-        ("page missing from README.md", lambda t: _replace(t / "README.md", "(docs/upbp.md)",
-                                                           "(docs/upbp-gone.md)"),
-         "docs/upbp.md: not linked from README.md"),
+        ("page missing from README.md", lambda t: _replace(t / "README.md", "(docs/results/upbp.md)",
+                                                           "(docs/results/upbp-gone.md)"),
+         "docs/results/upbp.md: not linked from README.md"),
         ("missing target", lambda t: _append(t / "README.md", "\n[gone](docs/no-such-page.md)\n"),
          "points to a missing file"),
         ("outside the repository", lambda t: _append(t / "docs" / "README.md",
                                                      "\n[shared](../../shared/DESIGN.md)\n"),
          "points outside the repository"),
         ("heading that is gone", lambda t: _append(t / "README.md",
-                                                   "\n[x](docs/service.md#no-such-heading)\n"),
+                                                   "\n[x](docs/guide/service.md#no-such-heading)\n"),
          "no such heading"),
+        # A fence opened after a blank line closes at its own closing line, not at the next
+        # fence that follows a blank line (links between two code blocks are checked).
+        ("link between code blocks", lambda t: _append(
+            t / "README.md", "\n\n```\ncode\n```\n\n[gone](docs/gone-between-fences.md)\n\n"
+            "```\nmore code\n```\n"), "link docs/gone-between-fences.md points to a missing file"),
         ("absolute path", lambda t: _append(t / "README.md", "\n[abs](/etc/passwd)\n"),
          "absolute path"),
         ("change log in design", lambda t: _append(t / "docs" / "design" / "design.md",

@@ -1,4 +1,4 @@
-"""Load test (issue 18): 100 jobs from 10 concurrent clients on 2 workers, each client on its own
+"""Load test (docs/results/reliability-probes.md): 100 jobs from 10 concurrent clients on 2 workers, each client on its own
 channel doing a mix of what users do: submit and watch (WatchJob) to the end then fetch; submit
 and poll (GetJob) then fetch; submit and cancel at once; submit, drop a WatchJob stream after its
 first event, then poll; and a FetchResult stream dropped after its first chunk. Each round's

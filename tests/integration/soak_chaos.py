@@ -1,4 +1,4 @@
-"""Chaos soak (issue 18): three jobs (pt, vcm, volpt on small images) on 3 workers while a driver
+"""Chaos soak (docs/results/reliability-probes.md): three jobs (pt, vcm, volpt on small images) on 3 workers while a driver
 SIGKILLs a random worker every 2-4 s (starting a replacement at once) and SIGKILLs the server
 three times, restarting it on the same store and port.
 
@@ -10,7 +10,7 @@ What must hold:
   twice across lives would add its light twice and break the image equality);
 * progress never goes backwards while a server lives; across a server SIGKILL it returns to at
   least the count of the frame's last checkpoint logged before the kill (merges after that
-  checkpoint are by design re-leased: docs/service.md);
+  checkpoint are by design re-leased: docs/guide/service.md);
 * nothing is left RUNNING: every job final, no worker holding a lease at the end.
 
 Tolerance: each image must equal `render`'s to a relative 1e-6 per value (plus 1e-9 absolute).

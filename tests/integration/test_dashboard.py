@@ -216,11 +216,11 @@ class Dashboard(cluster.ClusterTestCase):
             cluster.wait_until(lambda: c.api.get_job(running.id).priority == 1, timeout=10,
                                what="the + button to raise the priority to 1")
 
-            # The screenshot of docs/service.md: the finished job selected, its preview and plot.
+            # The screenshot of docs/guide/service.md: the finished job selected, its preview and plot.
             click(f'tr[data-job="{short.id}"] td.id')
             time.sleep(1.5)  # one refresh: preview and plot of the selected job
             # Into the test's own folder, so that a test run leaves the checkout clean;
-            # DASHBOARD_SCREENSHOT=docs/img/dashboard.png refreshes the one docs/service.md shows.
+            # DASHBOARD_SCREENSHOT=docs/img/dashboard.png refreshes the one docs/guide/service.md shows.
             out = os.environ.get("DASHBOARD_SCREENSHOT") or c.path("dashboard.png")
             os.makedirs(os.path.dirname(out), exist_ok=True)
             self.assertTrue(driver.save_screenshot(out), "no screenshot")

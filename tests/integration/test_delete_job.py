@@ -1,4 +1,4 @@
-"""Deleting a job frees its assets (issue 18, docs/service.md "Deleting jobs").
+"""Deleting a job frees its assets (docs/guide/service.md, "Deleting jobs").
 
 The server never deleted an asset: the store only grew until --max-store-size refused uploads.
 `client delete JOB` (DeleteJob) now deletes a finished, failed or cancelled job: its rows, scene
@@ -42,7 +42,7 @@ class DeleteJob(cluster.ClusterTestCase):
         P = cluster.pb()
         # --fixed-stream-window: the option's end-to-end run (reports, uploads and fetches
         # through fixed 64 KiB windows; images equal to render's). Its memory figures:
-        # docs/service.md.
+        # docs/guide/service.md.
         c = self.new_cluster(heartbeat=0.5, server_args=["--metrics", "127.0.0.1:0",
                                                          "--fixed-stream-window"])
         c.start_server()

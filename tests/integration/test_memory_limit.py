@@ -1,5 +1,5 @@
 """A job whose scene and film need more memory than its worker may use fails with that message,
-and the worker lives on (issue 18). The worker estimates the job's memory before allocating it
+and the worker lives on (docs/guide/reliability.md, "The memory budget"). The worker estimates the job's memory before allocating it
 (the film's sums, then each mesh, grid, image and file the loaders read: core/base/
 memory_budget.h) against `worker --max-memory`; over it, the lease fails with the estimate and
 the limit. The same holds for the algorithm's own working memory per iteration (light

@@ -114,7 +114,7 @@ class Metrics(cluster.ClusterTestCase):
         victim.kill()
 
         # It may hold two leases (the one it renders and one whose report is in flight,
-        # docs/service.md); one granted after its last heartbeat expires later: wait for both.
+        # docs/guide/service.md); one granted after its last heartbeat expires later: wait for both.
         def expired():
             _, m = scrape(c)
             return m if m["render_leases_expired_total"] >= 1 and \

@@ -1,5 +1,5 @@
 """A worker sends a finished lease's report in the background while it renders its next lease
-(worker/background_report.h, issue 16). The server's test option --report-delay holds every
+(worker/background_report.h; docs/results/performance-notes.md, "Reports in the background"). The server's test option --report-delay holds every
 report after its values arrive, so that a report stays in flight long enough to be seen; the
 order of the processes' own log lines shows the overlap (nothing is timed):
 

@@ -1,5 +1,5 @@
 """A worker's Report stream that goes silent is cancelled, and its lease goes to another worker
-(issue 18, docs/reliability.md).
+(docs/guide/reliability.md, "Streams and the asset store").
 
 The workers' Report stream had no idle timeout: a worker that opened it, sent its header and
 part of its values and then stalled held a server thread and its lease's range for as long as

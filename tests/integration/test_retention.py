@@ -1,4 +1,4 @@
-"""Retention and the asset sweep (issue 18, docs/service.md "Deleting jobs").
+"""Retention and the asset sweep (docs/guide/service.md, "Deleting jobs").
 
 `server --retain-finished DURATION` deletes a finished, failed or cancelled job that long after
 it finished, through DeleteJob's own code: its rows, folders and the assets no other job

@@ -1,4 +1,5 @@
-"""The bulk streams and the asset store are bounded (issue 18, docs/reliability.md).
+"""The bulk streams and the asset store are bounded (docs/guide/reliability.md,
+"Streams and the asset store").
 
 A client that opens an UploadAsset stream and then sends nothing held a server thread for as
 long as it liked. The server now cancels a stream that sent or took no chunk for

@@ -1,4 +1,4 @@
-"""Integration test: transport security (docs/service.md, "Transport security").
+"""Integration test: transport security (docs/guide/service.md, "Transport security").
 
 A CA and a server certificate for 127.0.0.1 are made with `openssl` in a temporary folder
 (skipped with a message when openssl is missing). Checked:

@@ -3,7 +3,7 @@ scene and settings in one process, up to floating-point summation order:
 |a-b| <= 1e-5 * max(|a|,|b|) + 1e-7 for every pixel and channel. Also for scenes with
 participating media: a homogeneous one (vcm, volpt) and a heterogeneous grid (volpt), whose
 volume file travels with the job, as a .vol and as a .vdb (which the workers read through the
-volume plugin librender_volume_vdb.so beside them, docs/deploy.md)."""
+volume plugin librender_volume_vdb.so beside them, docs/guide/deploy.md)."""
 
 import os
 import subprocess

@@ -1,4 +1,4 @@
-"""The worker's asset cache stays within `worker --cache-max-size` (docs/service.md "Workers").
+"""The worker's asset cache stays within `worker --cache-max-size` (docs/guide/service.md "Workers").
 
 The cache used to grow forever: every job's assets and folder stayed. Now, before a worker
 fetches a job's missing assets, it removes the least recently used job folders and the assets

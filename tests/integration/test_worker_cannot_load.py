@@ -1,7 +1,7 @@
 """A job that loads on the server but not on its workers fails, with the workers' error.
 
 The realistic case: workers deployed without the image plugin (librender_image_oiio.so, which
-reads PNG textures; docs/deploy.md says it must sit next to the worker). The server, which has
+reads PNG textures; docs/guide/deploy.md says it must sit next to the worker). The server, which has
 it, validates the scene at submit; every worker then fails to load the scene's PNG texture. Each
 worker reports its failed lease in a heartbeat (HeartbeatRequest.failed_leases) instead of
 letting it expire, and once every worker the server knows (two here, fewer than three) failed

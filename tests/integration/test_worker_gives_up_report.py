@@ -1,4 +1,5 @@
-"""A worker that gives up on a report tells the server at once (issue 18).
+"""A worker that gives up on a report tells the server at once (docs/guide/service.md,
+"Workers").
 
 A report the worker cannot deliver (the server answers it with an error that retrying will not
 change, or the lease's patience runs out) is given up. Before, the lease then lived on at the

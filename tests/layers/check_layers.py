@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Checks that every #include follows the layer order of docs/architecture.md.
+"""Checks that every #include follows the layer order of docs/design/architecture.md.
 
 A file may include headers of its own layer or of a lower one, never of a higher one; the
 applications at the top (tools, server, worker, client, bench) may not include one another.
@@ -13,7 +13,7 @@ import re
 import sys
 
 # (folder prefix, layer). The longest matching prefix decides. Keep in step with
-# docs/architecture.md.
+# docs/design/architecture.md.
 LAYERS = [
     ("core/util/", 0, "util"),
     ("core/math/", 0, "math"),

@@ -1,7 +1,7 @@
 #pragma once
 
-// The iteration contract (docs/architecture.md) checked on a given scene and settings, for the
-// tests that add a scene kind to render_test's contract cases (grid_photon_beams_test,
+// The iteration contract (docs/design/architecture.md) checked on a given scene and settings, for
+// the tests that add a scene kind to render_test's contract cases (grid_photon_beams_test,
 // volume_emitter_test). Call under ASSERT_NO_FATAL_FAILURE: the checks stop at the first
 // element that differs.
 

@@ -185,8 +185,8 @@ TEST(Convergence, GlassSphereWithDenseChromaticMedium) {
 TEST(Convergence, GridMediumAllBidirectionalAlgorithms) {
     // The smoke scene: a heterogeneous grid (delta tracking, ratio-tracked transmittance) behind
     // an index-matched cube. The bidirectional family weights its techniques with deterministic
-    // proxies of the distance densities (the midpoint-rule optical depth, docs/media.md), which
-    // need only the support of the true ones; volpt is the reference. The proxy of sampling a
+    // proxies of the distance densities (the midpoint-rule optical depth, docs/design/media.md),
+    // which need only the support of the true ones; volpt is the reference. The proxy of sampling a
     // segment's start from its end takes sigma_t at the start: with sigma_t at the end (as a
     // homogeneous medium allows) bpt and vcm came out 6 % bright here.
     auto scene = shipped("smoke/scene.xml");
@@ -198,14 +198,14 @@ TEST(Convergence, GridMediumAllBidirectionalAlgorithms) {
                        "volpt");
 }
 
-// Joint path sampling (docs/media.md, "Joint path sampling") is one more technique for the
+// Joint path sampling (docs/design/media.md, "Joint path sampling") is one more technique for the
 // double-scattering paths camera -> c -> b -> light, combined by MIS with volpt's other three:
 // with it on, volpt must converge to volpt without it. The fog box (camera inside the medium,
 // rays passing near the point light) is rendered with max_depth 3 (single and double
 // scattering only), so the blocks are made of exactly the paths whose weights joint sampling
 // changes. isosph (area light, null boundary, all orders) covers the other light type and the
 // camera ray entering the medium through a boundary. Tolerance: the file's k = 5 combined
-// standard errors; planted errors in J3's densities or weights fail it (docs/media.md).
+// standard errors; planted errors in J3's densities or weights fail it (docs/design/media.md).
 // Anisotropic phase functions are checked by the furnace (volpt_test, g = 0.7, -0.5, +-0.99):
 // the fog box with g = 0.9 is heavy-tailed with or without joint sampling (a point light seen
 // through the forward peak of the phase function at b, which no technique samples), so its
@@ -264,9 +264,9 @@ TEST(Convergence, UnweightedDistanceAndLightSamplingMatchesTheMisImageOnIsosph) 
                        "volpt --volpt-technique dl", "volpt");
 }
 
-// upbp's query beams (P-B2D, docs/media.md "Points, beams and paths"): photon points gathered
-// along whole camera segments in media, combined by MIS with connections, surface merges and
-// photon points through per-vertex merge factors (vcm_mis.h). With every estimator, and with
+// upbp's query beams (P-B2D, docs/design/media.md "Points, beams and paths"): photon points
+// gathered along whole camera segments in media, combined by MIS with connections, surface merges
+// and photon points through per-vertex merge factors (vcm_mis.h). With every estimator, and with
 // query beams as the only merge beside the connections, and with query beams as the only
 // estimator in the medium (no connections, no photon points), upbp must converge to volpt on both
 // SmallUPBP boxes: isosph (the camera ray enters the medium through a null boundary, so the
@@ -373,8 +373,8 @@ TEST(Convergence, QueryBeamsBiasShrinksWithTheRadius) {
     EXPECT_LT(std::abs(bias[3]), 5 * se[3]) << "biased at the smallest radius";
 }
 
-// upbp's photon beams (B-B1D, docs/media.md "Photon beams"): light-path segments in the medium
-// gathered by camera segments with a 1-D kernel, combined by MIS through per-vertex merge
+// upbp's photon beams (B-B1D, docs/design/media.md "Photon beams"): light-path segments in the
+// medium gathered by camera segments with a 1-D kernel, combined by MIS through per-vertex merge
 // factors (vcm_mis.h). upbp with all estimators (photon beams included) is compared with volpt
 // above (QueryBeamsMatchVolptOnTheSmallUpbpBoxes); here photon beams beside the connections
 // only ({bpt, bb1d}), and as the only estimator in the medium (surfaces merged as photons),
@@ -402,7 +402,7 @@ TEST(Convergence, PhotonBeamsMatchBptOnTheSmallUpbpBoxes) {
     }
 }
 
-// Photon beams in a grid medium (docs/media.md, "Photon beams in grid media"): the smoke's
+// Photon beams in a grid medium (docs/design/media.md, "Photon beams in grid media"): the smoke's
 // grey grid, where short beams end at the delta-tracking distance (their transmittance over
 // pass probability is exactly 1) and long beams carry ratio-tracked transmittance along the beam
 // and across earlier pieces; the weights use the same midpoint-rule proxies as every other
@@ -484,7 +484,7 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     EXPECT_LT(std::abs(bias[4]), 0.005 * reference.mean()) << "biased at the smallest radius";
 }
 
-// bpt's joint (J1) connections (docs/media.md, "Joint connections in bpt and vcm") add one
+// bpt's joint (J1) connections (docs/design/media.md, "Joint connections in bpt and vcm") add one
 // technique per junction whose eye-side vertex is in a medium; with them on, bpt must converge to
 // bpt without them (J1 at s = 1, toward a light point, included). The fog box with max_depth 3
 // holds the single- and double-scattering paths (J1 samples and the J1 ratios of the connections);
@@ -511,7 +511,7 @@ TEST(Convergence, JointConnectionsMatchBptWithoutThemOnIsosph) {
 }
 
 // bpt's J2 connections (--joint-connections all: the first vertex of each light path resampled on
-// its emission ray by B2, joined through a J1 vertex; docs/media.md, "J2: segment-segment
+// its emission ray by B2, joined through a J1 vertex; docs/design/media.md, "J2: segment-segment
 // connections") beside J1 must converge to plain bpt. The fog box (point light in the medium):
 // max_depth 3, where J2 samples the double scattering light -> b -> c -> camera and its ratio
 // enters next-event estimation's, the connections' and the camera connections' weights, and
@@ -537,7 +537,7 @@ TEST(Convergence, JointSegmentConnectionsMatchBptWithoutThemOnIsosph) {
                        "bpt");
 }
 
-// vcm's J1 connections (docs/media.md, "Joint connections in bpt and vcm"): the same block
+// vcm's J1 connections (docs/design/media.md, "Joint connections in bpt and vcm"): the same block
 // tests against vcm without them (fog box with max_depth 3 and 6, isosph). Both arms merge with
 // the same radii, so the kernel bias is the same on either side. Tolerance: the file's k = 5
 // combined standard errors. What these cannot resolve: the merge weights' own J1 factors
@@ -659,10 +659,10 @@ TEST(Convergence, JointSegmentConnectionsMatchBptWithoutThemOnIsosphWithAPointLi
     expect_same_mean(without.image, with.image, "isosph-point, whole image");
 }
 
-// J2 from deeper light vertices (docs/media.md, "J2: segment-segment connections"): the first
-// path class where a light vertex is resampled on a ray from a scattering vertex has 5 vertices
-// (light point, two light vertices, the J1 eye vertex, the camera); in the 6-vertex class the
-// light subpath's deferred J2 factor of junctions past the first takes part as well. Each class
+// J2 from deeper light vertices (docs/design/media.md, "J2: segment-segment connections"): the
+// first path class where a light vertex is resampled on a ray from a scattering vertex has 5
+// vertices (light point, two light vertices, the J1 eye vertex, the camera); in the 6-vertex class
+// the light subpath's deferred J2 factor of junctions past the first takes part as well. Each class
 // and the whole image against bpt without joint connections, k = 5 standard errors of the
 // difference (32 batches each). Measured with the same seeds: recording no light ray past the
 // emission ray (deep J2 counted in the weights but never sampled) or dropping the connection's
@@ -783,7 +783,7 @@ TEST(Convergence, ImportanceCachingHardCasesOnPlates) {
 // bpt with importance-cached connections converges to plain bpt: each eye vertex connects to
 // light vertices drawn from the caches over the first N light paths and divides by N, whose
 // expectation is the one-path connection's, so the MIS weights are unchanged
-// (docs/algorithms.md). Both heuristics, a subset of the light paths and all of them.
+// (docs/reference/algorithms.md). Both heuristics, a subset of the light paths and all of them.
 TEST(Convergence, ImportanceCachedConnectionsMatchBpt) {
     for (const char* file : {"bitterli/cornell-box/scene_v3.xml", "tests/two-rooms.xml"}) {
         SCOPED_TRACE(file);

@@ -1,4 +1,4 @@
-// upbp's photon beams in grid (heterogeneous) media (docs/media.md, "Photon beams in grid
+// upbp's photon beams in grid (heterogeneous) media (docs/design/media.md, "Photon beams in grid
 // media"): the albedo-1 furnace filled with a grid stays 1 with photon beams as the only medium
 // estimator; the iteration contract (split ranges, thread counts bit for bit) holds on the
 // smoke with beams; and the hard cases (beams parallel to the queries, beams about 1e6 long and

@@ -1,6 +1,7 @@
 // The up-front estimate of an algorithm's working memory per iteration
 // (core/render/iteration_memory.h). Its calibration against measured peaks is
-// scripts/memory-calibration (docs/reliability.md); these check what the estimate is made of.
+// scripts/memory-calibration (docs/results/reliability-probes.md, "Memory calibration"); these
+// check what the estimate is made of.
 
 #include "core/render/iteration_memory.h"
 

@@ -1,4 +1,4 @@
-// The sampling steps of joint path sampling (docs/media.md, "Joint path sampling"):
+// The sampling steps of joint path sampling (docs/design/media.md, "Joint path sampling"):
 // U3 (core/sampling/joint_eye_distance.h), U2 (joint_direction.h) and U1 on a half-line
 // (half_line_equiangular.h; the truncated U1 that volpt uses is EquiAngularSampler, tested in
 // equiangular_test). Each is chi-square tested against its density in a chart computed by the

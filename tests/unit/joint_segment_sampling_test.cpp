@@ -1,4 +1,4 @@
-// The sampling steps of J2, the segment-segment joint connection of bpt (docs/media.md, "J2:
+// The sampling steps of J2, the segment-segment joint connection of bpt (docs/design/media.md, "J2:
 // segment-segment connections"): B2, the distance of the light-side vertex b on the light ray
 // (core/sampling/joint_light_distance.h), then B1, the distance of the eye-side vertex c on the
 // eye half-line by equi-angular sampling toward b (half_line_equiangular.h). B2 is chi-square

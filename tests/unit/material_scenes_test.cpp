@@ -111,7 +111,7 @@ std::vector<FurnaceCase> furnace_cases() {
          // Mitsuba's model loses what the coating scatters more than once: from inside, a
          // coating this rough reflects only Ri = 0.24 back into the base (0.59 when smooth),
          // so the white base returns T X / (1 - Ri) = 0.47 and the coating 0.02 (0.49 seen
-         // head-on; docs/scene-format.md, "Rough plastic").
+         // head-on; docs/reference/scene-format.md, "Rough plastic").
          0.45},
         {"blendbsdf_white_diffuse_and_roughplastic",
          R"(<bsdf type="blendbsdf"><float name="weight" value="0.4"/>

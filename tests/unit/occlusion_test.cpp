@@ -11,8 +11,8 @@
 // within 1e-4 * t_hit of the hit is skipped: there the answer is decided by rounding, which
 // the two BVHs round differently. Tolerance: the two BVHs also round differently for a ray
 // through a triangle's edge or a BVH box's face, which in renders happened to between 0 and
-// 1.3e-5 of the shadow rays (docs/performance.md, "Since: shadow rays"); at most 1e-4 of the
-// segments may disagree, 8 times that measured rate.
+// 1.3e-5 of the shadow rays (docs/results/performance-notes.md, "Shadow rays through their own
+// BVH"); at most 1e-4 of the segments may disagree, 8 times that measured rate.
 
 #include <gtest/gtest.h>
 

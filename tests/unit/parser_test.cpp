@@ -389,7 +389,7 @@ TEST_F(ParserTest, MalformedInputsNameFileLineAndField) {
          "<string>:3: <ref>: unknown id \"nope\""},
         {"<bsdf type=\"diffuse\" id=\"a\"/><bsdf type=\"diffuse\" id=\"a\"/>",
          "duplicate id \"a\""},
-        // Participating media (docs/media.md).
+        // Participating media (docs/design/media.md).
         {"<medium type=\"fog\"/>", "<string>:3: unknown medium type \"fog\"|homogeneous"},
         {"<medium type=\"homogeneous\"><float name=\"albedo\" value=\"1.5\"/></medium>",
          "<string>:3: medium \"homogeneous\", parameter \"albedo\": must be in [0, 1]"},
@@ -499,8 +499,9 @@ TEST_F(ParserTest, GarbageNeverCrashes) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Mitsuba 3 compatibility (issue 15): file resolution, <path>, wrapper integrators, the
-// default lens, spot and thindielectric.
+// Mitsuba 3 compatibility (docs/reference/scene-format.md, "Mitsuba 3 compatibility at a
+// glance"): file resolution, <path>, wrapper integrators, the default lens, spot and
+// thindielectric.
 
 // The horizontal field of view (degrees) of a camera from its image-plane area and aspect.
 float fov_x_of(const Scene& scene) {
@@ -713,10 +714,10 @@ TEST_F(ParserTest, PerspectiveFocalLengthAndDiagonalFov) {
                     "unused parameter \"fov_axis\"");
 }
 
-// Constructs found in Mitsuba 3 scenes written by others (docs/scene-format.md, "Mitsuba 3
-// scenes written by others"): Mitsuba's docs Cornell box references a named area emitter
-// defined after the shapes; its material-preview scenes give a pinhole camera a
-// focus_distance; Blender exports write zero principal point offsets.
+// Constructs found in Mitsuba 3 scenes written by others (docs/reference/scene-format.md, "Mitsuba
+// 3 scenes written by others"): Mitsuba's docs Cornell box references a named area emitter defined
+// after the shapes; its material-preview scenes give a pinhole camera a focus_distance; Blender
+// exports write zero principal point offsets.
 TEST_F(ParserTest, NamedAreaEmitterReferencedBeforeItsDefinition) {
     auto scene = load(with_camera(R"(
         <shape type="rectangle"><ref id="lamp"/></shape>

@@ -525,10 +525,10 @@ void refuse_for_memory(JobManager& m, const std::string& worker, const v1::Lease
 
 }  // namespace
 
-// A refusal for memory is not a failure (issue 18): on the only worker it does not fail the
-// job (a failure would: ALeaseFailedOnTheOnlyWorkerFailsTheJob); the job is not offered to
-// that worker again, says what it waits for, and FAILS once every live worker refused it for
-// --memory-wait seconds (of the injected clock).
+// A refusal for memory is not a failure (docs/guide/service.md, "Workers"): on the only worker it
+// does not fail the job (a failure would: ALeaseFailedOnTheOnlyWorkerFailsTheJob); the job is not
+// offered to that worker again, says what it waits for, and FAILS once every live worker refused it
+// for --memory-wait seconds (of the injected clock).
 TEST_F(ManagerTest, AJobRefusedForMemoryByEveryWorkerFailsAfterTheMemoryWait) {
     FakeClock clock;
     options.memory_wait_seconds = 60;

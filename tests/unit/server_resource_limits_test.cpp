@@ -1,7 +1,7 @@
 // Every size a client controls is bounded with a clear error before memory is committed
-// (issue 18, docs/reliability.md "Resource limits"): each limit is tried just past it (refused
-// with a message naming the limit) and, where that is cheap, at it (accepted, or refused only
-// for another reason such as the data that the header announces being absent).
+// (docs/guide/reliability.md, "Resource limits"): each limit is tried just past it
+// (refused with a message naming the limit) and, where that is cheap, at it (accepted, or refused
+// only for another reason such as the data that the header announces being absent).
 
 #include <gtest/gtest.h>
 
@@ -424,7 +424,7 @@ TEST(MemoryBudget, ChargesUpToTheLimitAndRefusesPastIt) {
 
 // A mesh over the budget reaches the loader's caller as a MemoryLimitExceeded with its numbers,
 // though the shape factory adds the element's line to the message: the worker reports it as a
-// refusal for memory, which the server does not count against the job (docs/service.md).
+// refusal for memory, which the server does not count against the job (docs/guide/service.md).
 TEST(MemoryBudget, AMeshOverTheBudgetStaysAMemoryRefusalThroughTheLoader) {
     TempDir dir;
     dir.write("m.ply", ply_header(3, 1) + std::string(3 * 12, '\0') + std::string(1, char(3)) +

@@ -99,9 +99,9 @@ bool orthonormal(const Frame& f) {
 }
 
 // Flat-shaded meshes (equal vertex normals on every triangle) keep one shading frame per
-// triangle instead of interpolating at each hit (docs/performance.md, issue 16): hits must report
-// the transformed vertex normal (flipped with flip_normals) and an orthonormal frame around it,
-// as interpolation did up to rounding.
+// triangle instead of interpolating at each hit (docs/results/performance-notes.md, "mesh hits
+// inline, flat-shaded frames"): hits must report the transformed vertex normal (flipped with
+// flip_normals) and an orthonormal frame around it, as interpolation did up to rounding.
 TEST(TriangleMesh, FlatShadedMeshesReportTheVertexNormalsFrame) {
     const Vec3 object_n = normalize(Vec3(0.3f, -0.2f, 1.0f));
     const Transform to_world = Transform::rotate(normalize(Vec3(1, 2, 3)), 37.0f);

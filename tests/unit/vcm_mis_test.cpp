@@ -3,8 +3,8 @@
 // For explicit paths (camera, a few vertices with diffuse, glossy and mirror BSDFs or in a
 // medium, and an area, point, directional or constant light) the test runs the subpath
 // recursions of vcm_mis.h along the path from both ends, exactly as the integrator
-// (core/integrators/bidirectional/) does while tracing, and evaluates the weight of every technique that can
-// produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
+// (core/integrators/bidirectional/) does while tracing, and evaluates the weight of every technique
+// that can produce the path: emission hit (s = 0), next-event estimation (s = 1), every connection
 // (s, t >= 2), light tracing (t = 1) and every merge at a non-specular vertex, and in fog the
 // J1 joint connections (every junction with a medium vertex on the eye side, s = 1 included)
 // and upbp's beams. For BPT (connections only), BPM (merges only) and VCM (both), with the power
@@ -66,7 +66,7 @@
 namespace render {
 namespace {
 
-// Volume: a point y of an emitting medium filling the fog (a volume light, docs/media.md
+// Volume: a point y of an emitting medium filling the fog (a volume light, docs/design/media.md
 // "Emitting media as lights"): a medium endpoint, reached by the eye by a scattering event.
 enum class LightKind { Area, Point, Directional, Constant, Volume };
 enum class Material { Diffuse, Glossy, Mirror, Medium };
@@ -1139,13 +1139,13 @@ std::unique_ptr<HeterogeneousMedium> grid_fog(bool grey, Rng& rng) {
                                                  std::make_shared<HenyeyGreenstein>(0.4f));
 }
 
-// Photon beams in a grid medium (docs/media.md, "Photon beams in grid media"): the fog paths in
-// a grid fog, whose distance densities are the midpoint-rule proxies (different from either
-// end, sigma_t varying from vertex to vertex). B-B1D beside BPT, beside everything, beside BPM
-// and alone, with both constants eta_1; long beams in a grey and a chromatic grid, short beams
-// in both (in the chromatic grid on one-piece segments only: finite lights). The weights must
-// sum to one and equal the written-out ratios, the short beam's coverage P_pass / p_L taken as
-// 1 / sigma_t(x) as in homogeneous media.
+// Photon beams in a grid medium (docs/design/media.md, "Photon beams in grid media"): the fog paths
+// in a grid fog, whose distance densities are the midpoint-rule proxies (different from either end,
+// sigma_t varying from vertex to vertex). B-B1D beside BPT, beside everything, beside BPM and
+// alone, with both constants eta_1; long beams in a grey and a chromatic grid, short beams in both
+// (in the chromatic grid on one-piece segments only: finite lights). The weights must sum to one
+// and equal the written-out ratios, the short beam's coverage P_pass / p_L taken as 1 / sigma_t(x)
+// as in homogeneous media.
 TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
     using M = Material;
     const std::vector<std::vector<Material>> paths = {
@@ -1177,7 +1177,7 @@ TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
                                 for (const bool short_beams : {false, true}) {
                                     // Chromatic grids carry short beams on segments of one
                                     // piece only (the sampling walk's pass weight replayed,
-                                    // docs/media.md); toward an infinite light a segment has
+                                    // docs/design/media.md); toward an infinite light a segment has
                                     // two (the fog, then vacuum), which the model does not
                                     // mark, so those lights are left out here.
                                     if (short_beams && !grey &&
@@ -1214,8 +1214,8 @@ TEST_F(MisSumTest, PhotonBeamWeightsSumToOneInAGridMedium) {
 }
 
 // Paths that start at a volume light (a point y of an emitting medium: upbp with emitting media,
-// docs/media.md "Emitting media as lights") in the homogeneous fog and in grey and chromatic grid
-// fogs: the eye's collision emission at y (s = 0), next-event estimation to y (s = 1), every
+// docs/design/media.md "Emitting media as lights") in the homogeneous fog and in grey and chromatic
+// grid fogs: the eye's collision emission at y (s = 0), next-event estimation to y (s = 1), every
 // connection, merge and camera connection, and upbp's query beams (P-B2D) and photon beams
 // (B-B1D, the light's first segment from y a beam like any other), beside BPT, beside
 // everything, beside BPM and alone. No technique samples y itself by a merge or a beam (y is not

@@ -1,7 +1,7 @@
 // Volumetric path tracing against closed-form answers: the furnace filled with a conserving
 // medium, single scattering from a point light in an infinite medium (a 1-D integral computed
-// here to high precision), and the hard cases of issue 6 (dense, thin, grazing, unbounded
-// depth). Every statistical check states its tolerance in standard errors.
+// here to high precision), and the hard cases (dense, thin, grazing, unbounded depth;
+// docs/design/media.md, "Tests"). Every statistical check states its tolerance in standard errors.
 
 #include <gtest/gtest.h>
 
@@ -92,7 +92,7 @@ class MediumFurnace : public ::testing::TestWithParam<FurnaceCase> {};
 // pixels: in the merging algorithms (ppm, bpm, vcm, upbp) every pixel gathers the same
 // iteration's light subpaths, so the pixels' errors are correlated and their spread
 // understates the error of the mean (photon beams alone in sigma_t 4: by about 6x, which once
-// read a 1.4-standard-error fluctuation as 8; docs/media.md, "Photon beams").
+// read a 1.4-standard-error fluctuation as 8; docs/design/media.md, "Photon beams").
 constexpr uint64_t kFurnaceBatches = 16;
 
 TEST_P(MediumFurnace, RadianceStaysOne) {

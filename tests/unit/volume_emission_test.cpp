@@ -1,5 +1,5 @@
 // Emission inside participating media (`radiance` on homogeneous and heterogeneous media,
-// docs/media.md "Emission in media") in volpt, against closed forms:
+// docs/design/media.md "Emission in media") in volpt, against closed forms:
 //   - an emitting, absorbing sphere seen from outside: L = L_e (sigma_a / sigma_t)
 //     (1 - exp(-sigma_t chord)) per channel;
 //   - a closed furnace: a medium of any albedo < 1 emitting L_e inside black walls that emit
@@ -104,8 +104,8 @@ TEST(VolumeEmission, GridAbsorbingSphereMatchesTheClosedForm) {
 }
 
 // With scattering (albedo 0.6) and max_depth 1 only the camera segment's own emission counts
-// (paths of one segment): L = L_e (sigma_a / sigma_t) (1 - exp(-sigma_t chord)), issue 14's
-// formula, with sigma_a / sigma_t = 0.4.
+// (paths of one segment): L = L_e (sigma_a / sigma_t) (1 - exp(-sigma_t chord)), the closed form
+// of docs/design/media.md, "Emission in media", with sigma_a / sigma_t = 0.4.
 TEST(VolumeEmission, ScatteringSphereAtDepthOneMatchesTheClosedForm) {
     for (const bool grid : {false, true}) {
         auto scene = load_scene_from_string(sphere_seen_from_outside(grid, 0.8, "0.6"),

@@ -1,10 +1,10 @@
 // The MIS weights of paths whose light end is a point y of an emitting medium (a volume light,
-// docs/media.md "Emitting media as lights"), in the style of vcm_mis_test (kept in a file of its
-// own): fog paths camera -> x_1 -> ... -> x_n -> y, every x_k and y in one homogeneous chromatic
-// medium with an isotropic phase function. The subpath recursions run as the bidirectional iteration runs them
-// (start_volume_light_mis at y, arrive/scatter with the segment densities of a real
-// SegmentDensityBuilder, volume_light_illuminate for next-event estimation), and every technique
-// that samples the path gets its weight:
+// docs/design/media.md "Emitting media as lights"), in the style of vcm_mis_test (kept in a file of
+// its own): fog paths camera -> x_1 -> ... -> x_n -> y, every x_k and y in one homogeneous
+// chromatic medium with an isotropic phase function. The subpath recursions run as the
+// bidirectional iteration runs them (start_volume_light_mis at y, arrive/scatter with the segment
+// densities of a real SegmentDensityBuilder, volume_light_illuminate for next-event estimation),
+// and every technique that samples the path gets its weight:
 //   s = 0  the eye's collision estimate of the emission at y (volume_emission_weight),
 //   s = 1  next-event estimation from x_n to y (weight_direct),
 //   s >= 2 connections x_{j-1} - x_j, t = 1 the light subpath x_1 connected to the camera,
@@ -20,8 +20,8 @@
 #include <memory>
 #include <vector>
 
-#include "core/integrators/medium_segment.h"
 #include "core/integrators/bidirectional/vcm_mis.h"
+#include "core/integrators/medium_segment.h"
 #include "core/integrators/volume_light_sampling.h"
 #include "core/math/constants.h"
 #include "core/media/homogeneous_medium.h"

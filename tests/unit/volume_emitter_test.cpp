@@ -1,5 +1,5 @@
 // Emitting media as lights of the bidirectional family (core/scene/volume_emitter.h,
-// docs/media.md "Emitting media as lights"):
+// docs/design/media.md "Emitting media as lights"):
 //   - the start-point sampler against its density p_V (chi-square over a histogram of the box
 //     that does not line up with the sampler's lattice, expected counts integrated exactly), and
 //     integral p_V = 1, for a homogeneous sphere and the flame's grid;
@@ -362,8 +362,8 @@ TEST(VolumeEmitter, FlameMatchesVolpt) {
     expect_matches_volpt(*scene, {"bpt", "vcm"}, 8, "flame");
 }
 
-// upbp with emitting media (docs/media.md, "Emitting media as lights"): light subpaths start at
-// volume lights, their first segments are photon beams and their medium vertices photon points
+// upbp with emitting media (docs/design/media.md, "Emitting media as lights"): light subpaths start
+// at volume lights, their first segments are photon beams and their medium vertices photon points
 // for the query beams, and the eye's collision emission and next-event estimation weigh against
 // both beam techniques. Against bpt (the reference: connections only), block test as above: upbp
 // with every estimator (short beams), with long beams, and each beam estimator as the only one

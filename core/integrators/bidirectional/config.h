@@ -34,7 +34,7 @@ struct MergeSchedule {
     double alpha = 0.75;
 };
 
-// upbp's combination (docs/media.md): which merges join the connections (surfaces, photon
+// upbp's combination (docs/design/media.md): which merges join the connections (surfaces, photon
 // points P-P3D, query beams P-B2D: photon points gathered along whole camera segments in media,
 // photon beams B-B1D: the light subpaths' segments in media gathered by camera segments with a
 // 1-D kernel), and the volume estimators' own radius schedule (a fraction of the scene's
@@ -54,8 +54,8 @@ struct UpbpSettings {
     double volume_alpha = 1;
 };
 
-// Joint connections in homogeneous media (bpt, vcm; docs/media.md). J1: each eye segment in a
-// medium also joins every vertex of the pixel's light path through a medium vertex sampled by
+// Joint connections in homogeneous media (bpt, vcm; docs/design/media.md). J1: each eye segment in
+// a medium also joins every vertex of the pixel's light path through a medium vertex sampled by
 // half-line equi-angular sampling toward it (the "vertex-segment" connection, Georgiev et al.
 // 2013). J2 (bpt only, with J1): the segment-segment connection on the light's rays as well.
 struct JointConnectionSettings {
@@ -111,7 +111,7 @@ enum class ManyLightEstimator {
 // How the VPL connection's distance clamp changes over iterations.
 enum class VplClampSchedule {
     Fixed,      // d_min in every iteration: biased, bounded variance
-    Shrinking,  // d_min * i^(-1/4): consistent (docs/algorithms.md, many-light rendering)
+    Shrinking,  // d_min * i^(-1/4): consistent (docs/reference/algorithms.md, many-light rendering)
 };
 
 // The connection's geometry term uses max(distance, d_min), d_min = factor x the scene's

@@ -78,7 +78,7 @@ inline constexpr uint64_t kPhotonBeamStreamBase = kLightStreamBase + (uint64_t(9
 // vertices t = 2, 3, 4), so that eye vertices past the first find records that saw what they see.
 inline constexpr int kIcConnectionRecordsPerPath = 3;
 // Importance caching keeps its tables (four doubles per record and VPL) below this size; a
-// denser record grid is thinned to fit (docs/algorithms.md).
+// denser record grid is thinned to fit (docs/reference/algorithms.md).
 inline constexpr double kIcTableBytes = 512.0 * 1024 * 1024;
 // Light paths are traced in fixed chunks whose vertices are kept, and whose splats are added,
 // in chunk order, so the image does not depend on the number of threads.
@@ -183,8 +183,8 @@ class Iteration {
     }
 
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;
-    // A light subpath starting at a point of an emitting medium (docs/media.md, "Emitting media
-    // as lights"), picked with probability pick_probability.
+    // A light subpath starting at a point of an emitting medium (docs/design/media.md, "Emitting
+    // media as lights"), picked with probability pick_probability.
     bool generate_volume_light_sample(const VolumeEmitter& emitter, float pick_probability,
                                       Rng& rng, SubpathState& state, Ray& ray) const;
     // rays, joint2: where J2 keeps the path's light rays and the state of its stored vertices
@@ -325,8 +325,8 @@ class Iteration {
     float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
     // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
     void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
-    // Where photon beams live (docs/media.md, "Photon beams in grid media"): long beams in every
-    // medium (ratio tracking estimates their transmittance), short ones where their weight is
+    // Where photon beams live (docs/design/media.md, "Photon beams in grid media"): long beams in
+    // every medium (ratio tracking estimates their transmittance), short ones where their weight is
     // known: the sampled distance's pass weight exactly (homogeneous media, grey grids), or in a
     // chromatic grid the sampling walk's own pass weight, replayed (replays_walk), on segments
     // of one piece. The weights use the same predicate, so a vertex no beam can reach has

@@ -130,7 +130,7 @@ struct IterationStorage {
     std::vector<BeamReplay> photon_beam_replays;
     std::vector<BeamLine> photon_beam_lines;
     // Their lookup: a uniform grid (measured 3-4x faster per query than the Embree BVH,
-    // docs/media.md), or the BVH in an iteration where a beam leaves the scene's box (a beam
+    // docs/design/media.md), or the BVH in an iteration where a beam leaves the scene's box (a beam
     // escaping through an unbounded medium: the grid would have to span it).
     UniformBeamGrid photon_beam_grid;
     std::unique_ptr<BeamsAlongRay> photon_beam_lookup;

@@ -1,4 +1,4 @@
-// Joint connections in homogeneous media (docs/media.md): J1, an eye segment's medium vertex
+// Joint connections in homogeneous media (docs/design/media.md): J1, an eye segment's medium vertex
 // sampled toward a light vertex, and J2, the light vertex resampled on its light ray as well.
 #include "core/integrators/bidirectional/iteration.h"
 

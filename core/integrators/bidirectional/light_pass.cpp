@@ -50,7 +50,7 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
     // y_0 is a medium vertex: the first segment starts inside the medium, without an offset.
     state.medium = emitter.medium;
     state.in_medium = true;
-    // Eqs. (31)-(33) with cos = 1 and the volume density (docs/media.md).
+    // Eqs. (31)-(33) with cos = 1 and the volume density (docs/design/media.md).
     state.mis = start_volume_light_mis(mis_, y.direct_pdf_a);
     state.origin = y.p;
     ray = Ray(y.p, y.direction);

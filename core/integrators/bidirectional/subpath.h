@@ -60,7 +60,7 @@ struct SubpathState {
 
 // A scattering vertex of a subpath: a surface point with a BSDF, or a point in a medium where
 // a phase function scatters. Medium vertices have no normal: cosines are 1, and the vertex
-// measure is volume instead of area (core/integrators/vcm_mis.h).
+// measure is volume instead of area (core/integrators/bidirectional/vcm_mis.h).
 struct Vertex {
     // The medium and the position first: with what a merge reads of a stored light vertex,
     // they lie in its first cache line (LightVertex), and a merge in a medium reads both.
@@ -118,7 +118,7 @@ struct Vertex {
 };
 
 // Joint (J2) connections' state of a subpath vertex, which resample a light vertex on the light
-// path's ray that reached it (docs/media.md): the position `previous` was reached from; this
+// path's ray that reached it (docs/design/media.md): the position `previous` was reached from; this
 // vertex's distance density from `previous` where J2 can resample it there (a medium vertex of
 // a homogeneous medium reached in one piece from a scattering vertex or a finite light's point,
 // on either subpath: 0 elsewhere), and the same of `previous`. Stored light vertices keep it in a

@@ -87,10 +87,11 @@ struct ConnectionTechnique {
     // density of it without the distance density. 0: no P-B2D there.
     float eye_query_beam = 0;
     float light_query_beam = 0;
-    // Joint (J1) connections (bpt --joint-connections on, docs/media.md): the density of the J1
-    // technique of a junction over that of the plain connection of the same junction (0 where there
-    // is no J1 technique). light_joint_ratio: the junction one step toward the light (its eye-side
-    // vertex is the light vertex, sampled from the eye vertex); joint_ratio: this junction.
+    // Joint (J1) connections (bpt --joint-connections on, docs/design/media.md): the density of the
+    // J1 technique of a junction over that of the plain connection of the same junction (0 where
+    // there is no J1 technique). light_joint_ratio: the junction one step toward the light (its
+    // eye-side vertex is the light vertex, sampled from the eye vertex); joint_ratio: this
+    // junction.
     float light_joint_ratio = 0;
     float joint_ratio = 0;
     // Joint (J2) connections (bpt --joint-connections j2|all): the density of a junction's J2
@@ -295,7 +296,7 @@ class VcmMis {
         q.dVM += term;
     }
 
-    // B-B1D (photon beams; ALGORITHMS-NEXT.md 4.3, docs/media.md "Photon beams"). A light
+    // B-B1D (photon beams; ALGORITHMS-NEXT.md 4.3, docs/design/media.md "Photon beams"). A light
     // segment x_{i-1} -> x_i in a medium is a photon beam, the camera segment x_{i+1} -> x_i
     // the query; neither samples the distance to x_i. Relative to a point merge at x_i the
     // technique's density has the merge factor
@@ -397,7 +398,7 @@ class VcmMis {
     // completed at the next arrival (add_joint_term). With merging (vcm) the J1 terms count in the
     // merge weights like the connection terms they multiply: dVM holds the same connection terms as
     // dVC (add_joint_term adds to both), and weight_merge takes the one junction's factor that
-    // neither subpath holds (MergeTechnique::light_joint_ratio; docs/media.md).
+    // neither subpath holds (MergeTechnique::light_joint_ratio; docs/design/media.md).
     void include_joint_junction(MisQuantities& q, float joint_ratio) const {
         q.dVCM *= 1.0f + mis(joint_ratio);
     }
@@ -418,8 +419,8 @@ class VcmMis {
         if (use_vc_) q.dVM += term;  // connection terms count in merge weights (scatter())
     }
 
-    // Joint (J2) connections, the segment-segment connection (docs/media.md): junction j's J2
-    // technique samples its light-side vertex x_{j-1} on the light ray from x_{j-2} by B2
+    // Joint (J2) connections, the segment-segment connection (docs/design/media.md): junction j's
+    // J2 technique samples its light-side vertex x_{j-1} on the light ray from x_{j-2} by B2
     // (joint_light_distance.h) and then x_j like J1; its density is J1's times
     // q_j = p_B2(x_{j-1}) / p_distance(x_{j-1}), so each connection term gets
     // (1 + mis(r_j) (1 + mis(q_j))). q_j needs x_{j-2} .. x_{j+1}: light subpaths complete it with

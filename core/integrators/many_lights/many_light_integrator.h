@@ -4,7 +4,7 @@
 // light pass: `vpl` connects each shading point to every virtual point light, optionally from the
 // importance-driven VPL distribution (Georgiev and Slusallek 2010); `ic` draws a few VPLs from
 // importance caches (Georgiev, Krivanek, Popov and Slusallek 2012). Every estimate has weight 1:
-// none of the VCM MIS takes part. docs/algorithms.md, "Many-light rendering".
+// none of the VCM MIS takes part. docs/reference/algorithms.md, "Many-light rendering".
 
 #include <memory>
 #include <mutex>

@@ -123,9 +123,9 @@ bool is_unbounded_spectrum(const std::string& name) {
            name == "sigma_t";
 }
 
-// A wavelength:value spectrum converted as Mitsuba 3's RGB variants do (docs/scene-format.md,
-// "Spectra"): integrated against the CIE 1931 curves (weighted by D65 unless emitted) and
-// converted to linear sRGB; clamped colours print a warning.
+// A wavelength:value spectrum converted as Mitsuba 3's RGB variants do
+// (docs/reference/scene-format.md, "Spectra"): integrated against the CIE 1931 curves (weighted by
+// D65 unless emitted) and converted to linear sRGB; clamped colours print a warning.
 void set_spectrum(const std::string& name, const std::string& field, const SourceLocation& where,
                   const std::vector<double>& wavelengths, const std::vector<double>& values,
                   Properties& props) {

@@ -1,7 +1,8 @@
 #pragma once
 
 // Reads the typed property elements of a plugin (integer, float, boolean, string, rgb,
-// spectrum, point, vector, transform) into its Properties. Reference: docs/scene-format.md.
+// spectrum, point, vector, transform) into its Properties. Reference:
+// docs/reference/scene-format.md.
 
 #include <string>
 #include <string_view>

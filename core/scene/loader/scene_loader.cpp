@@ -1,6 +1,6 @@
 // Scene assembly: walks the <scene> element (and included files), builds every plugin through
 // its factory, checks that every parameter was used, and fills the Scene. The accepted tags,
-// plugins and parameters are documented in docs/scene-format.md; keep the two in step.
+// plugins and parameters are documented in docs/reference/scene-format.md; keep the two in step.
 // The Loader class and where each element family is read: xml_loader.h.
 
 #include "core/scene/loader/scene_loader.h"

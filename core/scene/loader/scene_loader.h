@@ -1,6 +1,7 @@
 #pragma once
 
-// Loads a scene in the Mitsuba 3 XML format (the documented subset in docs/scene-format.md).
+// Loads a scene in the Mitsuba 3 XML format (the documented subset in
+// docs/reference/scene-format.md).
 
 #include <filesystem>
 #include <map>

@@ -4,7 +4,7 @@
 // with version < 2.0.0: camelCase parameter names become snake_case (toWorld -> to_world,
 // intIOR -> int_ior, sampleCount -> sample_count, ...), renamed tags (lookAt -> lookat) and
 // renamed parameters of particular plugins (a `diffuse` bsdf's diffuse_reflectance ->
-// reflectance). The tables are in version_upgrade.cpp; docs/scene-format.md lists them.
+// reflectance). The tables are in version_upgrade.cpp; docs/reference/scene-format.md lists them.
 
 #include <pugixml.hpp>
 

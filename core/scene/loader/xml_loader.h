@@ -14,8 +14,8 @@
 //   shapes.cpp        <shape> with its bsdf, area emitter and media
 //   instancing.cpp    shapegroups and instances
 //
-// The accepted tags, plugins and parameters are documented in docs/scene-format.md; keep the
-// two in step.
+// The accepted tags, plugins and parameters are documented in docs/reference/scene-format.md; keep
+// the two in step.
 
 #include <filesystem>
 #include <map>

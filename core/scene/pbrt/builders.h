@@ -3,7 +3,7 @@
 // pbrt-v4 plugins (materials, shapes, lights, textures) mapped onto the objects the Mitsuba
 // loader builds: each function fills a Mitsuba-style Properties and calls the same factory
 // (make_bsdf, make_shape, make_light, make_texture), or builds the same shape class. What is
-// mapped how is documented in docs/scene-format.md, "pbrt-v4 scenes".
+// mapped how is documented in docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <filesystem>
 #include <functional>

@@ -1,4 +1,4 @@
-// pbrt-v4 materials as the BSDFs of the Mitsuba loader (make_bsdf). docs/scene-format.md,
+// pbrt-v4 materials as the BSDFs of the Mitsuba loader (make_bsdf). docs/reference/scene-format.md,
 // "pbrt-v4 scenes", lists each mapping and where our image differs from pbrt's.
 
 #include <cmath>
@@ -227,7 +227,7 @@ std::shared_ptr<const Bsdf> normal_mapped(
 
 // pbrt-v4's "texture displacement": a float texture, the height in scene units along the
 // shading normal. Mitsuba's bumpmap with scale 1 around the whole material (see
-// docs/scene-format.md for what differs from pbrt's BumpMap).
+// docs/reference/scene-format.md for what differs from pbrt's BumpMap).
 std::shared_ptr<const Bsdf> bump_mapped(std::shared_ptr<const Bsdf> bsdf, const ParamList& params,
                                         const TextureTable& textures) {
     const Param* p = params.find("displacement");

@@ -1,6 +1,6 @@
 // pbrt-v4 media (homogeneous, uniformgrid) as the Mitsuba loader's media (homogeneous with
-// sigmaA/sigmaS, heterogeneous with a grid volume), through make_medium. docs/scene-format.md,
-// "pbrt-v4 scenes".
+// sigmaA/sigmaS, heterogeneous with a grid volume), through make_medium.
+// docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <cmath>
 

@@ -1,7 +1,7 @@
 // pbrt-v4 directives: the options block (Camera, Film, Sampler, Integrator, ...), WorldBegin,
 // the world block (shapes, materials, lights, textures), transforms, attributes and includes.
 // Each directive is checked here; its plugin is built in materials.cpp, shapes.cpp, lights.cpp
-// or textures.cpp. docs/scene-format.md, "pbrt-v4 scenes", lists everything accepted.
+// or textures.cpp. docs/reference/scene-format.md, "pbrt-v4 scenes", lists everything accepted.
 
 #include "core/scene/pbrt/scene_loader.h"
 

@@ -1,7 +1,7 @@
 #pragma once
 
 // Loads a pbrt-v4 scene file (.pbrt) into the same Scene the Mitsuba loader builds. The
-// accepted directives, plugins and parameters: docs/scene-format.md, "pbrt-v4 scenes".
+// accepted directives, plugins and parameters: docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <filesystem>
 #include <memory>

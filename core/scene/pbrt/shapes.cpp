@@ -1,5 +1,5 @@
 // pbrt-v4 shapes: trianglemesh, plymesh and bilinearmesh as our TriangleMesh; sphere and disk
-// through the Mitsuba loader's shape factory. docs/scene-format.md, "pbrt-v4 scenes".
+// through the Mitsuba loader's shape factory. docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <cmath>
 

@@ -2,7 +2,7 @@
 
 // Splits a pbrt-v4 scene file into tokens: bare words and numbers, "quoted strings" (with
 // pbrt's escapes \n \t \b \f \r \\ \" \'), the brackets [ and ], and nothing for # comments.
-// Every token knows its file and line. Reference: docs/scene-format.md, "pbrt-v4 scenes".
+// Every token knows its file and line. Reference: docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <optional>
 #include <string>
