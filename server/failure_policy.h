@@ -1,7 +1,7 @@
 #pragma once
 
-// When a job FAILS instead of being handed out again (docs/service.md, "Workers";
-// docs/reliability.md): a poison job, whose leases fail or whose workers die on it, and a job
+// When a job FAILS instead of being handed out again (docs/guide/service.md, "Workers";
+// docs/guide/reliability.md): a poison job, whose leases fail or whose workers die on it, and a job
 // no live worker has the memory for. The bookkeeping of one job, kept in memory only: a
 // restarted server counts afresh. Not thread-safe (the job manager calls it under its lock).
 

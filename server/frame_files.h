@@ -2,7 +2,7 @@
 
 // A job's frames in memory and on disk: the merged sums of an unfinished frame and its
 // checkpoint (written at most every checkpoint interval, so that a crash loses at most that
-// much; docs/service.md), and a finished frame's EXR.
+// much; docs/guide/service.md), and a finished frame's EXR.
 
 #include <atomic>
 #include <cstdint>

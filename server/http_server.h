@@ -4,7 +4,7 @@
 // dashboard the page itself (assets embedded at build time, server/dashboard/), and JSON under
 // /api/ mirroring the gRPC reads plus cancel and priority. /api/ takes the same bearer token
 // as the gRPC API (header `Authorization: Bearer T`); /metrics and the page's static files
-// need none. Endpoints: docs/service.md, "HTTP".
+// need none. Endpoints: docs/guide/service.md, "HTTP".
 
 #include <memory>
 #include <string>

@@ -66,9 +66,9 @@ struct ServerOptions {
     // at most max_streams open at once, each cancelled after idle_seconds without a chunk.
     StreamLimits streams{};
     // A job refused for memory by every live worker (each refused it, or is known to have a
-    // smaller limit than it needs) FAILS once that has lasted this long (docs/service.md).
+    // smaller limit than it needs) FAILS once that has lasted this long (docs/guide/service.md).
     double memory_wait_seconds = 300;
-    // Retention (docs/service.md, "Deleting jobs"): a finished, failed or cancelled job is
+    // Retention (docs/guide/service.md, "Deleting jobs"): a finished, failed or cancelled job is
     // deleted, as DeleteJob deletes it, once it finished this long ago; 0 keeps jobs until a
     // client deletes them. Checked at every tick() (a scan of the jobs in memory).
     double retain_finished_seconds = 0;

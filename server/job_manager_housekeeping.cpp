@@ -1,5 +1,5 @@
 // The job manager's housekeeping: deleting finished jobs (on request or by the retention rule)
-// and sweeping assets no job references (docs/service.md, "Deleting jobs").
+// and sweeping assets no job references (docs/guide/service.md, "Deleting jobs").
 
 #include "server/job_manager.h"
 

@@ -68,9 +68,9 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
         }
     }
     // The lease's row and log line are written after mu_ is released: every other call of
-    // every worker waits for mu_ (farm_sim, docs/service.md). The row is written before the
-    // worker has its lease (the reply is sent when this returns), so its report's delete
-    // comes after it.
+    // every worker waits for mu_ (farm_sim, docs/results/service-measurements.md). The row is
+    // written before the worker has its lease (the reply is sent when this returns), so its
+    // report's delete comes after it.
     store_or_log("lease", grant->lease_id, [&] {
         store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
                             grant->range);

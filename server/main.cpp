@@ -381,13 +381,13 @@ int main(int argc, char** argv) {
     builder.RegisterService(&worker_service);
     // gRPC's synchronous server keeps at most MAX_POLLERS idle threads (default 2) and makes
     // and ends threads as calls come and go; with hundreds of workers that churn cost ~10 % of
-    // the server's CPU per lease (farm_sim, docs/service.md "How many workers one server
-    // carries"). Eight idle threads cost nothing and keep them.
+    // the server's CPU per lease (farm_sim, docs/results/service-measurements.md "How many workers
+    // one server carries"). Eight idle threads cost nothing and keep them.
     builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 8);
     // Reports of one job are received one at a time (JobManager::report_slot), but gRPC keeps
     // reading the waiting ones into memory as far as their window allows, and its
     // bandwidth-delay probe grows that window to megabytes on a fast link: with 16 workers
-    // reporting 1024x1024 frames, tens of MB each (docs/service.md).
+    // reporting 1024x1024 frames, tens of MB each (docs/results/service-measurements.md).
     if (options.fixed_stream_window) builder.AddChannelArgument(GRPC_ARG_HTTP2_BDP_PROBE, 0);
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) {

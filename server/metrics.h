@@ -3,7 +3,7 @@
 // The server's Prometheus metrics (prometheus-cpp's core library: registry, families and the
 // text serializer; the HTTP side is server/http_server.h). Counters and histograms are updated
 // where things happen; gauges (jobs by state, queue, workers, rates) are set from a snapshot of
-// the JobManager at each scrape. Names and meanings: docs/service.md, "Metrics".
+// the JobManager at each scrape. Names and meanings: docs/guide/service.md, "Metrics".
 
 #include <prometheus/counter.h>
 #include <prometheus/family.h>

@@ -2,14 +2,14 @@
 
 // Bounds the bulk-transfer streams (UploadAsset, FetchResult, FetchAsset): each holds one of the
 // synchronous server's threads while it is open, so a client that opens one and then neither
-// sends nor reads would hold that thread for ever (issue 18). A StreamGuards admits at most
-// `max_streams` such streams at once (the next is refused with RESOURCE_EXHAUSTED), and a
-// watchdog thread cancels a stream that made no progress (no chunk received or sent) for
-// `idle_seconds`: the handler's blocked Read or Write then returns false. The workers' Report
-// streams and the clients' WatchJob streams are guarded the same way, without a count limit
-// (JobManager::report_streams): a report idle between its chunks, or a watcher that stopped
-// reading its events, is cancelled; the time a report waits for its job's report slot (the
-// server's doing, not the worker's) does not count (Guard::Pause).
+// sends nor reads would hold that thread for ever (docs/guide/reliability.md, "Streams and the
+// asset store"). A StreamGuards admits at most `max_streams` such streams at once (the next is
+// refused with RESOURCE_EXHAUSTED), and a watchdog thread cancels a stream that made no progress
+// (no chunk received or sent) for `idle_seconds`: the handler's blocked Read or Write then returns
+// false. The workers' Report streams and the clients' WatchJob streams are guarded the same way,
+// without a count limit (JobManager::report_streams): a report idle between its chunks, or a
+// watcher that stopped reading its events, is cancelled; the time a report waits for its job's
+// report slot (the server's doing, not the worker's) does not count (Guard::Pause).
 
 #include <grpcpp/grpcpp.h>
 

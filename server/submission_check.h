@@ -2,8 +2,8 @@
 
 // Submission checking: what SubmitJob decides about a request once its bundle's files are in
 // the job's scene folder, before the job exists. Frame 0's scene gives the settings (resolved
-// to the complete options the algorithm reads, docs/architecture.md) and the film size; every
-// other distinct frame's scene must load and suit the algorithm (docs/service.md,
+// to the complete options the algorithm reads, docs/design/architecture.md) and the film size;
+// every other distinct frame's scene must load and suit the algorithm (docs/guide/service.md,
 // "Animations"). No state of the server is read or changed: a bad request gets a clear error.
 
 #include <grpcpp/grpcpp.h>

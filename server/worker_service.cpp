@@ -175,7 +175,7 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     const bool spooled = values->is_spooled();
     if (Status s = manager_.report(header, std::move(*values), &merged); !s.ok()) return s;
     reply->set_merged(merged);
-    // Cost of a report for the performance report (docs/performance.md): bytes on the wire
+    // Cost of a report for the performance report (docs/results/performance.md): bytes on the wire
     // (header + values), time spent receiving the chunks and time spent merging (accumulate +
     // checkpoint + store).
     using us = std::chrono::microseconds;

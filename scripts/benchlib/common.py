@@ -181,7 +181,7 @@ def algorithm_table(build_dir: Path) -> dict:
 
 def benchmarked_algorithms(build_dir: Path, suite: str) -> list:
     """The algorithms whose table row names `suite` among its benchmarks, in table order: the
-    suites read them from the build instead of keeping a list (docs/architecture.md)."""
+    suites read them from the build instead of keeping a list (docs/design/architecture.md)."""
     return [a["name"] for a in algorithm_table(build_dir)["algorithms"]
             if suite in a.get("benchmarks", [])]
 

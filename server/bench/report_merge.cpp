@@ -1,6 +1,6 @@
-// The server's per-report merge of a 3840x2160 frame (docs/performance.md, "Costs that grow
-// with the work"): adding a two-iteration report's sum and odd sum into the frame's float64
-// sums and estimating the relative error that the progress, the dashboard's error plot and
+// The server's per-report merge of a 3840x2160 frame (docs/results/performance-notes.md, "Costs
+// that grow with the work"): adding a two-iteration report's sum and odd sum into the frame's
+// float64 sums and estimating the relative error that the progress, the dashboard's error plot and
 // --target-error read after every merge.
 //   merge/fused: FrameAccumulator::add, which takes the estimate's sums in its own pass;
 //   merge/add_then_estimate: the addition and then core's estimate_relative_error, a second

@@ -1,4 +1,4 @@
-// "An algorithm is its files and one row" (docs/architecture.md, "Adding an algorithm"), proven:
+// "An algorithm is its files and one row" (docs/design/architecture.md, "Adding an algorithm"), proven:
 // a test algorithm registered here, by its row alone, appears wherever the tables drive — the
 // --help text, the tables of `render --describe-options` that scripts read, the options check of
 // a service request, the memory estimate a worker refuses jobs by, both scene formats'
