@@ -155,7 +155,7 @@ TEST(ClientBundle, PbrtScenesCarryIncludedFilesAndMeshes) {
     const SceneBundleInfo small = collect_bundle(dir.path / "scene.pbrt", {});
     EXPECT_EQ(paths_of(small),
               (std::set<std::string>{"scene.pbrt", "inc/shapes.pbrt", "m/tri.ply"}));
-    EXPECT_EQ(small.integrator, "volpath");
+    EXPECT_EQ(small.integrator, "pbrt:volpath");  // pbrt's default, as the loader names it
     TempDir job("client_bundle_test_pbrt_job");
     for (const BundleEntry& e : small.files) {
         fs::create_directories((job.path / e.path).parent_path());
