@@ -201,13 +201,32 @@ class Proc:
         except (OSError, IndexError, ValueError):
             return 0.0
 
-    def log_tail(self, lines=40):
+    def log_text(self):
         try:
             with open(self.log_path, "rb") as f:
-                text = f.read().decode(errors="replace")
+                return f.read().decode(errors="replace")
         except OSError:
             return ""
-        return "\n".join(text.splitlines()[-lines:])
+
+    def log_tail(self, lines=40):
+        return "\n".join(self.log_text().splitlines()[-lines:])
+
+    def wait_for_log(self, text, count=1, timeout=30):
+        """The whole log once `text` occurs in it at least `count` times, polled for at most
+        `timeout` seconds. A process writes its log line just after the event a test observes
+        (a stream it cancelled, a job it deleted), so a log read once right after the event
+        may not hold the line yet: wait for it instead."""
+        found = {}
+
+        def holds():
+            found["log"] = self.log_text()
+            return found["log"].count(text) >= count
+        try:
+            wait_until(holds, timeout=timeout, poll=0.05, what=f"{text!r} in {self.name}'s log")
+        except AssertionError as e:
+            tail = "\n".join(found.get("log", "").splitlines()[-40:])
+            raise AssertionError(f"{e}; its log ends:\n{tail}") from None
+        return found["log"]
 
 
 def _kill_all():
