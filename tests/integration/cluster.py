@@ -201,13 +201,32 @@ class Proc:
         except (OSError, IndexError, ValueError):
             return 0.0
 
-    def log_tail(self, lines=40):
+    def log_text(self):
         try:
             with open(self.log_path, "rb") as f:
-                text = f.read().decode(errors="replace")
+                return f.read().decode(errors="replace")
         except OSError:
             return ""
-        return "\n".join(text.splitlines()[-lines:])
+
+    def log_tail(self, lines=40):
+        return "\n".join(self.log_text().splitlines()[-lines:])
+
+    def wait_for_log(self, text, count=1, timeout=30):
+        """The whole log once `text` occurs in it at least `count` times, polled for at most
+        `timeout` seconds. A process writes its log line just after the event a test observes
+        (a stream it cancelled, a job it deleted), so a log read once right after the event
+        may not hold the line yet: wait for it instead."""
+        found = {}
+
+        def holds():
+            found["log"] = self.log_text()
+            return found["log"].count(text) >= count
+        try:
+            wait_until(holds, timeout=timeout, poll=0.05, what=f"{text!r} in {self.name}'s log")
+        except AssertionError as e:
+            tail = "\n".join(found.get("log", "").splitlines()[-40:])
+            raise AssertionError(f"{e}; its log ends:\n{tail}") from None
+        return found["log"]
 
 
 def _kill_all():
@@ -861,10 +880,51 @@ def wait_until(predicate, timeout, poll=0.1, what="condition"):
     raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
+# The exit status CTest reports as "Skipped" (SKIP_RETURN_CODE in tests/CMakeLists.txt).
+SKIP_EXIT = 77
+
+
+def _without(suite, excluded):
+    """The suite's cases but those whose method name is in `excluded`."""
+    kept = unittest.TestSuite()
+    for test in suite:
+        if isinstance(test, unittest.TestSuite):
+            kept.addTest(_without(test, excluded))
+        elif getattr(test, "_testMethodName", None) not in excluded:
+            kept.addTest(test)
+    return kept
+
+
+class _Program(unittest.TestProgram):
+    def __init__(self, excluded, **kwargs):
+        self._excluded = set(excluded)
+        super().__init__(**kwargs)
+
+    def createTests(self, *args, **kwargs):
+        super().createTests(*args, **kwargs)
+        if self._excluded:
+            self.test = _without(self.test, self._excluded)
+
+
 def main():
+    """Runs the script's cases (all, or those named on the command line, but any given with
+    `--exclude METHOD`). Exits 0 when every case ran and passed, 1 on a failure, and SKIP_EXIT
+    when none failed but one was skipped (a tool it needs is missing): a check that did not run
+    is never reported as passed. A case that needs a tool is registered as a CTest test of its
+    own (tests/CMakeLists.txt), so that its skip does not hide the cases that ran."""
     parser = argparse.ArgumentParser(add_help=False)
     parser.add_argument("--bin-dir")
     parser.add_argument("--source-dir")
+    parser.add_argument("--exclude", action="append", default=[])
     args, rest = parser.parse_known_args()
     configure(args.bin_dir, args.source_dir)
-    unittest.main(module="__main__", argv=[sys.argv[0]] + rest, verbosity=2)
+    program = _Program(args.exclude, module="__main__", argv=[sys.argv[0]] + rest, verbosity=2,
+                       exit=False)
+    result = program.result
+    if not result.wasSuccessful():
+        sys.exit(1)
+    if result.skipped:
+        for test, reason in result.skipped:
+            print(f"SKIPPED {test}: {reason}")
+        sys.exit(SKIP_EXIT)
+    sys.exit(0)

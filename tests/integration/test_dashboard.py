@@ -11,8 +11,9 @@ state through the gRPC API, raises a third job's priority with its + button (che
 gRPC too), and saves a screenshot (into the test's folder; to docs/img/dashboard.png with
 DASHBOARD_SCREENSHOT=docs/img/dashboard.png).
 
-Without the browser the browser case is skipped with a message; the HTTP API's token rule and
-the static files' path handling are checked over plain HTTP either way."""
+Without the browser the browser case is skipped with a message (CTest runs it as a test of its
+own, integration.test_dashboard.browser, reported as Skipped: tests/CMakeLists.txt); the HTTP
+API's token rule and the static files' path handling are checked over plain HTTP either way."""
 
 import http.client
 import os

@@ -38,6 +38,8 @@ def events(path):
 
 
 def worker_id(worker):
+    # The server may count the worker as registered before its log line is written.
+    worker.wait_for_log("event=registered")
     for event, kv in events(worker.log_path):
         if event == "registered":
             return kv["worker"]

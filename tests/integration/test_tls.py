@@ -1,7 +1,8 @@
 """Integration test: transport security (docs/guide/service.md, "Transport security").
 
 A CA and a server certificate for 127.0.0.1 are made with `openssl` in a temporary folder
-(skipped with a message when openssl is missing). Checked:
+(without openssl every case is skipped with a message and CTest reports the test as Skipped,
+never Passed; scripts/setup installs openssl). Checked:
   * a server with --tls-cert/--tls-key and a token, two workers with --tls-ca: a job submitted
     with `client --tls-ca ... submit --out` equals `render`'s image;
   * a client trusting another CA is refused (certificate verify failed), and so is a client

@@ -146,9 +146,7 @@ class WorkerGivesUpReport(cluster.ClusterTestCase):
             # Marked as a delivery fault, which the server does not count as the job's failure.
             self.assertTrue(fake.undelivered["L-1"])
             self.assertEqual(fake.merged, [("L-2", END - FIRST)])
-            with open(worker.log_path, errors="replace") as f:
-                log = f.read()
-            self.assertIn("event=report_failed lease=L-1", log)
+            worker.wait_for_log("event=report_failed lease=L-1")
         finally:
             server.stop(0)
 
