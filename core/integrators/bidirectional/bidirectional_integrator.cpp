@@ -6,24 +6,23 @@ namespace render {
 
 using bidirectional::Iteration;
 using bidirectional::IterationStorage;
+using bidirectional::KeptStorage;
 
 BidirectionalIntegrator::BidirectionalIntegrator(const BidirectionalConfig& config)
-    : config_(config), storage_(std::make_unique<IterationStorage>()) {}
+    : config_(config), kept_(std::make_unique<KeptStorage>()) {}
 
 BidirectionalIntegrator::~BidirectionalIntegrator() = default;
 
 void BidirectionalIntegrator::render_iteration(const Scene& scene, const IterationKey& key,
                                                AccumulationBuffer& target, TechniqueLayers* layers,
                                                RenderStats& stats) const {
-    std::lock_guard lock(storage_mutex_);
-    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
-                        *storage_);
     bidirectional::run_iteration(
-        iteration, scene, target, layers, stats,
-        [&] {
-            if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(stats);
+        bidirectional::plan_iteration(config_, scene, key.iteration), scene, key, *kept_, target,
+        layers, stats,
+        [](Iteration& iteration, RenderStats& s) {
+            if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(s);
         },
-        [&](uint64_t pixel, RenderStats& local, const LayerSink& sink) {
+        [](const Iteration& iteration, uint64_t pixel, RenderStats& local, const LayerSink& sink) {
             return iteration.trace_eye_path(pixel, local, sink);
         });
 }

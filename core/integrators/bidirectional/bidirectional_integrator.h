@@ -27,7 +27,7 @@ struct PhotonBeamInspection {
 };
 
 namespace bidirectional {
-struct IterationStorage;  // iteration_storage.h
+struct KeptStorage;  // iteration_storage.h
 }  // namespace bidirectional
 
 class BidirectionalIntegrator final : public Integrator {
@@ -46,11 +46,7 @@ class BidirectionalIntegrator final : public Integrator {
 
   private:
     BidirectionalConfig config_;
-    // Reused by each render_iteration (cleared, capacity kept), so that iterations after the
-    // first do not fault in hundreds of MB of fresh pages; calls on one integrator from
-    // several threads take turns.
-    mutable std::mutex storage_mutex_;
-    mutable std::unique_ptr<bidirectional::IterationStorage> storage_;
+    mutable std::unique_ptr<bidirectional::KeptStorage> kept_;  // iteration_storage.h
 };
 
 }  // namespace render

@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <optional>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "core/image/technique_layers.h"
@@ -92,15 +93,14 @@ inline constexpr int kLightChunksInFlightPerThread = 4;
 // estimates, so that each pixel's sum is the same whatever the number of threads.
 SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats);
 
-// One iteration as the integrators run it: the light pass (skipped in a scene without lights),
-// its splats into target and layers; `prepare` (what the integrator builds over the stored light
-// vertices: importance caches, the VPL selection); then eye_path(pixel, stats, sink) for every
-// pixel.
-class Iteration;
+// One iteration as the integrators run it, on `kept`'s buffers: the light pass (skipped in a
+// scene without lights), its splats into target and layers; prepare(iteration, stats), what the
+// integrator builds over the stored light vertices (importance caches, the VPL selection); then
+// eye_path(iteration, pixel, stats, sink) for every pixel.
 template <class Prepare, class EyePath>
-void run_iteration(Iteration& iteration, const Scene& scene, AccumulationBuffer& target,
-                   TechniqueLayers* layers, RenderStats& stats, Prepare&& prepare,
-                   EyePath&& eye_path);
+void run_iteration(const IterationPlan& plan, const Scene& scene, const IterationKey& key,
+                   KeptStorage& kept, AccumulationBuffer& target, TechniqueLayers* layers,
+                   RenderStats& stats, Prepare&& prepare, EyePath&& eye_path);
 
 // Where a pass hands a contribution: s light vertices (the eye's count is the caller's).
 using ContributionSink = FunctionRef<void(int s, const Rgb& contribution)>;
@@ -399,17 +399,20 @@ class Iteration {
 };
 
 template <class Prepare, class EyePath>
-void run_iteration(Iteration& iteration, const Scene& scene, AccumulationBuffer& target,
-                   TechniqueLayers* layers, RenderStats& stats, Prepare&& prepare,
-                   EyePath&& eye_path) {
+void run_iteration(const IterationPlan& plan, const Scene& scene, const IterationKey& key,
+                   KeptStorage& kept, AccumulationBuffer& target, TechniqueLayers* layers,
+                   RenderStats& stats, Prepare&& prepare, EyePath&& eye_path) {
+    std::lock_guard lock(kept.mutex);
+    Iteration iteration(plan, scene, key, kept.storage);
     if (!scene.lights().empty() || !scene.volume_lights().empty()) {
         iteration.trace_light_paths(stats, splats_into(target, layers, stats));
-        prepare();
+        prepare(iteration, stats);
     }
-    for_each_pixel(scene.camera().width(), scene.camera().height(), target, stats,
-                   [&](uint64_t pixel, RenderStats& local) {
-                       return eye_path(pixel, local, LayerSink{layers, pixel});
-                   });
+    for_each_pixel(
+        scene.camera().width(), scene.camera().height(), target, stats,
+        [&](uint64_t pixel, RenderStats& local) {
+            return eye_path(std::as_const(iteration), pixel, local, LayerSink{layers, pixel});
+        });
 }
 
 }  // namespace bidirectional

@@ -137,4 +137,12 @@ struct IterationStorage {
     bool photon_beams_in_grid = false;
 };
 
+// An integrator's IterationStorage, kept from one render_iteration to the next (cleared, capacity
+// kept) so that iterations after the first do not fault in hundreds of MB of fresh pages; calls
+// on one integrator from several threads take turns (run_iteration holds the mutex).
+struct KeptStorage {
+    std::mutex mutex;
+    IterationStorage storage;
+};
+
 }  // namespace render::bidirectional

@@ -6,26 +6,25 @@ namespace render {
 
 using bidirectional::Iteration;
 using bidirectional::IterationStorage;
+using bidirectional::KeptStorage;
 
 ManyLightIntegrator::ManyLightIntegrator(const ManyLightConfig& config)
-    : config_(config), storage_(std::make_unique<IterationStorage>()) {}
+    : config_(config), kept_(std::make_unique<KeptStorage>()) {}
 
 ManyLightIntegrator::~ManyLightIntegrator() = default;
 
 void ManyLightIntegrator::render_iteration(const Scene& scene, const IterationKey& key,
                                            AccumulationBuffer& target, TechniqueLayers* layers,
                                            RenderStats& stats) const {
-    std::lock_guard lock(storage_mutex_);
-    Iteration iteration(bidirectional::plan_iteration(config_, scene, key.iteration), scene, key,
-                        *storage_);
     // The light pass's vertices are the VPLs (no splats: nothing connects to the camera).
     bidirectional::run_iteration(
-        iteration, scene, target, layers, stats,
-        [&] {
-            if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(stats);
-            if (iteration.plan().ic) iteration.build_importance_cache(stats);
+        bidirectional::plan_iteration(config_, scene, key.iteration), scene, key, *kept_, target,
+        layers, stats,
+        [&](Iteration& iteration, RenderStats& s) {
+            if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(s);
+            if (iteration.plan().ic) iteration.build_importance_cache(s);
         },
-        [&](uint64_t pixel, RenderStats& local, const LayerSink& sink) {
+        [](const Iteration& iteration, uint64_t pixel, RenderStats& local, const LayerSink& sink) {
             return trace_many_light_eye_path(iteration, pixel, local, sink);
         });
 }

@@ -33,8 +33,7 @@ class ManyLightIntegrator final : public Integrator {
 
   private:
     ManyLightConfig config_;
-    mutable std::mutex storage_mutex_;  // as BidirectionalIntegrator's
-    mutable std::unique_ptr<bidirectional::IterationStorage> storage_;
+    mutable std::unique_ptr<bidirectional::KeptStorage> kept_;  // iteration_storage.h
 };
 
 }  // namespace render
