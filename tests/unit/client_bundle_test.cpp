@@ -140,7 +140,7 @@ TEST(ClientBundle, PbrtScenesCarryIncludedFilesAndMeshes) {
     const SceneBundleInfo info = collect_bundle(root / "scene-v4.pbrt", {});
     EXPECT_EQ(info.files.size(), 21u);  // the scene and its 20 PLY meshes
     EXPECT_EQ(paths_of(info).count("models/Mesh004.ply"), 1u);
-    EXPECT_EQ(info.integrator, "path");
+    EXPECT_EQ(info.integrator, "pbrt:path");  // pbrt's name, as the loader records it
     EXPECT_EQ(info.sample_count, 64u);
 
     TempDir dir("client_bundle_test_pbrt");
