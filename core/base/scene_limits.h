@@ -31,7 +31,7 @@ inline bool within_scene_limits(const Vec3& p) {
 // world ray into an instance's space with the inverse, the analytic shapes and the grids do the
 // same). A near-singular transform turns a valid world ray into a non-finite or huge one in the
 // shape's space, which Embree asserts on. The loaders refuse such a transform at its line
-// (docs/guide/reliability.md, "Scene limits").
+// (docs/guide/reliability.md, "Resource limits").
 //
 // The precision bound: ||A||_F ||A^-1||_F of the 3x3 linear part A. Mirrors, rotations and
 // uniform scales give 3; a box flattened 1000:1 about 1.4e3. Beyond 1e6 a float ray keeps about
