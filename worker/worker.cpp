@@ -403,6 +403,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             result.stats = sums.stats;
         } catch (const std::exception& e) {
             error = e.what();
+        } catch (...) {  // whatever escapes the renderer fails the lease, never the process
+            error = "the renderer threw an exception that is not a std::exception";
         }
         std::lock_guard<std::mutex> lock(mutex);
         done = true;
@@ -459,6 +461,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         if (result.stats.vpl_candidates > 0)  // importance-driven VPLs: the acceptance rate
             line.kv("vpl_acceptance",
                     double(result.stats.vpl_accepted) / double(result.stats.vpl_candidates));
+        // Rays the guard kept from Embree (core/scene/embree_ray.h): not in the report's
+        // header (the protocol has no field for them yet), so logged.
+        if (result.stats.invalid_rays > 0) line.kv("invalid_rays", result.stats.invalid_rays);
     }
     // Sent while the next lease renders. The lease stays alive on the server meanwhile (the
     // heartbeats extend all of this worker's leases); a report that cannot be delivered is
