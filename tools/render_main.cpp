@@ -232,6 +232,7 @@ int render_scene(const Options& o) {
     const double error = estimate_relative_error(accumulated);
     RenderedImageFacts facts{
         o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.job.defines};
+    facts.invalid_rays = accumulated.stats.invalid_rays;
     facts.vpl_candidates = accumulated.stats.vpl_candidates;
     facts.vpl_accepted = accumulated.stats.vpl_accepted;
     facts.target_error = o.job.target_error.value_or(0.0);
@@ -246,6 +247,11 @@ int render_scene(const Options& o) {
         "%.3g, %llu non-finite samples dropped -> %s\n",
         (unsigned long long)accumulated.count, elapsed, samples_per_s, rays_per_s, error,
         (unsigned long long)accumulated.stats.non_finite, o.out.c_str());
+    if (accumulated.stats.invalid_rays > 0)
+        std::printf(
+            "%llu rays were not traced: not finite or beyond the scene limits (taken as "
+            "misses)\n",
+            (unsigned long long)accumulated.stats.invalid_rays);
     if (accumulated.stats.vpl_candidates > 0)
         std::printf("VPLs: %.1f candidates per iteration, %.1f %% accepted (importance-driven)\n",
                     double(accumulated.stats.vpl_candidates) / double(accumulated.count),

@@ -6,6 +6,7 @@
 #include <bit>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <mutex>
@@ -378,6 +379,12 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             // One renderer for the range: its integrator, arena and buffers are made once,
             // and each iteration adds to `sums` (no full-frame allocation or copy per
             // iteration).
+            // Test hook (tests/integration/test_worker_render_throws.py): the renderer throws
+            // the variable's value as a std::runtime_error, or an int for "non-std".
+            if (const char* why = std::getenv("RENDER_TEST_RENDER_THROWS"); why && *why) {
+                if (std::string(why) == "non-std") throw 37;
+                throw std::runtime_error(why);
+            }
             IterationRenderer iterations(*scene, settings, lease.frame());
             IterationResult sums = iterations.empty_result();
             for (uint64_t i = first; i < end && !abandon.load(); ++i) {
@@ -403,6 +410,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             result.stats = sums.stats;
         } catch (const std::exception& e) {
             error = e.what();
+        } catch (...) {  // whatever escapes the renderer fails the lease, never the process
+            error = "the renderer threw an exception that is not a std::exception";
         }
         std::lock_guard<std::mutex> lock(mutex);
         done = true;
@@ -459,6 +468,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         if (result.stats.vpl_candidates > 0)  // importance-driven VPLs: the acceptance rate
             line.kv("vpl_acceptance",
                     double(result.stats.vpl_accepted) / double(result.stats.vpl_candidates));
+        // Rays the guard kept from Embree (core/scene/embree_ray.h): not in the report's
+        // header (the protocol has no field for them yet), so logged.
+        if (result.stats.invalid_rays > 0) line.kv("invalid_rays", result.stats.invalid_rays);
     }
     // Sent while the next lease renders. The lease stays alive on the server meanwhile (the
     // heartbeats extend all of this worker's leases); a report that cannot be delivered is

@@ -1,5 +1,7 @@
 #include "core/base/properties.h"
 
+#include "core/base/scene_limits.h"
+
 namespace render {
 
 void Properties::set(const std::string& name, Value value, const SourceLocation& where) {
@@ -94,6 +96,13 @@ Transform Properties::get_transform(const std::string& name) const {
 }
 Transform Properties::get_transform(const std::string& name, const Transform& def) const {
     return has(name) ? get_transform(name) : def;
+}
+
+Transform Properties::get_ray_transform(const std::string& name) const {
+    const Transform t = get_transform(name, Transform());
+    if (const std::string problem = ray_transform_problem(t); !problem.empty())
+        throw error(name, problem);
+    return t;
 }
 
 std::shared_ptr<const Texture> Properties::get_texture(const std::string& name) const {

@@ -94,7 +94,8 @@ void BeamsAlongRay::build(const std::vector<BeamLine>& beams, float radius) {
 }
 
 void BeamsAlongRay::query(const Ray& ray, VisitFunction visit, void* user) const {
-    if (!scene_ || !beams_ || beams_->empty()) return;
+    // A ray Embree would not accept finds nothing (it was a miss in the scene already).
+    if (!scene_ || !beams_ || beams_->empty() || !embree_accepts(ray)) return;
     QueryContext q;
     rtcInitIntersectContext(&q.context);
     q.beams = beams_;

@@ -1,7 +1,7 @@
 #include "core/integrators/importance_mixture.h"
 
 #include <algorithm>
-#include <cassert>
+#include <stdexcept>
 
 namespace render {
 
@@ -42,7 +42,7 @@ PerIcType<double> IcMixture::pmfs(size_t v) const {
 
 size_t IcMixture::sample(IcType t, double u_record, double u_vpl) const {
     const int n = usable_count_[t];
-    assert(n > 0);
+    if (n <= 0) throw std::logic_error("importance caching: a record type with no usable record");
     const int k = std::clamp(int(u_record * double(n)), 0, n - 1);
     return table(t, k).sample(u_vpl);
 }

@@ -1,8 +1,8 @@
 #include "core/integrators/importance_record.h"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 namespace render {
@@ -18,8 +18,11 @@ ImportanceTable conservative_table(std::span<const uint8_t> can_contribute) {
 IcRecordTables make_record_tables(std::span<const double> full, std::span<const double> unoccluded,
                                   std::span<const double> bounded,
                                   std::span<const uint8_t> can_contribute) {
-    assert(full.size() == can_contribute.size() && unoccluded.size() == can_contribute.size() &&
-           bounded.size() == can_contribute.size());
+    // A bug, never input: thrown, not asserted, so a worker fails the lease and lives
+    // (docs/guide/reliability.md, "Resource limits").
+    if (full.size() != can_contribute.size() || unoccluded.size() != can_contribute.size() ||
+        bounded.size() != can_contribute.size())
+        throw std::logic_error("importance records: the tables' sizes differ");
     IcRecordTables r;
     r.table[IcType::F] = ImportanceTable(full);
     r.table[IcType::U] = ImportanceTable(unoccluded);

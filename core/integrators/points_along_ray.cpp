@@ -76,7 +76,8 @@ void PointsAlongRay::build(const std::vector<Vec3>& positions, float radius) {
 }
 
 void PointsAlongRay::query(const Ray& ray, VisitFunction visit, void* user) const {
-    if (!scene_ || !positions_ || positions_->empty()) return;
+    // A ray Embree would not accept finds nothing (it was a miss in the scene already).
+    if (!scene_ || !positions_ || positions_->empty() || !embree_accepts(ray)) return;
     QueryContext q;
     rtcInitIntersectContext(&q.context);
     q.positions = positions_;

@@ -40,8 +40,7 @@ std::shared_ptr<const Volume> make_grid_volume(const Properties& props,
     if (wrap_mode != "clamp")
         throw props.error("wrap_mode",
                           "wrap mode \"" + wrap_mode + "\" is not supported yet (only clamp)");
-    Transform to_world = props.get_transform("to_world", Transform());
-    if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+    Transform to_world = props.get_ray_transform("to_world");
     const bool use_grid_bbox = props.get_bool("use_grid_bbox", false);
 
     std::error_code ec;

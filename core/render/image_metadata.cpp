@@ -14,6 +14,7 @@ std::map<std::string, std::string> image_metadata(const RenderSettings& settings
     out["render:seconds"] = format_real(facts.seconds);
     out["render:relative_error_estimate"] = format_real(facts.relative_error);
     out["render:non_finite_samples_dropped"] = std::to_string(facts.non_finite);
+    if (facts.invalid_rays > 0) out["render:invalid_rays"] = std::to_string(facts.invalid_rays);
     if (facts.target_error > 0) out["render:target_error"] = format_real(facts.target_error);
     for (const auto& [name, value] : facts.defines) out["render:define:" + name] = value;
     if (facts.vpl_candidates > 0) {

@@ -21,7 +21,8 @@ struct RenderedImageFacts {
     // vpl with the importance-driven distribution: VPL candidates and accepted ones over all
     // iterations (render:vpl_acceptance, render:vpl_candidates_per_iteration when non-zero).
     uint64_t vpl_candidates = 0, vpl_accepted = 0;
-    double target_error = 0;  // the job's target (render:target_error when > 0)
+    double target_error = 0;    // the job's target (render:target_error when > 0)
+    uint64_t invalid_rays = 0;  // rays not traced (render:invalid_rays when non-zero)
 };
 
 std::map<std::string, std::string> image_metadata(const RenderSettings& settings,

@@ -63,6 +63,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
         throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
                                     ", " + std::to_string(range.end) + ")");
     State& s = *state_;
+    const uint64_t invalid_rays_before = s.scene.invalid_rays();
     AccumulationBuffer& image = s.iteration_image;
     s.arena.execute([&] {
         std::vector<double>& values = image.values();
@@ -87,6 +88,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
             ++result.count;
         }
     });
+    result.stats.invalid_rays += s.scene.invalid_rays() - invalid_rays_before;
 }
 
 IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,

@@ -165,7 +165,15 @@ bool within_scene_limits(const Instance& instance) {
     return within_scene_limits(instance.bounds());
 }
 
+void Scene::count_invalid_ray() const {
+    invalid_rays_.fetch_add(1, std::memory_order_relaxed);
+}
+
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) const {
+    if (!embree_accepts(ray)) [[unlikely]] {
+        count_invalid_ray();
+        return false;
+    }
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh = to_rtc_ray_hit(ray);
@@ -192,6 +200,10 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) 
 }
 
 float Scene::closest_hit_distance(const Ray& ray) const {
+    if (!embree_accepts(ray)) [[unlikely]] {
+        count_invalid_ray();
+        return kInfinity;
+    }
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh = to_rtc_ray_hit(ray);
@@ -205,6 +217,10 @@ void Scene::also_for_occlusion(unsigned geometry_id) {
 }
 
 bool Scene::occluded(const Ray& ray) const {
+    if (!embree_accepts(ray)) [[unlikely]] {
+        count_invalid_ray();
+        return false;
+    }
     // The same test with the same numbers as the shapes' Embree callbacks
     // (core/shapes/user_geometry.cpp), without Embree's traversal around it.
     const float origin[3] = {ray.origin.x, ray.origin.y, ray.origin.z};

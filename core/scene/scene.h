@@ -6,6 +6,8 @@
 
 #include <embree3/rtcore.h>
 
+#include <atomic>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -89,6 +91,11 @@ class Scene {
     float closest_hit_distance(const Ray& ray) const;
     // True if anything blocks the open segment (ray.t_min, ray.t_max).
     bool occluded(const Ray& ray) const;
+    // The three queries above hand Embree only rays it accepts (embree_accepts,
+    // core/scene/embree_ray.h): any other ray is a miss (unoccluded), counted here. A count over
+    // the scene's life, shared by every render of it; render_iterations adds its difference to
+    // RenderStats::invalid_rays.
+    uint64_t invalid_rays() const { return invalid_rays_.load(std::memory_order_relaxed); }
 
     // Ray leaving surface point p (normal n) in direction d, offset so it cannot re-hit the
     // surface it starts on. The offset scales with the scene size and |p|.
@@ -141,6 +148,8 @@ class Scene {
     const Aabb& bounds() const { return bounds_; }
 
   private:
+    [[gnu::cold]] void count_invalid_ray() const;
+    mutable std::atomic<uint64_t> invalid_rays_{0};
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
     RTCScene occlusion_scene_ = nullptr;  // the same geometries, for occluded()

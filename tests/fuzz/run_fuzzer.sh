@@ -15,11 +15,15 @@ if [ ! -x "$fuzzer" ]; then
     exit 1
 fi
 mkdir -p "$work/corpus" "$work/findings"
+# A target's dictionary (tests/fuzz/dict/NAME.dict), when it has one, steers the mutations.
+dict=$(dirname "$0")/dict/$(basename "$fuzzer" _fuzzer).dict
+dict_arg=
+[ -f "$dict" ] && dict_arg="-dict=$dict"
 # Leak checks stay on; ASan's own allocator limit keeps a huge allocation a finding (oom-*).
 ASAN_OPTIONS=${ASAN_OPTIONS:-allocator_may_return_null=0} \
 UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1} \
 "$fuzzer" -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=2048 -timeout=10 \
-    -print_final_stats=1 -artifact_prefix="$work/findings/" "$work/corpus" "$seeds"
+    -print_final_stats=1 -artifact_prefix="$work/findings/" $dict_arg "$work/corpus" "$seeds"
 status=$?
 if [ $status -ne 0 ]; then
     name=$(basename "$fuzzer" _fuzzer)

@@ -262,6 +262,61 @@ std::string pbrt_error(const std::string& world) {
     return "loaded";
 }
 
+// A transform rays cannot pass through (ray_transform_problem, core/base/scene_limits.h) is
+// refused at its line, for instances, shapes and volume grids alike.
+TEST(Instancing, MitsubaRefusesNearSingularTransformsAtTheirLine) {
+    const std::string group =
+        "<shape type=\"shapegroup\" id=\"g\"><shape type=\"cube\"/></shape>\n";
+    expect_refused(mitsuba_error(group + "<shape type=\"instance\">\n"
+                                         "  <ref id=\"g\"/>\n"
+                                         "  <transform name=\"to_world\">\n"
+                                         "    <scale x=\"-1\" y=\"1\" z=\"1e-30\"/>\n"
+                                         "  </transform>\n"
+                                         "</shape>\n"),
+                   "<string>:6", "the transform is near-singular");
+    expect_refused(mitsuba_error("<shape type=\"sphere\">\n"
+                                 "  <transform name=\"to_world\"><scale value=\"1e-8\"/>"
+                                 "</transform>\n"
+                                 "</shape>\n"),
+                   "<string>:4", "shrinks too much");
+    expect_refused(mitsuba_error("<shape type=\"cube\">\n"
+                                 "  <transform name=\"to_world\">\n"
+                                 "    <matrix value=\"1 0 0 0  0 1 0 0  0 0 1e-9 0  0 0 0 1\"/>\n"
+                                 "  </transform>\n"
+                                 "</shape>\n"),
+                   "<string>:4", "near-singular");
+}
+
+// The input a fuzzing run found (issue: "No scene kills a worker"): scenes/tests/instances.pbrt
+// with its mirrored instance flattened to 1e-30. It loaded, then aborted the process in Embree
+// (`Assertion 'ray.valid()' failed`) on the first ray; now the loader refuses it at the line.
+TEST(Instancing, PbrtRefusesTheFoundNearSingularInstance) {
+    const std::string found =
+        "LookAt 0 2.2 5  0 0.5 0.3  0 1 0\n"
+        "Camera \"perspective\" \"float fov\" [45]\n"
+        "WorldBegin\n"
+        "ObjectBegin \"thing\"\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1]\n"
+        "    \"integer indices\" [0 2 1 0 3 2]\n"
+        "  Translate 0 0.85 0\n"
+        "  Shape \"sphere\" \"float radius\" [0.25]\n"
+        "ObjectEnd\n"
+        "AttributeBegin\n"
+        "  Translate 1.6 0 0.6\n"
+        "  Scale -1 1 1e-30\n"
+        "  ObjectInstance \"thing\"\n"
+        "AttributeEnd\n";
+    std::string message = "loaded";
+    try {
+        pbrt::load_scene_from_string(found, kTests);
+    } catch (const SceneError& e) {
+        message = e.what();
+    }
+    expect_refused(message, "<string>:13", "ObjectInstance: the transform is near-singular");
+    expect_refused(pbrt_error("Scale 1 1e-9 1\nShape \"sphere\"\n"), "<string>:4",
+                   "Shape: the transform is near-singular");
+}
+
 TEST(Instancing, PbrtRefusesBadObjectsAtTheirLine) {
     expect_refused(pbrt_error("ObjectBegin \"o\"\n"
                               "AreaLightSource \"diffuse\"\n"

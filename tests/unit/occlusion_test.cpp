@@ -139,6 +139,34 @@ TEST(Occlusion, TheShadowRaysBvhIsBuiltAndChargedOnlyForSmallScenes) {
     }
 }
 
+// Rays Embree would abort on (embree_accepts, core/scene/embree_ray.h) never reach it: each
+// query answers a miss (unoccluded) and counts the ray; valid rays, far ones too, are traced.
+TEST(Occlusion, InvalidRaysAreMissesAndCounted) {
+    auto scene = wavy_grid_scene(8);
+    scene->commit();
+    const float nan = std::nanf(""), inf = INFINITY;
+    const Vec3 down(0, 0, -1), above(1, 1, 2);
+    const Ray invalid[] = {Ray(Vec3(nan, 1, 2), down), Ray(above, Vec3(0, inf, -1)),
+                           Ray(Vec3(1, 1, 2e12f), down), Ray(above, down, 0.0f, nan),
+                           Ray(above, Vec3(0, 0, -3e12f))};
+    uint64_t expected = 0;
+    for (const Ray& ray : invalid) {
+        SurfaceInteraction si;
+        EXPECT_FALSE(scene->intersect(ray, si));
+        EXPECT_EQ(scene->closest_hit_distance(ray), kInfinity);
+        EXPECT_FALSE(scene->occluded(ray));
+        expected += 3;
+        EXPECT_EQ(scene->invalid_rays(), expected);
+    }
+    for (const Ray& ray : {Ray(above, down), Ray(Vec3(1, 1, 9e11f), down)}) {
+        SurfaceInteraction si;
+        EXPECT_TRUE(scene->intersect(ray, si));
+        EXPECT_LT(scene->closest_hit_distance(ray), kInfinity);
+        EXPECT_TRUE(scene->occluded(ray));
+    }
+    EXPECT_EQ(scene->invalid_rays(), expected);
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenes, OcclusionAgreesWithClosestHit,
                          testing::Values("smallvcm/0-gbs_s.xml", "smallvcm/1-glm_c.xml",
                                          "smallvcm/2-gbs_p.xml",

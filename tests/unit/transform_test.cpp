@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "core/base/scene_limits.h"
 #include "core/math/frame.h"
 #include "core/math/transform.h"
 #include "core/sampling/rng.h"
@@ -29,6 +30,41 @@ TEST(Transform, InverseRoundTrips) {
     expect_vec_near(inv.apply_point(t.apply_point(p)), p, 1e-5f);
     EXPECT_FALSE(t.is_singular());
     EXPECT_TRUE(Transform::scale(Vec3(1, 0, 1)).is_singular());
+}
+
+TEST(Transform, RaysPassOnlyThroughWellConditionedTransforms) {
+    // What the shipped scenes use: rotations, mirrors, uniform and moderately flattening scales.
+    for (const Transform& t :
+         {Transform(), Transform::scale(Vec3(-1, 1, 1)), Transform::scale(Vec3(1e-4f)),
+          Transform::scale(Vec3(1e6f)), Transform::scale(Vec3(10, 0.01f, 10)),
+          Transform::translate(Vec3(1e9f, 0, 0)) * Transform::rotate(Vec3(1, 2, 3), 77.0f) *
+              Transform::scale(Vec3(1, 0.3f, 0.6f))})
+        EXPECT_EQ(ray_transform_problem(t), "");
+    // The input that aborted the process in Embree: a mirror flattened to 1e-30 in z.
+    EXPECT_NE(ray_transform_problem(Transform::scale(Vec3(-1, 1, 1e-30f))).find("near-singular"),
+              std::string::npos);
+    EXPECT_NE(ray_transform_problem(Transform::scale(Vec3(1, 1, 1e-7f))).find("near-singular"),
+              std::string::npos);
+    EXPECT_NE(ray_transform_problem(Transform::scale(Vec3(1, 0, 1))).find("singular"),
+              std::string::npos);
+    Transform::Matrix m = Transform().matrix();
+    m[1][2] = std::nan("");
+    EXPECT_EQ(ray_transform_problem(Transform(m)), "the transform is not finite");
+    m[1][2] = INFINITY;
+    EXPECT_EQ(ray_transform_problem(Transform(m)), "the transform is not finite");
+    // Well conditioned but so small that a point within the scene limits lands beyond what
+    // Embree accepts in the shape's space.
+    EXPECT_NE(ray_transform_problem(Transform::scale(Vec3(1e-7f))).find("shrinks too much"),
+              std::string::npos);
+    // Rotations and mirrors are as well conditioned as can be: ||A||_F ||A^-1||_F = 3.
+    const Transform r = Transform::rotate(Vec3(0, 1, 1), 45.0f) * Transform::scale(Vec3(-1, 1, 1));
+    double n = 0, ni = 0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            n += r.matrix()[i][j] * r.matrix()[i][j];
+            ni += r.inverse().matrix()[i][j] * r.inverse().matrix()[i][j];
+        }
+    EXPECT_NEAR(std::sqrt(n * ni), 3.0, 1e-9);
 }
 
 TEST(Transform, NormalsStayPerpendicular) {

@@ -61,8 +61,7 @@ void Loader::read_instance(const XmlElement& e) {
     if (!group) throw SceneError(e.where(), "an instance needs <ref id=\"...\"/> to a shapegroup");
     if (!props.id.empty()) register_id(props.id, e.where());
     std::unique_ptr<Instance> instance = build(props, [&] {
-        const Transform to_world = props.get_transform("to_world", Transform());
-        if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
+        const Transform to_world = props.get_ray_transform("to_world");
         return std::make_unique<Instance>(
             group, to_world,
             props.id.empty() ? "instance (" + e.where().to_string() + ")" : props.id);

@@ -23,11 +23,10 @@ std::string shape_name(const Properties& props) {
 // `file_face_normals`: the mesh file asks for flat shading (a serialized file's flag).
 std::unique_ptr<Shape> make_mesh_shape(const Properties& props, MeshData data,
                                        bool allow_face_normals, bool file_face_normals = false) {
-    Transform to_world = props.get_transform("to_world", Transform());
+    Transform to_world = props.get_ray_transform("to_world");
     bool flip = props.get_bool("flip_normals", false);
     bool face_normals =
         (allow_face_normals && props.get_bool("face_normals", false)) || file_face_normals;
-    if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
     if (data.indices.empty()) throw props.error("filename", "the mesh has no faces");
     if (data.normals.empty() && !face_normals) compute_vertex_normals(data, to_world);
     return std::make_unique<TriangleMesh>(std::move(data), to_world, flip, face_normals,
@@ -77,7 +76,7 @@ std::unique_ptr<Shape> make_sphere(const Properties& props) {
     Vec3 center = props.get_vec3("center", Vec3(0.0f));
     float radius = props.get_float("radius", 1.0f);
     if (!(radius > 0)) throw props.error("radius", "the radius must be positive");
-    Transform to_world = props.get_transform("to_world", Transform());
+    Transform to_world = props.get_ray_transform("to_world");
     bool flip = props.get_bool("flip_normals", false);
     // to_world must be a similarity: rotation/reflection, uniform scale and translation.
     const Transform::Matrix& m = to_world.matrix();
@@ -159,9 +158,8 @@ std::unique_ptr<Shape> make_shape(const Properties& props, const std::filesystem
         {"sphere", [](const Properties& p, const Path&) { return make_sphere(p); }},
         {"disk",
          [](const Properties& p, const Path&) -> std::unique_ptr<Shape> {
-             Transform to_world = p.get_transform("to_world", Transform());
+             Transform to_world = p.get_ray_transform("to_world");
              bool flip = p.get_bool("flip_normals", false);
-             if (to_world.is_singular()) throw p.error("to_world", "the transform is singular");
              return std::make_unique<Disk>(to_world, flip, shape_name(p));
          }},
         {"obj", make_file_mesh},

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/base/properties.h"
+#include "core/base/scene_limits.h"
 #include "core/media/grid_volume.h"
 #include "core/media/medium_factory.h"
 #include "core/scene/pbrt/builders.h"
@@ -109,6 +110,8 @@ std::shared_ptr<const Medium> make_medium(const std::string& type, const ParamLi
         }
         Rgb albedo;
         for (int c = 0; c < 3; ++c) albedo[c] = sigma_t[c] > 0 ? sigma_s[c] / sigma_t[c] : 0.0f;
+        if (const std::string problem = ray_transform_problem(to_world); !problem.empty())
+            throw SceneError(at, params.context() + ": " + problem);
         const Transform grid_to_world =
             to_world * Transform::translate(p0) * Transform::scale(p1 - p0);
         std::map<std::string, std::shared_ptr<const Volume>> volumes;

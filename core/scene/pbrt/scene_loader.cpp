@@ -488,6 +488,7 @@ class Loader {
             throw SceneError(d.where, "Shape inside ObjectBegin \"" + object_->name() +
                                           "\": area lights in object instances are not "
                                           "supported (nor are they in pbrt-v4)");
+        check_ray_transform(d);
         std::unique_ptr<Shape> shape =
             make_shape(type, p, state_.ctm, state_.reverse_orientation, resolver());
         check_extent(*shape, d);
@@ -553,8 +554,7 @@ class Loader {
         if (it == objects_.end())
             throw SceneError(d.where, "ObjectInstance: unknown object \"" + name +
                                           "\" (ObjectBegin must come first)");
-        if (state_.ctm.is_singular())
-            throw SceneError(d.where, "ObjectInstance: the current transform is singular");
+        check_ray_transform(d);
         if (it->second->empty()) {
             warn(d.where, "ObjectInstance: object \"" + name + "\" has no shapes");
             return;
@@ -566,6 +566,13 @@ class Loader {
                              "ObjectInstance: its geometry reaches beyond 1e12 from the "
                              "origin or is not finite (check the transform)");
         scene_.add_instance(std::move(instance));
+    }
+
+    // Refuses a current transform rays could not pass through at the directive that uses it
+    // (ray_transform_problem, core/base/scene_limits.h).
+    void check_ray_transform(const Token& d) const {
+        if (const std::string problem = ray_transform_problem(state_.ctm); !problem.empty())
+            throw SceneError(d.where, d.text + ": " + problem);
     }
 
     // Refuses geometry beyond the scene's limits (within_scene_limits, core/scene/scene.h).
