@@ -60,6 +60,18 @@ void light_path_memory(const IterationMemoryInput& in, IterationMemoryParts& par
 
 const std::vector<std::string> kAllBenchmarks = {"performance", "convergence"};
 
+// Throws std::invalid_argument naming the required fields a row lacks: the built-in rows and
+// registered ones are held to the same list.
+void check_required_fields(const Algorithm& row) {
+    std::string missing;
+    if (row.name.empty()) missing += " name";
+    if (row.description.empty()) missing += " description";
+    if (!row.create) missing += " create";
+    if (!row.iteration_memory) missing += " iteration_memory";
+    if (!missing.empty())
+        throw std::invalid_argument("algorithm row \"" + row.name + "\" lacks:" + missing);
+}
+
 // Rows name only the fields they set; the others keep their member defaults (GCC's
 // -Wextra would warn about every omitted field of a designated initializer).
 #pragma GCC diagnostic push
@@ -258,6 +270,11 @@ std::vector<Algorithm>& table() {
          .physically_based = false,
          .iteration_memory = no_working_memory},
     };
+    // A built-in row that lacks a required field fails at its first use, as a registered one.
+    [[maybe_unused]] static const bool checked = [] {
+        for (const Algorithm& row : rows) check_required_fields(row);
+        return true;
+    }();
     return rows;
 }
 #pragma GCC diagnostic pop
@@ -271,13 +288,7 @@ const std::vector<Algorithm>& algorithms() {
 void no_working_memory(const IterationMemoryInput&, IterationMemoryParts&) {}
 
 void register_algorithm(Algorithm row) {
-    std::string missing;
-    if (row.name.empty()) missing += " name";
-    if (row.description.empty()) missing += " description";
-    if (!row.create) missing += " create";
-    if (!row.iteration_memory) missing += " iteration_memory";
-    if (!missing.empty())
-        throw std::invalid_argument("algorithm row \"" + row.name + "\" lacks:" + missing);
+    check_required_fields(row);
     std::vector<std::string> names = row.aliases;
     names.push_back(row.name);
     for (const std::string& n : names)

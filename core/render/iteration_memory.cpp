@@ -47,10 +47,6 @@ uint64_t add(uint64_t a, uint64_t b) {
     return a > UINT64_MAX - b ? UINT64_MAX : a + b;
 }
 
-uint64_t add_saturating(uint64_t a, uint64_t b) {
-    return add(a, b);
-}
-
 uint64_t mul(uint64_t a, uint64_t b) {
     return saturating_product(a, b);
 }
@@ -65,7 +61,7 @@ uint64_t assumed_light_vertices_per_path(const RenderSettings& settings) {
 }
 
 void IterationMemoryParts::add(uint64_t part_bytes, const std::string& text) {
-    bytes = add_saturating(bytes, part_bytes);
+    bytes = render::add(bytes, part_bytes);  // the saturating sum above, not this member
     what += ", " + text;
 }
 

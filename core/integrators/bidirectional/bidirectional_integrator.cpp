@@ -39,7 +39,7 @@ PhotonBeamInspection BidirectionalIntegrator::inspect_photon_beams(const Scene& 
     RenderStats stats;
     iteration.trace_light_paths(stats, [](std::span<const bidirectional::Splat>) {});
     out.lines = storage.photon_beam_lines;
-    out.radius = iteration.photon_beam_radius();
+    out.radius = iteration.plan().photon_beam_radius;
     return out;
 }
 

@@ -98,9 +98,9 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVe
                                     .eye_photon_beam = eye_photon_beam,
                                     .joint_ratio = joint_ratio,
                                     .eye_joint2 = eye_joint2};
-    const float weight = plan_.many_lights ? 1.0f
-                         : joint           ? mis_.weight_joint_direct(eye_mis, technique)
-                                           : mis_.weight_direct(eye_mis, technique);
+    const float weight = plan_.many_lights() ? 1.0f
+                         : joint             ? mis_.weight_joint_direct(eye_mis, technique)
+                                             : mis_.weight_direct(eye_mis, technique);
     const Rgb contribution = ls.radiance * f * (weight * v.shading_cos(ls.wi) / dl.pdf_w());
     if (contribution.is_black()) return Rgb(0.0f);
     return contribution * visibility(l, ray, stats);

@@ -166,8 +166,6 @@ class Iteration {
     const IterationKey& key() const { return key_; }
     const BlockVector<LightVertex>& light_vertices() const { return light_vertices_; }
 
-    uint64_t light_path_count() const { return plan_.light_path_count; }
-    double photon_beam_radius() const { return plan_.photon_beam_radius; }
     // The records' connections are clamped at 1 % of the scene radius at least, so that a VPL
     // lying on a record cannot take all the importance: this shapes P_k only, never the bias.
     float record_clamp2() const {

@@ -65,23 +65,23 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
         (volume_schedule ? upbp.volume_radius_factor : config.merging.radius_factor) * scene_radius,
         volume_schedule ? upbp.volume_alpha : config.merging.alpha, iteration, 1);
     const double n_light = double(p.light_path_count);
-    p.eta_vcm = kPi * p.radius * p.radius * n_light;
+    const double eta_vcm = kPi * p.radius * p.radius * n_light;
     // Photon points in media: the kernel is a ball, eta = 4/3 pi r^3 N_light.
-    p.eta_vcm_volume =
+    const double eta_vcm_volume =
         4.0 / 3.0 * kPi * p.volume_radius * p.volume_radius * p.volume_radius * n_light;
     // Query beams: the kernel is a disc around the camera segment, eta = pi r^2 N_light.
-    p.eta_beam = kPi * p.beam_radius * p.beam_radius * n_light;
-    p.vm_normalization = float(1.0 / p.eta_vcm);
-    p.vm_normalization_volume = float(1.0 / p.eta_vcm_volume);
-    p.beam_normalization = float(1.0 / p.eta_beam);
+    const double eta_beam = kPi * p.beam_radius * p.beam_radius * n_light;
+    p.vm_normalization = float(1.0 / eta_vcm);
+    p.vm_normalization_volume = float(1.0 / eta_vcm_volume);
+    p.beam_normalization = float(1.0 / eta_beam);
     // The box kernel 1 / (2 r_1), each of the N_L light paths' beams one sample.
     p.photon_beam_normalization = float(1.0 / (2.0 * p.photon_beam_radius * n_light));
     p.mis_power = config.mis_power;
     p.mis_techniques = MisTechniques{
         .connections = p.vertex_connections,
-        .surface_eta = p.merge_surfaces ? p.eta_vcm : 0.0,
-        .point_eta = p.merge_points ? p.eta_vcm_volume : 0.0,
-        .query_beam_eta = p.query_beams ? p.eta_beam : 0.0,
+        .surface_eta = p.merge_surfaces ? eta_vcm : 0.0,
+        .point_eta = p.merge_points ? eta_vcm_volume : 0.0,
+        .query_beam_eta = p.query_beams ? eta_beam : 0.0,
         .photon_beam_eta =
             p.photon_beams ? upbp.photon_beam_eta * p.photon_beam_radius * n_light : 0.0,
         .short_photon_beams = upbp.short_photon_beams};
@@ -100,7 +100,6 @@ IterationPlan plan_iteration(const ManyLightConfig& config, const Scene& scene,
     plan_subpaths(p, config.subpaths, scene);
     p.vpl = config.estimator == ManyLightEstimator::Vpl;
     p.ic = config.estimator == ManyLightEstimator::Ic;
-    p.many_lights = true;
     // No connection or merging technique: the MIS quantities are carried but never weigh.
     p.mis_techniques = MisTechniques{.connections = false};
     if (config.clamp.factor > 0) {

@@ -30,7 +30,7 @@ struct IterationPlan {
     bool joint2 = false;          // and J2 on the light path's rays (bpt only)
     bool ic_connections = false;  // bpt whose connections draw light vertices from caches
     // Many-light estimators over the iteration's VPLs (weight 1, none of the VCM MIS).
-    bool vpl = false, ic = false, many_lights = false;
+    bool vpl = false, ic = false;
 
     int max_length = 0;  // path segments (max_depth; unbounded: INT_MAX / 4)
     int rr_depth = 5;
@@ -38,10 +38,9 @@ struct IterationPlan {
 
     // Merging radii: surfaces, photon points (P-P3D), query beams (P-B2D), photon beams (B-B1D).
     double radius = 0, volume_radius = 0, beam_radius = 0, photon_beam_radius = 0;
-    // The report's eta_VCM = pi r^2 N_light (the ratio of merging to connection densities of
-    // the same path), and its analogues for the other kernels.
-    double eta_vcm = 0, eta_vcm_volume = 0, eta_beam = 0;
-    // 1 / eta: each merge's kernel and the 1 / N_light of the light paths.
+    // 1 / eta, with the report's eta_VCM = pi r^2 N_light (the ratio of merging to connection
+    // densities of the same path) and its analogues for the other kernels: each merge's kernel
+    // and the 1 / N_light of the light paths.
     float vm_normalization = 0, vm_normalization_volume = 0, beam_normalization = 0;
     float photon_beam_normalization = 0;
     int mis_power = 2;
@@ -57,6 +56,7 @@ struct IterationPlan {
     float ic_connection_scale = 0;
     ImportanceCacheSettings cache;
 
+    bool many_lights() const { return vpl || ic; }
     bool uses_importance_caches() const { return ic || ic_connections; }
 };
 

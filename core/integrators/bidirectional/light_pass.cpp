@@ -83,7 +83,7 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         const Vec3 wo = -ray.direction;
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
-            if (plan_.vertex_connections || plan_.merging || plan_.many_lights) {
+            if (plan_.vertex_connections || plan_.merging || plan_.many_lights()) {
                 vertices.push_back(LightVertex{.wo = wo,
                                                .throughput = state.throughput,
                                                .path_length = state.path_length,

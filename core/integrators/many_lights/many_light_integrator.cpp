@@ -41,7 +41,7 @@ VplSelection ManyLightIntegrator::inspect_vpl_selection(const Scene& scene,
     RenderStats stats;
     iteration.trace_light_paths(stats, [](std::span<const bidirectional::Splat>) {});
     iteration.select_vpls(stats, &selection);
-    selection.light_paths = iteration.light_path_count();
+    selection.light_paths = iteration.plan().light_path_count;
     selection.importance_records = config_.importance.records;
     selection.record_distance_clamp = std::sqrt(double(iteration.record_clamp2()));
     return selection;
