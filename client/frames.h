@@ -2,7 +2,7 @@
 
 // Animations for `client submit`: the frames of one job and each frame's define overrides,
 // from `--frames A:B` (with `{frame}` / `{frame:04}` in -D values) or `--frames-file F`. Pure
-// functions (no RPC), unit-tested in tests/unit/client_frames_test.cpp.
+// functions (no RPC), unit-tested in tests/unit/client/client_frames_test.cpp.
 
 #include <cstdint>
 #include <filesystem>

@@ -2,7 +2,7 @@
 
 // Warps from the unit square to sampling domains, each beside its density. Densities are
 // with respect to the domain's natural measure: solid angle for directions, area for
-// points. Every pair is checked by a chi-square test in tests/unit/warp_test.cpp.
+// points. Every pair is checked by a chi-square test in tests/unit/sampling/warp_test.cpp.
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 #pragma once
 
-// Shared fixtures of the light tests (tests/unit/*light*_test.cpp): analytic test-only shapes
+// Shared fixtures of the light tests (tests/unit/lights/): analytic test-only shapes
 // whose exact geometry the tests know, a Monte Carlo irradiance estimator with its standard
 // error, relative comparisons, and an environment-map texel pattern.
 

@@ -5,7 +5,7 @@
 // each technique's weight is computed from them. Equation numbers refer to the technical report
 // "Implementing Vertex Connection and Merging" (Georgiev 2012). The integrator
 // (core/integrators/bidirectional/) and the test that checks that the weights of all techniques
-// sampling one path sum to one (tests/unit/vcm_mis_test.cpp) use these same functions.
+// sampling one path sum to one (tests/unit/integrators/vcm_mis_test.cpp) use these same functions.
 //
 // Densities in solid angle (_w) or area (_a; volume at a medium vertex); selection
 // probabilities are discrete (_probability); "mis(p)" is p^beta (beta = 2: power heuristic,

@@ -2,7 +2,7 @@
 // image as the Mitsuba file of the same scene (scenes/bitterli/cornell-box/scene_v3.xml), and
 // the three shipped scenes load and render a few iterations with pt and vcm.
 //
-// The block test, as tests/unit/convergence_test.cpp: each file renders 32 batches of 8
+// The block test, as tests/unit/render/convergence_test.cpp: each file renders 32 batches of 8
 // iterations at 32 x 32 (independent seeds: 11 for pbrt, 22 for Mitsuba, so the two estimates
 // are independent and the test is a statistical one, not a comparison of identical paths).
 // Block means (4 x 4 blocks of 8 x 8 pixels, per channel) get a standard error from the spread
