@@ -1,0 +1,64 @@
+#!/usr/bin/python3
+"""Turns a markdown table a measuring script printed into a stamped data file.
+
+    SCRIPT | record_table.py FILE --command "SCRIPT ARGS" [--load-before "L"] [--name TABLE]
+
+Reads the table (lines starting with '|') from stdin; cells that are numbers become JSON
+numbers, the others stay text. Writes FILE (docs/data/PAGE/NAME.json) with its stamp
+(data.stamp: commit, machine, load, command, date). For scripts that are not Python, e.g.
+scripts/memory-calibration --data FILE.
+"""
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from resultslib import data  # noqa: E402
+
+
+def cell(text):
+    text = text.strip()
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def parse_table(lines):
+    rows = [[c for c in line.strip().strip("|").split("|")] for line in lines
+            if line.startswith("|")]
+    if len(rows) < 2:
+        raise ValueError("no markdown table on stdin")
+    columns = [c.strip() for c in rows[0]]
+    body = [[cell(c) for c in row] for row in rows[2:]]
+    # Numbers are shown as printed, to six significant digits ("g"): 1.80 shows as 1.8.
+    formats = ["g" if any(isinstance(r[i], float) for r in body) else None
+               for i in range(len(columns))]
+    return {"columns": columns, "rows": body, "formats": formats}
+
+
+def main(argv):
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("file", type=Path)
+    p.add_argument("--command", required=True)
+    p.add_argument("--load-before")
+    p.add_argument("--name", default="main")
+    p.add_argument("--note")
+    args = p.parse_args(argv)
+    table = parse_table(sys.stdin.read().split("\n"))
+    stamp = data.stamp(args.command, load_before=args.load_before)
+    if args.note:
+        stamp["note"] = args.note
+    data.write(args.file, {"stamp": stamp, "measured": True, "tables": {args.name: table}})
+    print(f"record_table: wrote {args.file} ({len(table['rows'])} rows)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
