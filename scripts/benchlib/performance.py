@@ -684,10 +684,12 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
 
 
 def without_notes_links(section):
-    """The SmallVCM section without the list of hand-written notes reference.document_lines
-    appends: the page's template links those records."""
+    """The SmallVCM section without its heading (the page's template holds it) and without the
+    list of hand-written notes reference.document_lines appends (the template links them)."""
     if reference.NOTES_HEADING in section:
         section = section[:section.index(reference.NOTES_HEADING)]
+    while section and (not section[0].strip() or section[0] == reference.TITLE):
+        section.pop(0)
     while section and not section[-1].strip():
         section.pop()
     return section
@@ -712,8 +714,7 @@ def publish(path, lines, reference_lines, *, reference_measured, load=None):
                          load_before=pages.load_text(load), block="page")
 
 
-# The hand-written page (relative to docs/) and its sections that the generated document links
-# to, in order. Rename a heading there and here together: section_links raises otherwise.
+# The page of measurements made by hand at past commits, which the prose links to.
 NOTES_PAGE = "performance-notes.md"  # beside the generated page, docs/results/
 
 
@@ -721,17 +722,6 @@ def document_path(docs_dir) -> Path:
     """The generated page under the docs folder (docs/ by default): a results page, so its
     links are relative to docs/results/ (as common.results_page says)."""
     return Path(docs_dir) / "results" / "performance.md"
-
-
-NOTES_SECTIONS = ("## Where each speed target stands",
-                  "### Abseil's deadlock detection off (2026-11-27)",
-                  "### Reports in the background (the worker overlaps)",
-                  "### Costs that grow with the work (the render-farm case)",
-                  "### Farm scaling: 1 to 8 workers",
-                  "## Closest hits through Scene::intersect",
-                  "## Start-up",
-                  "## Per-iteration allocations",
-                  "## Parallel iteration steps and peak memory")
 
 
 # ---------------------------------------------------------------------------------------------

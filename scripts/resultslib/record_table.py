@@ -2,6 +2,7 @@
 """Turns a markdown table a measuring script printed into a stamped data file.
 
     SCRIPT | record_table.py FILE --command "SCRIPT ARGS" [--load-before "L"] [--name TABLE]
+                             [--value KEY=TEXT ...]
 
 Reads the table (lines starting with '|') from stdin; cells that are numbers become JSON
 numbers, the others stay text. Writes FILE (docs/data/PAGE/NAME.json) with its stamp
@@ -50,12 +51,18 @@ def main(argv):
     p.add_argument("--load-before")
     p.add_argument("--name", default="main")
     p.add_argument("--note")
+    p.add_argument("--value", action="append", default=[], metavar="KEY=TEXT",
+                   help="a value the page quotes, e.g. a claim's verdict (repeatable)")
     args = p.parse_args(argv)
     table = parse_table(sys.stdin.read().split("\n"))
     stamp = data.stamp(args.command, load_before=args.load_before)
     if args.note:
         stamp["note"] = args.note
-    data.write(args.file, {"stamp": stamp, "measured": True, "tables": {args.name: table}})
+    values = dict(v.split("=", 1) for v in args.value)
+    content = {"stamp": stamp, "measured": True, "tables": {args.name: table}}
+    if values:
+        content["values"] = values
+    data.write(args.file, content)
     print(f"record_table: wrote {args.file} ({len(table['rows'])} rows)", file=sys.stderr)
     return 0
 
