@@ -31,15 +31,22 @@ def cell(text):
 
 
 def parse_table(lines):
-    rows = [[c for c in line.strip().strip("|").split("|")] for line in lines
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines
             if line.startswith("|")]
     if len(rows) < 2:
         raise ValueError("no markdown table on stdin")
-    columns = [c.strip() for c in rows[0]]
-    body = [[cell(c) for c in row] for row in rows[2:]]
-    # Numbers are shown as printed, to six significant digits ("g"): 1.80 shows as 1.8.
-    formats = ["g" if any(isinstance(r[i], float) for r in body) else None
-               for i in range(len(columns))]
+    columns, texts = rows[0], rows[2:]
+    body = [[cell(c) for c in row] for row in texts]
+    # Numbers are shown as printed: a column whose numbers all have N decimals keeps them
+    # (".Nf", so 1.80 stays 1.80); otherwise six significant digits ("g").
+    formats = []
+    for i in range(len(columns)):
+        decimals = {len(r[i].split(".")[1]) if "." in r[i] else 0
+                    for r, v in zip(texts, body) if isinstance(v[i], (int, float))}
+        if not any(isinstance(v[i], float) for v in body):
+            formats.append(None)
+        else:
+            formats.append(f".{decimals.pop()}f" if len(decimals) == 1 else "g")
     return {"columns": columns, "rows": body, "formats": formats}
 
 
