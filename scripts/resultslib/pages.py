@@ -282,3 +282,23 @@ def load_text(load_average):
         return None
     return " / ".join(f"{x:.2f}" if isinstance(x, float) else str(x)
                       for x in load_average) + " (1 / 5 / 15 min)"
+
+
+def adopt(page, stamp, docs_dir, templates_dir=TEMPLATES_DIR):
+    """Turns docs/results/PAGE.md, as a benchmark wrote it, into DOCS/data/PAGE/benchmark.json
+    (its body as one block, stamped with `stamp`: what the run recorded) and a template that
+    shows that block; then generates the page. Returns the page's path."""
+    path = results_dir(docs_dir) / (page + ".md")
+    template = Path(templates_dir) / (page + TEMPLATE_SUFFIX)
+    if template.exists():
+        raise TemplateError(f"{template} exists already")
+    lines = path.read_text(encoding="utf-8").rstrip("\n").split("\n")
+    if not lines[0].startswith("# "):
+        raise TemplateError(f"{path}: the first line is not a title")
+    body = lines[1:]
+    while body and not body[0].strip():
+        body.pop(0)
+    datafile.write(data_dir(docs_dir) / page / "benchmark.json",
+                   {"stamp": dict(stamp), "measured": True, "blocks": {"page": body}})
+    template.write_text(f"{lines[0]}\n\n{{{{block {page}/benchmark.json}}}}\n", encoding="utf-8")
+    return write([page], docs_dir, templates_dir)[0]
