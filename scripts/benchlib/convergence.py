@@ -22,6 +22,8 @@ from typing import Optional
 
 import numpy as np
 
+from resultslib import pages  # scripts/ is on sys.path (scripts/bench)
+
 from . import common
 
 # --------------------------------------------------------------------------------------------
@@ -770,8 +772,11 @@ def write_document(path: Path, results: dict) -> None:
                       "; the run named at the top did not re-measure this scene."]
         lines += ["", "<details><summary>All measured points</summary>", "",
                   *raw_table(r["series"], algos), "", "</details>"]
-    lines.append("")
-    path.write_text("\n".join(lines))
+    # The page is generated from its template and a data file holding these lines
+    # (docs/guide/results.md); path is DOCS/results/speed-vs-error.md.
+    load = results["machine"].get("load_average")
+    pages.publish_blocks(Path(path).parent.parent, "speed-vs-error", lines, results["command"],
+                         load_before=pages.load_text(load))
 
 
 def many_light_lines(series: dict) -> list[str]:

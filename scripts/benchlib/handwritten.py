@@ -1,13 +1,9 @@
-"""Links from a generated document to the sections of a hand-written page.
+"""Links from a generated page to the sections of docs/results/performance-notes.md.
 
-The generated docs/results/performance.md carries no hand-written text: measurements made by hand live
-in docs/results/performance-notes.md, and the generated document lists links to their sections.
-These helpers build those links and fail loudly instead of losing anything silently:
-
-- `section_links` raises when a section the generator links to is missing from the
-  hand-written page (a heading renamed or removed there);
-- `check_nothing_dropped` raises when the document about to be overwritten holds a section the
-  new one does not (a section written by hand into the generated document).
+That page is generated too (scripts/resultslib/templates/performance-notes.md.in): it keeps the
+headings of the measurements made by hand at past commits and links each dated record in
+CHANGELOG.md. `section_links` builds links to those headings and raises when one the caller
+names is missing (a heading renamed or removed there), instead of losing it silently.
 
 Standard library only.
 """
@@ -56,20 +52,3 @@ def section_links(page, titles, link):
                            "are missing (renamed or removed?): " + "; ".join(missing)
                            + ". Restore them or update the generator's list.")
     return [f"- [{HEADING.match(t).group(2)}]({link}#{found[t]})" for t in titles]
-
-
-def check_nothing_dropped(path, new_lines):
-    """Raises RuntimeError when the existing document at `path` has a heading that `new_lines`
-    lacks: text written by hand into the generated document, which the rewrite would lose.
-    Move such a section to the hand-written page and link it from the generator."""
-    try:
-        old = Path(path).read_text()
-    except OSError:
-        return
-    new = set(anchors("\n".join(new_lines)))
-    lost = [h for h in anchors(old) if h not in new]
-    if lost:
-        raise RuntimeError(f"{path}: rewriting it would drop section(s) not generated: "
-                           + "; ".join(lost) + ". Move them to docs/results/performance-notes.md "
-                           "(and link them from scripts/benchlib/performance.py's "
-                           "NOTES_SECTIONS) first.")

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from resultslib import pages  # scripts/ is on sys.path (scripts/bench)
+
 from . import common
 from .joint_sampling import read_layer, read_path_class
 
@@ -337,9 +339,10 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
               f"`{' '.join(commands['picture volpt isotropic --jis on'])}`; "
               f"`{' '.join(commands['picture bpt isotropic bpt + J1'])}`", ""]
     lines += write_pictures(docs_dir, figures)
-    out_doc = common.results_page(docs_dir, "joint-figures.md")
-    out_doc.parent.mkdir(parents=True, exist_ok=True)
-    out_doc.write_text("\n".join(lines) + "\n")
+    # The page is generated from its template and this data file (docs/guide/results.md).
+    out_doc = pages.publish_blocks(docs_dir, "joint-figures", lines,
+                                   "scripts/bench --only joint-figures" + (" --quick" if quick else ""),
+                                   load_before=pages.load_text(machine.get("load_average")))
     print(f"bench: wrote {out_doc}")
 
 

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from resultslib import pages  # scripts/ is on sys.path (scripts/bench)
+
 from . import common
 
 SCENE = common.REPO_ROOT / "scenes" / "tests" / "fog-box.xml"
@@ -251,7 +253,8 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
                   f"{case}: {r:.2f} ± {se:.2f}× lower RMSE at equal time"
                   for case, (r, se) in vcm_verdicts.items()) + ".", ""]
     lines += PICTURE_LINES
-    out_doc = common.results_page(docs_dir, "joint-sampling.md")
-    out_doc.parent.mkdir(parents=True, exist_ok=True)
-    out_doc.write_text("\n".join(lines) + "\n")
+    # The page is generated from its template and this data file (docs/guide/results.md).
+    out_doc = pages.publish_blocks(docs_dir, "joint-sampling", lines,
+                                   "scripts/bench --only joint-sampling" + (" --quick" if quick else ""),
+                                   load_before=pages.load_text(machine.get("load_average")))
     print(f"bench: wrote {out_doc}")

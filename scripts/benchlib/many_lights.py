@@ -44,6 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
+from resultslib import pages  # scripts/ is on sys.path (scripts/bench)
+
 from . import common
 
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
@@ -256,7 +258,8 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
         lines.append(f"- {name}, importance-cached connections: {bpt_ratio:.2f} ± "
                      f"{bpt_ratio_se:.2g}× lower relative MSE than bpt at equal time "
                      f"({v_ratio:.2f}× lower variance per iteration, {t_ratio:.2f}× the cost).")
-    out_doc = common.results_page(docs_dir, "many-lights.md")
-    out_doc.parent.mkdir(parents=True, exist_ok=True)
-    out_doc.write_text("\n".join(lines) + "\n")
+    # The page is generated from its template and this data file (docs/guide/results.md).
+    out_doc = pages.publish_blocks(docs_dir, "many-lights", lines,
+                                   "scripts/bench --only many-lights" + (" --quick" if quick else ""),
+                                   load_before=pages.load_text(machine.get("load_average")))
     print(f"bench: wrote {out_doc}")

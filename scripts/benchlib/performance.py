@@ -23,7 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchlib import handwritten, reference
+from benchlib import reference
+from resultslib import data as datafile, pages  # scripts/ is on sys.path (scripts/bench)
 
 SOURCE_DIR = Path(__file__).resolve().parents[2]
 
@@ -403,18 +404,8 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
     add("(`render_bench --benchmark_list_tests` lists them; `--benchmark_filter=REGEX` runs a "
         "subset.)")
 
-    # What was measured by hand lives in the hand-written notes page; link its sections (this
-    # raises when one of them is missing there).
-    add("")
-    add("## Measured by hand")
-    add("")
-    add(f"Measured by hand, each with its command, machine and load, in [{NOTES_PAGE}]"
-        f"({NOTES_PAGE}) (not written by `scripts/bench`); changes since the run above are in "
-        "[CHANGELOG.md](../../CHANGELOG.md).")
-    add("")
-    # The notes page is the repository's (also when --out writes elsewhere).
-    L.extend(handwritten.section_links(SOURCE_DIR / "docs" / "results" / NOTES_PAGE,
-                                       NOTES_SECTIONS, NOTES_PAGE))
+    # What was measured by hand is linked by the page's template
+    # (scripts/resultslib/templates/performance.md.in), not from the data.
 
     # --- ray queries
     if L[-1].strip():
@@ -682,19 +673,48 @@ def write_document(path, machine, bench, dist, profiles, quick, started, total_s
             "lease while the other core may idle. 2 × 1 workers render whole iterations "
             "independently, so the serial steps of a bidirectional iteration (previous "
             "sections) do not idle a core — on an idle machine that is what lets 2 × 1 beat "
-            "one 2-thread process (docs/results/service-measurements.md measured 16.4 s against "
-            "21.8 s for 64 "
-            "iterations); under other load the ratio is dominated by how the cores were shared.")
+            "one 2-thread process (docs/results/service-measurements.md links the record of "
+            "that measurement); under other load the ratio is dominated by how the cores were "
+            "shared.")
     else:
         add("Not measured in this run.")
     add("")
-    L.extend(reference.document_lines(path, reference_result))
-    handwritten.check_nothing_dropped(path, L)
-    path.write_text("\n".join(L).rstrip("\n") + "\n")
+    publish(path, L, reference.document_lines(path, reference_result),
+            reference_measured=reference_result is not None, load=machine["loadavg"])
 
 
-# The hand-written page (relative to docs/) and its sections that the generated document links
-# to, in order. Rename a heading there and here together: section_links raises otherwise.
+def without_notes_links(section):
+    """The SmallVCM section without its heading (the page's template holds it) and without the
+    list of hand-written notes reference.document_lines appends (the template links them)."""
+    if reference.NOTES_HEADING in section:
+        section = section[:section.index(reference.NOTES_HEADING)]
+    while section and (not section[0].strip() or section[0] == reference.TITLE):
+        section.pop(0)
+    while section and not section[-1].strip():
+        section.pop()
+    return section
+
+
+def publish(path, lines, reference_lines, *, reference_measured, load=None):
+    """Writes the data files of DOCS/results/performance.md (path) and generates the page from
+    its template (docs/guide/results.md): benchmark.json holds this run's lines, reference.json
+    the SmallVCM section, rewritten only when this run measured it."""
+    docs_dir = Path(path).parent.parent
+    reference_file = docs_dir / "data" / "performance" / "reference.json"
+    if reference_measured:
+        datafile.write(reference_file, {
+            "stamp": datafile.stamp("scripts/bench --only performance --reference-smallvcm PATH",
+                                    load_before=pages.load_text(load)),
+            "measured": True, "blocks": {"section": without_notes_links(list(reference_lines))}})
+    elif not reference_file.exists():
+        datafile.write(reference_file, datafile.not_measured(
+            "scripts/bench --only reference --reference-smallvcm PATH",
+            "It needs a SmallVCM binary built by hand"))
+    pages.publish_blocks(docs_dir, "performance", lines, "scripts/bench --only performance",
+                         load_before=pages.load_text(load), block="page")
+
+
+# The page of measurements made by hand at past commits, which the prose links to.
 NOTES_PAGE = "performance-notes.md"  # beside the generated page, docs/results/
 
 
@@ -702,17 +722,6 @@ def document_path(docs_dir) -> Path:
     """The generated page under the docs folder (docs/ by default): a results page, so its
     links are relative to docs/results/ (as common.results_page says)."""
     return Path(docs_dir) / "results" / "performance.md"
-
-
-NOTES_SECTIONS = ("## Where each speed target stands",
-                  "### Abseil's deadlock detection off (2026-11-27)",
-                  "### Reports in the background (the worker overlaps)",
-                  "### Costs that grow with the work (the render-farm case)",
-                  "### Farm scaling: 1 to 8 workers",
-                  "## Closest hits through Scene::intersect",
-                  "## Start-up",
-                  "## Per-iteration allocations",
-                  "## Parallel iteration steps and peak memory")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -770,7 +779,7 @@ def wait_for_quiet_machine(limit_seconds=240.0):
 
 def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm) -> None:
     """`scripts/bench --only reference`: measures ours against SmallVCM and rewrites only that
-    section of docs_dir/results/performance.md (the rest of the document is left as it is)."""
+    section's data file (docs_dir/data/performance/reference.json), then the page."""
     if not reference_smallvcm:
         raise ValueError("--only reference needs --reference-smallvcm PATH")
     bin_dir = Path(build_dir).resolve() / "bin"
@@ -783,7 +792,13 @@ def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_s
     try:
         result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         (Path(build_dir).resolve() / "reference-raw.json").write_text(json.dumps(result, indent=1))
-        reference.replace_in_document(document_path(docs_dir), result)
+        # Only reference.json is rewritten; the page is generated again from its template.
+        path = document_path(docs_dir)
+        datafile.write(path.parent.parent / "data" / "performance" / "reference.json", {
+            "stamp": datafile.stamp("scripts/bench --only reference --reference-smallvcm PATH"),
+            "measured": True,
+            "blocks": {"section": without_notes_links(reference.document_lines(path, result))}})
+        pages.write(["performance"], path.parent.parent)
         log(f"wrote the SmallVCM section of {document_path(docs_dir)}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from resultslib import pages  # scripts/ is on sys.path (scripts/bench)
+
 from . import common
 
 ISOSPH = common.REPO_ROOT / "scenes" / "smallupbp" / "isosph.xml"
@@ -193,7 +195,8 @@ def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None):
     lines += ["", f"upbp with every estimator it has is never the worst and within "
               f"{CLAIM_FACTOR:g}× of the best at every density: **{'held' if held else 'not held'}**"
               ".", ""]
-    out_doc = common.results_page(docs_dir, "upbp.md")
-    out_doc.parent.mkdir(parents=True, exist_ok=True)
-    out_doc.write_text("\n".join(lines) + "\n")
+    # The page is generated from its template and this data file (docs/guide/results.md).
+    out_doc = pages.publish_blocks(docs_dir, "upbp", lines,
+                                   "scripts/bench --only upbp" + (" --quick" if quick else ""),
+                                   load_before=pages.load_text(machine.get("load_average")))
     print(f"bench: wrote {out_doc}")
