@@ -783,6 +783,11 @@ def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_s
     try:
         result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         (Path(build_dir).resolve() / "reference-raw.json").write_text(json.dumps(result, indent=1))
+        from benchlib import common
+
+        data = reference.write_data(result, Path(docs_dir) / "data", common.machine_info(),
+                                    " ".join(sys.argv))
+        log(f"wrote {data}")
         reference.replace_in_document(document_path(docs_dir), result)
         log(f"wrote the SmallVCM section of {document_path(docs_dir)}")
     finally:
