@@ -8,7 +8,9 @@
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "bench/bench_scenes.h"
 #include "core/scene/embree_ray.h"
@@ -76,6 +78,30 @@ void occluded_embree(benchmark::State& state, const std::string& name) {
     state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
 }
 
+// The same shadow rays as occluded_embree, handed to Embree in batches of `batch` through the
+// stream query rtcOccluded1M (incoherent: the shadow rays of connections and next-event
+// estimation point every way). Whether batching pays is the question this case answers
+// (docs/results/performance-notes.md, "Shadow rays in batches").
+void occluded_embree_stream(benchmark::State& state, const std::string& name, int batch) {
+    const RTCScene rtc = scene(name).embree_scene();
+    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    std::vector<RTCRay> buffer(static_cast<size_t>(batch));
+    for (auto _ : state) {
+        int blocked = 0;
+        for (size_t start = 0; start < rays.size(); start += size_t(batch)) {
+            const size_t n = std::min(size_t(batch), rays.size() - start);
+            for (size_t i = 0; i < n; ++i) buffer[i] = to_rtc_ray(rays[start + i]);
+            RTCIntersectContext context;
+            rtcInitIntersectContext(&context);
+            context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+            rtcOccluded1M(rtc, &context, buffer.data(), unsigned(n), sizeof(RTCRay));
+            for (size_t i = 0; i < n; ++i) blocked += buffer[i].tfar < 0 ? 1 : 0;
+        }
+        benchmark::DoNotOptimize(blocked);
+    }
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
 [[maybe_unused]] const bool registered = [] {
     for (const std::string& name : ray_scene_names()) {
         benchmark::RegisterBenchmark(("rays/closest/ours/" + name).c_str(), closest_ours, name);
@@ -83,6 +109,10 @@ void occluded_embree(benchmark::State& state, const std::string& name) {
         benchmark::RegisterBenchmark(("rays/occluded/ours/" + name).c_str(), occluded_ours, name);
         benchmark::RegisterBenchmark(("rays/occluded/embree/" + name).c_str(), occluded_embree,
                                      name);
+        for (int batch : {16, 64, 256})
+            benchmark::RegisterBenchmark(
+                ("rays/occluded/embree-stream" + std::to_string(batch) + "/" + name).c_str(),
+                occluded_embree_stream, name, batch);
     }
     return true;
 }();

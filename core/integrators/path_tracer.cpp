@@ -91,7 +91,9 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
         prev_delta = bs->delta;
         prev_bsdf_pdf = bs->pdf_w.forward;
 
-        if (depth >= rr_depth_) {
+        if (roulette_ == RoulettePolicy::Albedo) {
+            if (!survives_albedo_roulette(bs->weight, beta, rng)) break;
+        } else if (depth >= rr_depth_) {
             // Survive with probability proportional to the throughput (capped so that paths
             // carrying little energy are cut, and bright paths are never boosted beyond 1/0.95).
             float q = std::min(beta.max(), 0.95f);

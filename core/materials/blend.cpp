@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/null_bsdf.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
@@ -45,8 +46,8 @@ std::shared_ptr<const Bsdf> make_blend(std::shared_ptr<const Bsdf> first,
                                        bool mask) {
     const bool varies = w.varies() || first->varies() || second->varies();
     return plain_or_textured(varies, [first, second, w, mask](const Vec2* uv) {
-        return std::make_shared<BlendBsdf>(resolve(first, uv), resolve(second, uv),
-                                           clamp01(w.at(uv)), mask);
+        return make_bsdf_at<BlendBsdf>(uv, resolve(first, uv), resolve(second, uv),
+                                       clamp01(w.at(uv)), mask);
     });
 }
 

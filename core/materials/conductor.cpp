@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 
 namespace render {
@@ -15,7 +16,7 @@ std::shared_ptr<const Bsdf> ConductorBsdf::create(const Properties& props) {
     const std::optional<ConductorIor> ior = read_conductor_ior(props);
     const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
     return plain_or_textured(ks.varies(), [ior, ks](const Vec2* uv) {
-        return std::make_shared<ConductorBsdf>(ior, ks.at(uv));
+        return make_bsdf_at<ConductorBsdf>(uv, ior, ks.at(uv));
     });
 }
 

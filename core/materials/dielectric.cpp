@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 
 namespace render {
@@ -19,7 +20,7 @@ std::shared_ptr<const Bsdf> DielectricBsdf::create(const Properties& props) {
     const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
     const RgbParam kt = read_reflectance_param(props, "specular_transmission", Rgb(1.0f));
     return plain_or_textured(ks.varies() || kt.varies(), [eta, ks, kt](const Vec2* uv) {
-        return std::make_shared<DielectricBsdf>(eta, ks.at(uv), kt.at(uv));
+        return make_bsdf_at<DielectricBsdf>(uv, eta, ks.at(uv), kt.at(uv));
     });
 }
 

@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "core/materials/bsdf_params.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
@@ -12,7 +13,7 @@ namespace render {
 std::shared_ptr<const Bsdf> DiffuseBsdf::create(const Properties& props) {
     const RgbParam reflectance = read_reflectance_param(props, "reflectance", Rgb(0.5f));
     return plain_or_textured(reflectance.varies(), [reflectance](const Vec2* uv) {
-        return std::make_shared<DiffuseBsdf>(reflectance.at(uv));
+        return make_bsdf_at<DiffuseBsdf>(uv, reflectance.at(uv));
     });
 }
 

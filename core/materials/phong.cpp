@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/math/frame.h"
@@ -26,7 +27,7 @@ std::shared_ptr<const Bsdf> PhongBsdf::create(const Properties& props) {
     const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(0.2f));
     const float exponent = read_non_negative(props, "exponent", 30.0f);
     return plain_or_textured(kd.varies() || ks.varies(), [kd, ks, exponent](const Vec2* uv) {
-        return std::make_shared<PhongBsdf>(kd.at(uv), ks.at(uv), exponent);
+        return make_bsdf_at<PhongBsdf>(uv, kd.at(uv), ks.at(uv), exponent);
     });
 }
 

@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
 #include "core/sampling/warp.h"
@@ -43,7 +44,7 @@ std::shared_ptr<const Bsdf> PlasticBsdf::create(const Properties& props) {
     const float eta = read_relative_ior(props, *lookup_dielectric_ior("polypropylene"));
     const bool nonlinear = props.get_bool("nonlinear", false);
     return plain_or_textured(kd.varies() || ks.varies(), [kd, ks, eta, nonlinear](const Vec2* uv) {
-        return std::make_shared<PlasticBsdf>(kd.at(uv), ks.at(uv), eta, nonlinear);
+        return make_bsdf_at<PlasticBsdf>(uv, kd.at(uv), ks.at(uv), eta, nonlinear);
     });
 }
 

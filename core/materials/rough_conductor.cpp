@@ -4,6 +4,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 
 namespace render {
@@ -21,7 +22,7 @@ std::shared_ptr<const Bsdf> RoughConductorBsdf::create(const Properties& props) 
     const RgbParam ks = read_reflectance_param(props, "specular_reflectance", Rgb(1.0f));
     return plain_or_textured(
         distribution.varies() || ks.varies(), [distribution, ior, ks](const Vec2* uv) {
-            return std::make_shared<RoughConductorBsdf>(distribution.at(uv), ior, ks.at(uv));
+            return make_bsdf_at<RoughConductorBsdf>(uv, distribution.at(uv), ior, ks.at(uv));
         });
 }
 

@@ -5,6 +5,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 
 namespace render {
@@ -27,8 +28,8 @@ std::shared_ptr<const Bsdf> RoughDielectricBsdf::create(const Properties& props)
     const RgbParam kt = read_reflectance_param(props, "specular_transmission", Rgb(1.0f));
     return plain_or_textured(distribution.varies() || ks.varies() || kt.varies(),
                              [distribution, eta, ks, kt](const Vec2* uv) {
-                                 return std::make_shared<RoughDielectricBsdf>(
-                                     distribution.at(uv), eta, ks.at(uv), kt.at(uv));
+                                 return make_bsdf_at<RoughDielectricBsdf>(
+                                     uv, distribution.at(uv), eta, ks.at(uv), kt.at(uv));
                              });
 }
 

@@ -10,6 +10,7 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/plastic.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
@@ -179,7 +180,7 @@ std::shared_ptr<const Bsdf> RoughPlasticBsdf::create(const Properties& props) {
     std::shared_ptr<const RoughCoating> coating = shared_coating(params.mean(), eta);
     return plain_or_textured(
         kd.varies() || ks.varies(), [coating, kd, ks, nonlinear](const Vec2* uv) {
-            return std::make_shared<RoughPlasticBsdf>(coating, kd.at(uv), ks.at(uv), nonlinear);
+            return make_bsdf_at<RoughPlasticBsdf>(uv, coating, kd.at(uv), ks.at(uv), nonlinear);
         });
 }
 

@@ -1,5 +1,6 @@
 #include "core/materials/twosided.h"
 
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 
 namespace render {
@@ -34,7 +35,7 @@ std::shared_ptr<const Bsdf> TwoSidedBsdf::create(const Properties& props) {
         auto side = [uv](const std::shared_ptr<const Bsdf>& b) {
             return b && uv && b->varies() ? b->at(*uv) : b;
         };
-        return std::make_shared<TwoSidedBsdf>(side(front), side(back));
+        return make_bsdf_at<TwoSidedBsdf>(uv, side(front), side(back));
     });
 }
 

@@ -23,8 +23,10 @@ BidirectionalConfig bidirectional_config(BidirectionalAlgorithm algorithm,
                                          const RenderSettings& s) {
     BidirectionalConfig config;
     config.algorithm = algorithm;
-    config.subpaths = {
-        .max_depth = s.max_depth, .rr_depth = s.rr_depth, .light_path_count = s.light_path_count};
+    config.subpaths = {.max_depth = s.max_depth,
+                       .rr_depth = s.rr_depth,
+                       .light_path_count = s.light_path_count,
+                       .roulette = s.roulette};
     config.merging = {.radius_factor = s.radius_factor, .alpha = s.alpha};
     config.mis_power = s.mis_power;
     return config;
@@ -48,8 +50,9 @@ ManyLightConfig many_light_config(ManyLightEstimator estimator, const RenderSett
 }
 
 // The options of the bidirectional family; merging ones only where merging happens.
-const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "light_paths", "mis"};
-const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "light_paths",
+const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "roulette", "light_paths",
+                                              "mis"};
+const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "roulette", "light_paths",
                                            "mis",       "radius_factor", "alpha"};
 
 // The working memory of the bidirectional family's rows: its stored light paths.
@@ -83,9 +86,9 @@ std::vector<Algorithm>& table() {
          .aliases = {"path"},
          .pbrt_integrators = {"path"},
          .description = "path tracing with next-event estimation (surfaces only)",
-         .options = {"max_depth", "rr_depth"},
+         .options = {"max_depth", "rr_depth", "roulette"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
-             return std::make_unique<PathTracer>(s.max_depth, s.rr_depth);
+             return std::make_unique<PathTracer>(s.max_depth, s.rr_depth, s.roulette);
          },
          .iteration_memory = no_working_memory,
          .benchmarks = kAllBenchmarks},
@@ -119,7 +122,7 @@ std::vector<Algorithm>& table() {
              "bidirectional path tracing (homogeneous and grid media, emitting media in closed "
              "shapes); --connections ic: importance-cached connections",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
-         .options = {"max_depth", "rr_depth", "light_paths", "mis", "connections",
+         .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "connections",
                      "joint_connections", "ic_light_paths", "connection_samples",
                      "ic_record_density", "ic_heuristic"},
          .variants = {{{"connections", "ic"}},
@@ -166,8 +169,8 @@ std::vector<Algorithm>& table() {
          .description = "vertex connection and merging (homogeneous and grid media, emitting "
                         "media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
-         .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
-                     "joint_connections"},
+         .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
+                     "alpha", "joint_connections"},
          .variants = {{{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              // J2's factors in the merge weights are not derived (docs/design/media.md).
@@ -188,9 +191,9 @@ std::vector<Algorithm>& table() {
              "gathered along whole camera segments in media) and photon beams (light-path "
              "segments in media gathered by camera segments)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
-         .options = {"max_depth", "rr_depth", "light_paths", "mis", "radius_factor", "alpha",
-                     "vertex_connections", "surface_merging", "photon_points", "query_beams",
-                     "photon_beams", "photon_beam_length", "photon_beam_eta",
+         .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
+                     "alpha", "vertex_connections", "surface_merging", "photon_points",
+                     "query_beams", "photon_beams", "photon_beam_length", "photon_beam_eta",
                      "volume_radius_factor", "volume_alpha"},
          // Query and photon beams beside connections only; query beams, then photon beams (long,
          // with the other eta_1), as the only estimator in media.

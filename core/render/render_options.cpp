@@ -61,6 +61,23 @@ const std::vector<RenderOption>& table() {
          .default_text = "the scene's rr_depth, else 5",
          .apply = [](RenderSettings& s, const std::string& v) { s.rr_depth = to_int(v); },
          .format = [](const RenderSettings& s) { return std::to_string(s.rr_depth); }},
+        {.name = "roulette",
+         .flag = "--roulette",
+         .metavar = "throughput|albedo",
+         .type = OptionType::Choice,
+         .help = "how Russian roulette ends paths. throughput: from --rr-depth on, survive with "
+                 "min(0.95, throughput); albedo: at every scattering, survive with min(1, the "
+                 "sampled direction's weight f cos / pdf), as SmallVCM plays it "
+                 "(core/integrators/roulette.h)",
+         .choices = {"throughput", "albedo"},
+         .default_text = "throughput",
+         .apply =
+             [](RenderSettings& s, const std::string& v) {
+                 s.roulette = v == "albedo" ? RoulettePolicy::Albedo : RoulettePolicy::Throughput;
+             },
+         .format = [](const RenderSettings& s) -> std::string {
+             return s.roulette == RoulettePolicy::Albedo ? "albedo" : "throughput";
+         }},
         {.name = "radius_factor",
          .flag = "--radius-factor",
          .metavar = "F",

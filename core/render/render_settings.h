@@ -6,6 +6,7 @@
 #include "core/base/render_stats.h"
 #include "core/image/technique_layers.h"
 #include "core/integrators/importance_weights.h"
+#include "core/integrators/roulette.h"
 #include "core/integrators/volpt_technique.h"
 
 namespace render {
@@ -15,8 +16,10 @@ struct RenderSettings {
     std::string algorithm = "pt";
     int max_depth = -1;  // Mitsuba's meaning: segments per path, -1 = unbounded
     int rr_depth = 5;    // Russian roulette from this path depth on
-    uint64_t seed = 0;   // job seed: part of every random stream key
-    int threads = 0;     // 0 = all cores; never changes the image
+    // How roulette ends paths (pt and the bidirectional family; core/integrators/roulette.h).
+    RoulettePolicy roulette = RoulettePolicy::Throughput;
+    uint64_t seed = 0;  // job seed: part of every random stream key
+    int threads = 0;    // 0 = all cores; never changes the image
 
     // Bidirectional family (lt, bpt, ppm, bpm, vcm).
     // Initial merging radius as a fraction of the scene's bounding-sphere radius, and the

@@ -792,6 +792,13 @@ def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_s
     try:
         result = reference.run(bin_dir, reference_smallvcm, quick, work, log=log)
         (Path(build_dir).resolve() / "reference-raw.json").write_text(json.dumps(result, indent=1))
+        from benchlib import common
+
+        # Every run, stamped (docs/data/reference/), and the page's block (performance.md is
+        # generated again from its template).
+        data = reference.write_data(result, Path(docs_dir) / "data", common.machine_info(),
+                                    " ".join(sys.argv))
+        log(f"wrote {data}")
         # Only reference.json is rewritten; the page is generated again from its template.
         path = document_path(docs_dir)
         datafile.write(path.parent.parent / "data" / "performance" / "reference.json", {

@@ -1,28 +1,34 @@
-"""Ours against the VCM reference implementation (SmallVCM) on its four Cornell boxes: whole-
-process wall time and peak memory of 16 iterations at 512 x 512 on 2 threads, A/B alternated,
-medians (the speed targets: time <= 0.8x, memory <= 1.2x the reference's;
-docs/results/performance-notes.md).
+"""Ours against the VCM reference implementation (SmallVCM) on its four Cornell boxes, per unit
+of error: efficiency = 1 / (relative MSE x seconds) of 16 iterations at 512 x 512 on 2 threads,
+whole process, the same number of independent runs of each program (the target: ours / reference
+>= 2.0 at 2 standard errors; time per iteration <= 0.6x and peak memory <= 1.2x the reference's
+as secondary figures; docs/results/performance-notes.md).
 
 The project never downloads or builds the reference: `scripts/bench --reference-smallvcm PATH`
 takes a binary built by hand (docs/results/performance-notes.md, "How the reference binary was
-built"). Its command line is `-s SCENE -a ALGO -i ITERATIONS -o FILE` and nothing else:
-resolution (512 x 512), path length (10 segments), merging radius (0.003 x the scene's bounding-sphere radius, alpha
-0.75) and the base seed are fixed in its config.hxx, and the thread count is
+built"). Its command line is `-s SCENE -a ALGO -i ITERATIONS -o FILE -seed SEED`: resolution
+(512 x 512), path length (10 segments) and merging radius (0.003 x the scene's bounding-sphere
+radius, alpha 0.75) are fixed in its config.hxx; the seed option is the local build's (SmallVCM's
+driver fixes its base seed, so without it every run would repeat one image). The thread count is
 omp_get_num_procs(), the CPUs in the process's affinity mask (OMP_NUM_THREADS is overridden by
 its omp_set_num_threads). Both programs therefore run pinned to the same THREADS CPUs. Without
 the option the section says "not run".
 
-Per unit of error: both programs' images of the timed runs are compared with the converged
-image of each box in docs/references/ (ours, vcm, 256-1024 iterations at 256 x 256, made once by
-`scripts/bench --make-references`): each 512 x 512 image is box-averaged 2 x 2 down to 256 x 256
-(both programs use a box pixel filter, so the average has the coarse pixel's expectation), and
-efficiency = 1 / (MSE x wall seconds). The ratio ours / reference above 1 means ours reaches a
-given error sooner; its inverse is the time ours needs for the reference's error, relative to the
-reference's time (the time target <= 0.8 read per unit of error). SmallVCM writes its image as
-PFM (its driver's `.pfm` output: raw little-endian float RGB, top row first). The timing needs
-only the standard library; the error needs numpy and OpenImageIO (scripts/setup installs them).
+Symmetric by construction: run r of each program uses seed r, the two alternate (which one starts
+a round alternates as well), and every image, ours or the reference's, is box-averaged 2 x 2
+down to 256 x 256 (both programs use a box pixel filter, so the average has the coarse pixel's
+expectation) and compared with the box's converged image in docs/references/ (ours, vcm,
+256-1024 iterations at 256 x 256, made once by `scripts/bench --make-references`) by the same
+relative MSE. Each side's efficiency is 1 / (mean relative MSE x mean wall seconds) over its runs;
+the ratio's standard error is first order (the four means' relative standard errors in
+quadrature). `scripts/bench --only reference` writes the run to docs/data/reference/ with the
+commit, the machine and the load. SmallVCM writes its image as PFM (its driver's `.pfm` output:
+raw little-endian float RGB, top row first). The timing needs only the standard library; the
+error needs numpy and OpenImageIO (scripts/setup installs them).
 """
 
+import json
+import math
 import os
 import statistics
 import subprocess
@@ -38,7 +44,11 @@ from benchlib import handwritten
 SCENE_IDS = {"0-gbs_s": 0, "1-glm_c": 1, "2-gbs_p": 2, "3-gbs_b": 3}
 ALGORITHMS = ["vcm", "bpt"]
 ITERATIONS = 16  # SmallVCM splits -i over its threads: 2 threads x 8 iterations of 512^2 paths
-ROUNDS = 3
+RUNS = 5  # independent runs of each program (seeds 0 .. RUNS - 1)
+# The seed option of the reference build (not in SmallVCM's own driver, whose base seed is fixed
+# in config.hxx: the local build adds it; performance-notes.md, "How the reference binary was
+# built"). Without it the reference's runs would repeat one image, which run() refuses.
+REFERENCE_SEED_FLAG = "-seed"
 THREADS = 2
 # The converged image of each box (docs/references/README.md): name of its EXR.
 REFERENCE_IMAGES = {"0-gbs_s": "gbs_s", "1-glm_c": "glm_c", "2-gbs_p": "gbs_p", "3-gbs_b": "gbs_b"}
@@ -96,30 +106,44 @@ def read_pfm(path):
     return pixels.astype(np.float64).reshape(height, width, 3)
 
 
+def read_ours_image(path):
+    """Our image of a run (an EXR; the tests replace this reader)."""
+    from benchlib import common
+
+    return common.read_exr(path)[0]
+
+
 def converged_image(scene):
-    """The box's converged image (256 x 256) and its own estimated MSE: the reference's noise,
-    (relative error estimate x RMS of the image)^2, from the render:relative_error_estimate
-    its header records (half the RMS difference of its odd and even iterations' means over
-    the RMS of the mean)."""
+    """The box's converged image (256 x 256) and an estimate of its own relative MSE (the
+    converged image's noise, in every run's error alike): (relative error estimate)^2 times the
+    image's mean of r^2 / (r^2 + 0.01), from the render:relative_error_estimate its header
+    records (half the RMS difference of its odd and even iterations' means over the RMS of the
+    mean)."""
     from benchlib import common
 
     path = Path(__file__).resolve().parents[2] / "docs" / "references" / (
         REFERENCE_IMAGES[scene] + ".exr")
     pixels, attributes = common.read_exr(path)
     relative = float(attributes.get("render:relative_error_estimate", "nan"))
-    own_mse = relative * relative * float((pixels * pixels).mean())
-    return pixels, own_mse, attributes
+    squared = pixels * pixels
+    own = relative * relative * float(
+        (squared / (squared + common.RELATIVE_MSE_EPSILON)).mean())
+    return pixels, own
 
 
 def image_error(image, converged):
-    """MSE over pixels and channels of `image` (box-averaged down to the converged image's
-    size) against the converged image, and the ratio of their means (a bias indicator)."""
+    """The error of `image` (box-averaged down to the converged image's size) against the
+    converged image: its MSE and relative MSE over pixels and channels (common.error_metrics:
+    (x - r)^2 / (r^2 + 0.01), as `render --compare`) and the ratio of the images' means (a bias
+    indicator)."""
     from benchlib import common
 
     height, width = converged.shape[:2]
     small = common.downscale(image, (width, height))
     diff = small - converged
-    return float((diff * diff).mean()), float(small.mean() / converged.mean())
+    metrics = common.error_metrics(small, converged)
+    return {"mse": float((diff * diff).mean()), "relative_mse": metrics["relative_mse"],
+            "mean_ratio": float(small.mean() / converged.mean())}
 
 
 def loadavg():
@@ -127,18 +151,65 @@ def loadavg():
         return f.read().split()[:3]
 
 
-def run(bin_dir, reference, quick, work, log=print):
-    """Measures every (scene, algorithm): ROUNDS rounds of ours then the reference (alternated
-    so that a change of the machine's load hits both arms). Returns None without a reference."""
+def mean_and_se(values):
+    """The mean of independent runs' values and its standard error (sample standard deviation
+    over sqrt(n); 0 for a single run)."""
+    values = [float(v) for v in values]
+    mean = statistics.fmean(values)
+    se = statistics.stdev(values) / math.sqrt(len(values)) if len(values) > 1 else 0.0
+    return mean, se
+
+
+def efficiency(relative_mses, seconds):
+    """One program's efficiency 1 / (relative MSE x seconds) from its independent runs (the
+    means of both), and the relative standard error of that estimate (first order: the two
+    means' relative standard errors in quadrature; the error and the time of a run are
+    treated as independent)."""
+    mse, mse_se = mean_and_se(relative_mses)
+    t, t_se = mean_and_se(seconds)
+    value = 1.0 / (mse * t)
+    relative_se = math.sqrt((mse_se / mse) ** 2 + (t_se / t) ** 2)
+    return value, relative_se
+
+
+def efficiency_ratio(row):
+    """Ours / reference efficiency of a row and its standard error: both sides have the same
+    number of independent runs, compared with the same converged image by the same metric,
+    so the ratio's relative standard error is the two efficiencies' in quadrature."""
+    ours, ours_rse = efficiency(row["ours_relative_mses"], row["ours_seconds"])
+    ref, ref_rse = efficiency(row["reference_relative_mses"], row["reference_seconds"])
+    ratio = ours / ref
+    return ratio, ratio * math.sqrt(ours_rse ** 2 + ref_rse ** 2)
+
+
+def check_independent(images, who):
+    """Raises when two runs gave the same image: the runs were not independent (a program that
+    ignored the seed), so their spread would not measure the noise."""
+    for i in range(len(images)):
+        for j in range(i + 1, len(images)):
+            if images[i].shape == images[j].shape and (images[i] == images[j]).all():
+                raise RuntimeError(f"{who}: runs {i} and {j} gave the same image; the seed was "
+                                   "not applied, so the runs are not independent")
+
+
+def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None,
+        iterations=None, runs=None, reference_images=None):
+    """Measures every (scene, algorithm): `runs` independent runs of each program, ours and the
+    reference alternated (a change of the machine's load hits both arms), run r of either
+    with seed r. Every image is compared with the same converged image by the same metric
+    (relative MSE after a 2 x 2 box average). Returns None without a reference.
+
+    scenes, algorithms, iterations, runs and reference_images (scene -> (pixels, own relative
+    MSE)) default to the benchmark's; the tests pass small synthetic ones."""
     if not reference:
         return None
     reference = Path(reference).resolve()
     if not os.access(reference, os.X_OK):
         raise FileNotFoundError(f"--reference-smallvcm {reference}: not an executable file")
-    scenes = ["1-glm_c"] if quick else list(SCENE_IDS)
-    algorithms = ALGORITHMS[:1] if quick else ALGORITHMS
-    iterations = 2 if quick else ITERATIONS
-    rounds = 1 if quick else ROUNDS
+    scenes = scenes or (["1-glm_c"] if quick else list(SCENE_IDS))
+    algorithms = algorithms or (ALGORITHMS[:1] if quick else ALGORITHMS)
+    iterations = iterations or (2 if quick else ITERATIONS)
+    runs = runs or (2 if quick else RUNS)
     source = Path(__file__).resolve().parents[2]
     cpus = pinned_cpus()
     rows = []
@@ -146,7 +217,12 @@ def run(bin_dir, reference, quick, work, log=print):
     policy = {os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}.get(
         os.sched_getscheduler(0), "normal")
     load_start = loadavg()
+    loads = []
     for scene in scenes:
+        if reference_images and scene in reference_images:
+            converged, own = reference_images[scene]
+        else:
+            converged, own = converged_image(scene)
         for algo in algorithms:
             ours_cmd = [str(Path(bin_dir) / "render"),
                         str(source / "scenes/smallvcm" / f"{scene}.xml"),
@@ -154,41 +230,71 @@ def run(bin_dir, reference, quick, work, log=print):
                         "--threads", str(THREADS), "--out", str(Path(work) / "ours.exr")]
             ref_cmd = [str(reference), "-s", str(SCENE_IDS[scene]), "-a", algo,
                        "-i", str(iterations), "-o", str(Path(work) / "reference.pfm")]
-            from benchlib import common
-
-            converged, own_mse, _ = converged_image(scene)
-            ours, theirs, ours_errors = [], [], []
-            for r in range(rounds):
-                log(f"reference comparison: {scene} {algo} round {r + 1}/{rounds} "
+            ours, theirs, ours_err, ref_err, ours_images, ref_images = [], [], [], [], [], []
+            for r in range(runs):
+                loads.append(loadavg()[0])
+                log(f"reference comparison: {scene} {algo} run {r + 1}/{runs} "
                     f"(load {' '.join(loadavg())})")
-                # Ours with another seed each round (the MSE of one seed can be dominated by a
-                # few fireflies: 2-gbs_p bpt's seed 0 has 56 % of its MSE in 0.1 % of the
-                # pixels); SmallVCM's seed is fixed in its config.hxx, so its MSE is one sample.
-                ours.append(timed(ours_cmd + ["--seed", str(r)], cpus))
-                theirs.append(timed(ref_cmd, cpus))
-                ours_errors.append(image_error(common.read_exr(Path(work) / "ours.exr")[0],
-                                               converged))
-            ref_mse, ref_mean = image_error(read_pfm(Path(work) / "reference.pfm"), converged)
-            rows.append({
-                "ours_mses": [e for e, _ in ours_errors],
-                "ours_mse": statistics.median(e for e, _ in ours_errors),
-                "reference_mse": ref_mse, "converged_own_mse": own_mse,
-                "ours_mean_ratio": statistics.median(m for _, m in ours_errors),
-                "reference_mean_ratio": ref_mean,
-                "scene": scene, "algorithm": algo, "iterations": iterations,
+                # Alternate which program starts a round, so neither always runs first.
+                arms = [("ours", ours_cmd + ["--seed", str(r)]),
+                        ("reference", ref_cmd + [REFERENCE_SEED_FLAG, str(r)])]
+                for arm, cmd in (arms if r % 2 == 0 else arms[::-1]):
+                    measured = timed(cmd, cpus)
+                    if arm == "ours":
+                        ours.append(measured)
+                        image = read_ours_image(Path(work) / "ours.exr")
+                        ours_images.append(image)
+                        ours_err.append(image_error(image, converged))
+                    else:
+                        theirs.append(measured)
+                        image = read_pfm(Path(work) / "reference.pfm")
+                        ref_images.append(image)
+                        ref_err.append(image_error(image, converged))
+            check_independent(ours_images, "ours")
+            check_independent(ref_images, "the reference")
+            row = {
+                "scene": scene, "algorithm": algo, "iterations": iterations, "runs": runs,
+                "seeds": list(range(runs)),
+                "ours_relative_mses": [e["relative_mse"] for e in ours_err],
+                "reference_relative_mses": [e["relative_mse"] for e in ref_err],
+                "ours_mses": [e["mse"] for e in ours_err],
+                "reference_mses": [e["mse"] for e in ref_err],
+                "ours_mean_ratios": [e["mean_ratio"] for e in ours_err],
+                "reference_mean_ratios": [e["mean_ratio"] for e in ref_err],
+                "converged_own_relative_mse": own,
                 "ours_seconds": [w for w, _, _ in ours],
                 "reference_seconds": [w for w, _, _ in theirs],
                 "ours_mib": [m for _, m, _ in ours], "reference_mib": [m for _, m, _ in theirs],
                 "ours_cpu": [c for _, _, c in ours], "reference_cpu": [c for _, _, c in theirs],
-            })
-    return {"reference": str(reference), "threads": THREADS, "rounds": rounds, "rows": rows,
+            }
+            row["efficiency_ratio"], row["efficiency_ratio_se"] = efficiency_ratio(row)
+            rows.append(row)
+    return {"reference": str(reference), "threads": THREADS, "runs": runs, "rows": rows,
             "started": started, "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "load_start": load_start, "load_end": loadavg(), "cpus": sorted(cpus),
-            "policy": policy,
+            "load_start": load_start, "load_end": loadavg(), "load_per_run": loads,
+            "cpus": sorted(cpus), "policy": policy,
             "ours_binary": str((Path(bin_dir) / "render").resolve()),
             "ours_cmd": "build/bin/render scenes/smallvcm/SCENE.xml --algo ALGO --iterations "
-                        f"{iterations} --threads {THREADS} --out OUT.exr --seed ROUND",
-            "reference_cmd": f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm"}
+                        f"{iterations} --threads {THREADS} --out OUT.exr --seed RUN",
+            "reference_cmd": f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm "
+                             f"{REFERENCE_SEED_FLAG} RUN"}
+
+
+def write_data(result, data_dir, machine, command):
+    """Writes the run to data_dir/reference/DATE-COMMIT.json with the commit, the machine, the
+    load during the runs and the command; returns the file's path."""
+    stamp = time.strftime("%Y%m%dT%H%M", time.gmtime())
+    out = Path(data_dir) / "reference" / f"{stamp}-{machine.get('source_revision', 'unknown')}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    from resultslib import data as datafile  # scripts/ is on sys.path (scripts/bench)
+
+    record = {"stamp": datafile.stamp(command, load_before=str(result["load_start"])),
+              "commit": machine.get("source_revision", "unknown"), "machine": machine,
+              "load": {"start": result["load_start"], "end": result["load_end"],
+                       "per_run": result.get("load_per_run", [])},
+              "command": command, "result": result}
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    return out
 
 
 TITLE = "## Against the reference implementation (SmallVCM)"
@@ -202,48 +308,53 @@ def section(result, previous=None):
             return previous
         return [TITLE, "",
                 "Not run: `scripts/bench --only reference --reference-smallvcm PATH` compares "
-                "whole-process wall time and peak memory (16 iterations, 512 × 512, 2 threads, "
-                "A/B alternated, medians of 3) with a SmallVCM binary built by hand; the "
-                "project never downloads or builds it. Targets: time ≤ 0.8× and peak "
-                "memory ≤ 1.2× the reference's on each box, for vcm and bpt.", ""]
+                "efficiency, 1 / (relative MSE × seconds), whole process (16 iterations, 512 × "
+                "512, 2 threads, the same number of independent runs of each program, "
+                "alternated) with a SmallVCM binary built by hand; the project never downloads "
+                "or builds it. Targets: efficiency ours / reference ≥ 2.0 at 2 standard errors, "
+                "time ≤ 0.6× and peak memory ≤ 1.2× the reference's on each box, for vcm and "
+                "bpt.", ""]
+    # "rounds": a raw file from before both sides' runs were independent.
+    runs = result.get("runs", result.get("rounds", 0))
     L = [TITLE, ""]
     L.append(f"Whole process (start-up and writing the image included), {result['threads']} "
              f"threads, both programs pinned to CPUs {result['cpus']} (SmallVCM takes its "
              "thread count from the affinity mask), the same scene, path length (10 segments), "
-             "resolution and merging radius (0.003 × scene radius, alpha 0.75); medians of "
-             f"{result['rounds']} rounds, ours and the reference alternated; peak memory is the "
-             "process's maximum resident set and CPU the user + system time (`wait4`). "
-             f"Run {result['started']} to {result['finished']}, 1/5/15-minute load average "
-             f"{' / '.join(result['load_start'])} at the start and "
-             f"{' / '.join(result['load_end'])} at the end (other engineers' builds and tests "
-             "shared the 2 cores"
+             "resolution and merging radius (0.003 × scene radius, alpha 0.75). Each program "
+             f"ran {runs} independent times (seeds 0 to {runs - 1}, the two "
+             "programs alternated, which one starts a round alternating too); every image is "
+             "compared with the same converged image in `docs/references/` by the same metric. "
+             "Peak memory is the process's maximum resident set and CPU the user + system time "
+             f"(`wait4`). Run {result['started']} to {result['finished']}, 1/5/15-minute load "
+             f"average {' / '.join(result['load_start'])} at the start and "
+             f"{' / '.join(result['load_end'])} at the end"
              + ("; both arms ran under the real-time scheduling policy "
-                f"{result['policy']} (`chrt -f 10`), which preempts that load but not its "
+                f"{result['policy']} (`chrt -f 10`), which preempts other load but not its "
                 "use of the memory bus and caches" if result.get("policy", "normal") != "normal"
-                else ": absolute times are pessimistic for both arms alike") + "). "
+                else "") + ". "
              f"Ours: `{result['ours_binary']}`; reference: `{result['reference']}` (built as "
              "described below).")
     L.append("")
     L.append(f"    {result['ours_cmd']}")
     L.append(f"    {result['reference_cmd']}")
     L.append("")
-    L.append("| scene | algorithm | ours s | reference s | ours / reference (target ≤ 0.8) | "
-             "ours CPU s | reference CPU s | ours MiB | reference MiB | ours / reference "
-             "(target ≤ 1.2) |")
+    L.extend(efficiency_lines(result["rows"]))
+    L.append("| scene | algorithm | ours s (mean ± SE) | reference s | ours / reference "
+             "(secondary target ≤ 0.6) | ours CPU s | reference CPU s | ours MiB | reference "
+             "MiB | ours / reference (target ≤ 1.2) |")
     L.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in result["rows"]:
-        t_ours = statistics.median(row["ours_seconds"])
-        t_ref = statistics.median(row["reference_seconds"])
-        c_ours = statistics.median(row.get("ours_cpu", [0]))
-        c_ref = statistics.median(row.get("reference_cpu", [0]))
-        m_ours = statistics.median(row["ours_mib"])
-        m_ref = statistics.median(row["reference_mib"])
-        L.append(f"| {row['scene']} | {row['algorithm']} | {t_ours:.2f} | {t_ref:.2f} | "
-                 f"**{t_ours / t_ref:.2f}** | {c_ours:.1f} | {c_ref:.1f} | {m_ours:.0f} | "
-                 f"{m_ref:.0f} | **{m_ours / m_ref:.2f}** |")
+        t_ours, t_ours_se = mean_and_se(row["ours_seconds"])
+        t_ref, t_ref_se = mean_and_se(row["reference_seconds"])
+        m_ours = max(row["ours_mib"])
+        m_ref = max(row["reference_mib"])
+        L.append(f"| {row['scene']} | {row['algorithm']} | {t_ours:.2f} ± {t_ours_se:.2f} | "
+                 f"{t_ref:.2f} ± {t_ref_se:.2f} | **{t_ours / t_ref:.2f}** | "
+                 f"{statistics.fmean(row['ours_cpu']):.1f} | "
+                 f"{statistics.fmean(row['reference_cpu']):.1f} | {m_ours:.0f} | {m_ref:.0f} | "
+                 f"**{m_ours / m_ref:.2f}** |")
     L.append("")
-    L.extend(efficiency_lines(result["rows"]))
-    L.append("Per-round wall seconds (ours / reference): " + "; ".join(
+    L.append("Per-run wall seconds (ours / reference): " + "; ".join(
         f"{row['scene']} {row['algorithm']} "
         + ", ".join(f"{a:.1f}/{b:.1f}" for a, b in zip(row["ours_seconds"],
                                                        row["reference_seconds"]))
@@ -252,40 +363,38 @@ def section(result, previous=None):
 
 
 def efficiency_lines(rows):
-    """The per-unit-of-error table: efficiency 1 / (MSE x median wall seconds) of each program
-    against the converged image, and their ratio."""
-    rows = [row for row in rows if "ours_mse" in row]
+    """The per-unit-of-error table: each program's efficiency 1 / (mean relative MSE x mean
+    wall seconds) over its independent runs, their ratio with its standard error, and whether
+    the target (ratio >= 2.0 at 2 standard errors) is met."""
+    rows = [row for row in rows if "ours_relative_mses" in row]
     if not rows:
         return []
-    L = ["Per unit of error: MSE of each program's image (box-averaged 2 × 2 to 256 × 256) "
-         "against the box's converged image in `docs/references/` (ours, vcm, 256–1024 "
-         "iterations), efficiency = 1 / (MSE × wall seconds) with the medians above. "
-         "Ours / reference > 1: ours reaches a given error sooner; the time target ≤ 0.8 per "
-         "unit of error is an efficiency ratio ≥ 1.25. The converged image's own noise "
-         "(estimated from its odd and even iterations) is in both MSEs (its share of ours is "
-         "given): it pulls the ratio toward 1. The mean ratio (image mean / converged mean) "
-         "shows a bias a noise-free measure would not hide. Ours renders with seed 0, 1, 2 in "
-         "the three rounds and its MSE is their median (the rounds' MSEs are listed below); "
-         "SmallVCM's seed is fixed in its config, so its MSE is one sample.", "",
-         "| scene | algorithm | ours MSE | reference MSE | converged image's own MSE (share of "
-         "ours) | ours mean ratio | reference mean ratio | ours efficiency | reference "
-         "efficiency | ours / reference (target ≥ 1.25) |",
-         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    L = ["Per unit of error: relative MSE ((x − r)² / (r² + 0.01), as `render --compare`) of "
+         "each image, box-averaged 2 × 2 to 256 × 256, against the box's converged image in "
+         "`docs/references/`; efficiency = 1 / (mean relative MSE × mean wall seconds) over "
+         "each program's runs. The ratio's standard error is first order: the four means' "
+         "relative standard errors in quadrature. Target: ours / reference ≥ 2.0 at 2 "
+         "standard errors (ratio − 2 SE ≥ 2). The converged image's own noise (estimated from "
+         "its odd and even iterations) is in both programs' errors alike and pulls the ratio "
+         "toward 1; its share of ours is given.", "",
+         "| scene | algorithm | runs | ours rel. MSE (mean ± SE) | reference rel. MSE | "
+         "converged image's own (share of ours) | ours / reference mean ratio | ours / "
+         "reference efficiency ± SE | ≥ 2.0 at 2 SE |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for row in rows:
-        t_ours = statistics.median(row["ours_seconds"])
-        t_ref = statistics.median(row["reference_seconds"])
-        e_ours = 1.0 / (row["ours_mse"] * t_ours)
-        e_ref = 1.0 / (row["reference_mse"] * t_ref)
-        L.append(f"| {row['scene']} | {row['algorithm']} | {row['ours_mse']:.3e} | "
-                 f"{row['reference_mse']:.3e} | {row['converged_own_mse']:.2e} "
-                 f"({row['converged_own_mse'] / row['ours_mse']:.0%}) | "
-                 f"{row['ours_mean_ratio']:.4f} | {row['reference_mean_ratio']:.4f} | "
-                 f"{e_ours:.4g} | {e_ref:.4g} | **{e_ours / e_ref:.2f}** |")
+        e_ours, e_ours_se = mean_and_se(row["ours_relative_mses"])
+        e_ref, e_ref_se = mean_and_se(row["reference_relative_mses"])
+        ratio, se = efficiency_ratio(row)
+        own = row.get("converged_own_relative_mse")
+        own_text = f"{own:.2e} ({own / e_ours:.0%})" if own is not None else "—"
+        met = "yes" if ratio - 2 * se >= 2.0 else "no"
+        L.append(f"| {row['scene']} | {row['algorithm']} | {len(row['ours_relative_mses'])} | "
+                 f"{e_ours:.3e} ± {e_ours_se:.1e} | {e_ref:.3e} ± {e_ref_se:.1e} | {own_text} | "
+                 f"{statistics.fmean(row['ours_mean_ratios']):.4f} / "
+                 f"{statistics.fmean(row['reference_mean_ratios']):.4f} | "
+                 f"**{ratio:.2f} ± {se:.2f}** | {met} |")
     L.append("")
-    L.append("Ours' MSE per round (seeds 0, 1, 2): " + "; ".join(
-        f"{row['scene']} {row['algorithm']} " + ", ".join(f"{e:.3e}" for e in row["ours_mses"])
-        for row in rows if "ours_mses" in row) + ".")
-    return L + [""]
+    return L
 
 
 # Written by hand in docs/results/performance-notes.md (what the comparison means, the changes

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "core/integrators/importance_weights.h"
+#include "core/integrators/roulette.h"
 
 namespace render {
 
@@ -24,7 +25,8 @@ enum class BidirectionalAlgorithm {
 struct SubpathSettings {
     int max_depth = -1;  // Mitsuba's meaning: path segments, -1 = unbounded
     int rr_depth = 5;
-    uint64_t light_path_count = 0;  // 0 = one per pixel
+    uint64_t light_path_count = 0;                         // 0 = one per pixel
+    RoulettePolicy roulette = RoulettePolicy::Throughput;  // core/integrators/roulette.h
 };
 
 // The merging radius of iteration i: r_i = radius_factor x the scene's bounding-sphere radius x

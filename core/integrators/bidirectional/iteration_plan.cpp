@@ -16,6 +16,7 @@ namespace {
 void plan_subpaths(IterationPlan& p, const SubpathSettings& s, const Scene& scene) {
     p.max_length = s.max_depth < 0 ? INT_MAX / 4 : s.max_depth;
     p.rr_depth = s.rr_depth;
+    p.roulette = s.roulette;
     p.pixel_count = uint64_t(scene.camera().width()) * uint64_t(scene.camera().height());
     p.light_path_count = s.light_path_count > 0 ? s.light_path_count : p.pixel_count;
     p.vpl_scale = float(1.0 / double(p.light_path_count));

@@ -34,6 +34,7 @@ struct IterationPlan {
 
     int max_length = 0;  // path segments (max_depth; unbounded: INT_MAX / 4)
     int rr_depth = 5;
+    RoulettePolicy roulette = RoulettePolicy::Throughput;
     uint64_t pixel_count = 0, light_path_count = 0;
 
     // Merging radii: surfaces, photon points (P-P3D), query beams (P-B2D), photon beams (B-B1D).

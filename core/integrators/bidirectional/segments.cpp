@@ -142,7 +142,9 @@ bool Iteration::sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& r
     state.specular_path = state.specular_path && bs->delta;
     state.throughput *= bs->weight;
 
-    if (state.path_length >= plan_.rr_depth) {
+    if (plan_.roulette == RoulettePolicy::Albedo) {
+        if (!survives_albedo_roulette(bs->weight, state.throughput, rng)) return false;
+    } else if (state.path_length >= plan_.rr_depth) {
         const float q = std::min(0.95f, state.throughput.max() / state.initial_luminance);
         if (!(q > 0) || rng.next_1d() >= q) return false;
         state.throughput *= 1.0f / q;

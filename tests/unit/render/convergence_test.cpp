@@ -164,6 +164,20 @@ TEST(Convergence, GlossyBoxWithSunAllAlgorithms) {
     expect_same_image(*scene, "pt", {"lt", "bpt", "ppm", "bpm", "vcm"}, 8);
 }
 
+// Russian roulette by albedo from the first bounce (--roulette albedo, core/integrators/
+// roulette.h) against path tracing with the default roulette: the same image, for the path
+// tracer and for the bidirectional algorithms whose subpaths it shortens.
+TEST(Convergence, AlbedoRouletteKeepsTheImageOnTheGlossyBox) {
+    auto scene = glossy_box(R"(<emitter type="point">
+    <point name="position" x="0" y="-0.5" z="1.0"/>
+    <rgb name="intensity" value="5.5704230"/>
+  </emitter>)");
+    const BlockEstimate reference = render_blocks(*scene, "pt", 8);
+    for (const std::string algorithm : {"pt", "bpt", "vcm"})
+        expect_same_blocks(reference, render_blocks(*scene, algorithm, 8, {{"roulette", "albedo"}}),
+                           algorithm + " --roulette albedo", "pt");
+}
+
 // --- participating media -----------------------------------------------------------------------
 // The SmallUPBP boxes (scenes/smallupbp/). Volumetric path tracing samples every path of both
 // (area lights), so it is the reference.
