@@ -1,7 +1,7 @@
 // `worker`: leases ranges of iterations from a render server, renders them, reports the sums.
 //
 //   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR] [--cache-max-size SIZE]
-//          [--max-memory SIZE]
+//          [--max-memory SIZE] [--test-render-fault FAULT [--test-render-fault-scene NAME]]
 //          [--tls-ca FILE [--tls-server-name NAME]]
 
 #include <csignal>
@@ -65,6 +65,20 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, 
             "the name the server's certificate must carry, when it is not the host of --server "
             "(default: env RENDER_TLS_SERVER_NAME)",
             [&](const std::string& v) { tls.server_name = v; });
+    p.value({"--test-render-fault"}, "FAULT",
+            "tests only: the renderer fails every lease, with throw:MESSAGE (an exception "
+            "carrying MESSAGE), non-std (an exception that is not a std::exception) or abort "
+            "(the process aborts), as a renderer meeting what it cannot render would "
+            "(docs/guide/reliability.md)",
+            [&](const std::string& v) {
+                const std::string scene = o.test_render_fault.scene_name;
+                o.test_render_fault = RenderFault::parse(v);
+                o.test_render_fault.scene_name = scene;
+            });
+    p.value({"--test-render-fault-scene"}, "NAME",
+            "tests only: --test-render-fault fails only the leases of jobs whose scene file is "
+            "named NAME (e.g. poison.xml)",
+            [&](const std::string& v) { o.test_render_fault.scene_name = v; });
     p.flag({"--help", "-h"}, "this text", [&] { help = true; });
     return p;
 }
@@ -115,6 +129,8 @@ int main(int argc, char** argv) {
         std::cout << usage();
         return 0;
     }
+    if (options.test_render_fault.kind != RenderFault::Kind::kNone)
+        render::log_warn("test_render_fault").kv("note", "every lease fails: a test worker");
     if (options.server.empty()) options.server = "127.0.0.1:50051";
     options.token = token_or_env(token);
     try {

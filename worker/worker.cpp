@@ -379,12 +379,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             // One renderer for the range: its integrator, arena and buffers are made once,
             // and each iteration adds to `sums` (no full-frame allocation or copy per
             // iteration).
-            // Test hook (tests/integration/test_worker_render_throws.py): the renderer throws
-            // the variable's value as a std::runtime_error, or an int for "non-std".
-            if (const char* why = std::getenv("RENDER_TEST_RENDER_THROWS"); why && *why) {
-                if (std::string(why) == "non-std") throw 37;
-                throw std::runtime_error(why);
-            }
+            // Tests only: the fault --test-render-fault asked for (worker/render_fault.h).
+            if (options_.test_render_fault.kind != RenderFault::Kind::kNone) [[unlikely]]
+                options_.test_render_fault.raise(lease.bundle().scene_path());
             IterationRenderer iterations(*scene, settings, lease.frame());
             IterationResult sums = iterations.empty_result();
             for (uint64_t i = first; i < end && !abandon.load(); ++i) {

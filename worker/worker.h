@@ -15,6 +15,7 @@
 #include "service/transport_security.h"
 #include "worker/asset_cache.h"
 #include "worker/background_report.h"
+#include "worker/render_fault.h"
 
 namespace render::service {
 
@@ -33,6 +34,9 @@ struct WorkerOptions {
     // The memory a job's scene and film may take (0: the machine's available memory when the
     // scene is loaded). A scene estimated to need more fails its job with that message.
     uint64_t max_memory = 0;
+    // Tests only (--test-render-fault): the renderer fails every lease this way
+    // (worker/render_fault.h). None by default.
+    RenderFault test_render_fault;
 };
 
 // Set by the signal handler: 1 = finish the current range and exit, 2+ = give up at once.

@@ -1,5 +1,6 @@
 #include "core/base/properties.h"
 
+#include "core/base/ray_transform_check.h"
 #include "core/base/scene_limits.h"
 
 namespace render {

@@ -59,7 +59,7 @@ class Properties {
     Transform get_transform(const std::string& name) const;
     Transform get_transform(const std::string& name, const Transform& def) const;
     // A transform rays pass through (a shape's, an instance's, a volume grid's): refused at its
-    // line unless ray_transform_problem (core/base/scene_limits.h) accepts it.
+    // line unless ray_transform_problem (core/base/ray_transform_check.h) accepts it.
     Transform get_ray_transform(const std::string& name) const;
     // A nested or referenced <texture> given for `name` (never null), or null when the value
     // is absent or a plain value (which the typed getters then read; nothing is marked read).

@@ -32,6 +32,9 @@ Rgb get_emission(const Properties& props, const std::string& name, const Rgb& de
     return value;
 }
 
+// Every light's to_world is a transform rays start from: refused at its line when
+// near-singular or not finite, as a shape's (Properties::get_ray_transform), after the
+// light's position (a light placed too far is told so).
 std::unique_ptr<Light> make_point(const Properties& props) {
     if (props.has("position") && props.has("to_world"))
         throw props.error("position", "give either \"position\" or \"to_world\", not both");
@@ -41,20 +44,22 @@ std::unique_ptr<Light> make_point(const Properties& props) {
     if (!within_scene_limits(position))
         throw props.error(props.has("position") ? "position" : "to_world",
                           "the position must be finite and within 1e12 of the origin");
+    props.get_ray_transform("to_world");
     return std::make_unique<PointLight>(position, get_emission(props, "intensity", Rgb(1.0f)));
 }
 
 // Mitsuba's `spot`: at the origin of to_world, shining along its +z.
 std::unique_ptr<Light> make_spot(const Properties& props) {
     const Transform to_world = props.get_transform("to_world", Transform());
+    const Vec3 position = to_world.apply_point(Vec3(0.0f));
+    if (!within_scene_limits(position))
+        throw props.error("to_world", "the position must be finite and within 1e12 of the origin");
+    props.get_ray_transform("to_world");
     std::optional<Frame> frame = EnvmapLight::rotation_frame(to_world);
     if (!frame)
         throw props.error("to_world",
                           "a spot light's to_world must be a rotation and translation (e.g. "
                           "<lookat>), optionally uniformly scaled");
-    const Vec3 position = to_world.apply_point(Vec3(0.0f));
-    if (!within_scene_limits(position))
-        throw props.error("to_world", "the position must be finite and within 1e12 of the origin");
     const float cutoff = props.get_float("cutoff_angle", 20.0f);
     if (!(cutoff > 0 && cutoff <= 180))
         throw props.error("cutoff_angle", "must be in (0, 180] degrees");
@@ -88,7 +93,7 @@ std::unique_ptr<Light> make_directional(const Properties& props) {
     const char* name = props.has("direction") ? "direction" : "to_world";
     Vec3 direction = props.has("direction")
                          ? props.get_vec3("direction")
-                         : props.get_transform("to_world", Transform()).apply_vector(Vec3(0, 0, 1));
+                         : props.get_ray_transform("to_world").apply_vector(Vec3(0, 0, 1));
     float len = length(direction);
     if (!(len > 0) || !std::isfinite(len))
         throw props.error(name, "the light's direction must be a finite, non-zero vector");
@@ -103,7 +108,7 @@ std::unique_ptr<Light> make_envmap(const Properties& props,
     float scale = props.get_float("scale", 1.0f);
     if (!std::isfinite(scale) || scale < 0)
         throw props.error("scale", "must be finite and non-negative");
-    std::optional<Frame> frame = EnvmapLight::rotation_frame(props.get_transform("to_world", {}));
+    std::optional<Frame> frame = EnvmapLight::rotation_frame(props.get_ray_transform("to_world"));
     if (!frame) throw props.error("to_world", "an environment map's to_world must be a rotation");
     try {
         return EnvmapLight::load(filename, scale, *frame);

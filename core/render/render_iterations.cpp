@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/render/algorithms.h"
+#include "core/render/arena_invalid_ray_tally.h"
 
 namespace render {
 namespace {
@@ -31,6 +32,9 @@ struct IterationRenderer::State {
     std::unique_ptr<Integrator> integrator;
     AccumulationBuffer iteration_image;
     tbb::task_arena arena;
+    // The invalid rays of this render's threads alone (not the scene's count, which other
+    // renders of the scene in the process add to).
+    ArenaInvalidRayTally invalid_rays;
 
     State(const Scene& s, const RenderSettings& rs, uint32_t f)
         : scene(s),
@@ -38,7 +42,8 @@ struct IterationRenderer::State {
           frame(f),
           integrator(make_integrator(rs)),
           iteration_image(s.camera().width(), s.camera().height()),
-          arena(rs.threads > 0 ? rs.threads : tbb::task_arena::automatic) {}
+          arena(rs.threads > 0 ? rs.threads : tbb::task_arena::automatic),
+          invalid_rays(arena) {}
 };
 
 IterationRenderer::IterationRenderer(const Scene& scene, const RenderSettings& settings,
@@ -63,7 +68,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
         throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
                                     ", " + std::to_string(range.end) + ")");
     State& s = *state_;
-    const uint64_t invalid_rays_before = s.scene.invalid_rays();
+    const uint64_t invalid_rays_before = s.invalid_rays.count();
     AccumulationBuffer& image = s.iteration_image;
     s.arena.execute([&] {
         std::vector<double>& values = image.values();
@@ -88,7 +93,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
             ++result.count;
         }
     });
-    result.stats.invalid_rays += s.scene.invalid_rays() - invalid_rays_before;
+    result.stats.invalid_rays += s.invalid_rays.count() - invalid_rays_before;
 }
 
 IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,

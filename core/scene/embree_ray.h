@@ -18,11 +18,12 @@ namespace render {
 // Whether Embree may be handed `ray`: a finite origin and direction within kMaxSceneCoordinate
 // per axis and t bounds that are not NaN. Embree asserts on other rays (its RayK::valid(), up
 // to 1.8e18), which aborts the process; the loaders refuse the transforms that could carry a
-// valid ray beyond that inside an instance (ray_transform_problem, scene_limits.h), so a ray
-// that passes here stays valid in every instance's space (docs/guide/reliability.md,
-// "Resource limits"). NaN fails every comparison. The ray's eight floats are compared as one
-// array, which the compiler does in two SIMD compares and no branch (half the instructions of
-// eight scalar ones; docs/results/performance-notes.md, "The ray guard at Embree's door").
+// valid ray beyond that inside an instance (ray_transform_problem in
+// core/base/ray_transform_check.h), so a ray that passes here stays valid in every instance's
+// space (docs/guide/reliability.md, "Resource limits"). NaN fails every comparison. The ray's
+// eight floats are compared as one array, which the compiler does in two SIMD compares and no
+// branch (half the instructions of eight scalar ones; docs/results/performance-notes.md, "The
+// ray guard at Embree's door").
 inline bool embree_accepts(const Ray& ray) {
     static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, direction) == 12 &&
                   offsetof(Ray, t_min) == 24 && offsetof(Ray, t_max) == 28);

@@ -9,6 +9,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/media/medium.h"
 #include "core/scene/embree_ray.h"
+#include "core/scene/invalid_ray_tally.h"
 #include "core/scene/volume_emitter.h"
 #include "core/shapes/instance.h"
 #include "core/shapes/triangle_mesh_hit.h"
@@ -167,6 +168,7 @@ bool within_scene_limits(const Instance& instance) {
 
 void Scene::count_invalid_ray() const {
     invalid_rays_.fetch_add(1, std::memory_order_relaxed);
+    count_thread_invalid_ray();  // the render this thread works for
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) const {

@@ -92,9 +92,9 @@ class Scene {
     // True if anything blocks the open segment (ray.t_min, ray.t_max).
     bool occluded(const Ray& ray) const;
     // The three queries above hand Embree only rays it accepts (embree_accepts,
-    // core/scene/embree_ray.h): any other ray is a miss (unoccluded), counted here. A count over
-    // the scene's life, shared by every render of it; render_iterations adds its difference to
-    // RenderStats::invalid_rays.
+    // core/scene/embree_ray.h): any other ray is a miss (unoccluded), counted here over the
+    // scene's life (every render of it), and in the tally of the render the thread works for
+    // (core/scene/invalid_ray_tally.h), which gives RenderStats::invalid_rays.
     uint64_t invalid_rays() const { return invalid_rays_.load(std::memory_order_relaxed); }
 
     // Ray leaving surface point p (normal n) in direction d, offset so it cannot re-hit the

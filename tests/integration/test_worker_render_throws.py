@@ -1,7 +1,8 @@
 """A renderer that throws during a lease fails the lease, never the worker.
 
-Workers whose renderer throws (a test hook, RENDER_TEST_RENDER_THROWS, stands for whatever the
-renderer cannot handle: the real causes are refused at load, docs/guide/reliability.md) report
+Workers whose renderer throws (the worker's test-only flag --test-render-fault stands for
+whatever the renderer cannot handle: the real causes are refused at load,
+docs/guide/reliability.md) report
 the lease as failed with the exception's message and stay alive; once both workers the server
 knows failed it, the job FAILS with that message. An exception that is not a std::exception
 fails the lease the same way. Then a healthy worker renders the next job on the same farm."""
@@ -21,7 +22,7 @@ class WorkerRenderThrows(cluster.ClusterTestCase):
     def fail_with(self, c, hook, expected):
         P = cluster.pb()
         for _ in range(2):
-            c.start_worker(threads=1, env={"RENDER_TEST_RENDER_THROWS": hook})
+            c.start_worker(threads=1, extra=["--test-render-fault", hook])
         c.wait_workers_registered(2)
         job = c.api.submit(scene(), algorithm="pt", iterations=8, resolution=(16, 16), seed=3,
                            name=f"throws-{hook}")
@@ -40,7 +41,7 @@ class WorkerRenderThrows(cluster.ClusterTestCase):
         P = cluster.pb()
         c = self.new_cluster(heartbeat=0.5)
         c.start_server()
-        self.fail_with(c, "the renderer met something it cannot render",
+        self.fail_with(c, "throw:the renderer met something it cannot render",
                        "the renderer met something it cannot render")
         self.fail_with(c, "non-std", "not a std::exception")
         c.start_worker(threads=1)

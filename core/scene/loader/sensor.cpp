@@ -87,11 +87,14 @@ void Loader::read_sensor(const XmlElement& e) {
         for (const char* name : {"principal_point_offset_x", "principal_point_offset_y"})
             if (props.get_float(name, 0.0f) != 0.0f)
                 throw props.error(name, "a non-zero principal point offset is not supported yet");
-        Transform to_world = props.get_transform("to_world", Transform());
+        const Transform to_world = props.get_transform("to_world", Transform());
         if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
         PerspectiveCamera camera(to_world, fov, fov_axis, width, height);
         if (!within_scene_limits(camera.position()))
             throw props.error("to_world", "places the camera beyond 1e12 from the origin");
+        // Camera rays start from to_world: refused at its line when near-singular, as a
+        // shape's (ray_transform_problem, core/base/ray_transform_check.h).
+        props.get_ray_transform("to_world");
         return camera;
     });
     scene_.set_camera(camera);

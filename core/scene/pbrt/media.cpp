@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/base/properties.h"
+#include "core/base/ray_transform_check.h"
 #include "core/base/scene_limits.h"
 #include "core/media/grid_volume.h"
 #include "core/media/medium_factory.h"

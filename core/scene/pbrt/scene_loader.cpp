@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/base/memory_budget.h"
+#include "core/base/ray_transform_check.h"
 #include "core/scene/loader/file_resolver.h"
 #include "core/scene/pbrt/builders.h"
 #include "core/scene/pbrt/graphics_state.h"
@@ -293,6 +294,7 @@ class Loader {
                 const std::string type = need_string(tokens, d, "light type");
                 ParamList p = ParamList::parse(tokens, "LightSource \"" + type + "\"");
                 p.where = d.where;
+                check_ray_transform(d);  // light paths start from it, as camera rays do
                 std::unique_ptr<Light> light = make_light(type, p, state_.ctm, resolver());
                 light->medium = state_.outside;
                 scene_.add_light(std::move(light));
@@ -333,6 +335,16 @@ class Loader {
         if (type != "perspective")
             throw SceneError(d.where,
                              "Camera \"" + type + "\" is not supported yet (only perspective)");
+        // Camera rays start from its to_world (the inverse of the current transform): refused
+        // here, naming this line, when rays could not pass through it.
+        // A camera placed too far is told so first, as build_camera does.
+        if (state_.ctm.is_singular())
+            throw SceneError(d.where, "Camera: the transform is singular");
+        const Transform to_world = state_.ctm.inverse();
+        if (!within_scene_limits(to_world.apply_point(Vec3(0.0f))))
+            throw SceneError(d.where, "the camera lies beyond 1e12 from the origin");
+        if (const std::string problem = ray_transform_problem(to_world); !problem.empty())
+            throw SceneError(d.where, "Camera: " + problem);
         camera_ = p;
         camera_from_world_ = state_.ctm;
         scene_.set_camera_medium(state_.outside);
@@ -569,7 +581,7 @@ class Loader {
     }
 
     // Refuses a current transform rays could not pass through at the directive that uses it
-    // (ray_transform_problem, core/base/scene_limits.h).
+    // (ray_transform_problem, core/base/ray_transform_check.h).
     void check_ray_transform(const Token& d) const {
         if (const std::string problem = ray_transform_problem(state_.ctm); !problem.empty())
             throw SceneError(d.where, d.text + ": " + problem);

@@ -262,8 +262,9 @@ std::string pbrt_error(const std::string& world) {
     return "loaded";
 }
 
-// A transform rays cannot pass through (ray_transform_problem, core/base/scene_limits.h) is
-// refused at its line, for instances, shapes and volume grids alike.
+// A transform rays cannot pass through (ray_transform_problem,
+// core/base/ray_transform_check.h) is refused at its line, for instances, shapes and volume
+// grids alike.
 TEST(Instancing, MitsubaRefusesNearSingularTransformsAtTheirLine) {
     const std::string group =
         "<shape type=\"shapegroup\" id=\"g\"><shape type=\"cube\"/></shape>\n";

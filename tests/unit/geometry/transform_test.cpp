@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "core/base/ray_transform_check.h"
 #include "core/base/scene_limits.h"
 #include "core/math/frame.h"
 #include "core/math/transform.h"
