@@ -28,6 +28,7 @@ constexpr int kResolution = 32;
 constexpr int kBlocksPerSide = 2;
 constexpr int kBatches = 32;
 constexpr double kStandardErrors = 5.0;
+constexpr int kCausticIterations = 4;
 
 using testing::BlockEstimate;
 
@@ -68,16 +69,40 @@ int blocks_that_differ(const BlockEstimate& reference, const BlockEstimate& e) {
     return differ;
 }
 
+// The precision each block comparison must reach: its combined standard error at most this
+// fraction of the block value, so that a difference of k = 5 times it fails (25 % per block and
+// channel; it was 10 %, 50 %). Measured with these seeds (the BLOCKS lines of the output): at most
+// 3.8 % for every arm of the tests up to the photon beams' (vcm, bpt, lt, volpt, upbp: 1.2-3.8 %,
+// bpm up to 4.6 %), so 5 %; ppm up to 9.7 % (glossy and small scenes: ppm is noisy per iteration
+// even with 4x the iterations), so 10 %; the many-light arms (vpl, ic, bpt's ic connections) keep
+// 10 %: not re-measured (Cornell box vpl 2.3 %). Resolving 1 % at the block level (a standard error
+// of 0.2 %) would take 6 to 2500 times these renders; the planted-error tests
+// (tests/unit/README.md) resolve 1-2 %.
+double max_relative_standard_error(const std::string& algorithm) {
+    for (const char* loose : {"ppm", "vpl", "ic "})
+        if (algorithm.rfind(loose, 0) == 0) return 0.10;
+    if (algorithm.find(" ic ") != std::string::npos) return 0.10;  // bpt's ic connections
+    return 0.05;
+}
+
 void expect_same_blocks(const BlockEstimate& reference, const BlockEstimate& e,
                         const std::string& algorithm, const std::string& reference_algorithm) {
+    double worst_se = 0, worst_z = 0;
+    for (size_t i = 0; i < e.mean.size(); ++i) {
+        const double se_i = combined_standard_error(e, reference, i);
+        worst_se = std::max(worst_se, se_i / std::max(reference.mean[i], 1e-3));
+        worst_z = std::max(worst_z, std::abs(e.mean[i] - reference.mean[i]) / se_i);
+    }
+    std::printf("BLOCKS %s vs %s: largest relative SE %.4f, largest |z| %.2f\n", algorithm.c_str(),
+                reference_algorithm.c_str(), worst_se, worst_z);
     for (size_t i = 0; i < e.mean.size(); ++i) {
         const double se = combined_standard_error(e, reference, i);
         EXPECT_NEAR(e.mean[i], reference.mean[i], kStandardErrors * se)
             << algorithm << " vs " << reference_algorithm << ", block " << i / 3 << " channel "
             << i % 3 << " (standard error " << se << ")";
-        // Guard against a vacuous test: the comparison must resolve differences of a few
-        // percent of the block value.
-        EXPECT_LT(se, 0.1 * std::max(reference.mean[i], 1e-3))
+        // Guard against a vacuous test: the comparison must resolve a stated fraction of the
+        // block value (max_relative_standard_error).
+        EXPECT_LT(se, max_relative_standard_error(algorithm) * std::max(reference.mean[i], 1e-3))
             << algorithm << ", block " << i / 3 << " channel " << i % 3;
     }
 }
@@ -328,6 +353,35 @@ TEST(Convergence, QueryBeamsMatchBptOnTheFogBox) {
                        "upbp (query beams only), max_depth 6", "bpt");
 }
 
+// UPBP on the kind of scene it was made for (docs/design/algorithms-next.md 4.5): a volumetric
+// caustic. A small bright light above a glass sphere in an albedo-1 gas that fills the box
+// (scenes/bitterli/volumetric-caustic, 32 x 32): the cone of light the sphere focuses into the
+// gas is made of L S S M E paths, which only light subpaths sample (volpt would have to hit a
+// 5 mm light through the sphere). bpt samples them by connecting the medium vertex to the camera
+// (t = 1) and is the reference; upbp with every estimator, and photon beams beside the
+// connections ({bpt, bb1d}, the beams that make the cone), must converge to it. Blocks of
+// 8 x 8 pixels (4 x 4 per image) so that the cone is a large part of some blocks; the volume
+// radius is 1 % of the scene radius (0.017, a tenth of a block), alpha 1. Tolerance: k = 5
+// combined standard errors per block and channel. Measured with these seeds: the largest
+// relative standard error of a block is 1.9 % (an error of 10 % in a block fails), the largest
+// difference 0.93 (upbp) and 0.76 ({bpt, bb1d}) standard errors.
+TEST(Convergence, UpbpMatchesBptOnTheVolumetricCaustic) {
+    auto scene = shipped("bitterli/volumetric-caustic/scene_v3.xml");
+    auto blocks = [&](const std::string& algorithm, int iterations, const OptionMap& options) {
+        RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
+        settings.seed = 1234;
+        settings.radius_factor = 0.01;
+        return testing::render_block_estimate(*scene, settings, kBatches, iterations, 4);
+    };
+    const BlockEstimate reference = blocks("bpt", kCausticIterations, {});
+    expect_same_blocks(reference, blocks("upbp", kCausticIterations, {}), "upbp", "bpt");
+    expect_same_blocks(
+        reference,
+        blocks("upbp", kCausticIterations,
+               {{"surface_merging", "off"}, {"photon_points", "off"}, {"query_beams", "off"}}),
+        "upbp {bpt, bb1d}", "bpt");
+}
+
 // The image mean (the channels' average) of each of `batches` consecutive batches of
 // `iterations` iterations from iteration 1: the samples of the kernel-bias tests.
 std::vector<double> batch_image_means(const Scene& scene, const RenderSettings& settings,
@@ -351,15 +405,32 @@ testing::MeanAccumulator accumulate(const std::vector<double>& values) {
     return m;
 }
 
-// The query beams' kernel bias vanishes with the radius (ALGORITHMS-NEXT.md 4.6 a2): the fog box
-// with paths of up to 6 segments, query beams as the only medium estimator, volume radii of 16,
-// 8, 4 and 1 % of the scene radius kept fixed (alpha 1), against bpt; image means over 16
-// batches of 16 iterations, each with its standard error (combined SE 0.3-0.6 % of the mean).
-// Measured with these seeds: -9.3 %, -1.7 %, -0.2 % and +0.04 % of the image mean, the kernel
-// darkening the image (its disc reaches through the black walls and blurs the light's peak),
-// about r^2 as the spec expects. Checked: the largest radius is biased by more than 5 combined
-// standard errors (the test can see a bias), halving it removes more than half the bias, the
-// bias at 16 % exceeds the one at 4 %, and at 1 % the difference is within 5 standard errors.
+// The kernel-bias tests below check the rate at which the bias of a fixed radius (alpha 1)
+// vanishes, derived as follows (ALGORITHMS-NEXT.md 4.6 a2 states the first case only).
+// - Inside a medium, far from any boundary: a merge replaces each query (or beam) by a kernel of
+//   radius r centred on it, symmetric about its line and keeping its extent along the line, so
+//   the kernel preserves the zeroth and first moments of what it spreads and the bias is
+//   O(r^2) (the second moment times the curvature of the other side's density): about 4x per
+//   halving of the radius.
+// - Where the kernel reaches past a medium boundary (the other side has no photons, beams or
+//   queries there), the kernel's mass beyond it is lost: a layer of thickness ~r along the
+//   boundary, an O(r) term, 2x per halving, which dominates at small radii.
+// Query beams on the fog box: the medium fills the box and both sides end at its black walls,
+// two mean free paths from the light where little of the image is gathered, so the interior
+// O(r^2) term dominates over the radii tested. Photon beams on isosph: light enters the
+// medium sphere through its boundary and the lamp lights it from outside, so the boundary's
+// O(r) term dominates.
+
+// Query beams on the fog box with paths of up to 6 segments, query beams as the only medium
+// estimator, volume radii of 16, 8, 4 and 1 % of the scene radius kept fixed (alpha 1), against
+// bpt; image means over 16 batches of 16 iterations, each with its standard error (combined SE
+// 0.3-0.6 % of the mean, capped at 1 %). Measured with these seeds: -9.3 %, -1.7 %, -0.2 % and
+// +0.04 % of the image mean (the kernel darkens the image: its disc reaches through the black
+// walls and blurs the light's peak). Checked: the largest radius is biased by more than 5
+// combined standard errors (the test can see a bias); the first halving shrinks it at the
+// interior rate, by at least 3x (about 4x less two of the ratio's standard errors: measured
+// 5.5x); at 4 % and at 1 % the bias is within 5 combined standard errors (only the first halving
+// is resolved, so the rate is checked there).
 TEST(Convergence, QueryBeamsBiasShrinksWithTheRadius) {
     auto scene = fog_box("0");
     auto image_mean = [&](const std::string& algorithm, const OptionMap& options) {
@@ -378,12 +449,14 @@ TEST(Convergence, QueryBeamsBiasShrinksWithTheRadius) {
                                                                {"volume_alpha", "1"}});
         bias.push_back(m.mean() - reference.mean());
         se.push_back(std::hypot(m.standard_error(), reference.standard_error()));
+        std::printf("radius %s: bias %+.3g%% (combined SE %.2g%%)\n", radius,
+                    100 * bias.back() / reference.mean(), 100 * se.back() / reference.mean());
         SCOPED_TRACE(radius);
         EXPECT_LT(se.back(), 0.01 * reference.mean());  // precise enough to mean anything
     }
     EXPECT_GT(std::abs(bias[0]), 5 * se[0]) << "no bias visible at the largest radius";
-    EXPECT_GT(std::abs(bias[0]), 2 * std::abs(bias[1]));
-    EXPECT_GT(std::abs(bias[0]), std::abs(bias[2]));
+    EXPECT_GT(std::abs(bias[0]), 3 * std::abs(bias[1])) << "slower than the interior rate";
+    EXPECT_LT(std::abs(bias[2]), 5 * se[2]) << "biased at 4 %";
     EXPECT_LT(std::abs(bias[3]), 5 * se[3]) << "biased at the smallest radius";
 }
 
@@ -447,19 +520,20 @@ TEST(Convergence, PhotonBeamsInAGridMatchVolptAndBptOnTheSmoke) {
     }
 }
 
-// The photon beams' kernel bias vanishes with the radius (ALGORITHMS-NEXT.md 4.6 a2): isosph,
-// upbp restricted to {bpt, bb1d}, beam radii halving four times from 16 % to 1 % of the scene
-// radius, kept fixed (alpha 1), against bpt; image means over 16 batches of 8 iterations. Both
-// render with the same seed, and photon beams draw no random numbers in a homogeneous medium,
-// so every path the two share is the same sample: the per-batch difference has a far smaller
-// standard error (paired, 0.03-0.08 % of the mean) than the two means have combined (1.7 %,
-// mostly the lamp seen directly), and resolves the bias at every radius. Measured with these
-// seeds: -3.5 %, -1.9 %, -0.96 %, -0.44 %, -0.16 % of the image mean (the kernel darkens
-// where it reaches out of the medium at the sphere's boundary: about r at large radii, faster
-// at small ones). Checked: the largest bias is beyond 5 paired standard errors (the test can
-// see a bias), every halving shrinks it by at least 1.5x, four halvings by more than 10x, and
-// at the smallest radius it is below 0.5 % of the image mean (the stated tolerance; it is
-// 5.1 paired standard errors there, so still resolvable).
+// Photon beams on isosph, upbp restricted to {bpt, bb1d}, beam radii halving five times from 16 %
+// to 0.5 % of the scene radius, kept fixed (alpha 1), against bpt; image means over 16 batches of
+// 8 iterations. Both render with the same seed, and photon beams draw no random numbers in a
+// homogeneous medium, so every path the two share is the same sample: the per-batch difference
+// has a far smaller standard error (paired, 0.03-0.08 % of the mean, capped at 0.2 %) than the
+// two means have combined (1.7 %, mostly the lamp seen directly), and resolves the bias down to
+// 1 %. Measured with these seeds: -3.5 %, -1.9 %, -0.96 %, -0.44 %, -0.16 % of the image mean at
+// 16-1 % (the kernel darkens where it reaches out of the medium at the sphere's boundary):
+// ratios 1.8, 2.0, 2.2, 2.8 per halving, the boundary's O(r) rate (above). Checked: the
+// largest bias is beyond 5 paired standard errors (the test can see a bias); every halving whose
+// smaller bias is resolved (beyond 3 paired standard errors) shrinks it by a ratio between 1.5
+// and 4 (the boundary's 2x and the interior's 4x, with room for the ratio's standard error:
+// about 0.2-0.7 here); four halvings by more than 10x; and at the smallest radius the bias is
+// within 5 paired standard errors.
 TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     auto scene = shipped("smallupbp/isosph.xml");
     constexpr int kBatches = 16, kBatchIterations = 8;
@@ -471,7 +545,7 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     const std::vector<double> reference_batches = batch_means("bpt", {});
     const testing::MeanAccumulator reference = accumulate(reference_batches);
     std::vector<double> bias, paired_se, combined_se;
-    for (const char* radius : {"0.16", "0.08", "0.04", "0.02", "0.01"}) {
+    for (const char* radius : {"0.16", "0.08", "0.04", "0.02", "0.01", "0.005"}) {
         const std::vector<double> batches = batch_means("upbp", {{"surface_merging", "off"},
                                                                  {"photon_points", "off"},
                                                                  {"query_beams", "off"},
@@ -492,10 +566,14 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
         EXPECT_LT(paired_se.back(), 0.002 * reference.mean());  // precise enough to mean anything
     }
     EXPECT_GT(std::abs(bias[0]), 5 * paired_se[0]) << "no bias visible at the largest radius";
-    for (size_t k = 1; k < bias.size(); ++k)
-        EXPECT_LT(1.5 * std::abs(bias[k]), std::abs(bias[k - 1])) << "halving " << k;
+    for (size_t k = 1; k < bias.size(); ++k) {
+        if (!(std::abs(bias[k]) > 3 * paired_se[k])) continue;  // the ratio is not resolved
+        const double ratio = bias[k - 1] / bias[k];
+        EXPECT_GT(ratio, 1.5) << "halving " << k;
+        EXPECT_LT(ratio, 4.0) << "halving " << k;
+    }
     EXPECT_GT(std::abs(bias[0]), 10 * std::abs(bias[4]));
-    EXPECT_LT(std::abs(bias[4]), 0.005 * reference.mean()) << "biased at the smallest radius";
+    EXPECT_LT(std::abs(bias[5]), 5 * paired_se[5]) << "biased at the smallest radius";
 }
 
 // bpt's joint (J1) connections (docs/design/media.md, "Joint connections in bpt and vcm") add one
@@ -697,7 +775,7 @@ TEST(Convergence, JointSegmentConnectionsKeepTheMeanOfHigherOrders) {
 // the plates), so the comparison with path tracing is valid.
 TEST(Convergence, PlatesVplMatchesPathTracing) {
     auto scene = shipped("tests/plates.xml");
-    expect_same_image(*scene, "pt", {"vpl"}, 4);
+    expect_same_image(*scene, "pt", {"vpl"}, 32);
 }
 
 // On the diffuse Cornell box the unclamped estimator has infinite variance (the corners), so it
@@ -705,7 +783,8 @@ TEST(Convergence, PlatesVplMatchesPathTracing) {
 // keeps every iteration's variance finite, and after 32 x 4 iterations its bias (energy near
 // the corners, within 0.4 % of the scene radius) is far below the block tolerance. What this
 // catches is the estimator's overall energy (a missing path family, a wrong 1 / N_L); clamp
-// bias is too local for 16 x 16-pixel blocks: even a fixed clamp at 10 % of the radius passes.
+// bias is too local for 16 x 16-pixel blocks: even a fixed clamp at 10 % of the radius passes
+// (vpl_test's TheConsistentClampShrinksWithTheIterationIndex is what pins the schedule).
 TEST(Convergence, CornellBoxVplWithTheConsistentClampMatchesPathTracing) {
     auto scene = shipped("bitterli/cornell-box/scene_v3.xml");
     expect_same_blocks(render_blocks(*scene, "pt", 8),
