@@ -269,7 +269,7 @@ ArgumentParser make_parser(Options& o) {
 
 std::string usage() {
     Options unused;
-    return "usage: server --listen HOST:PORT --store DIR [options]\n\noptions:\n" +
+    return "usage: server --listen HOST:PORT --store DIR|URL [--data DIR] [options]\n\noptions:\n" +
            make_parser(unused).help();
 }
 

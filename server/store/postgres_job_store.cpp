@@ -67,9 +67,15 @@ struct PostgresJobStore::Connection {
     pqxx::connection c;
 };
 
-PostgresJobStore::PostgresJobStore(const std::string& url) {
+PostgresJobStore::PostgresJobStore(const std::string& url) : url_(url) {
+    connect();
+    migrate();
+}
+
+void PostgresJobStore::connect() {
+    connection_.reset();
     try {
-        connection_ = std::make_unique<Connection>(url);
+        connection_ = std::make_unique<Connection>(url_);
     } catch (const std::exception& e) {
         // libpq's message may quote the URI, password included: not repeated here.
         throw std::runtime_error(std::string("cannot connect to PostgreSQL: ") + e.what());
@@ -86,13 +92,20 @@ PostgresJobStore::PostgresJobStore(const std::string& url) {
                            "frame = EXCLUDED.frame, first = EXCLUDED.first, end_ = EXCLUDED.end_, "
                            "issued_ms = EXCLUDED.issued_ms");
     connection_->c.prepare("delete_lease", "DELETE FROM leases WHERE lease_id = $1");
-    migrate();
+}
+
+PostgresJobStore::Connection& PostgresJobStore::live() {
+    // The operation that found the connection broken (the database restarted, a failover)
+    // failed; the next one connects again rather than relying on libpqxx's deprecated
+    // implicit reactivation.
+    if (!connection_ || !connection_->c.is_open()) connect();
+    return *connection_;
 }
 
 PostgresJobStore::~PostgresJobStore() = default;
 
 void PostgresJobStore::migrate() {
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params("SELECT pg_advisory_xact_lock($1)", kMigrationLockKey);
     w.exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)");
     const int version =
@@ -112,13 +125,13 @@ void PostgresJobStore::migrate() {
 
 int PostgresJobStore::schema_version() {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     return w.exec1("SELECT COALESCE(MAX(version), 0) FROM schema_version")[0].as<int>();
 }
 
 void PostgresJobStore::insert_job(const JobRow& job, uint32_t frame_count) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params(
         "INSERT INTO jobs (id, seq, name, state, priority, request, width, height, error, "
         "submitted_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
@@ -131,7 +144,7 @@ void PostgresJobStore::insert_job(const JobRow& job, uint32_t frame_count) {
 
 void PostgresJobStore::update_job_priority(const std::string& job_id, int priority) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params("UPDATE jobs SET priority = $2 WHERE id = $1", job_id, priority);
     w.commit();
 }
@@ -139,7 +152,7 @@ void PostgresJobStore::update_job_priority(const std::string& job_id, int priori
 void PostgresJobStore::update_job_state(const std::string& job_id, int state,
                                         const std::string& error, int64_t finished_ms) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params(
         "UPDATE jobs SET state = $2, error = $3, "
         "finished_ms = CASE WHEN $4::BIGINT > 0 THEN $4::BIGINT ELSE finished_ms END "
@@ -151,7 +164,7 @@ void PostgresJobStore::update_job_state(const std::string& job_id, int state,
 void PostgresJobStore::update_frame(const std::string& job_id, uint32_t frame, bool done,
                                     double elapsed) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params("UPDATE frames SET done = $3, elapsed = $4 WHERE job_id = $1 AND idx = $2",
                   job_id, int64_t(frame), done ? 1 : 0, elapsed);
     w.commit();
@@ -159,7 +172,7 @@ void PostgresJobStore::update_frame(const std::string& job_id, uint32_t frame, b
 
 std::vector<JobRow> PostgresJobStore::load_jobs() {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     pqxx::result rows = w.exec(
         "SELECT id, seq, COALESCE(name, ''), state, priority, request, COALESCE(width, 0), "
         "COALESCE(height, 0), COALESCE(error, ''), COALESCE(submitted_ms, 0), "
@@ -185,7 +198,7 @@ std::vector<JobRow> PostgresJobStore::load_jobs() {
 
 std::vector<FrameRow> PostgresJobStore::load_frames(const std::string& job_id) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     pqxx::result rows = w.exec_params(
         "SELECT idx, done, elapsed FROM frames WHERE job_id = $1 ORDER BY idx", job_id);
     std::vector<FrameRow> out;
@@ -196,13 +209,13 @@ std::vector<FrameRow> PostgresJobStore::load_frames(const std::string& job_id) {
 
 int64_t PostgresJobStore::max_sequence() {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     return w.exec1("SELECT COALESCE(MAX(seq), 0) FROM jobs")[0].as<int64_t>();
 }
 
 void PostgresJobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params(
         "INSERT INTO merged_ranges (job_id, frame, first, end_) VALUES ($1, $2, $3, $4) "
         "ON CONFLICT (job_id, frame, first) DO UPDATE SET end_ = EXCLUDED.end_",
@@ -213,14 +226,14 @@ void PostgresJobStore::add_merged_range(const std::string& job_id, uint32_t fram
 void PostgresJobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
                                          const std::vector<Range>& ranges) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     replace_ranges(w, job_id, frame, ranges);
     w.commit();
 }
 
 std::vector<Range> PostgresJobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     pqxx::result rows = w.exec_params(
         "SELECT first, end_ FROM merged_ranges WHERE job_id = $1 AND frame = $2 ORDER BY first",
         job_id, int64_t(frame));
@@ -233,7 +246,7 @@ std::vector<Range> PostgresJobStore::merged_ranges(const std::string& job_id, ui
 void PostgresJobStore::save_frame(const std::string& job_id, uint32_t frame,
                                   const std::vector<Range>& ranges, bool done, double elapsed) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     replace_ranges(w, job_id, frame, ranges);
     w.exec_params("UPDATE frames SET done = $3, elapsed = $4 WHERE job_id = $1 AND idx = $2",
                   job_id, int64_t(frame), done ? 1 : 0, elapsed);
@@ -242,7 +255,7 @@ void PostgresJobStore::save_frame(const std::string& job_id, uint32_t frame,
 
 void PostgresJobStore::add_asset(const std::string& sha256, uint64_t size) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_params(
         "INSERT INTO assets (sha256, size, added_ms) "
         "VALUES ($1, $2, (EXTRACT(EPOCH FROM now()) * 1000)::BIGINT) "
@@ -253,7 +266,7 @@ void PostgresJobStore::add_asset(const std::string& sha256, uint64_t size) {
 
 void PostgresJobStore::delete_assets(const std::vector<std::string>& assets) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     delete_asset_rows(w, assets);
     w.commit();
 }
@@ -261,7 +274,7 @@ void PostgresJobStore::delete_assets(const std::vector<std::string>& assets) {
 void PostgresJobStore::delete_job(const std::string& job_id,
                                   const std::vector<std::string>& assets) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     for (const char* sql :
          {"DELETE FROM jobs WHERE id = $1", "DELETE FROM frames WHERE job_id = $1",
           "DELETE FROM merged_ranges WHERE job_id = $1", "DELETE FROM leases WHERE job_id = $1"})
@@ -273,7 +286,7 @@ void PostgresJobStore::delete_job(const std::string& job_id,
 void PostgresJobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
                                     const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_prepared("insert_lease", lease_id, worker_id, job_id, int64_t(frame), i64(range.first),
                     i64(range.end));
     w.commit();
@@ -281,7 +294,7 @@ void PostgresJobStore::insert_lease(const std::string& lease_id, const std::stri
 
 bool PostgresJobStore::claim_lease(const LeaseRow& lease) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     // The frame's row lock: a claim on the same frame from any connection waits here until
     // this transaction ends, then (READ COMMITTED: each statement sees what committed before
     // it) finds this lease in its overlap check.
@@ -306,14 +319,14 @@ bool PostgresJobStore::claim_lease(const LeaseRow& lease) {
 
 void PostgresJobStore::delete_lease(const std::string& lease_id) {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     w.exec_prepared("delete_lease", lease_id);
     w.commit();
 }
 
 std::vector<LeaseRow> PostgresJobStore::load_leases() {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     pqxx::result rows = w.exec(
         "SELECT lease_id, COALESCE(worker_id, ''), job_id, frame, first, end_ FROM leases "
         "ORDER BY job_id, frame, first");
@@ -327,7 +340,7 @@ std::vector<LeaseRow> PostgresJobStore::load_leases() {
 
 int PostgresJobStore::clear_leases() {
     std::lock_guard lock(mu_);
-    pqxx::work w(connection_->c);
+    pqxx::work w(live().c);
     pqxx::result r = w.exec("DELETE FROM leases");
     w.commit();
     return int(r.affected_rows());

@@ -54,10 +54,15 @@ class PostgresJobStore final : public JobStore {
     int clear_leases() override;
 
   private:
-    void migrate();
     // libpqxx's connection, kept out of this header.
     struct Connection;
+    // (Re)connects to url_ and prepares the Lease path's statements.
+    void connect();
+    // The connection, made again first if the last one broke.
+    Connection& live();
+    void migrate();
     std::unique_ptr<Connection> connection_;
+    std::string url_;
     std::mutex mu_;
 };
 

@@ -44,6 +44,17 @@ class PostgresInstance {
                    " -U render -d postgres -c " + quote(sql)) == 0;
     }
 
+    // Stops the server (immediately, as a crash would) and starts it again on the same port;
+    // false when it did not come back.
+    bool restart() {
+        const std::string data = quote((dir_ / "data").string());
+        run(as_user(bin("pg_ctl") + " -D " + data + " -m immediate -w stop"));
+        const std::string options = "-p " + std::to_string(port_) + " -k " + dir_.string() +
+                                    " -c listen_addresses=127.0.0.1 -c fsync=off";
+        return run(as_user(bin("pg_ctl") + " -D " + data + " -l " + quote((dir_ / "log").string()) +
+                           " -o " + quote(options) + " -w -t 60 start")) == 0;
+    }
+
   private:
     static std::string quote(const std::string& s) {
         std::string out = "'";

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -288,6 +289,35 @@ TEST_P(JobStoreTest, ConcurrentClaimsFromTwoConnectionsNeverShareARange) {
     for (size_t i = 1; i < leases.size(); ++i)  // sorted by first
         EXPECT_LE(leases[i - 1].range.end, leases[i].range.first)
             << leases[i - 1].lease_id << " and " << leases[i].lease_id << " overlap";
+}
+
+// The database restarting under a running server (a failover, an upgrade): the operation that
+// finds the connection broken fails (the server logs it, as any failed write), and the next
+// ones reconnect, the Lease path's prepared statements included. PostgreSQL only: SQLite has
+// no server to lose.
+TEST_P(JobStoreTest, ReconnectsAfterTheDatabaseRestarts) {
+    if (!postgres()) GTEST_SKIP() << "SQLite is embedded: no database server to restart";
+    auto store = open();
+    store->insert_job(job_row("j", 1), 1);
+    store->insert_lease("before", "w", "j", 0, {1, 2});
+    ASSERT_TRUE(pg_->restart());
+    int failures = 0;
+    std::vector<JobRow> jobs;
+    for (int attempt = 0; attempt < 3 && jobs.empty(); ++attempt) {
+        try {
+            jobs = store->load_jobs();
+        } catch (const std::runtime_error& e) {
+            std::printf("attempt %d: %s\n", attempt, e.what());
+            ++failures;
+        }
+    }
+    ASSERT_EQ(jobs.size(), 1u) << failures << " failed attempts";
+    EXPECT_LE(failures, 1);  // the one that found the connection broken
+    store->insert_lease("after", "w", "j", 0, {2, 3});
+    store->delete_lease("before");
+    auto leases = store->load_leases();
+    ASSERT_EQ(leases.size(), 1u);
+    EXPECT_EQ(leases[0].lease_id, "after");
 }
 
 TEST(JobStoreLocation, UrlsPickTheBackendAndHidePasswords) {
