@@ -14,6 +14,8 @@
 #include "core/render/render_options.h"
 #include "core/util/log.h"
 #include "server/job_manager_detail.h"
+#include "server/store/open_job_store.h"
+#include "server/store/sqlite_job_store.h"
 #include "server/submission_check.h"
 #include "service/request_options.h"
 
@@ -48,7 +50,12 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
       clock_(clock),
       start_clock_(clock_()),
       start_unix_ms_(unix_ms()),
-      store_((fs::create_directories(options.store), options.store / "render.db")),
+      owned_store_((fs::create_directories(options.store),
+                    options.database.empty()
+                        ? std::unique_ptr<JobStore>(
+                              std::make_unique<SqliteJobStore>(options.store / "render.db"))
+                        : open_job_store(options.database))),
+      store_(*owned_store_),
       frame_files_(options.store, store_, clock, options.checkpoint_seconds),
       assets_(options.store, options.max_store_size),
       client_streams_(options.streams),

@@ -43,7 +43,12 @@ namespace render::server {
 namespace v1 = ::render::v1;
 
 struct ServerOptions {
+    // The folder of assets, checkpoints, results and spooled reports, and of the SQLite
+    // database (render.db) unless `database` names another store.
     std::filesystem::path store;
+    // A store URL (server/store/open_job_store.h: postgresql://... or sqlite:FILE); empty:
+    // SQLite in store/render.db.
+    std::string database;
     double lease_timeout_seconds = 30;
     double heartbeat_seconds = 2;
     double target_lease_seconds = 3;
@@ -243,7 +248,9 @@ class JobManager {
     int64_t start_unix_ms_ = 0;
     std::optional<TimePoint> last_asset_sweep_;  // tick()'s thread only
     ServerMetrics metrics_;
-    JobStore store_;
+    // The job store (server/job_store.h) the options name; store_ refers to it.
+    std::unique_ptr<JobStore> owned_store_;
+    JobStore& store_;
     FrameFiles frame_files_;
     AssetStore assets_;
     StreamGuards client_streams_;

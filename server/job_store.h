@@ -1,21 +1,23 @@
 #pragma once
 
-// The persistent job queue: one SQLite database (WAL) with jobs, frames, assets, outstanding
-// leases and merged ranges. Thread-safe (one connection behind a mutex). Throws
-// std::runtime_error with SQLite's message on failure.
+// The persistent job queue: jobs, frames, assets, outstanding leases and merged ranges, behind
+// one interface with two backends (docs/design/job-store.md): SQLite (server/store/
+// sqlite_job_store.h, the embedded default) and PostgreSQL (server/store/
+// postgres_job_store.h). open_job_store (server/store/open_job_store.h) picks one by location.
+// Every implementation is thread-safe and throws std::runtime_error with the database's message
+// on failure; each brings its schema to kJobStoreSchemaVersion when opened.
 
 #include <cstdint>
-#include <filesystem>
-#include <mutex>
 #include <string>
 #include <vector>
 
 #include "server/interval_set.h"
 
-struct sqlite3;
-struct sqlite3_stmt;
-
 namespace render::server {
+
+// The schema's version; both backends apply the same numbered migrations (docs/design/
+// job-store.md, "Migrations"). A store of a newer version is refused.
+inline constexpr int kJobStoreSchemaVersion = 3;
 
 struct JobRow {
     std::string id;
@@ -38,61 +40,64 @@ struct FrameRow {
     double elapsed_seconds = 0;
 };
 
+// One outstanding lease as the store records it.
+struct LeaseRow {
+    std::string lease_id;
+    std::string worker_id;
+    std::string job_id;
+    uint32_t frame = 0;
+    Range range;
+};
+
 class JobStore {
   public:
-    explicit JobStore(const std::filesystem::path& database);
-    ~JobStore();
-    JobStore(const JobStore&) = delete;
-    JobStore& operator=(const JobStore&) = delete;
+    virtual ~JobStore() = default;
 
-    void insert_job(const JobRow& job, uint32_t frame_count);
-    void update_job_priority(const std::string& job_id, int priority);
+    // The schema version the store is at (kJobStoreSchemaVersion once opened).
+    virtual int schema_version() = 0;
+
+    virtual void insert_job(const JobRow& job, uint32_t frame_count) = 0;
+    virtual void update_job_priority(const std::string& job_id, int priority) = 0;
     // `finished_ms`: when a terminal state was reached (0 leaves the recorded time).
-    void update_job_state(const std::string& job_id, int state, const std::string& error,
-                          int64_t finished_ms = 0);
-    void update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed);
-    std::vector<JobRow> load_jobs();
-    std::vector<FrameRow> load_frames(const std::string& job_id);
-    int64_t max_sequence();
+    virtual void update_job_state(const std::string& job_id, int state, const std::string& error,
+                                  int64_t finished_ms = 0) = 0;
+    virtual void update_frame(const std::string& job_id, uint32_t frame, bool done,
+                              double elapsed) = 0;
+    virtual std::vector<JobRow> load_jobs() = 0;
+    virtual std::vector<FrameRow> load_frames(const std::string& job_id) = 0;
+    virtual int64_t max_sequence() = 0;
 
-    void add_merged_range(const std::string& job_id, uint32_t frame, Range range);
+    virtual void add_merged_range(const std::string& job_id, uint32_t frame, Range range) = 0;
     // Replaces a frame's merged ranges (to agree with its checkpoint after a restart).
-    void set_merged_ranges(const std::string& job_id, uint32_t frame,
-                           const std::vector<Range>& ranges);
-    std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame);
+    virtual void set_merged_ranges(const std::string& job_id, uint32_t frame,
+                                   const std::vector<Range>& ranges) = 0;
+    virtual std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame) = 0;
     // In one transaction: the frame's merged ranges become `ranges` (what its checkpoint, or
     // its finished EXR, holds) and its row gets `done` and `elapsed`.
-    void save_frame(const std::string& job_id, uint32_t frame, const std::vector<Range>& ranges,
-                    bool done, double elapsed);
+    virtual void save_frame(const std::string& job_id, uint32_t frame,
+                            const std::vector<Range>& ranges, bool done, double elapsed) = 0;
 
-    void add_asset(const std::string& sha256, uint64_t size);
+    virtual void add_asset(const std::string& sha256, uint64_t size) = 0;
     // The rows of assets removed from the asset store with no job (never submitted, or their
     // jobs deleted), in one transaction.
-    void delete_assets(const std::vector<std::string>& assets);
+    virtual void delete_assets(const std::vector<std::string>& assets) = 0;
     // In one transaction: the job's row, its frames, merged ranges and leases, and the rows of
     // `assets` (those the job alone referenced, removed from the asset store).
-    void delete_job(const std::string& job_id, const std::vector<std::string>& assets);
+    virtual void delete_job(const std::string& job_id, const std::vector<std::string>& assets) = 0;
 
-    void insert_lease(const std::string& lease_id, const std::string& worker_id,
-                      const std::string& job_id, uint32_t frame, Range range);
-    void delete_lease(const std::string& lease_id);
+    // Records a lease the caller's scheduler granted (one server: its scheduler alone hands
+    // out ranges, so no check is needed; this is the Lease path's one write).
+    virtual void insert_lease(const std::string& lease_id, const std::string& worker_id,
+                              const std::string& job_id, uint32_t frame, Range range) = 0;
+    // Records `lease` only if its range overlaps no outstanding lease and no merged range of
+    // its frame, atomically against every other connection to the same database: the frame's
+    // row is locked for the check (docs/design/job-store.md, "Leasing"), so two servers on
+    // one database never hold the same iterations. False when it overlaps (nothing written).
+    virtual bool claim_lease(const LeaseRow& lease) = 0;
+    virtual void delete_lease(const std::string& lease_id) = 0;
+    virtual std::vector<LeaseRow> load_leases() = 0;
     // Voids every lease of a previous run; returns how many there were.
-    int clear_leases();
-
-  private:
-    void exec(const char* sql);
-    // Records one merged range; the caller holds mu_.
-    void insert_merged_range(const std::string& job_id, uint32_t frame, Range range);
-    // The rows of `assets`, inside the caller's transaction (delete_job, delete_assets).
-    void delete_asset_rows(const std::vector<std::string>& assets);
-    // A frame's merged ranges replaced by `ranges`, inside the caller's transaction.
-    void replace_merged_ranges(const std::string& job_id, uint32_t frame,
-                               const std::vector<Range>& ranges);
-    sqlite3* db_ = nullptr;
-    // Prepared once: a lease row is written at every Lease and deleted at every Report.
-    sqlite3_stmt* insert_lease_ = nullptr;
-    sqlite3_stmt* delete_lease_ = nullptr;
-    std::mutex mu_;
+    virtual int clear_leases() = 0;
 };
 
 }  // namespace render::server

@@ -1,6 +1,7 @@
 // `server`: the render service's gRPC frontend.
 //
-//   server --listen HOST:PORT --store DIR [--token T] [--lease-timeout SECONDS]
+//   server --listen HOST:PORT --store DIR|sqlite:FILE|postgresql://... [--data DIR]
+//          [--token T] [--lease-timeout SECONDS]
 //          [--heartbeat SECONDS] [--lease-seconds SECONDS] [--max-lease-seconds SECONDS]
 //          [--checkpoint-seconds SECONDS]
 //          [--max-job-assets SIZE] [--max-store-size SIZE] [--spool-reports-above SIZE]
@@ -26,6 +27,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -41,6 +43,7 @@
 #include "server/http_server.h"
 #include "server/job_manager.h"
 #include "server/job_service.h"
+#include "server/store/open_job_store.h"
 #include "server/worker_service.h"
 #include "service/process_setup.h"
 #include "service/transport_security.h"
@@ -59,6 +62,8 @@ struct Options {
     bool insecure = false;             // a token over plaintext (loopback only)
     std::string health;                // HOST:PORT for grpc.health.v1 (no render API), plaintext
     bool fixed_stream_window = false;  // gRPC's bandwidth-delay probe off
+    std::string store;                 // --store: a folder or a store URL
+    std::string data;                  // --data: the files' folder beside a store URL
     ServerOptions server;
     bool help = false;
 };
@@ -112,8 +117,14 @@ ArgumentParser make_parser(Options& o) {
     ArgumentParser p;
     p.value({"--listen"}, "HOST:PORT", "address to serve on (required; port 0: any free port)",
             [&](const std::string& v) { o.listen = v; });
-    p.value({"--store"}, "DIR", "job store: database, assets, checkpoints, results (required)",
-            [&](const std::string& v) { o.server.store = v; });
+    p.value({"--store"}, "DIR|URL",
+            "job store (required): a folder (SQLite database, assets, checkpoints, results), "
+            "sqlite:FILE or postgresql://... (the database alone; files in --data)",
+            [&](const std::string& v) { o.store = v; });
+    p.value({"--data"}, "DIR",
+            "assets, checkpoints and results when --store is a URL (required with postgresql://; "
+            "default for sqlite:FILE: FILE's folder)",
+            [&](const std::string& v) { o.data = v; });
     p.value({"--token"}, "T",
             "bearer token clients and workers must send (default: env "
             "RENDER_TOKEN)",
@@ -258,7 +269,7 @@ ArgumentParser make_parser(Options& o) {
 
 std::string usage() {
     Options unused;
-    return "usage: server --listen HOST:PORT --store DIR [options]\n\noptions:\n" +
+    return "usage: server --listen HOST:PORT --store DIR|URL [--data DIR] [options]\n\noptions:\n" +
            make_parser(unused).help();
 }
 
@@ -282,7 +293,23 @@ Options parse(int argc, char** argv) {
         std::exit(0);
     }
     if (o.listen.empty()) usage_error("--listen HOST:PORT is required");
-    if (o.server.store.empty()) usage_error("--store DIR is required");
+    if (o.store.empty()) usage_error("--store DIR (or a store URL) is required");
+    if (!is_store_url(o.store)) {
+        if (!o.data.empty()) usage_error("--data goes with a store URL; --store DIR holds both");
+        o.server.store = o.store;
+    } else {
+        o.server.database = o.store;
+        const std::string sqlite_file = sqlite_url_path(o.store);
+        if (o.store.rfind("sqlite:", 0) == 0 && sqlite_file.empty())
+            usage_error("--store sqlite:FILE names no file");
+        if (!o.data.empty())
+            o.server.store = o.data;
+        else if (!sqlite_file.empty())
+            o.server.store = std::filesystem::absolute(sqlite_file).parent_path();
+        else
+            usage_error("--store " + redact_store_url(o.store) +
+                        " needs --data DIR (assets, checkpoints, results)");
+    }
     if (o.listen.rfind(':') == std::string::npos) usage_error("--listen expects HOST:PORT");
     for (const auto& [flag, value] : {std::pair{"--metrics", &o.metrics}, {"--http", &o.http}})
         if (!value->empty() && !split_address(*value))
@@ -345,10 +372,10 @@ int main(int argc, char** argv) {
         manager = std::make_unique<JobManager>(options.server);
     } catch (const std::exception& e) {
         Log("error", "store_open_failed")
-            .kv("store", options.server.store.string())
+            .kv("store", redact_store_url(options.store))
             .kv("error", e.what());
-        std::cerr << "server: cannot open the store " << options.server.store << ": " << e.what()
-                  << "\n";
+        std::cerr << "server: cannot open the store " << redact_store_url(options.store) << ": "
+                  << e.what() << "\n";
         return 1;
     }
     Auth auth(options.token);
@@ -448,7 +475,8 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     Log("info", "listening")
         .kv("address", host + ":" + std::to_string(port))
-        .kv("store", options.server.store.string())
+        .kv("store", redact_store_url(options.store))
+        .kv("data", options.server.store.string())
         .kv("auth", auth.enabled() ? "token" : "none")
         .kv("transport", tls ? "tls" : "plaintext")
         .kv("lease_timeout", options.server.lease_timeout_seconds)

@@ -1,5 +1,5 @@
-// The server's building blocks: SHA-256, bundle path validation, the SQLite job store and the
-// frame checkpoints.
+// The server's building blocks: SHA-256, bundle path validation, the asset store and the frame
+// checkpoints (the job store's tests: server_job_store_test.cpp).
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,6 @@
 #include "core/util/sha256.h"
 #include "server/accumulator.h"
 #include "server/asset_store.h"
-#include "server/job_store.h"
 #include "server/validation.h"
 #include "tests/support/temp_dir.h"
 
@@ -78,41 +77,6 @@ TEST(AssetStore, UploadChecksHashAndSize) {
     std::ifstream in(dir / "job" / "sub/dir/file.txt");
     std::string read((std::istreambuf_iterator<char>(in)), {});
     EXPECT_EQ(read, data);
-    fs::remove_all(dir);
-}
-
-TEST(JobStore, PersistsJobsFramesAndRanges) {
-    fs::path dir = temp_dir("db");
-    {
-        JobStore store(dir / "render.db");
-        JobRow row;
-        row.id = "job-1";
-        row.sequence = 7;
-        row.name = "n";
-        row.request = std::string("\0binary\xff", 8);
-        row.width = 4;
-        row.height = 3;
-        store.insert_job(row, 2);
-        store.update_job_state("job-1", 2, "");
-        store.add_merged_range("job-1", 1, {1, 5});
-        store.update_frame("job-1", 0, true, 2.5);
-        store.insert_lease("L1", "w", "job-1", 0, {5, 6});
-    }
-    JobStore store(dir / "render.db");
-    auto jobs = store.load_jobs();
-    ASSERT_EQ(jobs.size(), 1u);
-    EXPECT_EQ(jobs[0].request, std::string("\0binary\xff", 8));
-    EXPECT_EQ(jobs[0].state, 2);
-    EXPECT_EQ(store.max_sequence(), 7);
-    auto frames = store.load_frames("job-1");
-    ASSERT_EQ(frames.size(), 2u);
-    EXPECT_TRUE(frames[0].done);
-    EXPECT_DOUBLE_EQ(frames[0].elapsed_seconds, 2.5);
-    EXPECT_FALSE(frames[1].done);
-    auto ranges = store.merged_ranges("job-1", 1);
-    ASSERT_EQ(ranges.size(), 1u);
-    EXPECT_EQ(ranges[0], (Range{1, 5}));
-    EXPECT_EQ(store.clear_leases(), 1);
     fs::remove_all(dir);
 }
 

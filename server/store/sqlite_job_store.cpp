@@ -1,4 +1,4 @@
-#include "server/job_store.h"
+#include "server/store/sqlite_job_store.h"
 
 #include <sqlite3.h>
 
@@ -87,7 +87,7 @@ bool has_column(sqlite3* db, const char* table, const char* column) {
 
 }  // namespace
 
-JobStore::JobStore(const std::filesystem::path& database) {
+SqliteJobStore::SqliteJobStore(const std::filesystem::path& database) {
     if (sqlite3_open_v2(database.c_str(), &db_,
                         SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
                         nullptr) != SQLITE_OK) {
@@ -98,24 +98,7 @@ JobStore::JobStore(const std::filesystem::path& database) {
     sqlite3_busy_timeout(db_, 5000);
     exec("PRAGMA journal_mode=WAL");
     exec("PRAGMA synchronous=NORMAL");
-    exec(R"(CREATE TABLE IF NOT EXISTS jobs (
-        id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT, state INTEGER NOT NULL,
-        priority INTEGER NOT NULL, request BLOB NOT NULL, width INTEGER, height INTEGER,
-        error TEXT, submitted_ms INTEGER, finished_ms INTEGER))");
-    // Stores made before the retention rule lack finished_ms: added (NULL reads as 0).
-    if (!has_column(db_, "jobs", "finished_ms"))
-        exec("ALTER TABLE jobs ADD COLUMN finished_ms INTEGER");
-    exec(R"(CREATE TABLE IF NOT EXISTS frames (
-        job_id TEXT NOT NULL, idx INTEGER NOT NULL, done INTEGER NOT NULL DEFAULT 0,
-        elapsed REAL NOT NULL DEFAULT 0, PRIMARY KEY (job_id, idx)))");
-    exec(R"(CREATE TABLE IF NOT EXISTS assets (
-        sha256 TEXT PRIMARY KEY, size INTEGER NOT NULL, added_ms INTEGER))");
-    exec(R"(CREATE TABLE IF NOT EXISTS merged_ranges (
-        job_id TEXT NOT NULL, frame INTEGER NOT NULL, first INTEGER NOT NULL,
-        end_ INTEGER NOT NULL, PRIMARY KEY (job_id, frame, first)))");
-    exec(R"(CREATE TABLE IF NOT EXISTS leases (
-        lease_id TEXT PRIMARY KEY, worker_id TEXT, job_id TEXT, frame INTEGER,
-        first INTEGER, end_ INTEGER, issued_ms INTEGER DEFAULT (strftime('%s','now') * 1000)))");
+    migrate();
     insert_lease_ =
         prepare(db_,
                 "INSERT OR REPLACE INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
@@ -123,13 +106,83 @@ JobStore::JobStore(const std::filesystem::path& database) {
     delete_lease_ = prepare(db_, "DELETE FROM leases WHERE lease_id = ?1");
 }
 
-JobStore::~JobStore() {
+void SqliteJobStore::migrate() {
+    exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)");
+    int version = read_schema_version();
+    if (version > kJobStoreSchemaVersion)
+        throw std::runtime_error("the store's schema is version " + std::to_string(version) +
+                                 ", newer than this server's " +
+                                 std::to_string(kJobStoreSchemaVersion));
+    // Stores made before the schema was versioned hold no row: version 0, and migrations 1
+    // and 2 find their tables and column already there.
+    for (int next = version + 1; next <= kJobStoreSchemaVersion; ++next) {
+        exec("BEGIN IMMEDIATE");
+        try {
+            apply_migration(next);
+            exec("DELETE FROM schema_version");
+            Statement s(db_, "INSERT INTO schema_version (version) VALUES (?1)");
+            s.bind(1, int64_t(next));
+            s.run();
+            exec("COMMIT");
+        } catch (...) {
+            exec("ROLLBACK");
+            throw;
+        }
+    }
+}
+
+void SqliteJobStore::apply_migration(int version) {
+    switch (version) {
+        case 1:
+            exec(R"(CREATE TABLE IF NOT EXISTS jobs (
+            id TEXT PRIMARY KEY, seq INTEGER NOT NULL, name TEXT, state INTEGER NOT NULL,
+            priority INTEGER NOT NULL, request BLOB NOT NULL, width INTEGER, height INTEGER,
+            error TEXT, submitted_ms INTEGER))");
+            exec(R"(CREATE TABLE IF NOT EXISTS frames (
+            job_id TEXT NOT NULL, idx INTEGER NOT NULL, done INTEGER NOT NULL DEFAULT 0,
+            elapsed REAL NOT NULL DEFAULT 0, PRIMARY KEY (job_id, idx)))");
+            exec(R"(CREATE TABLE IF NOT EXISTS assets (
+            sha256 TEXT PRIMARY KEY, size INTEGER NOT NULL, added_ms INTEGER))");
+            exec(R"(CREATE TABLE IF NOT EXISTS merged_ranges (
+            job_id TEXT NOT NULL, frame INTEGER NOT NULL, first INTEGER NOT NULL,
+            end_ INTEGER NOT NULL, PRIMARY KEY (job_id, frame, first)))");
+            exec(R"(CREATE TABLE IF NOT EXISTS leases (
+            lease_id TEXT PRIMARY KEY, worker_id TEXT, job_id TEXT, frame INTEGER,
+            first INTEGER, end_ INTEGER,
+            issued_ms INTEGER DEFAULT (strftime('%s','now') * 1000)))");
+            break;
+        case 2:
+            // The retention rule's finish time (NULL reads as 0); stores made between the rule
+            // and the versioned schema have it already.
+            if (!has_column(db_, "jobs", "finished_ms"))
+                exec("ALTER TABLE jobs ADD COLUMN finished_ms INTEGER");
+            break;
+        case 3:
+            // claim_lease looks up a frame's leases.
+            exec("CREATE INDEX IF NOT EXISTS leases_by_frame ON leases (job_id, frame)");
+            break;
+        default:
+            throw std::logic_error("no migration to version " + std::to_string(version));
+    }
+}
+
+int SqliteJobStore::schema_version() {
+    std::lock_guard lock(mu_);
+    return read_schema_version();
+}
+
+int SqliteJobStore::read_schema_version() {
+    Statement s(db_, "SELECT COALESCE(MAX(version), 0) FROM schema_version");
+    return s.step() ? int(s.i64(0)) : 0;
+}
+
+SqliteJobStore::~SqliteJobStore() {
     sqlite3_finalize(insert_lease_);
     sqlite3_finalize(delete_lease_);
     sqlite3_close(db_);
 }
 
-void JobStore::exec(const char* sql) {
+void SqliteJobStore::exec(const char* sql) {
     char* error = nullptr;
     if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
         std::string message = error ? error : "unknown error";
@@ -138,7 +191,7 @@ void JobStore::exec(const char* sql) {
     }
 }
 
-void JobStore::insert_job(const JobRow& job, uint32_t frame_count) {
+void SqliteJobStore::insert_job(const JobRow& job, uint32_t frame_count) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
@@ -168,15 +221,15 @@ void JobStore::insert_job(const JobRow& job, uint32_t frame_count) {
     }
 }
 
-void JobStore::update_job_priority(const std::string& job_id, int priority) {
+void SqliteJobStore::update_job_priority(const std::string& job_id, int priority) {
     std::lock_guard lock(mu_);
     Statement s(db_, "UPDATE jobs SET priority = ?2 WHERE id = ?1");
     s.text(1, job_id).bind(2, int64_t(priority));
     s.run();
 }
 
-void JobStore::update_job_state(const std::string& job_id, int state, const std::string& error,
-                                int64_t finished_ms) {
+void SqliteJobStore::update_job_state(const std::string& job_id, int state,
+                                      const std::string& error, int64_t finished_ms) {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "UPDATE jobs SET state = ?2, error = ?3, "
@@ -185,14 +238,15 @@ void JobStore::update_job_state(const std::string& job_id, int state, const std:
     s.run();
 }
 
-void JobStore::update_frame(const std::string& job_id, uint32_t frame, bool done, double elapsed) {
+void SqliteJobStore::update_frame(const std::string& job_id, uint32_t frame, bool done,
+                                  double elapsed) {
     std::lock_guard lock(mu_);
     Statement s(db_, "UPDATE frames SET done = ?3, elapsed = ?4 WHERE job_id = ?1 AND idx = ?2");
     s.text(1, job_id).bind(2, int64_t(frame)).bind(3, int64_t(done ? 1 : 0)).bind(4, elapsed);
     s.run();
 }
 
-std::vector<JobRow> JobStore::load_jobs() {
+std::vector<JobRow> SqliteJobStore::load_jobs() {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "SELECT id, seq, name, state, priority, request, width, height, error, "
@@ -216,7 +270,7 @@ std::vector<JobRow> JobStore::load_jobs() {
     return out;
 }
 
-std::vector<FrameRow> JobStore::load_frames(const std::string& job_id) {
+std::vector<FrameRow> SqliteJobStore::load_frames(const std::string& job_id) {
     std::lock_guard lock(mu_);
     Statement s(db_, "SELECT idx, done, elapsed FROM frames WHERE job_id = ?1 ORDER BY idx");
     s.text(1, job_id);
@@ -225,18 +279,18 @@ std::vector<FrameRow> JobStore::load_frames(const std::string& job_id) {
     return out;
 }
 
-int64_t JobStore::max_sequence() {
+int64_t SqliteJobStore::max_sequence() {
     std::lock_guard lock(mu_);
     Statement s(db_, "SELECT COALESCE(MAX(seq), 0) FROM jobs");
     return s.step() ? s.i64(0) : 0;
 }
 
-void JobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
+void SqliteJobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
     insert_merged_range(job_id, frame, range);
 }
 
-void JobStore::insert_merged_range(const std::string& job_id, uint32_t frame, Range range) {
+void SqliteJobStore::insert_merged_range(const std::string& job_id, uint32_t frame, Range range) {
     Statement s(db_,
                 "INSERT OR REPLACE INTO merged_ranges (job_id, frame, first, end_) "
                 "VALUES (?1, ?2, ?3, ?4)");
@@ -247,8 +301,8 @@ void JobStore::insert_merged_range(const std::string& job_id, uint32_t frame, Ra
     s.run();
 }
 
-void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
-                                 const std::vector<Range>& ranges) {
+void SqliteJobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
+                                       const std::vector<Range>& ranges) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
@@ -260,16 +314,16 @@ void JobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
     }
 }
 
-void JobStore::replace_merged_ranges(const std::string& job_id, uint32_t frame,
-                                     const std::vector<Range>& ranges) {
+void SqliteJobStore::replace_merged_ranges(const std::string& job_id, uint32_t frame,
+                                           const std::vector<Range>& ranges) {
     Statement d(db_, "DELETE FROM merged_ranges WHERE job_id = ?1 AND frame = ?2");
     d.text(1, job_id).bind(2, int64_t(frame));
     d.run();
     for (const Range& r : ranges) insert_merged_range(job_id, frame, r);
 }
 
-void JobStore::save_frame(const std::string& job_id, uint32_t frame,
-                          const std::vector<Range>& ranges, bool done, double elapsed) {
+void SqliteJobStore::save_frame(const std::string& job_id, uint32_t frame,
+                                const std::vector<Range>& ranges, bool done, double elapsed) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
@@ -285,7 +339,7 @@ void JobStore::save_frame(const std::string& job_id, uint32_t frame,
     }
 }
 
-std::vector<Range> JobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
+std::vector<Range> SqliteJobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "SELECT first, end_ FROM merged_ranges WHERE job_id = ?1 AND frame = ?2 "
@@ -296,7 +350,7 @@ std::vector<Range> JobStore::merged_ranges(const std::string& job_id, uint32_t f
     return out;
 }
 
-void JobStore::add_asset(const std::string& sha256, uint64_t size) {
+void SqliteJobStore::add_asset(const std::string& sha256, uint64_t size) {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "INSERT OR IGNORE INTO assets (sha256, size, added_ms) "
@@ -305,7 +359,7 @@ void JobStore::add_asset(const std::string& sha256, uint64_t size) {
     s.run();
 }
 
-void JobStore::delete_job(const std::string& job_id, const std::vector<std::string>& assets) {
+void SqliteJobStore::delete_job(const std::string& job_id, const std::vector<std::string>& assets) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
@@ -325,7 +379,7 @@ void JobStore::delete_job(const std::string& job_id, const std::vector<std::stri
     }
 }
 
-void JobStore::delete_asset_rows(const std::vector<std::string>& assets) {
+void SqliteJobStore::delete_asset_rows(const std::vector<std::string>& assets) {
     for (const std::string& sha : assets) {
         Statement s(db_, "DELETE FROM assets WHERE sha256 = ?1");
         s.text(1, sha);
@@ -333,7 +387,7 @@ void JobStore::delete_asset_rows(const std::vector<std::string>& assets) {
     }
 }
 
-void JobStore::delete_assets(const std::vector<std::string>& assets) {
+void SqliteJobStore::delete_assets(const std::vector<std::string>& assets) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
@@ -345,8 +399,8 @@ void JobStore::delete_assets(const std::vector<std::string>& assets) {
     }
 }
 
-void JobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
-                            const std::string& job_id, uint32_t frame, Range range) {
+void SqliteJobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
+                                  const std::string& job_id, uint32_t frame, Range range) {
     std::lock_guard lock(mu_);
     Statement s(db_, insert_lease_);
     s.text(1, lease_id)
@@ -358,14 +412,67 @@ void JobStore::insert_lease(const std::string& lease_id, const std::string& work
     s.run();
 }
 
-void JobStore::delete_lease(const std::string& lease_id) {
+void SqliteJobStore::delete_lease(const std::string& lease_id) {
     std::lock_guard lock(mu_);
     Statement s(db_, delete_lease_);
     s.text(1, lease_id);
     s.run();
 }
 
-int JobStore::clear_leases() {
+bool SqliteJobStore::claim_lease(const LeaseRow& lease) {
+    std::lock_guard lock(mu_);
+    // BEGIN IMMEDIATE takes the database's write lock: no other connection writes between the
+    // check and the insert (SQLite locks the whole database, not rows).
+    exec("BEGIN IMMEDIATE");
+    try {
+        Statement frame(db_, "SELECT 1 FROM frames WHERE job_id = ?1 AND idx = ?2");
+        frame.text(1, lease.job_id).bind(2, int64_t(lease.frame));
+        if (!frame.step()) {
+            exec("COMMIT");
+            return false;  // no such frame
+        }
+        Statement overlap(db_,
+                          "SELECT 1 FROM leases WHERE job_id = ?1 AND frame = ?2 AND first < ?4 "
+                          "AND end_ > ?3 UNION ALL SELECT 1 FROM merged_ranges WHERE job_id = "
+                          "?1 AND frame = ?2 AND first < ?4 AND end_ > ?3 LIMIT 1");
+        overlap.text(1, lease.job_id)
+            .bind(2, int64_t(lease.frame))
+            .bind(3, int64_t(lease.range.first))
+            .bind(4, int64_t(lease.range.end));
+        const bool taken = overlap.step();
+        if (!taken) {
+            Statement s(db_,
+                        "INSERT INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
+                        "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+            s.text(1, lease.lease_id)
+                .text(2, lease.worker_id)
+                .text(3, lease.job_id)
+                .bind(4, int64_t(lease.frame))
+                .bind(5, int64_t(lease.range.first))
+                .bind(6, int64_t(lease.range.end));
+            s.run();
+        }
+        exec("COMMIT");
+        return !taken;
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
+std::vector<LeaseRow> SqliteJobStore::load_leases() {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "SELECT lease_id, worker_id, job_id, frame, first, end_ FROM leases "
+                "ORDER BY job_id, frame, first");
+    std::vector<LeaseRow> out;
+    while (s.step())
+        out.push_back({s.str(0), s.str(1), s.str(2), uint32_t(s.i64(3)),
+                       Range{uint64_t(s.i64(4)), uint64_t(s.i64(5))}});
+    return out;
+}
+
+int SqliteJobStore::clear_leases() {
     std::lock_guard lock(mu_);
     exec("DELETE FROM leases");
     return sqlite3_changes(db_);

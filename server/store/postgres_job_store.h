@@ -1,0 +1,69 @@
+#pragma once
+
+// The job store in a PostgreSQL database (libpqxx), for a farm whose queue outlives one machine
+// and, later, is shared by several servers (docs/design/job-store.md). One connection behind a
+// mutex; claim_lease locks the frame's row (SELECT ... FOR UPDATE), so connections from other
+// servers see one consistent set of leases.
+
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "server/job_store.h"
+
+namespace render::server {
+
+class PostgresJobStore final : public JobStore {
+  public:
+    // `url`: a libpq connection URI (postgresql://user@host:port/database?...). Connects and
+    // migrates the schema to kJobStoreSchemaVersion (several servers starting at once migrate
+    // one after the other: an advisory lock serialises them).
+    explicit PostgresJobStore(const std::string& url);
+    ~PostgresJobStore() override;
+    PostgresJobStore(const PostgresJobStore&) = delete;
+    PostgresJobStore& operator=(const PostgresJobStore&) = delete;
+
+    int schema_version() override;
+
+    void insert_job(const JobRow& job, uint32_t frame_count) override;
+    void update_job_priority(const std::string& job_id, int priority) override;
+    void update_job_state(const std::string& job_id, int state, const std::string& error,
+                          int64_t finished_ms = 0) override;
+    void update_frame(const std::string& job_id, uint32_t frame, bool done,
+                      double elapsed) override;
+    std::vector<JobRow> load_jobs() override;
+    std::vector<FrameRow> load_frames(const std::string& job_id) override;
+    int64_t max_sequence() override;
+
+    void add_merged_range(const std::string& job_id, uint32_t frame, Range range) override;
+    void set_merged_ranges(const std::string& job_id, uint32_t frame,
+                           const std::vector<Range>& ranges) override;
+    std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame) override;
+    void save_frame(const std::string& job_id, uint32_t frame, const std::vector<Range>& ranges,
+                    bool done, double elapsed) override;
+
+    void add_asset(const std::string& sha256, uint64_t size) override;
+    void delete_assets(const std::vector<std::string>& assets) override;
+    void delete_job(const std::string& job_id, const std::vector<std::string>& assets) override;
+
+    void insert_lease(const std::string& lease_id, const std::string& worker_id,
+                      const std::string& job_id, uint32_t frame, Range range) override;
+    bool claim_lease(const LeaseRow& lease) override;
+    void delete_lease(const std::string& lease_id) override;
+    std::vector<LeaseRow> load_leases() override;
+    int clear_leases() override;
+
+  private:
+    // libpqxx's connection, kept out of this header.
+    struct Connection;
+    // (Re)connects to url_ and prepares the Lease path's statements.
+    void connect();
+    // The connection, made again first if the last one broke.
+    Connection& live();
+    void migrate();
+    std::unique_ptr<Connection> connection_;
+    std::string url_;
+    std::mutex mu_;
+};
+
+}  // namespace render::server
