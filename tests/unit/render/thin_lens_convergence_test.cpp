@@ -1,14 +1,16 @@
 // With a thin-lens camera (core/camera/perspective_camera.h) light tracing, BPT and VCM connect
 // light vertices to a sampled lens point; they must converge to path tracing's image, which
-// only generates camera rays. The block test of convergence_test.cpp: 32 batches, 2 x 2 blocks
+// only generates camera rays. The block test of convergence_test.cpp: 32 batches, 4 x 4 blocks
 // per image and channel, the standard error of each block mean from the spread of its batch
 // means, a difference beyond k = 5 combined standard errors fails (P ~ 2e-5 per comparison with
-// 31 degrees of freedom; 36 comparisons here).
+// 31 degrees of freedom; 144 comparisons here). The lens blurs enough that the pinhole's image
+// differs at this block size (checked too), so light paths that ignored the lens would fail.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 
@@ -21,10 +23,15 @@ namespace {
 
 constexpr int kResolution = 32;
 
-// The Cornell box seen through a lens of radius 0.2 focused on the tall box's front (5.8 from
-// the camera): the back wall, the light and the short box are visibly blurred.
+// The Cornell box seen through a lens of radius 0.5 focused at 4 (in front of the box): every
+// surface is blurred, the back wall and the light by ~15 pixels at 32 x 32.
+const std::string kDir = std::string(RENDER_SOURCE_DIR) + "/scenes/bitterli/cornell-box";
+const std::map<std::string, std::string> kDefines = {{"resx", std::to_string(kResolution)},
+                                                     {"resy", std::to_string(kResolution)},
+                                                     {"max_depth", "8"}};
+
 std::unique_ptr<Scene> cornell_box_with_lens() {
-    const std::string dir = std::string(RENDER_SOURCE_DIR) + "/scenes/bitterli/cornell-box";
+    const std::string& dir = kDir;
     std::ifstream in(dir + "/scene_v3.xml");
     std::stringstream text;
     text << in.rdbuf();
@@ -34,12 +41,9 @@ std::unique_ptr<Scene> cornell_box_with_lens() {
     EXPECT_NE(at, std::string::npos);
     if (at == std::string::npos) return nullptr;
     xml.replace(at, pinhole.size(), R"(<sensor type="thinlens">
-        <float name="aperture_radius" value="0.2"/>
-        <float name="focus_distance" value="5.8"/>)");
-    return load_scene_from_string(xml, dir,
-                                  {{"resx", std::to_string(kResolution)},
-                                   {"resy", std::to_string(kResolution)},
-                                   {"max_depth", "8"}});
+        <float name="aperture_radius" value="0.5"/>
+        <float name="focus_distance" value="4"/>)");
+    return load_scene_from_string(xml, dir, kDefines);
 }
 
 testing::BlockEstimate render_blocks(const Scene& scene, const std::string& algorithm,
@@ -47,7 +51,7 @@ testing::BlockEstimate render_blocks(const Scene& scene, const std::string& algo
     RenderSettings settings = resolve_render_settings(algorithm, {}, scene.settings);
     settings.seed = 4321;
     settings.radius_factor = 0.01;  // as convergence_test.cpp: about a pixel at 32 x 32
-    return testing::render_block_estimate(scene, settings, 32, iterations_per_batch, 2);
+    return testing::render_block_estimate(scene, settings, 32, iterations_per_batch, 4);
 }
 
 TEST(ThinLensConvergence, LightTracingBptAndVcmEqualPathTracing) {
@@ -55,6 +59,11 @@ TEST(ThinLensConvergence, LightTracingBptAndVcmEqualPathTracing) {
     ASSERT_TRUE(scene);
     ASSERT_TRUE(scene->camera().has_lens());
     const testing::BlockEstimate reference = render_blocks(*scene, "pt", 8);
+    // The lens matters at this block size: the pinhole's image differs.
+    auto pinhole = load_scene(kDir + "/scene_v3.xml", kDefines);
+    EXPECT_GE(
+        testing::differing_blocks(reference, render_blocks(*pinhole, "pt", 8), 1.0, 5.0).size(),
+        4u);
     for (const char* algorithm : {"lt", "bpt", "vcm"}) {
         SCOPED_TRACE(algorithm);
         const testing::BlockEstimate e = render_blocks(*scene, algorithm, 8);
