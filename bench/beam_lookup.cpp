@@ -61,7 +61,7 @@ const BeamInput& beam_input(const std::string& name, bool long_beams) {
                     in.queries.push_back(q);
                 }
                 if (!hit || !si.bsdf->is_null()) break;
-                medium = medium_after_transmission(si, ray.direction);
+                medium = medium_after_surface(si, ray.direction, medium);
                 ray = s.spawn_ray(si.p, si.geometric_normal, ray.direction);
             }
         }

@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <memory>
 #include <string>
 
 #include "core/base/interaction.h"
@@ -19,6 +20,7 @@ struct Aabb {
 // Geometry the renderer can intersect and (for area lights) sample. A shape registers itself
 // with Embree once; after a hit the scene asks the shape to fill in the interaction.
 class Medium;
+class AlphaCutout;
 
 class Shape {
   public:
@@ -49,6 +51,9 @@ class Shape {
     // normal, `exterior` in front of it. Null is vacuum.
     const Medium* interior = nullptr;
     const Medium* exterior = nullptr;
+    // A cut-out (core/shapes/alpha_cutout.h); null for an opaque shape. Set before the scene
+    // commits: the shape's intersection reads it.
+    std::shared_ptr<const AlphaCutout> alpha;
 };
 
 }  // namespace render

@@ -87,7 +87,7 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
             out.distance = length(si.p - start);
             return out;
         }
-        medium = medium_after_transmission(si, ray.direction);
+        medium = medium_after_surface(si, ray.direction, medium);
         ray = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
     }
     out.weight = Rgb(0.0f);
@@ -119,7 +119,7 @@ SegmentConnection connect_segment(const Scene& scene, const Ray& connection, con
         if (medium) tr *= medium->transmittance(ray, si.t, rng);
         densities.add_piece(medium, ray, si.t);
         if (tr.is_black()) return out;
-        medium = medium_after_transmission(si, ray.direction);
+        medium = medium_after_surface(si, ray.direction, medium);
         const Ray next = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
         const float remaining = to_infinity ? kInfinity : dot(end - next.origin, ray.direction);
         if (!(remaining > 0)) {

@@ -11,8 +11,8 @@ void PixelIntegrator::render_iteration(const Scene& scene, const IterationKey& k
     for_each_pixel(width, camera.height(), target, stats, [&](uint64_t pixel, RenderStats& local) {
         Rng rng(StreamKey{key.seed, key.frame, key.iteration, pixel});
         const Vec2 jitter = rng.next_2d();
-        const Ray ray = camera.generate_ray(
-            Vec2(float(pixel % width) + jitter.x, float(pixel / width) + jitter.y));
+        const Ray ray = camera.sample_ray(
+            Vec2(float(pixel % width) + jitter.x, float(pixel / width) + jitter.y), rng);
         return Li(scene, ray, rng, local, LayerSink{layers, pixel});
     });
 }

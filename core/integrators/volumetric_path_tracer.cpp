@@ -259,9 +259,8 @@ class Tracer {
         const float w = dl.light->is_delta() || technique_ == VolptTechnique::DistanceLight
                             ? 1.0f
                             : power_heuristic(light_pdf_w, pdf_w.forward);
-        // The shadow ray starts in the medium on the light's side of the surface.
-        const bool same_side = dot(ls.wi, si.geometric_normal) * dot(wo, si.geometric_normal) > 0;
-        const Medium* start = same_side ? medium : medium_after_transmission(si, ls.wi);
+        // The shadow ray starts in the medium the rule gives its direction (medium_interface.h).
+        const Medium* start = medium_after_surface(si, ls.wi, medium);
         const Rgb tr = light_visibility(si.p, si.geometric_normal, dl, start);
         return f * ls.radiance * tr * (bsdf.abs_cos_shading(ls.wi) * w / light_pdf_w);
     }
@@ -414,7 +413,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
         if (si.bsdf->is_null()) {
             // An index-matched boundary: only the medium changes.
             if (++null_crossings > kMaxNullCrossings) break;
-            medium = medium_after_transmission(si, ray.direction);
+            medium = medium_after_surface(si, ray.direction, medium);
             ray = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
             continue;
         }
@@ -445,8 +444,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
         const std::optional<BsdfSample> bs = bsdf.sample(wo, u_lobe, rng.next_2d());
         if (!bs || bs->weight.is_black()) break;
         beta *= bs->weight;
-        if (dot(bs->wi, si.geometric_normal) * dot(wo, si.geometric_normal) < 0)
-            medium = medium_after_transmission(si, bs->wi);
+        medium = medium_after_surface(si, bs->wi, medium);
         prev = ScatteringVertex{};
         prev.p = si.p;
         prev.delta = bs->delta;

@@ -7,6 +7,7 @@
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
+#include "core/materials/diffuse_transmission.h"
 #include "core/materials/normal_map.h"
 #include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
@@ -23,6 +24,7 @@ namespace {
 constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] = {
     {"diffuse", &DiffuseBsdf::create},
     {"twosided", &TwoSidedBsdf::create},
+    {"diffusetransmission", &DiffuseTransmissionBsdf::create},  // pbrt-v4's; ours in XML
     {"conductor", &ConductorBsdf::create},
     {"roughconductor", &RoughConductorBsdf::create},
     {"dielectric", &DielectricBsdf::create},

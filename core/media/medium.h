@@ -2,7 +2,7 @@
 
 // Participating media. A medium fills the space between surfaces that name it as their interior
 // or exterior (Mitsuba's medium interfaces); paths carry the medium they are in and change it
-// only when they cross a surface by transmission (core/media/medium_interface.h).
+// at the surfaces that declare media (core/media/medium_interface.h).
 //
 // Coefficients are RGB. Distances are sampled with *spectral MIS* (one-sample MIS over the three
 // channels with the balance heuristic, as in pbrt-v4 and Mitsuba 3): a channel c is chosen

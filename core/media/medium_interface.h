@@ -1,10 +1,15 @@
 #pragma once
 
-// Which medium a path is in after crossing a surface. Mitsuba's rule: only transmission
-// changes the medium, and the new one is the shape's interior when the direction goes against
-// the geometric normal, its exterior otherwise; a side the shape does not declare is vacuum
-// (null). A shape that declares no media therefore puts vacuum behind every transmission,
-// which is what a glass object in fog needs when its own inside is empty.
+// Which medium a path is in after a surface event: Mitsuba 3's rule, read from its `volpath`
+// (docs/design/media.md, "Which medium a path is in"). A shape that declares a medium on either
+// side is a medium transition: whatever happened there (reflection, transmission, a null
+// crossing), the path continues in the medium on the side its new direction points to, the
+// exterior in front of the geometric normal, the interior behind it, vacuum (null) for a side
+// it does not declare. A shape that declares neither keeps the medium the path had. pbrt-v4's
+// rule is the same once its loader leaves shapes with equal media on both sides undeclared.
+//
+// The medium is therefore set by the last declaring interface crossed: leaving a shape puts the
+// path in that shape's exterior even inside a larger shape with the same interior.
 
 #include "core/base/interaction.h"
 #include "core/base/shape.h"
@@ -14,8 +19,22 @@ namespace render {
 
 class Medium;
 
-inline const Medium* medium_after_transmission(const SurfaceInteraction& si, const Vec3& d) {
-    return dot(d, si.geometric_normal) < 0 ? si.shape->interior : si.shape->exterior;
+inline bool is_medium_transition(const Shape& shape) {
+    return shape.interior != nullptr || shape.exterior != nullptr;
+}
+
+// The medium of a path leaving a point of `shape` (geometric normal `n`) in direction `d`,
+// having been in `current` before. Exactly on the surface (d ⟂ n) counts as the interior, as
+// in Mitsuba.
+inline const Medium* medium_after_surface(const Shape& shape, const Vec3& n, const Vec3& d,
+                                          const Medium* current) {
+    if (!is_medium_transition(shape)) return current;
+    return dot(d, n) > 0 ? shape.exterior : shape.interior;
+}
+
+inline const Medium* medium_after_surface(const SurfaceInteraction& si, const Vec3& d,
+                                          const Medium* current) {
+    return medium_after_surface(*si.shape, si.geometric_normal, d, current);
 }
 
 }  // namespace render

@@ -81,6 +81,8 @@ std::shared_ptr<const Volume> make_volume(const Properties& props, const std::st
                  const Rgb value = p.get_rgb("value", Rgb(1.0f));
                  if (!value.is_finite() || value.r < 0 || value.g < 0 || value.b < 0)
                      throw p.error("value", "must be finite and >= 0");
+                 // Mitsuba accepts a placement; a constant reads the same everywhere after any.
+                 if (p.has("to_world")) (void)p.get_transform("to_world");
                  return std::make_shared<ConstantVolume>(value);
              }},
             {"gridvolume", make_grid_volume},

@@ -1,7 +1,7 @@
 #pragma once
 
 // Scene-file volumes (Mitsuba 3's `<volume type="...">`):
-//   constvolume  value (float or rgb, default 1)
+//   constvolume  value (float or rgb, default 1); to_world accepted (a constant ignores it)
 //   gridvolume   filename (.vol or .vdb, relative to scene_dir), to_world (transform of the
 //                unit cube, identity), filter_type ("trilinear" | "nearest"), wrap_mode
 //                ("clamp" only), use_grid_bbox (boolean, false: place the grid by the file's

@@ -100,7 +100,7 @@ void Scene::commit() {
     for (const auto& shape : shapes_) {
         unsigned id = shape->attach(device_, rtc_scene_);
         const auto* analytic = dynamic_cast<const AnalyticShape*>(shape.get());
-        if (analytic && direct)
+        if (analytic && direct && !analytic->alpha)  // a cut-out needs its Embree callback
             direct_occluders_.push_back(analytic);
         else if (shadow_bvh_)
             also_for_occlusion(id);

@@ -5,9 +5,32 @@
 
 #include "core/base/error.h"
 #include "core/sampling/warp.h"
+#include "core/shapes/alpha_cutout.h"
 #include "core/shapes/triangle_mesh_hit.h"
 
 namespace render {
+namespace {
+
+// Embree's filter for meshes with a cut-out: rejects the candidate hits the cut-out drops.
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+    const auto* mesh = static_cast<const TriangleMesh*>(args->geometryUserPtr);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] != -1) continue;
+        const float org[3] = {RTCRayN_org_x(args->ray, args->N, i),
+                              RTCRayN_org_y(args->ray, args->N, i),
+                              RTCRayN_org_z(args->ray, args->N, i)};
+        const float dir[3] = {RTCRayN_dir_x(args->ray, args->N, i),
+                              RTCRayN_dir_y(args->ray, args->N, i),
+                              RTCRayN_dir_z(args->ray, args->N, i)};
+        const Vec2 uv =
+            mesh->uv_of(RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+                        RTCHitN_v(args->hit, args->N, i));
+        if (!mesh->alpha->keeps_hit(uv, org, dir, RTCRayN_tfar(args->ray, args->N, i)))
+            args->valid[i] = 0;
+    }
+}
+
+}  // namespace
 
 TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_normals,
                            bool face_normals, std::string name)
@@ -99,6 +122,12 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
         rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                 3 * sizeof(uint32_t), triangle_count()));
     std::copy(indices_.begin(), indices_.end(), indices);
+    if (alpha) {
+        // Cut-outs: Embree asks the filter about every candidate hit, for both query kinds.
+        rtcSetGeometryUserData(geometry, const_cast<TriangleMesh*>(this));
+        rtcSetGeometryIntersectFilterFunction(geometry, alpha_filter);
+        rtcSetGeometryOccludedFilterFunction(geometry, alpha_filter);
+    }
     rtcCommitGeometry(geometry);
     unsigned id = rtcAttachGeometry(scene, geometry);
     rtcReleaseGeometry(geometry);

@@ -1,6 +1,9 @@
 #include "core/shapes/user_geometry.h"
 
+#include <cmath>
 #include <limits>
+
+#include "core/shapes/alpha_cutout.h"
 
 namespace render {
 namespace {
@@ -8,6 +11,21 @@ namespace {
 void analytic_bounds(const RTCBoundsFunctionArguments* args) {
     Aabb b = static_cast<const AnalyticShape*>(args->geometryUserPtr)->bounds();
     *args->bounds_o = RTCBounds{b.lo.x, b.lo.y, b.lo.z, 0.0f, b.hi.x, b.hi.y, b.hi.z, 0.0f};
+}
+
+// The nearest hit that the shape's cut-out keeps (the nearest hit without one). A cut-out
+// hit lets the ray go on to the surface's next hit: an analytic shape has at most two.
+std::optional<double> nearest_kept_hit(const AnalyticShape& shape, const float org[3],
+                                       const float dir[3], float t_min, float t_max) {
+    std::optional<double> t = shape.nearest_hit(org, dir, t_min, t_max);
+    if (!shape.alpha) return t;
+    for (int hit = 0; hit < 4 && t; ++hit) {
+        const Vec3 p(float(org[0] + *t * dir[0]), float(org[1] + *t * dir[1]),
+                     float(org[2] + *t * dir[2]));
+        if (shape.alpha->keeps_hit(shape.uv_at(p), org, dir, float(*t))) return t;
+        t = shape.nearest_hit(org, dir, std::nextafter(float(*t), t_max), t_max);
+    }
+    return std::nullopt;
 }
 
 // The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
@@ -18,7 +36,7 @@ void analytic_intersect(const RTCIntersectFunctionNArguments* args) {
     RTCRay& ray = rayhit->ray;
     const float org[3] = {ray.org_x, ray.org_y, ray.org_z};
     const float dir[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
-    std::optional<double> t = shape->nearest_hit(org, dir, ray.tnear, ray.tfar);
+    std::optional<double> t = nearest_kept_hit(*shape, org, dir, ray.tnear, ray.tfar);
     if (!t) return;
     ray.tfar = float(*t);
     RTCHit& hit = rayhit->hit;
@@ -35,7 +53,7 @@ void analytic_occluded(const RTCOccludedFunctionNArguments* args) {
     auto* ray = reinterpret_cast<RTCRay*>(args->ray);
     const float org[3] = {ray->org_x, ray->org_y, ray->org_z};
     const float dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-    if (shape->nearest_hit(org, dir, ray->tnear, ray->tfar))
+    if (nearest_kept_hit(*shape, org, dir, ray->tnear, ray->tfar))
         ray->tfar = -std::numeric_limits<float>::infinity();
 }
 

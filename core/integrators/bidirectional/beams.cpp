@@ -101,7 +101,7 @@ void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& st
         }
         if (!hit || !si.bsdf->is_null() || transmittance.is_black()) break;
         before.add_piece(medium, piece, si.t);
-        medium = medium_after_transmission(si, piece.direction);
+        medium = medium_after_surface(si, piece.direction, medium);
         piece = scene_.spawn_ray(si.p, si.geometric_normal, piece.direction);
     }
 }
@@ -228,7 +228,7 @@ void Iteration::emit_photon_beams(const Ray& ray, const SubpathState& from,
         if (last) return;
         beam.before.add_piece(medium, r, t_end);
         offset += t_end;
-        medium = medium_after_transmission(si, r.direction);
+        medium = medium_after_surface(si, r.direction, medium);
         r = scene_.spawn_ray(si.p, si.geometric_normal, r.direction);
     }
 }

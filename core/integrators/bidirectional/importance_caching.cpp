@@ -109,7 +109,8 @@ void Iteration::build_importance_cache(RenderStats& stats) {
                     // surface (cell solid angle x distance^2 / cos, as an area; along the
                     // path for deeper records, which ignores the spread of the scattering).
                     const double solid_angle =
-                        double(cell_w) * cell_h / camera_pixel_pdf_w(r.camera_direction);
+                        double(cell_w) * cell_h /
+                        camera_pixel_pdf_w(r.camera_origin, r.camera_direction);
                     const double cos_in = std::max(0.1f, r.vertex.cos(r.wo));
                     radii[j].push_back(
                         float(std::sqrt(solid_angle * r.distance * r.distance / cos_in / kPi)));

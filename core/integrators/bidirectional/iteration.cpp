@@ -40,11 +40,11 @@ Iteration::Iteration(const IterationPlan& plan, const Scene& scene, const Iterat
 Ray Iteration::start_eye_path(uint64_t pixel, Rng& rng, SubpathState& state) const {
     const int width = camera_.width();
     const Vec2 jitter = rng.next_2d();
-    Ray ray = camera_.generate_ray(
-        Vec2(float(pixel % width) + jitter.x, float(pixel / width) + jitter.y));
+    Ray ray = camera_.sample_ray(
+        Vec2(float(pixel % width) + jitter.x, float(pixel / width) + jitter.y), rng);
     state.throughput = Rgb(1.0f);
     state.initial_luminance = 1.0f;
-    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
+    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.origin, ray.direction));
     state.medium = scene_.camera_medium();
     state.origin = ray.origin;
     return ray;

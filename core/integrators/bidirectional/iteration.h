@@ -175,9 +175,9 @@ class Iteration {
 
   private:
     // Solid-angle density, per unit pixel area, of the camera producing world direction `dir`
-    // (the report's camera pdf with the image plane measured in pixels).
-    float camera_pixel_pdf_w(const Vec3& dir) const {
-        return camera_.direction_pdf_w(dir) * float(plan_.pixel_count);
+    // from lens point `origin` (the report's camera pdf with the image plane measured in pixels).
+    float camera_pixel_pdf_w(const Vec3& origin, const Vec3& dir) const {
+        return camera_.direction_pdf_w(origin, dir) * float(plan_.pixel_count);
     }
 
     bool generate_light_sample(Rng& rng, SubpathState& state, Ray& ray) const;
@@ -348,7 +348,8 @@ class Iteration {
         int path_length;
         float distance;  // along the camera path (for the record's footprint)
         Vec3 camera_direction;
-        MisQuantities mis;  // of the eye subpath ending at the record (ic connections' weights)
+        MisQuantities mis;   // of the eye subpath ending at the record (ic connections' weights)
+        Vec3 camera_origin;  // the camera ray's lens point (the camera position for a pinhole)
     };
     std::optional<Record> trace_record(uint64_t index, RenderStats& stats) const;
     // The record of the camera ray through image position `position` (in pixels).

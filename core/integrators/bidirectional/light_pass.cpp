@@ -226,18 +226,22 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
 
 void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
                                   Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const {
-    std::optional<Vec2> raster = camera_.raster_position(v.p);
-    if (!raster) return;
-    const Vec3 to_camera = camera_.position() - v.p;
+    // The pinhole, or a lens point sampled uniformly (its density cancels: perspective_camera.h).
+    const std::optional<PerspectiveCamera::LensConnection> lens =
+        camera_.sample_connection(v.p, rng);
+    if (!lens) return;
+    const Vec3 camera_point = lens->lens_point;
+    const Vec2* raster = &lens->raster;
+    const Vec3 to_camera = camera_point - v.p;
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
     const Vec3 d = to_camera / std::sqrt(dist2);
     const auto [f, pdf_w] = v.evaluate(wo, d);
     if (f.is_black()) return;
-    const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_.position(), Vec3());
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_point, Vec3());
     const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return;
-    const float camera_pdf_w = camera_pixel_pdf_w(-d);
+    const float camera_pdf_w = camera_pixel_pdf_w(camera_point, -d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
     const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
     // J1 of the junction whose eye-side vertex is this one, sampled along the camera ray.
@@ -245,12 +249,11 @@ void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex
     if (plan_.joint && v.in_medium() &&
         joint_light_side(state.path_length, state.is_finite_light) && l.one_piece &&
         l.densities.toward_start > 0)
-        light_joint_ratio =
-            joint_pdf_l(camera_.position(), v.p, v.previous) / l.densities.toward_start;
+        light_joint_ratio = joint_pdf_l(camera_point, v.p, v.previous) / l.densities.toward_start;
     const float camera_light_joint2 =
         light_joint_ratio > 0
             ? light_joint2_ratio(v.joint2.previous2, v.previous, v.joint2.previous_light_ray_pdf,
-                                 camera_.position(), v.p)
+                                 camera_point, v.p)
             : 0.0f;
     // P-B2D at this vertex with the camera ray as the query.
     const float light_query_beam =

@@ -13,6 +13,7 @@
 #include "core/materials/surface_bsdf.h"
 #include "core/math/ray.h"
 #include "core/media/medium.h"
+#include "core/media/medium_interface.h"
 #include "core/media/phase_function.h"
 #include "core/sampling/half_line_equiangular.h"
 
@@ -109,11 +110,10 @@ struct Vertex {
         bs.pdf_w = BsdfPdf{ps.pdf_w, ps.pdf_w};
         return bs;
     }
-    // The medium on the side of direction d, for a path that arrived from wo: a surface keeps
-    // the arrival medium on wo's side and has its shape's medium across (medium_interface.h).
-    const Medium* medium_toward(const Vec3& wo, const Vec3& d) const {
-        if (phase || dot(d, n) * dot(wo, n) > 0) return medium;
-        return dot(d, n) < 0 ? shape->interior : shape->exterior;
+    // The medium toward direction d of a path that arrived in `medium` (medium_interface.h).
+    const Medium* medium_toward(const Vec3& /*wo*/, const Vec3& d) const {
+        if (phase) return medium;
+        return medium_after_surface(*shape, n, d, medium);
     }
 };
 

@@ -42,11 +42,11 @@ std::optional<Iteration::Record> Iteration::trace_record_at(Vec2 position, Rng& 
 void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats& stats,
                                  std::vector<Record>& out) const {
     const size_t wanted = out.size() + size_t(count);
-    Ray ray = camera_.generate_ray(position);
-    const Vec3 camera_direction = ray.direction;
+    Ray ray = camera_.sample_ray(position, rng);
+    const Vec3 camera_direction = ray.direction, camera_origin = ray.origin;
     SubpathState state;
     state.throughput = Rgb(1.0f);
-    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.direction));
+    state.mis = mis_.start_camera(camera_pixel_pdf_w(ray.origin, ray.direction));
     state.medium = scene_.camera_medium();
     float distance = 0;
     for (;; ++state.path_length) {
@@ -57,7 +57,7 @@ void Iteration::trace_records_at(Vec2 position, int count, Rng& rng, RenderStats
         distance += seg.distance;
         if (v->has_non_delta()) {
             out.push_back(Record{*v, -ray.direction, state.throughput, state.path_length, distance,
-                                 camera_direction, state.mis});
+                                 camera_direction, state.mis, camera_origin});
             if (out.size() == wanted) return;
         }
         if (!sample_scattering(*v, -ray.direction, rng, state, ray)) return;

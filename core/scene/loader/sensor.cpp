@@ -43,9 +43,9 @@ void Loader::read_sensor(const XmlElement& e) {
         }
         return false;
     });
-    if (props.type() != "perspective")
-        throw SceneError(e.where(),
-                         "unknown sensor type \"" + props.type() + "\" (supported: perspective)");
+    if (props.type() != "perspective" && props.type() != "thinlens")
+        throw SceneError(e.where(), "unknown sensor type \"" + props.type() +
+                                        "\" (supported: perspective, thinlens)");
     PerspectiveCamera camera = build(props, [&] {
         float fov = 0;
         char fov_axis = 'x';
@@ -81,7 +81,16 @@ void Loader::read_sensor(const XmlElement& e) {
         if (!(far_clip > near_clip)) throw props.error("far_clip", "must be larger than near_clip");
         // Mitsuba's projective cameras all read `focus_distance`; a pinhole has no focus,
         // so the value has no effect there (as in Mitsuba), but it must be a number.
-        props.get_float("focus_distance", far_clip);
+        const float focus_distance = props.get_float("focus_distance", far_clip);
+        float aperture_radius = 0;
+        if (props.type() == "thinlens") {
+            // Mitsuba's thinlens: `aperture_radius` is required (its zero becomes a pinhole).
+            aperture_radius = props.get_float("aperture_radius");
+            if (!(aperture_radius >= 0 && std::isfinite(aperture_radius)))
+                throw props.error("aperture_radius", "must be finite and >= 0");
+            if (!(focus_distance > 0 && std::isfinite(focus_distance)))
+                throw props.error("focus_distance", "must be positive");
+        }
         // A shifted principal point (off-axis projection) is not implemented; the zero
         // offsets exporters write are the identity.
         for (const char* name : {"principal_point_offset_x", "principal_point_offset_y"})
@@ -90,6 +99,13 @@ void Loader::read_sensor(const XmlElement& e) {
         const Transform to_world = props.get_transform("to_world", Transform());
         if (to_world.is_singular()) throw props.error("to_world", "the transform is singular");
         PerspectiveCamera camera(to_world, fov, fov_axis, width, height);
+        if (aperture_radius > 0) {
+            // As Mitsuba: the lens lives in camera units, which must be the world's.
+            for (const Vec3& axis : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)})
+                if (std::abs(length(to_world.apply_vector(axis)) - 1.0f) > 1e-3f)
+                    throw props.error("to_world", "a thinlens camera's transform may not scale");
+            camera.set_thin_lens(aperture_radius, focus_distance);
+        }
         if (!within_scene_limits(camera.position()))
             throw props.error("to_world", "places the camera beyond 1e12 from the origin");
         // Camera rays start from to_world: refused at its line when near-singular, as a

@@ -261,6 +261,13 @@ std::shared_ptr<const Bsdf> make_material(
         Properties props("bsdf", "diffuse", at);
         put_color(params, "reflectance", props, "reflectance", textures);
         bsdf = two_sided(make_bsdf(props), at);
+    } else if (type == "diffusetransmission") {
+        // Two-sided by itself: reflection on either side, transmission across.
+        Properties props("bsdf", "diffusetransmission", at);
+        put_color(params, "reflectance", props, "reflectance", textures);
+        put_color(params, "transmittance", props, "transmittance", textures);
+        if (params.has("scale")) props.set("scale", float(params.get_float("scale", 1)), at);
+        bsdf = make_bsdf(props);
     } else if (type == "conductor") {
         bsdf = two_sided(conductor(params, at), at);
     } else if (type == "dielectric") {
@@ -314,8 +321,8 @@ std::shared_ptr<const Bsdf> make_material(
                 bsdf = make_bsdf(props);
             }
         }
-    } else if (type == "diffusetransmission" || type == "coatedconductor" || type == "hair" ||
-               type == "measured" || type == "subsurface") {
+    } else if (type == "coatedconductor" || type == "hair" || type == "measured" ||
+               type == "subsurface") {
         throw SceneError(at, params.context() + ": material \"" + type + "\" is not supported yet");
     } else {
         throw SceneError(at, params.context() + ": unknown material \"" + type + "\"");

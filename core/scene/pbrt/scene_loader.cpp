@@ -19,6 +19,7 @@
 #include "core/scene/pbrt/graphics_state.h"
 #include "core/scene/pbrt/tokenizer.h"
 #include "core/scene/pbrt/transforms.h"
+#include "core/shapes/alpha_cutout.h"
 #include "core/shapes/instance.h"
 
 namespace render::pbrt {
@@ -440,10 +441,14 @@ class Loader {
         if (!camera_) p.where = d.where;
         const double fov = p.get_float("fov", 90.0);
         if (!(fov > 0 && fov < 180)) throw p.error("fov", "must be in (0, 180) degrees");
-        if (p.get_float("lensradius", 0.0) != 0.0)
-            throw p.error("lensradius", "depth of field is not supported yet (a pinhole only)");
-        p.get_float("focaldistance", 1e6);  // no effect without a lens
-        p.get_float("shutteropen", 0.0);    // no effect without motion
+        // pbrt-v4's thin lens (defaults: no lens, focus at 1e6).
+        const double lens_radius = p.get_float("lensradius", 0.0);
+        const double focal_distance = p.get_float("focaldistance", 1e6);
+        if (!(lens_radius >= 0 && std::isfinite(lens_radius)))
+            throw p.error("lensradius", "must be finite and >= 0");
+        if (lens_radius > 0 && !(focal_distance > 0 && std::isfinite(focal_distance)))
+            throw p.error("focaldistance", "must be positive");
+        p.get_float("shutteropen", 0.0);  // no effect without motion
         p.get_float("shutterclose", 1.0);
         if (p.has("frameaspectratio") || p.has("screenwindow"))
             throw p.error(p.has("screenwindow") ? "screenwindow" : "frameaspectratio",
@@ -455,7 +460,8 @@ class Loader {
             throw SceneError(p.where, "the camera transform is singular");
         // pbrt: fov spans the shorter image axis.
         const char axis = width_ > height_ ? 'y' : 'x';
-        const PerspectiveCamera camera(to_world, float(fov), axis, width_, height_);
+        PerspectiveCamera camera(to_world, float(fov), axis, width_, height_);
+        if (lens_radius > 0) camera.set_thin_lens(float(lens_radius), float(focal_distance));
         if (!within_scene_limits(camera.position()))
             throw SceneError(p.where, "the camera lies beyond 1e12 from the origin");
         scene_.set_camera(camera);
@@ -501,8 +507,12 @@ class Loader {
                                           "\": area lights in object instances are not "
                                           "supported (nor are they in pbrt-v4)");
         check_ray_transform(d);
+        std::shared_ptr<const AlphaCutout> alpha = read_alpha(p);
+        if (alpha && state_.area_light)
+            throw p.error("alpha", "an area light with an alpha cut-out is not supported yet");
         std::unique_ptr<Shape> shape =
             make_shape(type, p, state_.ctm, state_.reverse_orientation, resolver());
+        shape->alpha = std::move(alpha);
         check_extent(*shape, d);
         std::unique_ptr<Light> light;
         if (state_.area_light) {
@@ -526,6 +536,28 @@ class Loader {
         if (object_) return object_->add(std::move(shape), keep(state_.material));
         scene_.add_shape(std::move(shape), keep(state_.material));
         if (light) scene_.add_light(std::move(light));
+    }
+
+    // pbrt-v4's `alpha`: a float or a float texture; null for an opaque shape (alpha 1).
+    std::shared_ptr<const AlphaCutout> read_alpha(const ParamList& p) const {
+        if (!p.has("alpha")) return nullptr;
+        FloatParam alpha;
+        if (p.type_of("alpha") == "texture") {
+            const Param* a = p.find("alpha");
+            a->used = true;
+            if (a->strings.size() != 1) throw p.error("alpha", "expects one texture name");
+            auto it = textures_.floats.find(a->strings[0]);
+            if (it == textures_.floats.end())
+                throw p.error("alpha", "unknown float texture \"" + a->strings[0] +
+                                           "\" (a texture must be defined before it is used)");
+            alpha.texture = it->second;
+        } else {
+            const double value = p.get_float("alpha", 1.0);
+            if (!std::isfinite(value)) throw p.error("alpha", "must be finite");
+            if (value >= 1) return nullptr;
+            alpha.value = float(value);
+        }
+        return std::make_shared<AlphaCutout>(std::move(alpha));
     }
 
     // ----- object instancing (core/shapes/instance.h) -----

@@ -186,7 +186,7 @@ std::unique_ptr<Shape> make_shape(
     } else {
         throw SceneError(params.where, params.context() + ": unknown shape \"" + type + "\"");
     }
-    if (params.has("alpha")) throw params.error("alpha", "alpha cut-outs are not supported yet");
+    // `alpha` is read by the caller (the cut-out, core/shapes/alpha_cutout.h).
     params.check_all_used();
     return shape;
 }

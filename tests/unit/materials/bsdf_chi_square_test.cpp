@@ -15,6 +15,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/materials/conductor.h"
 #include "core/materials/diffuse.h"
+#include "core/materials/diffuse_transmission.h"
 #include "core/materials/microfacet.h"
 #include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
@@ -126,6 +127,17 @@ std::vector<ChiSquareCase> all_cases() {
     for (float c : angles)
         cases.push_back(
             {"diffuse_" + cos_name(c), [] { return std::make_shared<DiffuseBsdf>(Rgb(0.5f)); }, c});
+    // Both lobes, from either side; transmission only.
+    for (float c : {0.9f, 0.5f, 0.1f, -0.3f, -0.8f})
+        cases.push_back({"diffusetransmission_" + cos_name(c),
+                         [] {
+                             return std::make_shared<DiffuseTransmissionBsdf>(
+                                 Rgb(0.2f, 0.5f, 0.8f), Rgb(0.6f, 0.3f, 0.1f));
+                         },
+                         c});
+    cases.push_back({"diffusetransmission_transmit_only",
+                     [] { return std::make_shared<DiffuseTransmissionBsdf>(Rgb(0.0f), Rgb(0.7f)); },
+                     0.4f});
     for (float c : angles)
         cases.push_back({"twosided_diffuse_below_" + cos_name(c),
                          [] {

@@ -16,6 +16,7 @@
 #include "core/materials/conductor.h"
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
+#include "core/materials/diffuse_transmission.h"
 #include "core/materials/fresnel.h"
 #include "core/materials/ior.h"
 #include "core/materials/microfacet.h"
@@ -125,6 +126,12 @@ std::vector<NamedBsdf> all_bsdfs() {
          std::make_shared<BlendBsdf>(std::make_shared<NullBsdf>(), diffuse, 0.35f, true)},
         {"phong_cornell_floor", phong},
         {"phong_n1", std::make_shared<PhongBsdf>(Rgb(0.3f), Rgb(0.6f), 1.0f)},
+        // Transmits, but symmetric in wo and wi and without an index: the reciprocity of
+        // reflection holds for both its lobes (not `transmissive`, which means a dielectric).
+        {"diffusetransmission",
+         std::make_shared<DiffuseTransmissionBsdf>(Rgb(0.2f, 0.5f, 0.8f), Rgb(0.6f, 0.3f, 0.1f))},
+        {"diffusetransmission_transmit_only",
+         std::make_shared<DiffuseTransmissionBsdf>(Rgb(0.0f), Rgb(0.9f, 0.7f, 0.5f))},
     };
 }
 
@@ -752,14 +759,15 @@ std::string error_of(const Properties& props) {
 TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
     EXPECT_EQ(error_of(bsdf_props("velvet")),
               "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
-              "conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, "
+              "diffusetransmission, conductor, roughconductor, dielectric, roughdielectric, "
+              "thindielectric, plastic, "
               "roughplastic, phong, null, blendbsdf, mask, normalmap, bumpmap)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {
     for (const char* type :
-         {"diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric",
-          "thindielectric", "plastic", "roughplastic", "phong"}) {
+         {"diffuse", "diffusetransmission", "conductor", "roughconductor", "dielectric",
+          "roughdielectric", "thindielectric", "plastic", "roughplastic", "phong"}) {
         Properties props = bsdf_props(type);
         std::shared_ptr<const Bsdf> bsdf = make_bsdf(props);
         ASSERT_TRUE(bsdf) << type;

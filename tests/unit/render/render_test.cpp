@@ -300,10 +300,10 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
         }
     }
     // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures, materials,
-    // instances, instances-flat, normalmap and bumpmap
-    EXPECT_EQ(surface_scenes, 16);
-    EXPECT_EQ(media_scenes, 7);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame,
-                                 // isosph-point
+    // instances, instances-flat, normalmap, bumpmap and thinlens
+    EXPECT_EQ(surface_scenes, 17);
+    EXPECT_EQ(media_scenes, 8);  // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame,
+                                 // isosph-point, nested-media
 }
 
 }  // namespace

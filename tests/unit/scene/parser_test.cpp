@@ -441,8 +441,16 @@ TEST_F(ParserTest, SensorAndRootErrors) {
     EXPECT_CONTAINS(error("<scene version=\"three\"/>"), "not of the form major.minor.patch");
     EXPECT_CONTAINS(error("<world version=\"3.0.0\"/>"), "the root element must be <scene>");
     EXPECT_CONTAINS(error(""), "<string>:1: malformed XML: No document element found");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"orthographic\"/></scene>"),
+                    "unknown sensor type \"orthographic\"");
+    // Mitsuba's thinlens requires its aperture.
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"thinlens\"/></scene>"),
-                    "unknown sensor type \"thinlens\"");
+                    "aperture_radius");
+    EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"thinlens\">"
+                          "<float name=\"aperture_radius\" value=\"0.1\"/>"
+                          "<transform name=\"to_world\"><scale value=\"2\"/></transform>"
+                          "</sensor></scene>"),
+                    "may not scale");
     EXPECT_CONTAINS(error("<scene version=\"3.0.0\"><sensor type=\"perspective\">"
                           "<float name=\"fov\" value=\"40\"/>"
                           "<string name=\"focal_length\" value=\"35mm\"/></sensor></scene>"),
