@@ -408,11 +408,10 @@ NOTES = {
         "The gain therefore depends on the scene: how few VPLs light what the camera sees. "
         "The claims are judged on the arm with the paper's count; the plain arm (64 light "
         "paths) shows the roulette's own cost and variance. Where the variance per iteration "
-        "does not fall at an equal VPL count, the roulette's weights (up to 1 / P_min) on VPLs "
-        "whose importance the 100 random camera points underestimate (a VPL close to a "
-        "visible wall lights a small spot brightly) are the likely cause; this is a "
-        "hypothesis the table supports (heavy tails: large SEs in both arms), not a "
-        "measurement of it.",
+        "does not fall at an equal VPL count (div-corner), the cause is not known yet: both "
+        "arms are heavy-tailed (a clamped VPL close to a visible wall lights a small spot "
+        "brightly; see the SEs), and more importance records per iteration "
+        "(`--importance-records`) left the variance unchanged in a check by hand.",
     "importance-driven VPLs (control)":
         "Where every VPL matters, the roulette keeps most VPLs and adds the variance of the ones "
         "it drops with underestimated importance (weight up to 1 / P_min).",
@@ -436,7 +435,11 @@ NOTES = {
     "UPBP":
         "The merging arms run at a fixed radius (1 % of the scene radius) with their kernel "
         "bias left out of the error; the verdict asks that `upbp: all` is not the worst arm and "
-        "that its equal-time RMSE is within the target factor of the best arm's.",
+        "that its equal-time RMSE is within the target factor of the best arm's. Compare the "
+        "arms' v and t: where `upbp: all` has the lowest variance per iteration but loses at "
+        "equal time, the photon beams' cost decides it (every light path's segments in the "
+        "media become beams, and every camera segment gathers them); drawing the beams from a "
+        "fraction of the light paths, as the reference implementation does, is the lead.",
 }
 
 
@@ -478,6 +481,10 @@ def write_page(path: Path, data: dict) -> None:
         lines.append(f"| [{row['id']}](#{anchor(row['id'])}) | {row['method']} | `{row['scene']}` | "
                      f"{row['metric']} | {row['ratio']:.3g} ± {row['se']:.2g} | "
                      f"{row['direction']} {row['target']:g} | **{verdict_text(row)}** |")
+    missing = [c["id"] for c in CLAIMS if c["id"] not in {r["id"] for r in data["claims"]}]
+    if missing and not data.get("quick"):
+        lines += ["", "Defined in scripts/benchlib/claims.py but not measured yet (no row in the "
+                  "data file): " + ", ".join(f"`{m}`" for m in missing) + "."]
     lines.append("")
     for row in data["claims"]:
         definition = next((c for c in CLAIMS if c["id"] == row["id"]), {})
