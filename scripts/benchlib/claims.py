@@ -18,8 +18,11 @@ apart:
   far less disturbed by other load than wall time (the machine is shared; the load is stamped).
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
-(first-order propagation of v's and t's standard errors) or the claim's run budget is spent;
-a claim that stops at the budget says so. The verdict is taken at 2 standard errors: a claim
+(first-order propagation of v's and t's standard errors) or the claim's run budget is spent
+(at most 24 runs per arm, or `--budget-minutes` of wall time on a loaded machine); a claim
+that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
+runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
+budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
 "ratio >= target" is held when ratio - 2 SE >= target, a bar "ratio <= target" when
 ratio + 2 SE <= target. The merging arms (vcm, upbp) are biased by their kernels (fixed radius,
 no shrinking over the runs' few iterations); their bias is not part of v.
