@@ -1,0 +1,625 @@
+"""The published claims of the many-light, joint-sampling and UPBP methods, measured at equal
+time (`scripts/bench --only claims`, writes docs/data/claims.json, docs/results/claims.md and
+docs/img/claims/).
+
+Each claim compares arms that estimate the same image (docs/design/algorithms-next.md gives the
+claims and their targets). For an estimator whose iterations are independent, the squared error
+after a time T is v t / T (v: one iteration's variance, t: the cost of one iteration), so the
+equal-time ratio of two arms is (v t)_a / (v t)_b at every T, and the two factors are measured
+apart:
+
+- v: independent `render --iterations N` runs of the arm (own seeds); the per-pixel sample
+  variance over the runs times N, weighted as the relative MSE is (1 / (r^2 + 0.01), r the mean
+  of every run of the claim) and averaged over pixels and channels (or over a region, see the
+  metric). Its standard error is the jackknife's over the runs (leave one run out).
+- t: CPU seconds per iteration of single-threaded renders: the child's user + system time over
+  the variance runs, less a one-iteration run's (scene loading), divided by the iterations in
+  between. With one thread, CPU time is the wall time a quiet machine would show, and it is
+  far less disturbed by other load than wall time (the machine is shared; the load is stamped).
+
+Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
+(first-order propagation of v's and t's standard errors) or the claim's run budget is spent
+(at most 24 runs per arm, or `--budget-minutes` of wall time on a loaded machine); a claim
+that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
+runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
+budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
+"ratio >= target" is held when ratio - 2 SE >= target, a bar "ratio <= target" when
+ratio + 2 SE <= target. The merging arms (vcm, upbp) are biased by their kernels (fixed radius,
+no shrinking over the runs' few iterations); their bias is not part of v.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import math
+import os
+import re
+import shlex
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import common
+from resultslib import data as datafile, pages  # scripts/ is on sys.path (scripts/bench)
+
+SCENES = common.REPO_ROOT / "scenes"
+CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
+# 1 % of the scene radius: about a pixel at 64 px wide (the default 0.3 % suits 256 px; see
+# docs/results/upbp.md).
+RADIUS = ["--radius-factor", "0.01"]
+UPBP_ARMS = {"bpt": ("bpt", []),
+             "vcm": ("vcm", RADIUS),
+             "upbp: connections + query beams": ("upbp", [*RADIUS, "--surface-merging", "off",
+                                                          "--photon-points", "off",
+                                                          "--photon-beams", "off"]),
+             "upbp: connections + photon beams": ("upbp", [*RADIUS, "--surface-merging", "off",
+                                                           "--photon-points", "off",
+                                                           "--query-beams", "off"]),
+             "upbp: all": ("upbp", RADIUS)}
+UPBP_SUBJECT = "upbp: all"
+UPBP_FACTOR = 1.5
+
+
+def div_claim(cid, scene, defines, kind, target, width, paper_paths):
+    """Uniform VPLs from 64 light paths per iteration against the importance-driven
+    distribution from the same 64, and from `paper_paths`: the count whose accepted VPLs equal
+    the uniform arm's (64 / the share kept, measured on the scene), the paper's comparison at
+    an equal number of VPLs. The claim is judged on the second."""
+    importance = [*CLAMP, "--vpl-distribution", "importance"]
+    arms = {"uniform": ("vpl", CLAMP), "importance": ("vpl", importance),
+            "importance, equal VPL count": ("vpl", [*importance, "--vpl-paths",
+                                                    str(paper_paths)])}
+    if kind == "gain":
+        return dict(id=cid, method="importance-driven VPLs", scene=scene, defines=defines,
+                    arms=arms, metric="equal-time relMSE(uniform) / relMSE(importance, equal "
+                                      "VPL count)",
+                    numerator="uniform", denominator="importance, equal VPL count",
+                    direction=">=", target=target, width=width,
+                    paper="light around a corner behind the camera: 7 % of the VPLs accepted, "
+                          "more than an order of magnitude more efficient")
+    return dict(id=cid, method="importance-driven VPLs (control)", scene=scene, defines=defines,
+                arms=arms, metric="equal-time relMSE(importance, equal VPL count) / "
+                                  "relMSE(uniform)",
+                numerator="importance, equal VPL count", denominator="uniform", direction="<=", target=target,
+                width=width, paper="our bar: no more than 15 % worse where every VPL matters")
+
+
+CLAIMS = [
+    # Light paths for an equal VPL count: 64 / the share kept (7.6 %, 29.8 %, 59.6 %, measured
+    # by `render --vpl-distribution importance`, docs/results/many-lights.md).
+    div_claim("div-corner", "claims/div-corner.xml", [], "gain", 5.0, 96, 840),
+    div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 215),
+    div_claim("div-cornell-control", "bitterli/cornell-box/scene_v3.xml", [], "control", 1.15,
+              64, 107),
+    dict(id="ic-rooms", method="importance caching", scene="claims/ic-rooms.xml", defines=[],
+         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
+         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
+                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
+         equal="samples", width=96,
+         paper="more than an order of magnitude lower variance in highly occluded scenes"),
+    dict(id="ic-two-rooms", method="importance caching", scene="tests/two-rooms.xml",
+         defines=[],
+         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
+         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
+                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
+         equal="samples", width=64,
+         paper="more than an order of magnitude lower variance in highly occluded scenes"),
+    dict(id="ic-connections-rooms", method="IC-resampled bpt connections",
+         scene="claims/ic-rooms.xml", defines=[],
+         arms={"bpt": ("bpt", []), "bpt-ic": ("bpt", ["--connections", "ic"])},
+         metric="equal-time relMSE(bpt) / relMSE(bpt --connections ic)", numerator="bpt",
+         denominator="bpt-ic", direction=">=", target=1.0, width=96,
+         paper="a better choice of light vertices for the connections"),
+    dict(id="joint-fog-box", method="joint path sampling", scene="tests/fog-box.xml",
+         defines=["-D", "max_depth=3"],
+         arms={"jis off": ("volpt", ["--jis", "off"]), "jis on": ("volpt", ["--jis", "on"])},
+         metric="equal-time mean absolute error near the light, jis off / jis on (double "
+                "scattering, layer s1_t3)", numerator="jis off", denominator="jis on",
+         direction=">=", target=5.0, width=64, layer="s1_t3", region="light",
+         paper="5-37x lower RMSE near the light"),
+] + [
+    dict(id=f"upbp-{name}", method="UPBP", scene=f"claims/upbp-{name}.xml", defines=[],
+         arms=UPBP_ARMS, metric=f"equal-time RMSE of {UPBP_SUBJECT} / the best arm's",
+         subject=UPBP_SUBJECT, direction="<=", target=UPBP_FACTOR, width=64,
+         paper="robust: never far from the best single technique across media")
+    for name in ("mirror-balls", "lantern", "still-life", "bathroom")
+] + [
+    dict(id=f"upbp-isosph-{label}", method="UPBP", scene="smallupbp/isosph.xml",
+         defines=["-D", f"density={density}"], arms=UPBP_ARMS,
+         metric=f"equal-time RMSE of {UPBP_SUBJECT} / the best arm's", subject=UPBP_SUBJECT,
+         direction="<=", target=UPBP_FACTOR, width=64,
+         paper="robust: never far from the best single technique across media")
+    for label, density in (("x0.1", "0.1"), ("x1", "1"), ("x10", "10"))
+] + [
+    dict(id="upbp-glasssph", method="UPBP", scene="smallupbp/glasssph.xml", defines=[],
+         arms=UPBP_ARMS, metric=f"equal-time RMSE of {UPBP_SUBJECT} / the best arm's",
+         subject=UPBP_SUBJECT, direction="<=", target=UPBP_FACTOR, width=64,
+         paper="robust: never far from the best single technique across media"),
+]
+
+FULL = {"min_runs": 8, "max_runs": 24, "run_seconds": 0.5, "se_fraction": 0.10,
+        "picture_seconds": 2.0, "width_scale": 1.0, "fixed_runs": 2}
+# The smoke test: one claim of each kind on tiny images, three runs per arm, no SE target.
+QUICK = {"min_runs": 3, "max_runs": 3, "run_seconds": 0.02, "se_fraction": 0.10,
+         "picture_seconds": 0.02, "width_scale": 0.25, "fixed_runs": 1}
+QUICK_CLAIMS = ("div-corner", "div-cornell-control", "ic-rooms", "ic-connections-rooms",
+                "joint-fog-box", "upbp-mirror-balls")
+
+
+# --------------------------------------------------------------------------------------------
+# The algorithm table
+
+
+def check_arms(table: dict, claims) -> None:
+    """Every arm's algorithm exists in the build's table and reads every option the arm gives
+    (`render --describe-options`): a renamed option fails here, before any rendering."""
+    algorithms = {a["name"] for a in table["algorithms"]}
+    flags = {}
+    for option in table["options"]:
+        for flag in (option.get("flag"), option.get("negated_flag")):
+            if flag:
+                flags[flag] = set(option.get("read_by", []))
+    for claim in claims:
+        for arm, (algo, extra) in claim["arms"].items():
+            if algo not in algorithms:
+                raise SystemExit(f"claims: {claim['id']}/{arm}: no algorithm {algo!r}")
+            for word in extra:
+                if word.startswith("--") and algo not in flags.get(word, set()):
+                    raise SystemExit(f"claims: {claim['id']}/{arm}: {algo} does not read {word}")
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering
+
+
+def read_image(path: Path, layer=None):
+    """RGB of the image (or of one `--layers st` layer) as float64 H x W x 3."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
+    spec = inp.spec()
+    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
+    inp.close()
+    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
+    names = list(spec.channelnames)
+    prefix = f"{layer}." if layer else ""
+    return pixels[:, :, [names.index(prefix + c) for c in "RGB"]]
+
+
+def run_cpu(cmd) -> tuple[float, str]:
+    """Runs a command in the repository root; returns (its CPU seconds, user + system, and its
+    stdout). The benchmark runs one child at a time, so the increase of the children's times
+    around the call is this child's."""
+    before = os.times()
+    proc = subprocess.run(cmd, cwd=common.REPO_ROOT, capture_output=True, text=True)
+    after = os.times()
+    if proc.returncode != 0:
+        raise RuntimeError(f"render failed: {shlex.join(map(str, cmd))}\n{proc.stderr[-2000:]}")
+    cpu = (after.children_user - before.children_user) + (after.children_system -
+                                                          before.children_system)
+    return cpu, proc.stdout
+
+
+def render(binary, claim, arm, seed, iterations, resolution, out, png=None):
+    """One single-threaded render of an arm: (image, CPU seconds, stdout, command)."""
+    algo, extra = claim["arms"][arm]
+    flags = [*claim["defines"], *extra]
+    if claim.get("layer"):
+        flags += ["--layers", "st"]
+    cmd = common.render_command(binary, SCENES / claim["scene"], out, algo=algo,
+                                iterations=iterations, seed=seed, resolution=resolution,
+                                threads=1, extra=flags, png=png)
+    cpu, stdout = run_cpu(cmd)
+    image = read_image(out, claim.get("layer"))
+    out.unlink()
+    return image, cpu, stdout, cmd
+
+
+def acceptance(stdout: str):
+    """The share of VPLs kept that render prints for importance-driven VPLs (percent), or None."""
+    for line in stdout.splitlines():
+        if line.startswith("VPLs:") and "accepted" in line:
+            return float(line.split(",")[1].split("%")[0])
+    return None
+
+
+class Arm:
+    """The runs of one arm: images, CPU seconds, the fixed cost, the iterations per run."""
+
+    def __init__(self, binary, claim, name, resolution, workdir, run_seconds, fixed_runs):
+        self.binary, self.claim, self.name = binary, claim, name
+        self.resolution, self.workdir = resolution, workdir
+        self.images, self.cpu, self.kept = [], [], []
+        self.command = None
+        # The fixed cost (loading, the scene's acceleration structure): the median of three
+        # one-iteration runs, which also give the iteration count of the variance runs.
+        ones = [self._render(90_000 + k, 1)[1] for k in range(fixed_runs)]
+        self.fixed = float(np.median(ones))
+        # Two iterations less one: one iteration's cost. The variance does not need long runs
+        # (v is per iteration whatever the run's length); the runs are long enough only for
+        # their CPU time to measure t.
+        per_iteration = self._render(91_000, 2)[1] - self.fixed
+        self.iterations = max(2, round(run_seconds / max(per_iteration, 1e-3)))
+
+    def _render(self, seed, iterations):
+        out = self.workdir / f"{self.claim['id']}-{self.name.replace(' ', '_').replace(':', '')}.exr"
+        image, cpu, stdout, cmd = render(self.binary, self.claim, self.name, seed, iterations,
+                                         self.resolution, out)
+        self.command = cmd
+        kept = acceptance(stdout)
+        return image, cpu, kept
+
+    def add_run(self):
+        seed = 10_000 + 100 * len(self.images)
+        image, cpu, kept = self._render(seed, self.iterations)
+        self.images.append(image)
+        self.cpu.append(cpu)
+        if kept is not None:
+            self.kept.append(kept)
+
+    def t(self) -> tuple[float, float]:
+        """CPU seconds per iteration and its standard error."""
+        per = (np.array(self.cpu) - self.fixed) / (self.iterations - 1)
+        per = np.maximum(per, 1e-6)
+        return float(per.mean()), float(per.std(ddof=1) / math.sqrt(len(per)))
+
+
+def weighted_variance(stack, iterations, weight, mask, mae):
+    """One iteration's variance (or, for the mean absolute error, its square root per pixel)
+    from independent runs, averaged over the mask."""
+    var = stack.var(axis=0, ddof=1) * iterations
+    if mae:
+        return float(np.sqrt(var)[mask].mean())
+    return float((var * weight)[mask].mean())
+
+
+def jackknife(images, iterations, weight, mask, mae) -> tuple[float, float]:
+    """The statistic over all runs and its jackknife standard error (leave one run out)."""
+    stack = np.stack(images)
+    full = weighted_variance(stack, iterations, weight, mask, mae)
+    n = len(images)
+    loo = [weighted_variance(np.delete(stack, i, axis=0), iterations, weight, mask, mae)
+           for i in range(n)]
+    se = math.sqrt((n - 1) / n * sum((x - np.mean(loo)) ** 2 for x in loo))
+    return full, se
+
+
+def light_region(reference: np.ndarray) -> np.ndarray:
+    """The pixels near the light: a disc of radius width / 8 around the brightest pixel of the
+    smoothed mean image (single scattering peaks where the camera rays pass the light)."""
+    lum = reference.mean(axis=-1)
+    h, w = lum.shape
+    k = max(1, w // 16)
+    padded = np.pad(lum, k, mode="edge")
+    smooth = sum(padded[k + dy:k + dy + h, k + dx:k + dx + w]
+                 for dy in range(-k, k + 1) for dx in range(-k, k + 1))
+    y, x = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
+    yy, xx = np.mgrid[0:h, 0:w]
+    disc = (yy - y) ** 2 + (xx - x) ** 2 <= (w / 8) ** 2
+    return np.broadcast_to(disc[:, :, None], reference.shape)
+
+
+# --------------------------------------------------------------------------------------------
+# One claim
+
+
+def evaluate(claim, arms):
+    """Per arm v, t and their product; the claim's ratio, SE and verdict."""
+    everything = [img for a in arms.values() for img in a.images]
+    reference = np.mean(everything, axis=0)
+    weight = 1.0 / (reference * reference + common.RELATIVE_MSE_EPSILON)
+    mae = claim.get("region") == "light"
+    mask = light_region(reference) if mae else np.ones(reference.shape, dtype=bool)
+    stats = {}
+    for name, a in arms.items():
+        v, v_se = jackknife(a.images, a.iterations, weight, mask, mae)
+        t, t_se = a.t()
+        # The squared-error cost: v t (relMSE x s); for the MAE, sqrt(v) sqrt(t) (MAE x sqrt s).
+        if mae:
+            cost = v * math.sqrt(t)
+            rel = math.hypot(v_se / v, 0.5 * t_se / t) if v > 0 else math.inf
+        elif claim.get("equal") == "samples":
+            cost, rel = v, (v_se / v if v > 0 else math.inf)
+        else:
+            cost = v * t
+            rel = math.hypot(v_se / v, t_se / t) if v > 0 else math.inf
+        stats[name] = {"v": v, "v_se": v_se, "t": t, "t_se": t_se, "cost": cost,
+                       "cost_rel_se": rel, "runs": len(a.images), "iterations": a.iterations,
+                       "fixed_cpu_seconds": a.fixed,
+                       "vpls_kept_percent": (float(np.mean(a.kept)) if a.kept else None),
+                       "command": shlex.join(map(str, a.command))}
+    if "subject" in claim:
+        # RMSE at equal time is sqrt(v t): the subject against the best arm.
+        rmse = {n: math.sqrt(s["cost"]) for n, s in stats.items()}
+        best = min(rmse, key=rmse.get)
+        worst = max(rmse, key=rmse.get)
+        subject = claim["subject"]
+        ratio = rmse[subject] / rmse[best]
+        se = 0.0 if best == subject else ratio * 0.5 * math.hypot(
+            stats[subject]["cost_rel_se"], stats[best]["cost_rel_se"])
+        held = worst != subject and ratio + 2 * se <= claim["target"]
+        extra = {"best": best, "worst": worst,
+                 "rmse_over_best": {n: r / rmse[best] for n, r in rmse.items()}}
+    else:
+        num, den = stats[claim["numerator"]], stats[claim["denominator"]]
+        ratio = num["cost"] / den["cost"]
+        se = ratio * math.hypot(num["cost_rel_se"], den["cost_rel_se"])
+        held = (ratio - 2 * se >= claim["target"] if claim["direction"] == ">=" else
+                ratio + 2 * se <= claim["target"])
+        extra = {}
+    return stats, ratio, se, held, extra
+
+
+def measure(binary, claim, cfg, workdir, img_dir):
+    width = max(16, int(claim["width"] * cfg["width_scale"]))
+    resolution = common.resolution_for_width(SCENES / claim["scene"], width)
+    started = time.monotonic()
+    arms = {name: Arm(binary, claim, name, resolution, workdir, cfg["run_seconds"],
+                      cfg["fixed_runs"])
+            for name in claim["arms"]}
+    for a in arms.values():
+        for _ in range(cfg["min_runs"]):
+            a.add_run()
+    while True:
+        stats, ratio, se, held, extra = evaluate(claim, arms)
+        if ratio > 0 and se / ratio < cfg["se_fraction"]:
+            break
+        if cfg.get("budget_seconds") and time.monotonic() - started > cfg["budget_seconds"]:
+            break
+        # More runs for the arms whose uncertainty dominates (all of them when comparing against
+        # the best: it may change).
+        worst_rel = max(s["cost_rel_se"] for s in stats.values())
+        grow = [n for n, s in stats.items() if s["cost_rel_se"] >= 0.5 * worst_rel]
+        if all(arms[n].images and len(arms[n].images) >= cfg["max_runs"] for n in grow):
+            break
+        for n in grow:
+            if len(arms[n].images) < cfg["max_runs"]:
+                for _ in range(max(1, len(arms[n].images) // 2)):
+                    if len(arms[n].images) < cfg["max_runs"]:
+                        arms[n].add_run()
+    # Pictures at equal CPU time: each arm's iteration count from its measured cost.
+    pictures = {}
+    for name, s in stats.items():
+        iterations = max(1, round(cfg["picture_seconds"] / s["t"]))
+        slug = f"{claim['id']}-{picture_name(name)}"
+        png = img_dir / f"{slug}.png"
+        out = workdir / f"{slug}.exr"
+        render(binary, claim, name, 30_000, iterations, resolution, out, png=png)
+        pictures[name] = {"file": png.name, "iterations": iterations}
+    return {"resolution": list(resolution), "stats": stats, "ratio": ratio, "se": se,
+            "held": held, "se_target_met": ratio > 0 and se / ratio < cfg["se_fraction"],
+            "pictures": pictures, **extra}
+
+
+# --------------------------------------------------------------------------------------------
+# The data file and the page
+
+
+# What each measurement can and cannot show (the numbers are in the rows).
+NOTES = {
+    "importance-driven VPLs":
+        "Our importance-driven distribution is Russian roulette on the VPLs of a fixed number "
+        "of light paths per iteration (docs/design/algorithms-next.md 1.2-1.3): it cannot lower "
+        "one iteration's variance, so its equal-time gain is at most the cost ratio, about "
+        "1 / (share kept) when the VPL connections dominate an iteration. The paper compares "
+        "at an equal number of accepted VPLs (it traces light paths until enough are kept). "
+        "The gain therefore depends on the scene: how few VPLs light what the camera sees. "
+        "The claims are judged on the arm with the paper's count; the plain arm (64 light "
+        "paths) shows the roulette's own cost and variance. Where the variance per iteration "
+        "does not fall at an equal VPL count (div-corner), the cause is not known yet: both "
+        "arms are heavy-tailed (a clamped VPL close to a visible wall lights a small spot "
+        "brightly; see the SEs), and more importance records per iteration "
+        "(`--importance-records`) left the variance unchanged in a check by hand.",
+    "importance-driven VPLs (control)":
+        "Where every VPL matters, the roulette keeps most VPLs and adds the variance of the ones "
+        "it drops with underestimated importance (weight up to 1 / P_min).",
+    "importance caching":
+        "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
+        "comparison: variance only. Power-proportional sampling wastes the samples that land "
+        "on VPLs which light nothing the camera sees, so its variance ratio to importance "
+        "caching grows with the share of the power that is useless: an order of magnitude "
+        "needs well under a tenth of the VPL power to light the visible rooms. In ic-rooms "
+        "the two rooms next to the camera's hold a quarter of the lamps, which bounds what "
+        "this scene can show.",
+    "IC-resampled bpt connections":
+        "Both arms are unbiased with the same expectation; the cached arm pays for its records "
+        "and tables every iteration, so it wins only where bpt's own light path is a poor "
+        "choice for most eye vertices (lights mostly in places the camera does not see).",
+    "joint path sampling":
+        "The metric is the equal-time mean absolute error of the double-scattering layer in a "
+        "disc around the light's image; per pixel the absolute error of a mean of independent "
+        "iterations is proportional to its standard deviation, so MAE(T) is the mean over the "
+        "disc of sqrt(v_p t / T), and the ratio of two arms does not depend on T.",
+    "UPBP":
+        "The merging arms run at a fixed radius (1 % of the scene radius) with their kernel "
+        "bias left out of the error; the verdict asks that `upbp: all` is not the worst arm and "
+        "that its equal-time RMSE is within the target factor of the best arm's. Compare the "
+        "arms' v and t: where `upbp: all` has the lowest variance per iteration but loses at "
+        "equal time, the photon beams' cost decides it (every light path's segments in the "
+        "media become beams, and every camera segment gathers them); drawing the beams from a "
+        "fraction of the light paths, as the reference implementation does, is the lead.",
+}
+
+
+def picture_name(arm: str) -> str:
+    """An arm's name as part of a file name: "upbp: connections + query beams" ->
+    "upbp-connections-and-query-beams"."""
+    return re.sub(r"[^A-Za-z0-9]+", "-", arm.replace("+", "and")).strip("-")
+
+
+def anchor(heading: str) -> str:
+    """The anchor GitHub (and tests/docs/check_docs.py) gives a heading."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def verdict_text(row) -> str:
+    return "held" if row["held"] else "not held"
+
+
+def write_page(path: Path, data: dict) -> None:
+    m = data["machine"]
+    lines = ["# The methods' published claims, measured", "",
+             "Written by `scripts/bench --only claims` (scripts/benchlib/claims.py) from "
+             "[docs/data/claims.json](../data/claims.json); do not edit by hand.", "",
+             "Each claim's section gives its own commit, machine, load and command (the "
+             "claims may be measured in separate runs, `--claims`). Last written by "
+             f"`{data['command']}`. Machine: {m.get('cpu_model')}, {m.get('cores')} "
+             f"cores, {m.get('date_utc')}; revision {data['commit']}; load average before "
+             f"{data['load_before']}, after {data['load_after']}"
+             + (" (**taken under load**: other jobs shared the machine; the costs are CPU "
+                "seconds of single-threaded renders, which load disturbs far less than wall "
+                "time)" if max(data['load_before'] or [0])
+                > 1.0 else "") + (" (quick mode: a smoke test, not a measurement)"
+                                  if data["quick"] else "") + ".", "",
+             common_doc(), "",
+             "## Summary", "",
+             "| claim | method | scene | metric | ratio ± SE | target (2 SE) | verdict |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for row in data["claims"]:
+        lines.append(f"| [{row['id']}](#{anchor(row['id'])}) | {row['method']} | `{row['scene']}` | "
+                     f"{row['metric']} | {row['ratio']:.3g} ± {row['se']:.2g} | "
+                     f"{row['direction']} {row['target']:g} | **{verdict_text(row)}** |")
+    missing = [c["id"] for c in CLAIMS if c["id"] not in {r["id"] for r in data["claims"]}]
+    if missing and not data.get("quick"):
+        lines += ["", "Defined in scripts/benchlib/claims.py but not measured yet (no row in the "
+                  "data file): " + ", ".join(f"`{m}`" for m in missing) + "."]
+    lines.append("")
+    for row in data["claims"]:
+        definition = next((c for c in CLAIMS if c["id"] == row["id"]), {})
+        lines += [f"## {row['id']}", "",
+                  f"{row['method']} on `scenes/{row['scene']}`"
+                  + (f" ({' '.join(row['defines'])})" if row["defines"] else "")
+                  + f", {row['resolution'][0]}x{row['resolution'][1]}. Published: "
+                  f"{row['paper']}. Metric: {row['metric']}: **{row['ratio']:.3g} ± "
+                  f"{row['se']:.2g}** (target {row['direction']} {row['target']:g} at 2 SE): "
+                  f"**{verdict_text(row)}**"
+                  + ("" if row["se_target_met"] else
+                     " (the run budget ended before the SE reached 10 % of the ratio)") + ".",
+                  ""]
+        load = row.get("load") or ["?"]
+        lines += [f"Measured {row.get('date_utc', '?')} at revision {row.get('commit', '?')} on "
+                  f"{row.get('machine', '?')}, load average {load[0]} before"
+                  + (" (under load)" if isinstance(load[0], float) and load[0] > 1.0 else "")
+                  + f", by `{row.get('command', '?')}`.", ""]
+        if "best" in row:
+            lines += [f"Best arm: {row['best']}; worst: {row['worst']}.", ""]
+        elif "numerator" in definition:
+            num, den = definition["numerator"], definition["denominator"]
+            a, b = row["arms"][num], row["arms"][den]
+            lines += [f"Per iteration, {num} costs {a['t'] / b['t']:.3g}× {den}'s CPU time and "
+                      f"has {a['v'] / b['v']:.3g}× its "
+                      f"{'mean absolute error' if definition.get('region') else 'variance'}.",
+                      ""]
+        lines += [NOTES.get(row["method"], ""), ""]
+        lines += ["| arm | runs × iterations | v (± SE) | CPU s per iteration | cost |"
+                  + (" RMSE / best |" if "best" in row else " VPLs kept |"),
+                  "| --- | --- | --- | --- | --- | --- |"]
+        for name, s in row["arms"].items():
+            last = (f"{row['rmse_over_best'][name]:.3g}" if "best" in row else
+                    "–" if s["vpls_kept_percent"] is None else f"{s['vpls_kept_percent']:.1f} %")
+            lines.append(f"| {name} | {s['runs']} × {s['iterations']} | {s['v']:.4g} ± "
+                         f"{s['v_se']:.2g} | {s['t']:.4g} ± {s['t_se']:.2g} | "
+                         f"{s['cost']:.4g} | {last} |")
+        lines += ["", "Commands (the last variance run of each arm):", ""]
+        lines += [f"- {name}: `{s['command']}`" for name, s in row["arms"].items()]
+        lines += ["", "Pictures at equal CPU time ("
+                  + ", ".join(f"{n}: {p['iterations']} iterations"
+                              for n, p in row["pictures"].items()) + "):", "",
+                  " ".join(f"![{row['id']} {n}](../img/claims/{p['file']})"
+                           for n, p in row["pictures"].items()), ""]
+    # The page is generated (scripts/results): its body goes, with the claims' stamp, to
+    # docs/data/claims/page.json and the template scripts/resultslib/templates/claims.md.in
+    # shows it.
+    docs_dir = path.parent.parent
+    body = lines[1:]
+    while body and not body[0].strip():
+        body.pop(0)
+    datafile.write(docs_dir / "data" / "claims" / "page.json",
+                   {"stamp": data["stamp"], "measured": True, "blocks": {"page": body}})
+    pages.write(["claims"], docs_dir)
+
+
+def common_doc() -> str:
+    return __doc__.split("\n\n", 1)[1].strip()
+
+
+def write_page_only(docs_dir: Path) -> None:
+    """Rewrites docs/results/claims.md from docs/data/claims.json (no rendering)."""
+    data = json.loads((docs_dir / "data" / "claims.json").read_text())
+    write_page(common.results_page(docs_dir, "claims.md"), data)
+    print(f"bench: wrote {common.results_page(docs_dir, 'claims.md')}")
+
+
+def run(build_dir: Path, docs_dir: Path, quick: bool = False, threads=None, command=None,
+        only=None, budget_minutes=None, min_runs=None):
+    """Measures every claim (or those named in `only`: ids, or prefixes ending in "-"), writes the data
+    file, the page and the pictures. `threads` is ignored: the renders are single-threaded."""
+    binary = common.render_binary(build_dir)
+    claims = [c for c in CLAIMS if not only or any(
+        c["id"] == o or (o.endswith("-") and c["id"].startswith(o)) for o in only)]
+    if not claims:
+        raise SystemExit(f"claims: no claim matches {only}; ids: {[c['id'] for c in CLAIMS]}")
+    if quick and not only:
+        claims = [c for c in claims if c["id"] in QUICK_CLAIMS]
+    check_arms(common.algorithm_table(build_dir), claims)
+    cfg = dict(QUICK if quick else FULL)
+    if budget_minutes:
+        # Wall-clock minutes per claim after which no runs are added (a loaded machine).
+        cfg["budget_seconds"] = 60 * budget_minutes
+    if min_runs:
+        cfg["min_runs"] = min_runs
+    workdir = Path(tempfile.mkdtemp(prefix="bench-claims-"))
+    img_dir = docs_dir / "img" / "claims"
+    img_dir.mkdir(parents=True, exist_ok=True)
+    machine = common.machine_info()
+    command_line = command or "scripts/bench --only claims"
+    rows = []
+    for claim in claims:
+        started = time.monotonic()
+        load = common.load_average()
+        r = measure(binary, claim, cfg, workdir, img_dir)
+        row = {k: claim[k] for k in ("id", "method", "scene", "defines", "metric", "direction",
+                                     "target", "paper", "numerator", "denominator", "region",
+                                     "equal") if k in claim}
+        row.update({"arms": r["stats"], "ratio": r["ratio"], "se": r["se"], "held": r["held"],
+                    "se_target_met": r["se_target_met"], "resolution": r["resolution"],
+                    "pictures": r["pictures"], "commit": machine.get("source_revision"),
+                    "machine": f"{machine.get('cpu_model')}, {machine.get('cores')} cores",
+                    "date_utc": machine.get("date_utc"), "load": load,
+                    "load_after": common.load_average(), "command": command_line,
+                    "seconds": round(time.monotonic() - started, 1)})
+        for k in ("best", "worst", "rmse_over_best"):
+            if k in r:
+                row[k] = r[k]
+        rows.append(row)
+        print(f"  {claim['id']:26s} {r['ratio']:.3g} ± {r['se']:.2g}  "
+              f"{claim['direction']} {claim['target']:g}: {verdict_text(r)}", flush=True)
+    data = {"stamp": datafile.stamp(command_line,
+                                    load_before=pages.load_text(machine.get("load_average"))),
+            "command": command_line, "commit":
+            machine.get("source_revision"), "machine": machine,
+            "load_before": machine.get("load_average"), "load_after": common.load_average(),
+            "quick": quick, "claims": rows}
+    out_json = docs_dir / "data" / "claims.json"
+    out_json.parent.mkdir(parents=True, exist_ok=True)
+    # Partial runs (--claims) may run side by side: the read-merge-write is under a lock.
+    with open(out_json.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if only and out_json.exists() and not quick:
+            # A partial run replaces its own claims and keeps the others' rows (each row
+            # carries its own commit, machine, load and command).
+            old = json.loads(out_json.read_text())
+            kept = [r for r in old.get("claims", []) if r["id"] not in {c["id"] for c in claims}]
+            data["claims"] = kept + rows
+            order = {c["id"]: i for i, c in enumerate(CLAIMS)}
+            data["claims"].sort(key=lambda r: order.get(r["id"], len(order)))
+        out_json.write_text(json.dumps(data, indent=1) + "\n")
+        write_page(common.results_page(docs_dir, "claims.md"), data)
+    out_json.with_suffix(".lock").unlink(missing_ok=True)
+    print(f"bench: wrote {out_json} and {common.results_page(docs_dir, 'claims.md')}")
