@@ -43,23 +43,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import common
+from . import common, upbp
 from resultslib import data as datafile, pages  # scripts/ is on sys.path (scripts/bench)
 
 SCENES = common.REPO_ROOT / "scenes"
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
-# 1 % of the scene radius: about a pixel at 64 px wide (the default 0.3 % suits 256 px; see
-# docs/results/upbp.md).
-RADIUS = ["--radius-factor", "0.01"]
-UPBP_ARMS = {"bpt": ("bpt", []),
-             "vcm": ("vcm", RADIUS),
-             "upbp: connections + query beams": ("upbp", [*RADIUS, "--surface-merging", "off",
-                                                          "--photon-points", "off",
-                                                          "--photon-beams", "off"]),
-             "upbp: connections + photon beams": ("upbp", [*RADIUS, "--surface-merging", "off",
-                                                           "--photon-points", "off",
-                                                           "--query-beams", "off"]),
-             "upbp: all": ("upbp", RADIUS)}
+# The UPBP claims use the density sweep's arms (docs/results/upbp.md), radius included.
+UPBP_ARMS = upbp.ARMS
 UPBP_SUBJECT = "upbp: all"
 UPBP_FACTOR = 1.5
 
