@@ -55,14 +55,19 @@ def other_value(option):
 
 
 def pick_algorithm(option, tables):
-    """The reader of `option` that reads the most options (the one most exposed to a
+    """The algorithm the option is named after, if it reads it; otherwise the reader of
+    `option` that reads the most options (the one most exposed to a
     mix-up; the last in table order among equals, which for the bidirectional family is VCM,
     where every option matters), and a scene on which the option matters: with media (isosph,
     which has surfaces and an area light too) for every reader of homogeneous media, so that
     options of media such as --jis change the image."""
     readers = [(len(a["options"]), i, a) for i, a in enumerate(tables["algorithms"])
                if a["name"] in option["read_by"]]
-    algorithm = max(readers, key=lambda r: r[:2])[2]
+    # An option named after one of its readers (ic_heuristic, vpl_clamp) is that algorithm's
+    # own and matters there by itself; another reader may use it only in a mode (bpt reads the
+    # ic_* options with --connections ic), so the owner is taken.
+    owners = [r for r in readers if option["name"].startswith(r[2]["name"] + "_")]
+    algorithm = max(owners or readers, key=lambda r: r[:2])[2]
     media = algorithm["homogeneous_media"]
     scene = (cluster.scene_path("smallupbp", "isosph.xml") if media
              else cluster.scene_path("smallvcm", "1-glm_c.xml"))
