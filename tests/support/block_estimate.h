@@ -1,7 +1,7 @@
 #pragma once
 
-// The block test's estimate (tests/unit/render/convergence_test.cpp, pbrt_scenes_test.cpp): an image
-// rendered in `batches` consecutive batches of iterations, cut into blocks_per_side^2 square
+// The block test's estimate (tests/unit/render/convergence_test.cpp, pbrt_scenes_test.cpp): an
+// image rendered in `batches` consecutive batches of iterations, cut into blocks_per_side^2 square
 // blocks; per block and channel the mean over the batches and its standard error from the
 // spread of the batch means (batches - 1 degrees of freedom).
 

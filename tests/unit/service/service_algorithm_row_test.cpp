@@ -1,5 +1,6 @@
-// "An algorithm is its files and one row" (docs/design/architecture.md, "Adding an algorithm"), proven:
-// a test algorithm registered here, by its row alone, appears wherever the tables drive — the
+// "An algorithm is its files and one row" (docs/design/architecture.md, "Adding an algorithm"),
+// proven: a test algorithm registered here, by its row alone, appears wherever the tables drive —
+// the
 // --help text, the tables of `render --describe-options` that scripts read, the options check of
 // a service request, the memory estimate a worker refuses jobs by, both scene formats'
 // integrator names, and rendering itself. A consumer that kept a list of its own (or picked by
