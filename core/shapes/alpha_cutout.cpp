@@ -3,20 +3,11 @@
 #include <cstdint>
 #include <cstring>
 
+#include "core/sampling/rng.h"
+
 namespace render {
-namespace {
 
-uint64_t mix64(uint64_t x) {  // splitmix64's finaliser
-    x ^= x >> 30;
-    x *= 0xbf58476d1ce4e5b9ULL;
-    x ^= x >> 27;
-    x *= 0x94d049bb133111ebULL;
-    x ^= x >> 31;
-    return x;
-}
-
-}  // namespace
-
+// SplitMix64's finaliser (core/sampling/rng.h) over the bits of each coordinate.
 float AlphaCutout::ray_hash(const float org[3], const float dir[3], float t) {
     uint64_t h = 0x9e3779b97f4a7c15ULL;
     const auto add = [&h](float v) {
