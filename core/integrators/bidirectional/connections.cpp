@@ -59,7 +59,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVe
     if (f.is_black()) return Rgb(0.0f);
     const Ray ray = dl.shadow_ray(scene_, v.p, v.n);
     // A volume light's point is a medium vertex: the eye would reach it by a scattering event.
-    const Link l = link(ray, v.medium_toward(wo, ls.wi), v.in_medium(),
+    const Link l = link(ray, v.medium_toward(ls.wi), v.in_medium(),
                         dl.light->as_volume() != nullptr, rng, stats);
     if (l.traced && l.transmittance.is_black()) return Rgb(0.0f);
     // B-B1D at v, the light's emission segment toward v as the photon beam: the emission's
@@ -131,7 +131,7 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const auto& [f_eye, eye_pdf_w] = g->eye;
     const auto& [f_light, light_pdf_w] = g->light;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
-    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
+    const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return std::nullopt;
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).

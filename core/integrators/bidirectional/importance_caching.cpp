@@ -46,7 +46,7 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
         bounded[k] = power * bounded_geometry_factor(std::sqrt(double(g->dist2)), radius, cos_vpl,
                                                      cos_record);
         const Ray ray = scene_.spawn_ray_to(r.vertex.p, r.vertex.n, lv.vertex.p, lv.vertex.n);
-        const Link l = link(ray, r.vertex.medium_toward(r.wo, g->d), false, false, rng, stats);
+        const Link l = link(ray, r.vertex.medium_toward(g->d), false, false, rng, stats);
         full[k] = unoccluded[k] * double(visibility(l, ray, stats).luminance());
     }
     return make_record_tables(full, unoccluded, bounded, mask);

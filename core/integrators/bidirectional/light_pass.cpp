@@ -231,7 +231,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex
         camera_.sample_connection(v.p, rng);
     if (!lens) return;
     const Vec3 camera_point = lens->lens_point;
-    const Vec2* raster = &lens->raster;
+    const Vec2 raster = lens->raster;
     const Vec3 to_camera = camera_point - v.p;
     const float dist2 = length_squared(to_camera);
     if (!(dist2 > 0)) return;
@@ -239,7 +239,7 @@ void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex
     const auto [f, pdf_w] = v.evaluate(wo, d);
     if (f.is_black()) return;
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_point, Vec3());
-    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), false, rng, stats);
+    const Link l = link(ray, v.medium_toward(d), v.in_medium(), false, rng, stats);
     if (l.traced && l.transmittance.is_black()) return;
     const float camera_pdf_w = camera_pixel_pdf_w(camera_point, -d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
@@ -279,8 +279,8 @@ void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex
     if (contribution.is_black()) return;
     const Rgb tr = visibility(l, ray, stats);
     if (tr.is_black()) return;
-    const uint32_t x = std::min(uint32_t(raster->x), uint32_t(camera_.width() - 1));
-    const uint32_t y = std::min(uint32_t(raster->y), uint32_t(camera_.height() - 1));
+    const uint32_t x = std::min(uint32_t(raster.x), uint32_t(camera_.width() - 1));
+    const uint32_t y = std::min(uint32_t(raster.y), uint32_t(camera_.height() - 1));
     splats.push_back(
         Splat{y * uint32_t(camera_.width()) + x, contribution * tr, state.path_length + 1});
 }

@@ -149,7 +149,7 @@ bool Iteration::sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& r
         if (!(q > 0) || rng.next_1d() >= q) return false;
         state.throughput *= 1.0f / q;
     }
-    state.medium = v.medium_toward(wo, bs->wi);
+    state.medium = v.medium_toward(bs->wi);
     state.in_medium = v.in_medium();
     ray = v.in_medium() ? Ray(v.p, bs->wi) : scene_.spawn_ray(v.p, v.n, bs->wi);
     return true;

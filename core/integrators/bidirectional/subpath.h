@@ -111,7 +111,7 @@ struct Vertex {
         return bs;
     }
     // The medium toward direction d of a path that arrived in `medium` (medium_interface.h).
-    const Medium* medium_toward(const Vec3& /*wo*/, const Vec3& d) const {
+    const Medium* medium_toward(const Vec3& d) const {
         if (phase) return medium;
         return medium_after_surface(*shape, n, d, medium);
     }

@@ -20,7 +20,7 @@ Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3
     const Rgb contribution = g->eye.f * g->light.f * geometry;
     if (contribution.is_black()) return Rgb(0.0f);
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
-    const Link l = link(ray, v.medium_toward(wo, d), v.in_medium(), w.in_medium(), rng, stats);
+    const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);
     return contribution * visibility(l, ray, stats);
 }
 
