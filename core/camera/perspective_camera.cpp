@@ -44,12 +44,7 @@ Ray PerspectiveCamera::generate_ray(Vec2 raster) const {
 std::optional<Vec2> PerspectiveCamera::raster_position(const Vec3& p) const {
     Vec3 local = to_camera_.apply_point(p);
     if (local.z <= 0) return std::nullopt;
-    float cx = local.x / local.z, cy = local.y / local.z;
-    Vec2 raster((1.0f - cx / tan_half_x_) * 0.5f * float(width_),
-                (1.0f - cy / tan_half_y_) * 0.5f * float(height_));
-    if (!(raster.x >= 0 && raster.x < float(width_) && raster.y >= 0 && raster.y < float(height_)))
-        return std::nullopt;
-    return raster;
+    return raster_of(local.x / local.z, local.y / local.z);
 }
 
 float PerspectiveCamera::direction_pdf_w(const Vec3& dir) const {
