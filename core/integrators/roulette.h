@@ -1,7 +1,7 @@
 #pragma once
 
 // Russian roulette: when a path that just scattered continues, and with what weight. Two
-// policies (render option --roulette; docs/reference/cli.md):
+// policies (render option --roulette; docs/reference/algorithms.md, "Parameters"):
 //
 //   Throughput  from path depth rr_depth on, survive with q = min(0.95, max(throughput) /
 //               max(initial throughput)) (Mitsuba's rule with rr_depth 5; the default).
