@@ -665,6 +665,21 @@ class Cluster:
         if self.server:
             self.server.kill()
 
+    def restart_server(self, port, workers, threads=1):
+        """Starts the server again on `port` after kill_server(). When the port is not free
+        again, starts it on a new port with `workers` new workers (the old ones know only the
+        old address) and kills the old ones. Returns the port."""
+        try:
+            return self.start_server(port=port)
+        except (RuntimeError, AssertionError) as e:
+            print(f"restart on port {port} failed ({e}); restarting on a new port with new "
+                  f"workers")
+            for w in self.workers:
+                w.kill()
+            port = self.start_server()
+            self.start_workers(workers, threads=threads)
+            return port
+
     # -- workers
 
     def start_worker(self, threads=1, token=None, extra=(), env=None):

@@ -133,15 +133,7 @@ class ChaosSoak(cluster.ClusterTestCase):
                 checkpoints = last_checkpoints(life[-1])
                 print(f"t={time.monotonic() - start:.1f}s server kill {server_kills} at "
                       f"{merged_fraction:.0%} merged; last checkpoints {checkpoints}")
-                try:
-                    c.start_server(port=port)
-                except (RuntimeError, AssertionError) as e:
-                    # The port is not free again: a new port, and workers that know it.
-                    print(f"restart on port {port} failed ({e}); new port and new workers")
-                    for w in c.workers:
-                        w.kill()
-                    port = c.start_server()
-                    c.start_workers(WORKERS, threads=1)
+                port = c.restart_server(port, workers=WORKERS)
                 life.append(c.server.log_path)
                 # Progress restarts from the store: at least each frame's last checkpoint.
                 for job_id, *_ in jobs:

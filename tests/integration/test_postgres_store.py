@@ -75,15 +75,7 @@ class PostgresStore(cluster.ClusterTestCase):
               f"iterations, {merged[0]} merged ranges recorded in PostgreSQL")
         c.kill_server()
 
-        try:
-            c.start_server(port=port)
-        except (RuntimeError, AssertionError) as e:
-            print(f"restart on port {port} failed ({e}); restarting on a new port with new "
-                  f"workers")
-            for w in c.workers:
-                w.kill()
-            c.start_server()
-            c.start_workers(2, threads=1)
+        c.restart_server(port, workers=2)
 
         again = c.api.get_job(job.id)
         self.assertEqual(again.id, job.id)

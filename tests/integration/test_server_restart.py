@@ -63,16 +63,7 @@ class ServerRestart(cluster.ClusterTestCase):
         print(f"killed the server at {before.frames[0].iterations_done if before.frames else 0}"
               f"/{ITERATIONS} iterations")
 
-        try:
-            c.start_server(port=port)
-        except (RuntimeError, AssertionError) as e:
-            # The port is not free again: a new port, and workers that know it.
-            print(f"restart on port {port} failed ({e}); restarting on a new port with new "
-                  f"workers")
-            for w in c.workers:
-                w.kill()
-            c.start_server()
-            c.start_workers(2, threads=1)
+        c.restart_server(port, workers=2)
 
         # The job survived the restart.
         again = c.api.get_job(job.id)
