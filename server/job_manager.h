@@ -48,7 +48,7 @@ struct ServerOptions {
     std::filesystem::path store;
     // A store URL (server/store/open_job_store.h: postgresql://... or sqlite:FILE); empty:
     // SQLite in store/render.db.
-    std::string database;
+    std::string database = {};
     double lease_timeout_seconds = 30;
     double heartbeat_seconds = 2;
     double target_lease_seconds = 3;
