@@ -54,37 +54,56 @@ UPBP_SUBJECT = "upbp: all"
 UPBP_FACTOR = 1.5
 
 
+# Light paths per iteration of the uniform VPL arms (render's default).
+VPL_PATHS = 64
+
+
 def div_claim(cid, scene, defines, kind, target, width, paper_paths):
-    """Uniform VPLs from 64 light paths per iteration against the importance-driven
-    distribution from the same 64, and from `paper_paths`: the count whose accepted VPLs equal
-    the uniform arm's (64 / the share kept, measured on the scene), the paper's comparison at
-    an equal number of VPLs. The claim is judged on the second."""
+    """Uniform VPLs from VPL_PATHS light paths per iteration against the importance-driven
+    distribution from the same count, and from `paper_paths`: the count whose accepted VPLs equal
+    the uniform arm's (VPL_PATHS / the share kept, measured on the scene), the paper's comparison
+    at an equal number of VPLs. The claim is judged on the second.
+
+    Every arm's variance runs hold the same number of light paths (`run_paths`, two iterations
+    of the equal-count arm): where the light reaches what the camera sees through few paths, a
+    uniform iteration's image is heavy-tailed (most iterations light the visible room with no
+    VPL, a rare one with a bright VPL inside it), and a run of a few uniform iterations samples
+    those rare paths far less often than the importance arm's runs do, so the sample variance
+    over the runs underestimates the uniform arm's variance."""
+    paths = ["--vpl-paths", str(VPL_PATHS)]
     importance = [*CLAMP, "--vpl-distribution", "importance"]
-    arms = {"uniform": ("vpl", CLAMP), "importance": ("vpl", importance),
+    arms = {"uniform": ("vpl", [*CLAMP, *paths]), "importance": ("vpl", [*importance, *paths]),
             "importance, equal VPL count": ("vpl", [*importance, "--vpl-paths",
                                                     str(paper_paths)])}
+    common_fields = dict(id=cid, scene=scene, defines=defines, arms=arms, target=target,
+                         width=width, run_paths=2 * paper_paths)
     if kind == "gain":
-        return dict(id=cid, method="importance-driven VPLs", scene=scene, defines=defines,
-                    arms=arms, metric="equal-time relMSE(uniform) / relMSE(importance, equal "
-                                      "VPL count)",
+        return dict(**common_fields, method="importance-driven VPLs",
+                    metric="equal-time relMSE(uniform) / relMSE(importance, equal VPL count)",
                     numerator="uniform", denominator="importance, equal VPL count",
-                    direction=">=", target=target, width=width,
+                    direction=">=",
                     paper="light around a corner behind the camera: 7 % of the VPLs accepted, "
                           "more than an order of magnitude more efficient")
-    return dict(id=cid, method="importance-driven VPLs (control)", scene=scene, defines=defines,
-                arms=arms, metric="equal-time relMSE(importance, equal VPL count) / "
-                                  "relMSE(uniform)",
-                numerator="importance, equal VPL count", denominator="uniform", direction="<=", target=target,
-                width=width, paper="our bar: no more than 15 % worse where every VPL matters")
+    return dict(**common_fields, method="importance-driven VPLs (control)",
+                metric="equal-time relMSE(importance, equal VPL count) / relMSE(uniform)",
+                numerator="importance, equal VPL count", denominator="uniform", direction="<=",
+                paper="our bar: no more than 15 % worse where every VPL matters")
+
+
+def light_paths(extra) -> int | None:
+    """The light paths per iteration an arm's flags give (`--vpl-paths`), or None."""
+    flags = list(extra)
+    return int(flags[flags.index("--vpl-paths") + 1]) if "--vpl-paths" in flags else None
 
 
 CLAIMS = [
-    # Light paths for an equal VPL count: 64 / the share kept (7.6 %, 29.8 %, 59.6 %, measured
-    # by `render --vpl-distribution importance`, docs/results/many-lights.md).
-    div_claim("div-corner", "claims/div-corner.xml", [], "gain", 5.0, 96, 840),
-    div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 215),
+    # Light paths for an equal VPL count: VPL_PATHS / the share kept at that count (7.0 %,
+    # 29.5 %, 59.4 %: the equal-count arms' "VPLs kept" in docs/data/claims.json, measured at
+    # revision 5bd13d67d48f).
+    div_claim("div-corner", "claims/div-corner.xml", [], "gain", 5.0, 96, 915),
+    div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 217),
     div_claim("div-cornell-control", "bitterli/cornell-box/scene_v3.xml", [], "control", 1.15,
-              64, 107),
+              64, 108),
     dict(id="ic-rooms", method="importance caching", scene="claims/ic-rooms.xml", defines=[],
          arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
          metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
@@ -236,6 +255,12 @@ class Arm:
         # their CPU time to measure t.
         per_iteration = self._render(91_000, 2)[1] - self.fixed
         self.iterations = max(2, round(run_seconds / max(per_iteration, 1e-3)))
+        # Claims whose arms trace different numbers of light paths per iteration hold the
+        # light paths of a run equal across the arms (div_claim): heavy-tailed arms then sample
+        # their rare paths as often as the others.
+        paths = light_paths(claim["arms"][name][1])
+        if claim.get("run_paths") and paths:
+            self.iterations = max(self.iterations, math.ceil(claim["run_paths"] / paths))
 
     def _render(self, seed, iterations):
         out = self.workdir / f"{self.claim['id']}-{self.name.replace(' ', '_').replace(':', '')}.exr"
@@ -395,20 +420,23 @@ def measure(binary, claim, cfg, workdir, img_dir):
 NOTES = {
     "importance-driven VPLs":
         "Our importance-driven distribution is Russian roulette on the VPLs of a fixed number "
-        "of light paths per iteration (docs/design/algorithms-next.md 1.2-1.3): it cannot lower "
-        "one iteration's variance, so its equal-time gain is at most the cost ratio, about "
-        "1 / (share kept) when the VPL connections dominate an iteration. The paper compares "
-        "at an equal number of accepted VPLs (it traces light paths until enough are kept). "
-        "The gain therefore depends on the scene: how few VPLs light what the camera sees. "
-        "The claims are judged on the arm with the paper's count; the plain arm (64 light "
-        "paths) shows the roulette's own cost and variance. Where the variance per iteration "
-        "does not fall at an equal VPL count (div-corner), the cause is not known yet: both "
-        "arms are heavy-tailed (a clamped VPL close to a visible wall lights a small spot "
-        "brightly; see the SEs), and more importance records per iteration "
-        "(`--importance-records`) left the variance unchanged in a check by hand.",
-    "importance-driven VPLs (control)":
-        "Where every VPL matters, the roulette keeps most VPLs and adds the variance of the ones "
-        "it drops with underestimated importance (weight up to 1 / P_min).",
+        "of light paths per iteration (docs/design/algorithms-next.md 1.2-1.3). From the same "
+        "light paths (the plain importance arm) it cannot lower one iteration's variance, only "
+        "the cost. The paper compares at an equal number of accepted VPLs, which takes "
+        "1 / (share kept) times the light paths (the equal-count arm, on which the claim is "
+        "judged): the VPLs that light what the camera sees are kept with probability 1 and "
+        "come from that many more light paths, each with a correspondingly smaller share of "
+        "the power, so their part of the variance falls in proportion to the light paths; "
+        "what is left is the variance of the VPLs kept with a small probability (weight up to "
+        "1 / P_min) that do light something. Its price per iteration is the records' shadow "
+        "rays (records x candidates) and the VPLs kept only by P_min, which cost a connection "
+        "per pixel each. Where few light paths reach what the camera sees (div-corner: the "
+        "light comes around a corner behind the camera), a uniform iteration's image is "
+        "heavy-tailed: most iterations have no VPL in the visible room, a rare one has one "
+        "that lights it all. A run of a few such iterations mostly misses those paths, and "
+        "the sample variance over the runs then underestimates the arm's variance; every "
+        "arm's variance runs therefore hold the same number of light paths (two iterations "
+        "of the equal-count arm).",
     "importance caching":
         "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
         "comparison: variance only. Power-proportional sampling wastes the samples that land "
@@ -506,6 +534,8 @@ def write_page(path: Path, data: dict) -> None:
                       f"has {a['v'] / b['v']:.3g}× its "
                       f"{'mean absolute error' if definition.get('region') else 'variance'}.",
                       ""]
+        if definition.get("run_paths") and "uniform" in row["arms"]:
+            lines += [div_paths_line(definition, row), ""]
         lines += [NOTES.get(row["method"], ""), ""]
         lines += ["| arm | runs × iterations | v (± SE) | CPU s per iteration | cost |"
                   + (" RMSE / best |" if "best" in row else " VPLs kept |"),
@@ -533,6 +563,25 @@ def write_page(path: Path, data: dict) -> None:
     datafile.write(docs_dir / "data" / "claims" / "page.json",
                    {"stamp": data["stamp"], "measured": True, "blocks": {"page": body}})
     pages.write(["claims"], docs_dir)
+
+
+def div_paths_line(definition, row) -> str:
+    """The importance-driven VPL claims' light-path arithmetic, from the row's numbers: how much
+    of the uniform arm's variance the equal-count arm removes against what its light paths
+    alone would remove."""
+    equal = "importance, equal VPL count"
+    uniform_paths = light_paths(definition["arms"]["uniform"][1])
+    equal_paths = light_paths(definition["arms"][equal][1])
+    u, e = row["arms"]["uniform"], row["arms"][equal]
+    kept = e.get("vpls_kept_percent")
+    return (f"Light paths per iteration: uniform {uniform_paths}, equal VPL count {equal_paths} "
+            f"({equal_paths / uniform_paths:.3g}×"
+            + (f", keeping {kept:.1f} % of the candidates" if kept is not None else "")
+            + f"); each variance run holds {definition['run_paths']} light paths. The uniform "
+            f"arm's variance per iteration is {u['v'] / e['v']:.3g}× the equal-count arm's "
+            f"({equal_paths / uniform_paths:.3g}× if the VPLs kept with probability 1 carried "
+            f"all of it) and its CPU time per iteration {u['t'] / e['t']:.3g}×: the equal-time "
+            f"ratio is the product.")
 
 
 def common_doc() -> str:
