@@ -16,6 +16,10 @@ apart:
   the variance runs, less a one-iteration run's (scene loading), divided by the iterations in
   between. With one thread, CPU time is the wall time a quiet machine would show, and it is
   far less disturbed by other load than wall time (the machine is shared; the load is stamped).
+- The runs' lengths: about `run_seconds` of CPU time each, and for the VPL claims, whose arms
+  trace different numbers of light paths per iteration, at least the same number of light
+  paths in every arm's run, so that a heavy-tailed arm samples its rare light paths as often
+  as the others (few runs of a few iterations each underestimate a heavy-tailed variance).
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
 (first-order propagation of v's and t's standard errors) or the claim's run budget is spent
@@ -437,6 +441,10 @@ NOTES = {
         "the sample variance over the runs then underestimates the arm's variance; every "
         "arm's variance runs therefore hold the same number of light paths (two iterations "
         "of the equal-count arm).",
+    "importance-driven VPLs (control)":
+        "Where every VPL matters, the roulette keeps most VPLs and adds the variance of the ones "
+        "it drops with underestimated importance (weight up to 1 / P_min); the equal-count arm "
+        "also pays the records' shadow rays every iteration.",
     "importance caching":
         "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
         "comparison: variance only. Power-proportional sampling wastes the samples that land "
@@ -581,7 +589,27 @@ def div_paths_line(definition, row) -> str:
             f"arm's variance per iteration is {u['v'] / e['v']:.3g}× the equal-count arm's "
             f"({equal_paths / uniform_paths:.3g}× if the VPLs kept with probability 1 carried "
             f"all of it) and its CPU time per iteration {u['t'] / e['t']:.3g}×: the equal-time "
-            f"ratio is the product.")
+            f"ratio is the product." + div_verdict_reason(row, equal_paths / uniform_paths
+                                                           * u["t"] / e["t"]))
+
+
+def div_verdict_reason(row, bound) -> str:
+    """Why a gain claim of the VPL distribution is not held, from the row's numbers: the
+    light paths cannot give the target, or the standard error hides a ratio above it."""
+    if row["direction"] != ">=" or row["held"]:
+        return ""
+    if bound < row["target"]:
+        return (f" With all the variance in the VPLs kept with probability 1 the ratio would be "
+                f"about {bound:.3g}, below the target {row['target']:g}: the scene keeps too "
+                f"large a share of its candidates for an equal VPL count to buy enough light "
+                f"paths.")
+    if row["ratio"] >= row["target"]:
+        return (f" The measured ratio is above the target {row['target']:g}, but the ratio "
+                f"less 2 standard errors, {row['ratio'] - 2 * row['se']:.3g}, is not: the uniform "
+                f"arm's heavy tail makes its variance's standard error large "
+                f"({row['arms']['uniform']['v_se'] / row['arms']['uniform']['v']:.0%} of it "
+                f"after {row['arms']['uniform']['runs']} runs).")
+    return ""
 
 
 def common_doc() -> str:
