@@ -21,7 +21,8 @@ namespace render::server {
 namespace {
 
 // Version 2 adds the VPL counters, the layer mode and the layers' sums after odd_sum; version 1
-// files (no layers) are still read.
+// files (no layers) are still read. The variance layers' sum of squares is one such layer
+// (LayerMode::Variance), so a job without them saves no more than before.
 constexpr char kMagic[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '2'};
 constexpr char kMagicVersion1[8] = {'R', 'C', 'K', 'P', '0', '0', '0', '1'};
 
@@ -173,8 +174,7 @@ Image FrameAccumulator::average() const {
 }
 
 std::vector<NamedLayer> FrameAccumulator::layer_averages() const {
-    return result_.count == 0 ? std::vector<NamedLayer>{}
-                              : result_.layers.named_averages(result_.count);
+    return output_layers(result_);
 }
 
 void FrameAccumulator::save(const std::filesystem::path& file, double elapsed_seconds) const {
@@ -257,7 +257,7 @@ FrameAccumulator FrameAccumulator::load(const std::filesystem::path& file,
     }
     get(in, n_ranges, file);
     if (width == 0 || height == 0 || width > 65536 || height > 65536 || n_ranges > (1u << 26) ||
-        mode > uint32_t(LayerMode::PathVertices))
+        mode > uint32_t(LayerMode::Variance))
         throw std::runtime_error("checkpoint " + file.string() + " has a bad header");
     FrameAccumulator acc{int(width), int(height), LayerMode(mode)};
     if (layers != acc.layer_count())

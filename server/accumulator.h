@@ -19,7 +19,8 @@ namespace render::server {
 
 class FrameAccumulator {
   public:
-    // `layers`: the job's per-technique layers (its `layers` option), merged like the sums.
+    // `layers`: the job's extra layers (its `layers` option): the per-technique sums or the
+    // variance layers' sum of squares, merged like the sums.
     FrameAccumulator(int width, int height, LayerMode layers = LayerMode::None);
 
     int width() const { return width_; }
@@ -48,7 +49,8 @@ class FrameAccumulator {
     // Estimated relative error of the current mean (1 when unknown): estimate_relative_error
     // of result(), computed by add() in its pass over the sums (and by load()), not per call.
     double relative_error() const { return relative_error_; }
-    // The mean image so far (black when nothing is merged), and its layers' means.
+    // The mean image so far (black when nothing is merged), and its extra layers as `render`
+    // writes them (output_layers: the technique layers' means or the variance layers).
     Image average() const;
     std::vector<NamedLayer> layer_averages() const;
 

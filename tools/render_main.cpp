@@ -237,7 +237,7 @@ int render_scene(const Options& o) {
     facts.vpl_accepted = accumulated.stats.vpl_accepted;
     facts.target_error = o.job.target_error.value_or(0.0);
     const auto metadata = image_metadata(settings, facts);
-    write_exr(o.out, image, metadata, accumulated.layers.named_averages(accumulated.count));
+    write_exr(o.out, image, metadata, output_layers(accumulated));
     if (!o.png.empty()) write_png_preview(o.png, image);
 
     double samples_per_s = elapsed > 0 ? accumulated.stats.samples / elapsed : 0;

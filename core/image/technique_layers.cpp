@@ -24,6 +24,8 @@ std::vector<std::string> TechniqueLayers::names(LayerMode mode) {
                                     .append(std::to_string(s))
                                     .append("_t")
                                     .append(std::to_string(n - s)));
+    } else if (mode == LayerMode::Variance) {
+        names = {"sum_squares"};
     }
     return names;
 }

@@ -6,7 +6,10 @@
 //                 merging), as the VCM thesis shows them side by side;
 //   PathVertices: one image per (s, t) technique of PT/BPT/VCM connections, s light vertices
 //                 and t eye vertices (camera included), for paths of up to kMaxVertices
-//                 vertices (longer paths only reach the main image).
+//                 vertices (longer paths only reach the main image);
+//   Variance:     no technique: one buffer, the sum over iterations of each iteration's pixel
+//                 values squared, from which the per-pixel error layers are written
+//                 (core/image/variance_layers.h); render_iterations fills it, not the integrators.
 // The layers of an iteration sum exactly like the image (they are part of IterationResult).
 
 #include <cstdint>
@@ -17,7 +20,7 @@
 
 namespace render {
 
-enum class LayerMode { None, Techniques, PathVertices };
+enum class LayerMode { None, Techniques, PathVertices, Variance };
 enum class Technique { Connection, Merging };
 
 class TechniqueLayers {
@@ -31,6 +34,10 @@ class TechniqueLayers {
 
     LayerMode mode() const { return mode_; }
     bool enabled() const { return mode_ != LayerMode::None; }
+    // Whether integrators write into the layers (Variance is filled by render_iterations).
+    bool per_technique() const {
+        return mode_ == LayerMode::Techniques || mode_ == LayerMode::PathVertices;
+    }
     size_t size() const { return buffers_.size(); }
     const std::string& name(size_t i) const { return names_[i]; }
     const AccumulationBuffer& buffer(size_t i) const { return buffers_[i]; }

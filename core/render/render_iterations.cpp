@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/image/variance_layers.h"
 #include "core/render/algorithms.h"
 #include "core/render/arena_invalid_ray_tally.h"
 
@@ -82,12 +83,19 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
             // so they accumulate directly.
             s.integrator->render_iteration(
                 s.scene, IterationKey{s.settings.seed, s.frame, i}, image,
-                result.layers.enabled() ? &result.layers : nullptr, result.stats);
+                result.layers.per_technique() ? &result.layers : nullptr, result.stats);
             const bool odd = i % 2 == 1;
+            // The variance layers' sum of squares is a sum over iterations like the image's,
+            // so it merges across ranges and workers the same way (docs/design/design.md).
+            double* squares = result.layers.mode() == LayerMode::Variance
+                                  ? result.layers.buffer(0).values().data()
+                                  : nullptr;
             for_each_range(values.size(), [&](size_t begin, size_t end) {
                 for (size_t k = begin; k < end; ++k) sum[k] += values[k];
                 if (odd)
                     for (size_t k = begin; k < end; ++k) odd_sum[k] += values[k];
+                if (squares)
+                    for (size_t k = begin; k < end; ++k) squares[k] += values[k] * values[k];
             });
             if (odd) ++result.odd_count;
             ++result.count;
@@ -105,6 +113,14 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
     IterationResult result = renderer.empty_result();
     renderer.add(range, result);
     return result;
+}
+
+std::vector<NamedLayer> output_layers(const IterationResult& result) {
+    if (result.count == 0) return {};
+    if (result.layers.mode() == LayerMode::Variance)
+        return variance_layers(result.sum, result.odd_sum, result.layers.buffer(0), result.count,
+                               result.odd_count);
+    return result.layers.named_averages(result.count);
 }
 
 double estimate_relative_error(const IterationResult& result) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "core/image/image.h"
 #include "core/image/technique_layers.h"
@@ -24,7 +25,7 @@ struct IterationResult {
     AccumulationBuffer odd_sum;  // sum over the odd iterations only (noise estimation)
     uint64_t count = 0;          // iterations rendered
     uint64_t odd_count = 0;      // odd-indexed iterations among them
-    TechniqueLayers layers;      // per-technique sums, when settings.layers asks for them
+    TechniqueLayers layers;      // per-technique sums or the sum of squares (settings.layers)
     RenderStats stats;
 };
 
@@ -58,6 +59,11 @@ class IterationRenderer {
     struct State;
     std::unique_ptr<State> state_;
 };
+
+// The extra EXR layers of a result, as `render` and the server write them: the per-technique
+// layers' means, or for LayerMode::Variance the per-pixel error layers (variance_layers: the
+// variance of each pixel's mean and the odd and even half images). None before any iteration.
+std::vector<NamedLayer> output_layers(const IterationResult& result);
 
 // The sums behind estimate_relative_error, pixel value by pixel value (`sum` over all `count`
 // iterations, `odd` over the `odd_count` odd ones; both must be > 0 and odd_count < count): the

@@ -497,22 +497,25 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) { return std::to_string(s.connection_samples); }},
         {.name = "layers",
          .flag = "--layers",
-         .metavar = "none|techniques|st",
+         .metavar = "none|techniques|st|variance",
          .type = OptionType::Choice,
          .help = "extra EXR layers: techniques (connection and merging parts), st (one per "
-                 "(s, t) technique, paths of up to 6 vertices)",
-         .choices = {"none", "techniques", "st"},
+                 "(s, t) technique, paths of up to 6 vertices), variance (each pixel's "
+                 "estimated variance and the odd and even half images)",
+         .choices = {"none", "techniques", "st", "variance"},
          .default_text = "none",
          .every_algorithm = true,
          .apply =
              [](RenderSettings& s, const std::string& v) {
                  s.layers = v == "techniques" ? LayerMode::Techniques
                             : v == "st"       ? LayerMode::PathVertices
+                            : v == "variance" ? LayerMode::Variance
                                               : LayerMode::None;
              },
          .format = [](const RenderSettings& s) -> std::string {
              return s.layers == LayerMode::Techniques     ? "techniques"
                     : s.layers == LayerMode::PathVertices ? "st"
+                    : s.layers == LayerMode::Variance     ? "variance"
                                                           : "none";
          }},
     };

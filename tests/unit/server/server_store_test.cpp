@@ -107,6 +107,49 @@ TEST(FrameAccumulator, LayersRoundTripThroughTheCheckpoint) {
     fs::remove_all(dir);
 }
 
+// A job with the variance layers merges and checkpoints the sum of squares with the sums (one
+// buffer more than a job without, which stays as small as before), and writes the same layers
+// after a restore as before it (docs/reference/variance-layers.md).
+TEST(FrameAccumulator, VarianceSumsRoundTripThroughTheCheckpoint) {
+    fs::path dir = temp_dir("ckpt-variance");
+    FrameAccumulator plain(2, 1);
+    FrameAccumulator acc(2, 1, render::LayerMode::Variance);
+    ASSERT_EQ(plain.layer_count(), 0u);
+    ASSERT_EQ(acc.layer_count(), 1u);  // the sum of squares
+    // Two one-iteration reports: values x1 (odd iteration 1) and x2 (even iteration 2).
+    const std::vector<double> x1 = {1, 2, 3, 4, 5, 6}, x2 = {3, 2, 1, 4, 9, 0};
+    std::vector<double> q1, q2;
+    for (double v : x1) q1.push_back(v * v);
+    for (double v : x2) q2.push_back(v * v);
+    acc.add({1, 2}, x1, x1, q1, 1, {});
+    acc.add({2, 3}, x2, {}, q2, 0, {});
+    plain.add({1, 2}, x1, x1, {}, 1, {});
+    plain.add({2, 3}, x2, {}, {}, 0, {});
+    acc.save(dir / "variance.ckpt", 1.0);
+    plain.save(dir / "plain.ckpt", 1.0);
+    EXPECT_EQ(fs::file_size(dir / "variance.ckpt"),
+              fs::file_size(dir / "plain.ckpt") + x1.size() * sizeof(double));
+    FrameAccumulator back = FrameAccumulator::load(dir / "variance.ckpt", nullptr);
+    ASSERT_EQ(back.result().layers.mode(), render::LayerMode::Variance);
+    const std::vector<render::NamedLayer> before = acc.layer_averages();
+    const std::vector<render::NamedLayer> after = back.layer_averages();
+    ASSERT_EQ(before.size(), 3u);
+    ASSERT_EQ(after.size(), 3u);
+    for (size_t l = 0; l < 3; ++l) {
+        EXPECT_EQ(before[l].name, after[l].name);
+        for (size_t i = 0; i < 6; ++i)
+            EXPECT_EQ(before[l].image.data()[i], after[l].image.data()[i]);
+    }
+    EXPECT_EQ(after[0].name, "variance");
+    // Two values a, b: the variance of their mean is (a - b)^2 / 4.
+    for (size_t i = 0; i < 6; ++i) {
+        EXPECT_FLOAT_EQ(after[0].image.data()[i], float((x1[i] - x2[i]) * (x1[i] - x2[i]) / 4));
+        EXPECT_EQ(after[1].image.data()[i], float(x1[i]));  // odd_half
+        EXPECT_EQ(after[2].image.data()[i], float(x2[i]));  // even_half
+    }
+    fs::remove_all(dir);
+}
+
 // Checkpoints written before layers existed (format 1) are still read.
 TEST(FrameAccumulator, ReadsFormatOneCheckpoints) {
     fs::path dir = temp_dir("ckpt-v1");
