@@ -84,6 +84,8 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
     clock::duration add_time{}, checkpoint_time{};
     uint64_t merged_count = 0;
     double merged_error = 1;
+    // A checkpoint by every report: on a shared store only within a hold just renewed.
+    const bool checkpoint_now = options_.checkpoint_seconds <= 0 && still_held(grant.job_id);
     {
         std::lock_guard lock(frame.mu);
         // Made (and its pages touched) once per frame, outside the measured per-report cost
@@ -112,7 +114,7 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
         // since, and nothing is counted twice. With checkpoint_seconds 0, after every report.
         frame.dirty = true;
         if (!frame.checkpoint_clock) frame.checkpoint_clock = clock_();
-        if (options_.checkpoint_seconds <= 0) {
+        if (checkpoint_now) {
             frame_files_.save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "report");
             checkpoint_time = clock::now() - checkpoint_start;
         }
