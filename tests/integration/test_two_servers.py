@@ -36,6 +36,16 @@ CHAOS_JOBS = [
 ]
 
 
+def read(path, mode="r"):
+    with open(path, mode) as f:
+        return f.read()
+
+
+def jobs_taken(log_path):
+    """How many jobs the server of this log took a hold of (event=job_taken)."""
+    return len(re.findall(rb"event=job_taken ", read(log_path, "rb")))
+
+
 class TwoServers(cluster.ClusterTestCase):
     def setUp(self):
         super().setUp()
@@ -95,8 +105,7 @@ class TwoServers(cluster.ClusterTestCase):
             self.check_result(other.api, job_id, scene, algorithm, iterations,
                               other.path(f"{algorithm}.exr"))
         # Both servers took part: each held a job (their workers rendered it).
-        taken = [len(re.findall(rb"event=job_taken ", open(c.server.log_path, "rb").read()))
-                 for c in (a, b)]
+        taken = [jobs_taken(c.server.log_path) for c in (a, b)]
         print(f"jobs taken: A {taken[0]}, B {taken[1]}")
         self.assertEqual(sum(taken), len(jobs))
 
@@ -150,11 +159,11 @@ class TwoServers(cluster.ClusterTestCase):
             self.check_result(a.api, job_id, scene, algorithm, iterations,
                               a.path(f"chaos-{algorithm}.exr"))
             self.assertEqual(b.api.get_job(job_id).state, P.JOB_STATE_DONE)
-        self.assertEqual(watcher.wait(timeout=60), 0, open(watcher_log).read())
-        watched = open(watcher_log).read()
+        self.assertEqual(watcher.wait(timeout=60), 0, read(watcher_log))
+        watched = read(watcher_log)
         self.assertIn("DONE", watched)
         print(f"the watcher: {watched.strip().splitlines()[-1]}")
-        taken = sum(len(re.findall(rb"event=job_taken ", open(p.log_path, "rb").read()))
+        taken = sum(jobs_taken(p.log_path)
                     for c in (a, b) for p in c.procs if p.name.startswith("server"))
         print(f"jobs taken over in all: {taken}")
         self.assertGreaterEqual(taken, len(jobs) + 1, "no job changed hands")
