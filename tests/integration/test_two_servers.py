@@ -41,6 +41,27 @@ def read(path, mode="r"):
         return f.read()
 
 
+MERGED = re.compile(rb"event=merged .*?job=(\S+) frame=(\d+) first=(\d+) end=(\d+)")
+TAKEN = re.compile(rb"event=job_taken .*?job=(\S+)")
+
+
+def merged_twice_within_a_hold(log_path):
+    """The ranges a server's log shows merged twice within one hold of a job (a new hold
+    starts from a checkpoint and may merge again what the previous one merged after it)."""
+    ranges, twice = {}, []
+    for line in read(log_path, "rb").splitlines():
+        if m := TAKEN.search(line):
+            for key in [k for k in ranges if k[0] == m.group(1)]:
+                del ranges[key]
+        elif m := MERGED.search(line):
+            key = (m.group(1), int(m.group(2)))
+            first, end = int(m.group(3)), int(m.group(4))
+            held = ranges.setdefault(key, [])
+            twice += [(key, (first, end)) for f, e in held if f < end and first < e]
+            held.append((first, end))
+    return twice
+
+
 def jobs_taken(log_path):
     """How many jobs the server of this log took a hold of (event=job_taken)."""
     return len(re.findall(rb"event=job_taken ", read(log_path, "rb")))
@@ -105,6 +126,8 @@ class TwoServers(cluster.ClusterTestCase):
             self.check_result(other.api, job_id, scene, algorithm, iterations,
                               other.path(f"{algorithm}.exr"))
         # Both servers took part: each held a job (their workers rendered it).
+        for c in (a, b):
+            self.assertEqual(merged_twice_within_a_hold(c.server.log_path), [])
         taken = [jobs_taken(c.server.log_path) for c in (a, b)]
         print(f"jobs taken: A {taken[0]}, B {taken[1]}")
         self.assertEqual(sum(taken), len(jobs))
@@ -163,8 +186,10 @@ class TwoServers(cluster.ClusterTestCase):
         watched = read(watcher_log)
         self.assertIn("DONE", watched)
         print(f"the watcher: {watched.strip().splitlines()[-1]}")
-        taken = sum(jobs_taken(p.log_path)
-                    for c in (a, b) for p in c.procs if p.name.startswith("server"))
+        servers = [p for c in (a, b) for p in c.procs if p.name.startswith("server")]
+        for p in servers:
+            self.assertEqual(merged_twice_within_a_hold(p.log_path), [], p.name)
+        taken = sum(jobs_taken(p.log_path) for p in servers)
         print(f"jobs taken over in all: {taken}")
         self.assertGreaterEqual(taken, len(jobs) + 1, "no job changed hands")
 
