@@ -53,7 +53,10 @@ const Command* find_command(const std::string& name) {
 
 render::ArgumentParser global_parser(GlobalOptions& o) {
     render::ArgumentParser p;
-    p.value({"--server"}, "HOST:PORT", "default: env RENDER_SERVER, else 127.0.0.1:50051",
+    p.value({"--server"}, "HOST:PORT[,HOST:PORT...]",
+            "the server, or several servers of one farm: the first that answers is used, and a "
+            "watch moves to the next when it goes away (default: env RENDER_SERVER, else "
+            "127.0.0.1:50051)",
             [&](const std::string& v) { o.server = v; });
     p.value({"--token"}, "T", "bearer token (default: env RENDER_TOKEN)",
             [&](const std::string& v) { o.token = v; });

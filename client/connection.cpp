@@ -1,29 +1,79 @@
 #include "client/connection.h"
 
+#include <chrono>
 #include <cstdio>
+#include <stdexcept>
+
+#include "service/server_list.h"
 
 namespace render::service {
+
+namespace {
+
+// How long a server of a list has to answer before the next one is tried.
+constexpr double kProbeSeconds = 3.0;
+
+bool answers(const std::shared_ptr<grpc::Channel>& channel) {
+    return channel->WaitForConnected(std::chrono::system_clock::now() +
+                                     std::chrono::milliseconds(int64_t(kProbeSeconds * 1000)));
+}
+
+}  // namespace
 
 std::optional<Connection> connect_to_server(const std::string& server, const std::string& token,
                                             const std::string& tls_ca,
                                             const std::string& tls_server_name) {
     Connection c;
-    c.address = server;
     c.token = token_or_env(token);
-    ClientTls tls;
     try {
-        tls = client_tls_from(tls_ca, tls_server_name);
+        c.addresses = split_server_list(server);
+    } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "client: --server: %s\n", e.what());
+        return std::nullopt;
+    }
+    try {
+        c.tls = client_tls_from(tls_ca, tls_server_name);
     } catch (const std::runtime_error& e) {
         std::fprintf(stderr, "client: %s\n", e.what());
         return std::nullopt;
     }
-    if (const std::string problem = check_client_transport(server, tls.tls, !c.token.empty());
-        !problem.empty()) {
-        std::fprintf(stderr, "client: %s\n", problem.c_str());
-        return std::nullopt;
-    }
-    c.stub = v1::JobService::NewStub(make_channel(server, tls));
+    for (const std::string& address : c.addresses)
+        if (const std::string problem =
+                check_client_transport(address, c.tls.tls, !c.token.empty());
+            !problem.empty()) {
+            std::fprintf(stderr, "client: %s\n", problem.c_str());
+            return std::nullopt;
+        }
+    // With several servers, the first that answers; one server is used as given (a call to a
+    // server that is down fails with UNAVAILABLE, as it always did).
+    c.index_ = 0;
+    if (c.addresses.size() > 1)
+        for (size_t i = 0; i < c.addresses.size(); ++i)
+            if (answers(make_channel(c.addresses[i], c.tls))) {
+                c.index_ = i;
+                break;
+            }
+    c.address = c.addresses[c.index_];
+    c.stub = v1::JobService::NewStub(make_channel(c.address, c.tls));
     return c;
+}
+
+bool Connection::fail_over() const {
+    if (addresses.size() < 2) return false;
+    size_t next = (index_ + 1) % addresses.size();
+    for (size_t tried = 1; tried < addresses.size(); ++tried) {
+        const size_t i = (index_ + tried) % addresses.size();
+        if (answers(make_channel(addresses[i], tls))) {
+            next = i;
+            break;
+        }
+    }
+    std::fprintf(stderr, "client: server %s unreachable, using %s\n", addresses[index_].c_str(),
+                 addresses[next].c_str());
+    index_ = next;
+    address = addresses[next];
+    stub = v1::JobService::NewStub(make_channel(addresses[next], tls));
+    return true;
 }
 
 bool tls_used(const std::string& tls_ca_flag) {

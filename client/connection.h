@@ -6,9 +6,11 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "render.grpc.pb.h"
 #include "service/rpc.h"
+#include "service/transport_security.h"
 
 namespace render::service {
 
@@ -21,16 +23,30 @@ struct RpcFailure : std::runtime_error {
 };
 
 struct Connection {
-    std::string address;
+    mutable std::string address;  // the server in use (fail_over changes it)
     std::string token;
-    std::unique_ptr<v1::JobService::Stub> stub;
+    // Several servers of one farm (--server A,B; docs/guide/service.md, "Several servers"):
+    // the list, and the TLS setup to connect to another of them.
+    std::vector<std::string> addresses;
+    ClientTls tls;
+    // Mutable: fail_over replaces it on a Connection passed by const reference.
+    mutable std::unique_ptr<v1::JobService::Stub> stub;
 
     void prepare(grpc::ClientContext& context, double timeout = kRpcTimeout) const {
         prepare_context(context, token, timeout);
     }
+    // The server in use could not be reached: moves to the next of the list that answers
+    // within a few seconds (else simply the next). False with a single server.
+    bool fail_over() const;
+
+  private:
+    mutable size_t index_ = 0;
+    friend std::optional<Connection> connect_to_server(const std::string&, const std::string&,
+                                                       const std::string&, const std::string&);
 };
 
-// The connection the global options ask for (empty ones fall back to the environment:
+// The connection the global options ask for (`server`: one HOST:PORT or a comma-separated list,
+// of which the first that answers is used; empty options fall back to the environment:
 // RENDER_TOKEN, RENDER_TLS_CA, RENDER_TLS_SERVER_NAME). Nothing, after printing the problem,
 // for an unusable TLS setup or a token that would travel in clear.
 std::optional<Connection> connect_to_server(const std::string& server, const std::string& token,

@@ -1,5 +1,6 @@
 // `client watch` (and `submit --wait`): follows the job's events until it ends, riding out a
-// short server restart, polling when the server has no room for another watcher.
+// short server restart (or moving to the next server of --server's list), polling when the
+// server has no room for another watcher.
 
 #include <unistd.h>
 
@@ -48,9 +49,11 @@ int watch(const Connection& c, const std::string& job_id) {
             continue;
         }
         if (!status.ok()) {
-            // Ride out a short server restart; give up after ~30 s.
+            // Ride out a short server restart, or move to the next server of the list;
+            // give up after ~30 s.
             if (status.error_code() == grpc::StatusCode::UNAVAILABLE && ++unavailable <= 12) {
-                std::this_thread::sleep_for(std::chrono::milliseconds(250 * unavailable));
+                if (!c.fail_over())
+                    std::this_thread::sleep_for(std::chrono::milliseconds(250 * unavailable));
                 continue;
             }
             throw RpcFailure("WatchJob", status);

@@ -43,6 +43,9 @@ struct FrameData {
     // merge of this run (under mu).
     std::optional<TimePoint> checkpoint_clock;
     double last_checkpoint_seconds = 0;  // how long the last checkpoint took (under mu)
+    // On a shared store, the epoch of the job's hold these sums belong to (under mu): a report
+    // accepted in another epoch is not added (job_manager_holds.cpp). 0 on a store of one.
+    int64_t hold_epoch = 0;
 
     // Appends a point to the error history (mu held), thinning it when full.
     void record_error(const ErrorPoint& point);

@@ -26,12 +26,10 @@ using grpc::Status;
 using grpc::StatusCode;
 using namespace detail;
 
-namespace {
-
 // The settings a job renders with: its stored options are complete (submit resolved them),
 // so the scene is not needed. A job stored by an older server may not resolve: then only its
 // algorithm is known (no layers), which is all the server needs of it.
-RenderSettings job_settings(const v1::SubmitJobRequest& request) {
+RenderSettings detail::job_settings(const v1::SubmitJobRequest& request) {
     try {
         return resolve_render_settings(request.settings().algorithm(),
                                        service::request_options(request.settings()),
@@ -42,8 +40,6 @@ RenderSettings job_settings(const v1::SubmitJobRequest& request) {
         return settings;
     }
 }
-
-}  // namespace
 
 JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
     : options_(options),
@@ -63,7 +59,9 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
       long_streams_(StreamLimits{options.streams.idle_seconds, SIZE_MAX}),
       scheduler_(SchedulerOptions{options.lease_timeout_seconds, options.target_lease_seconds,
                                   options.max_lease_seconds},
-                 std::move(clock)) {
+                 std::move(clock)),
+      shared_(store_.shared()),
+      server_id_("s-" + random_hex(12)) {
     fs::create_directories(options_.store / "jobs");
     fs::create_directories(options_.store / "checkpoints");
     fs::create_directories(options_.store / "results");
@@ -87,6 +85,15 @@ std::shared_ptr<JobManager::JobData> JobManager::find(const std::string& job_id)
 }
 
 void JobManager::restore() {
+    if (shared_) {
+        // Other servers may be running on this store: their leases and sums are theirs. The
+        // jobs are read as the store records them and taken over by tick() (job_manager_holds).
+        Log("info", "shared_store")
+            .kv("server", server_id_)
+            .kv("address", options_.advertise_address);
+        sync_shared(true);
+        return;
+    }
     int voided = store_.clear_leases();
     if (voided > 0) Log("info", "leases_voided").kv("count", voided);
     next_sequence_ = store_.max_sequence() + 1;
@@ -180,6 +187,9 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     int64_t sequence;
     {
         std::lock_guard lock(mu_);
+        // Several servers number their jobs from the store's highest sequence (two submits
+        // at once on two servers may share one: the random suffix keeps the ids apart).
+        if (shared_) next_sequence_ = std::max(next_sequence_, store_.max_sequence() + 1);
         sequence = next_sequence_++;
     }
     char prefix[32];
@@ -273,6 +283,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
 }
 
 Status JobManager::get(const std::string& job_id, v1::Job* out) {
+    if (shared_ && !known(job_id)) learn_job(job_id);
     std::lock_guard lock(mu_);
     auto job = find(job_id);
     if (!job) return job_not_found(job_id);
@@ -300,7 +311,13 @@ void JobManager::set_state(JobData& job, JobState state, const std::string& erro
     });
 }
 
+bool JobManager::known(const std::string& job_id) {
+    std::lock_guard lock(mu_);
+    return find(job_id) != nullptr;
+}
+
 Status JobManager::cancel(const std::string& job_id, v1::Job* out) {
+    if (shared_ && !known(job_id)) learn_job(job_id);
     std::lock_guard lock(mu_);
     auto job = find(job_id);
     if (!job) return job_not_found(job_id);

@@ -91,6 +91,12 @@ struct ServerOptions {
     // default spools a 1920x1080 report of several iterations (100 MB) and keeps a 1280x720
     // one (44 MB) in memory; 0 spools every report, SIZE_MAX none.
     uint64_t spool_reports_above = uint64_t(64) << 20;
+    // Several servers on one shared store (PostgreSQL; docs/design/job-store.md, "Several
+    // servers, one farm"): the address this server is reached at, recorded with the jobs it
+    // holds; and how long its hold of a job's sums lasts unrenewed (renewed every
+    // hold_seconds / 4) before another server takes the job over from its last checkpoint.
+    std::string advertise_address = {};
+    double hold_seconds = 10;
 };
 
 class JobManager {
@@ -178,6 +184,10 @@ class JobManager {
     // report is one lease's; watchers have their own limit in JobServiceImpl).
     StreamGuards& long_streams() { return long_streams_; }
     const ServerOptions& options() const { return options_; }
+    // This server's id in a shared store's holds (a new one at every start).
+    const std::string& server_id() const { return server_id_; }
+    // The ids of the jobs this server holds now (all unfinished ones on an unshared store).
+    std::vector<std::string> held_jobs();
 
   private:
     struct JobData {
@@ -187,11 +197,17 @@ class JobManager {
         std::vector<std::unique_ptr<FrameData>> frames;
         JobFailures failures;  // the poison and memory-wait bookkeeping (under mu_)
         std::mutex report_mu;  // held by the report being received and merged (report_slot)
+        // On a shared store: whether this server holds the job's sums, and the epoch of its
+        // hold (under mu_). Only the holder leases, merges, checkpoints and finishes a job;
+        // the other servers show it as the store records it (job_manager_holds.cpp).
+        bool held = false;
+        int64_t hold_epoch = 0;
     };
 
     // --- jobs (job_manager.cpp) ---
     void restore();
     std::shared_ptr<JobData> find(const std::string& job_id);
+    bool known(const std::string& job_id);                                   // find under mu_
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
     // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock
     // moves it too): the time of the manager's start plus the clock's time since.
@@ -236,6 +252,32 @@ class JobManager {
     // (caller holds mu_): what neither a deletion nor the asset sweep may remove.
     std::set<std::string> assets_in_use(const std::string& except_job = {}) const;
 
+    // --- several servers on one store (job_manager_holds.cpp) ---
+    // Whether this server may lease, merge and write the job (always on an unshared store;
+    // mu_ held).
+    bool holds(const JobData& job) const { return !shared_ || job.held; }
+    // Renews the holds, takes over a job nobody holds (one per call, when this server has
+    // live workers and holds no more jobs than the others), and refreshes the jobs other
+    // servers hold from the store. tick()'s thread, every hold_seconds / 4.
+    void sync_shared(bool force);
+    // What the store records of a job's frames (the ranges of their last checkpoints).
+    std::vector<FramePlan> stored_plans(const JobRow& row);
+    // A job this server does not hold, as the store records it: added, or its state and
+    // progress brought up to date (outside mu_).
+    void refresh_job(const JobRow& row);
+    // A job submitted through another server since the last sync: read from the store now
+    // (a client may ask this server about it at once). True when it is known now.
+    bool learn_job(const std::string& job_id);
+    // Takes the job's sums over from the last checkpoints (the hold of `epoch` is taken).
+    void take_over(const std::string& job_id, int64_t epoch, const std::string& previous);
+    // Another server took the job: its leases are void and its sums dropped (mu_ held).
+    void give_up(JobData& job, const char* why);
+    // Renews the hold before a checkpoint or result of the job is written: false (and the
+    // write skipped) when another server took it (outside mu_).
+    bool still_held(const std::string& job_id);
+    // A stopping server gives its holds up, so that others take its jobs at once.
+    void release_holds();
+
     // --- views (job_manager_views.cpp) ---
     void fill_job(const JobData& job, v1::Job* out) const;  // mu_ held
     // The state clients see: WAITING (never stored) for an unfinished job that is
@@ -265,6 +307,10 @@ class JobManager {
     std::map<std::string, int> submitting_assets_;
     int64_t next_sequence_ = 1;
     std::mutex finish_mu_;  // one frame finishes at a time
+    // A shared store (JobStore::shared): several servers, holds (docs/design/job-store.md).
+    bool shared_ = false;
+    std::string server_id_;
+    std::optional<TimePoint> last_sync_;  // tick()'s thread only
 };
 
 }  // namespace render::server

@@ -10,7 +10,9 @@
 #include <random>
 #include <string>
 
+#include "core/render/render_options.h"
 #include "core/util/log.h"
+#include "render.pb.h"
 
 namespace render::server::detail {
 
@@ -19,6 +21,9 @@ inline int64_t unix_ms() {
                std::chrono::system_clock::now().time_since_epoch())
         .count();
 }
+
+// The settings a job renders with (job_manager.cpp): its stored options are complete.
+RenderSettings job_settings(const ::render::v1::SubmitJobRequest& request);
 
 inline std::string random_hex(int digits) {
     static thread_local std::mt19937_64 rng{std::random_device{}()};

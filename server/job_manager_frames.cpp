@@ -5,6 +5,7 @@
 
 #include <map>
 #include <mutex>
+#include <set>
 
 #include "core/image/exr_io.h"
 #include "core/util/log.h"
@@ -19,12 +20,23 @@ using namespace detail;
 
 void JobManager::advance() {
     std::vector<std::pair<std::string, uint32_t>> complete;
+    std::vector<std::string> expired;
     {
         std::lock_guard lock(mu_);
-        complete = scheduler_.tick();
-        for (const LeaseGrant& grant : scheduler_.take_expired()) lease_lost(grant);
+        for (const auto& done : scheduler_.tick())
+            // Another server holds the job: it finishes the frame (this one has no sums).
+            if (auto job = find(done.first); job && holds(*job)) complete.push_back(done);
+        for (const LeaseGrant& grant : scheduler_.take_expired()) {
+            lease_lost(grant);
+            expired.push_back(grant.lease_id);
+        }
         fail_memory_blocked();
     }
+    // On a shared store an expired lease's row goes (claim_lease would refuse its range when
+    // it is leased again).
+    if (shared_)
+        for (const std::string& id : expired)
+            store_or_log("lease", id, [&] { store_.delete_lease(id); });
     for (const auto& [job_id, frame] : complete) finish_frame(job_id, frame);
 }
 
@@ -39,18 +51,29 @@ void JobManager::flush_checkpoints(bool all) {
     {
         std::lock_guard lock(mu_);
         for (const auto& [id, job] : jobs_) {
-            if (is_terminal(scheduler_.state(id))) continue;
+            if (is_terminal(scheduler_.state(id)) || !holds(*job)) continue;
             for (uint32_t i = 0; i < job->frames.size(); ++i)
                 if (job->frames[i]->dirty.load())
                     due.push_back({job, id, i, scheduler_.progress(id, i).elapsed_seconds});
         }
     }
     const TimePoint now = clock_();
+    std::set<std::string> renewed;
     for (const Due& d : due) {
         FrameData& frame = *d.job->frames[d.index];
+        {
+            std::lock_guard lock(frame.mu);
+            if (!frame.dirty || !frame.acc) continue;
+            if (!all && !frame_files_.checkpoint_due(frame, now)) continue;
+        }
+        // On a shared store a checkpoint is written only within a hold just renewed: the
+        // server that would take the job over waits for the hold to run out.
+        if (shared_ && !renewed.count(d.id)) {
+            if (!still_held(d.id)) continue;
+            renewed.insert(d.id);
+        }
         std::lock_guard lock(frame.mu);
         if (!frame.dirty || !frame.acc) continue;
-        if (!all && !frame_files_.checkpoint_due(frame, now)) continue;
         frame_files_.save_checkpoint(d.id, d.index, frame, d.elapsed,
                                      all ? "shutdown" : "interval");
     }
@@ -58,15 +81,20 @@ void JobManager::flush_checkpoints(bool all) {
 
 void JobManager::checkpoint_all() {
     flush_checkpoints(true);
-    std::lock_guard lock(mu_);
-    for (const auto& [id, job] : jobs_) {
-        if (is_terminal(scheduler_.state(id))) continue;
-        for (uint32_t i = 0; i < job->frames.size(); ++i) {
-            FrameProgress p = scheduler_.progress(id, i);
-            if (p.done) continue;
-            store_or_log("job", id, [&] { store_.update_frame(id, i, false, p.elapsed_seconds); });
+    {
+        std::lock_guard lock(mu_);
+        for (const auto& [id, job] : jobs_) {
+            if (is_terminal(scheduler_.state(id)) || !holds(*job)) continue;
+            for (uint32_t i = 0; i < job->frames.size(); ++i) {
+                FrameProgress p = scheduler_.progress(id, i);
+                if (p.done) continue;
+                store_or_log("job", id,
+                             [&] { store_.update_frame(id, i, false, p.elapsed_seconds); });
+            }
         }
     }
+    // Written: another server may take the jobs over from these checkpoints at once.
+    release_holds();
     Log("info", "checkpointed");
 }
 
@@ -80,6 +108,8 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
         progress = scheduler_.progress(job_id, index);
     }
     if (!job) return;
+    // Another server took the job meanwhile: it writes the frame.
+    if (!still_held(job_id)) return;
     FrameData& frame = *job->frames[index];
     std::string error;
     std::vector<Range> ranges;  // what the EXR holds
@@ -130,6 +160,7 @@ Status JobManager::result_file(const v1::FetchResultRequest& request, fs::path* 
                                bool* temporary) {
     std::shared_ptr<JobData> job;
     FrameProgress progress;
+    if (shared_ && !known(request.job_id())) learn_job(request.job_id());
     {
         std::lock_guard lock(mu_);
         job = find(request.job_id());

@@ -17,6 +17,7 @@ using grpc::StatusCode;
 using namespace detail;
 
 void JobManager::tick() {
+    if (shared_) sync_shared(false);
     advance();
     flush_checkpoints(false);
     apply_retention();

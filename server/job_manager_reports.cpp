@@ -60,10 +60,12 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
     LeaseGrant grant;
     std::shared_ptr<JobData> job;
     MergeDecision decision;
+    int64_t epoch = 0;  // the hold the lease was granted in (shared store)
     {
         std::lock_guard lock(mu_);
         decision = scheduler_.begin_merge(header.lease_id(), header.render_seconds(), &grant);
         if (decision == MergeDecision::Accept) job = find(grant.job_id);
+        if (job) epoch = holds(*job) ? job->hold_epoch : -2;
     }
     store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
     if (decision != MergeDecision::Accept || !job) {
@@ -84,38 +86,52 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
     clock::duration add_time{}, checkpoint_time{};
     uint64_t merged_count = 0;
     double merged_error = 1;
+    bool hold_lost = false;
+    // A checkpoint by every report: on a shared store only within a hold just renewed.
+    const bool checkpoint_now = options_.checkpoint_seconds <= 0 && still_held(grant.job_id);
     {
         std::lock_guard lock(frame.mu);
-        // Made (and its pages touched) once per frame, outside the measured per-report cost
-        // that sizes the job's leases.
-        if (!frame.acc)
-            frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
-                                                           job->settings.layers);
-        const clock::time_point add_start = clock::now();
-        RenderStats stats;
-        stats.samples = header.samples();
-        stats.rays = header.rays();
-        stats.non_finite = header.non_finite();
-        stats.vpl_candidates = header.vpl_candidates();
-        stats.vpl_accepted = std::min(header.vpl_accepted(), header.vpl_candidates());
-        frame.acc->add(grant.range, values, header.odd_sum_omitted(), header.odd_count(), stats);
-        frame.relative_error = frame.acc->relative_error();
-        frame.non_finite = frame.acc->result().stats.non_finite;
-        frame.record_error({elapsed, frame.acc->count(), frame.relative_error.load()});
-        merged_count = frame.acc->count();
-        merged_error = frame.relative_error.load();
-        const clock::time_point checkpoint_start = clock::now();
-        add_time = checkpoint_start - add_start;
-        // The checkpoint (the frame's whole sums) is written by the periodic tick, at most
-        // every checkpoint_interval, not here: the worker waits for this reply. Until then the
-        // store records only what the last checkpoint holds, so a crash re-leases what merged
-        // since, and nothing is counted twice. With checkpoint_seconds 0, after every report.
-        frame.dirty = true;
-        if (!frame.checkpoint_clock) frame.checkpoint_clock = clock_();
-        if (options_.checkpoint_seconds <= 0) {
-            frame_files_.save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "report");
-            checkpoint_time = clock::now() - checkpoint_start;
+        // The hold was lost (and maybe taken again) since the lease was granted: these sums
+        // are another epoch's, whose schedule may lease the range again. Not added.
+        hold_lost = frame.hold_epoch != epoch;
+        if (!hold_lost) {
+            // Made (and its pages touched) once per frame, outside the measured per-report cost
+            // that sizes the job's leases.
+            if (!frame.acc)
+                frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
+                                                               job->settings.layers);
+            const clock::time_point add_start = clock::now();
+            RenderStats stats;
+            stats.samples = header.samples();
+            stats.rays = header.rays();
+            stats.non_finite = header.non_finite();
+            stats.vpl_candidates = header.vpl_candidates();
+            stats.vpl_accepted = std::min(header.vpl_accepted(), header.vpl_candidates());
+            frame.acc->add(grant.range, values, header.odd_sum_omitted(), header.odd_count(),
+                           stats);
+            frame.relative_error = frame.acc->relative_error();
+            frame.non_finite = frame.acc->result().stats.non_finite;
+            frame.record_error({elapsed, frame.acc->count(), frame.relative_error.load()});
+            merged_count = frame.acc->count();
+            merged_error = frame.relative_error.load();
+            const clock::time_point checkpoint_start = clock::now();
+            add_time = checkpoint_start - add_start;
+            // The checkpoint (the frame's whole sums) is written by the periodic tick, at most
+            // every checkpoint_interval, not here: the worker waits for this reply. Until then the
+            // store records only what the last checkpoint holds, so a crash re-leases what merged
+            // since, and nothing is counted twice. With checkpoint_seconds 0, after every report.
+            frame.dirty = true;
+            if (!frame.checkpoint_clock) frame.checkpoint_clock = clock_();
+            if (checkpoint_now) {
+                frame_files_.save_checkpoint(grant.job_id, grant.frame, frame, elapsed, "report");
+                checkpoint_time = clock::now() - checkpoint_start;
+            }
         }
+    }
+    if (hold_lost) {
+        metrics_.report_dropped("hold_lost");
+        Log("warn", "report_dropped").kv("lease", header.lease_id()).kv("reason", "hold_lost");
+        return Status::OK;
     }
     {
         std::lock_guard lock(mu_);

@@ -40,7 +40,8 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
         workers_.touch(request.worker_id(), unix_ms());
         grant = scheduler_.lease(request.worker_id(), [&](const std::string& job_id) {
             auto job = find(job_id);
-            return job && lacks_memory_for(*job, request.worker_id());
+            // On a shared store only the server that holds a job leases it.
+            return job && (!holds(*job) || lacks_memory_for(*job, request.worker_id()));
         });
         if (!grant) {
             reply->set_granted(false);
@@ -71,10 +72,39 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
     // every worker waits for mu_ (farm_sim, docs/results/service-measurements.md). The row is
     // written before the worker has its lease (the reply is sent when this returns), so its
     // report's delete comes after it.
-    store_or_log("lease", grant->lease_id, [&] {
-        store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
-                            grant->range);
-    });
+    if (shared_) {
+        // Several servers: the database is the arbiter (docs/design/job-store.md, "Leasing").
+        // The holder's scheduler alone hands out the job's ranges, so a refusal means a stale
+        // row or a hold lost meanwhile: the range is not handed out.
+        bool claimed = false;
+        try {
+            claimed = store_.claim_lease(
+                {grant->lease_id, grant->worker_id, grant->job_id, grant->frame, grant->range});
+        } catch (const std::exception& e) {
+            Log("error", "store_failed").kv("lease", grant->lease_id).kv("error", e.what());
+        }
+        if (!claimed) {
+            {
+                std::lock_guard lock(mu_);
+                scheduler_.release(grant->worker_id, grant->lease_id);
+            }
+            metrics_.lease_refused_by_store();
+            Log("warn", "lease_refused_by_store")
+                .kv("lease", grant->lease_id)
+                .kv("job", grant->job_id)
+                .kv("frame", grant->frame)
+                .kv("first", grant->range.first)
+                .kv("end", grant->range.end);
+            reply->Clear();
+            reply->set_granted(false);
+            return Status::OK;
+        }
+    } else {
+        store_or_log("lease", grant->lease_id, [&] {
+            store_.insert_lease(grant->lease_id, grant->worker_id, grant->job_id, grant->frame,
+                                grant->range);
+        });
+    }
     Log("info", "lease")
         .kv("lease", grant->lease_id)
         .kv("worker", grant->worker_id)
@@ -118,6 +148,9 @@ void JobManager::note_lease_progress(
 void JobManager::lease_failed(const std::string& worker_id, const v1::LeaseFailure& failure) {
     const std::optional<LeaseGrant> grant = scheduler_.release(worker_id, failure.lease_id());
     if (!grant) return;  // not this worker's active lease: nothing to count
+    // On a shared store the row goes with it (its range is claimed again when re-leased).
+    if (shared_)
+        store_or_log("lease", grant->lease_id, [&] { store_.delete_lease(grant->lease_id); });
     if (failure.memory_needed() > 0 && failure.memory_limit() > 0) {
         if (auto job = find(grant->job_id); job && !is_terminal(scheduler_.state(grant->job_id)))
             lease_refused_for_memory(worker_id, *job, failure);

@@ -8,6 +8,7 @@
 // on failure; each brings its schema to kJobStoreSchemaVersion when opened.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,7 +18,17 @@ namespace render::server {
 
 // The schema's version; both backends apply the same numbered migrations (docs/design/
 // job-store.md, "Migrations"). A store of a newer version is refused.
-inline constexpr int kJobStoreSchemaVersion = 3;
+inline constexpr int kJobStoreSchemaVersion = 4;
+
+// Which server holds a job's sums while it renders (docs/design/job-store.md, "Several
+// servers, one farm"): a hold with an expiry on the database's clock and an epoch that every
+// new holder increments, so that a server whose hold lapsed and was taken knows it.
+struct JobOwner {
+    std::string server;   // the holder's id; empty: nobody holds the job
+    std::string address;  // where the holder serves (for a client's or worker's hint)
+    int64_t epoch = 0;
+    bool live = false;  // held, and the hold has not run out
+};
 
 struct JobRow {
     std::string id;
@@ -32,6 +43,7 @@ struct JobRow {
     // When the job reached DONE, FAILED or CANCELLED (0: not yet, or a store written before
     // this column existed), for the retention rule (server --retain-finished).
     int64_t finished_unix_ms = 0;
+    JobOwner owner;  // read by load_jobs; insert_job stores the job unheld
 };
 
 struct FrameRow {
@@ -98,6 +110,25 @@ class JobStore {
     virtual std::vector<LeaseRow> load_leases() = 0;
     // Voids every lease of a previous run; returns how many there were.
     virtual int clear_leases() = 0;
+    // Voids the job's leases (a new holder voids its predecessor's); returns how many.
+    virtual int clear_job_leases(const std::string& job_id) = 0;
+
+    // --- holding a job's sums (several servers on one database) ---
+    // Takes the job for `server` when nobody holds it or the hold ran out (on the database's
+    // clock), for `hold_ms`: returns the new epoch, or nothing when another server holds it.
+    // Atomic: of servers taking one job at once, one succeeds.
+    virtual std::optional<int64_t> take_job(const std::string& job_id, const std::string& server,
+                                            const std::string& address, int64_t hold_ms) = 0;
+    // Extends the hold `server` took with `epoch` by `hold_ms` from now; false when another
+    // server has taken the job since (a hold that ran out but was not taken is extended).
+    virtual bool renew_job(const std::string& job_id, const std::string& server, int64_t epoch,
+                           int64_t hold_ms) = 0;
+    // Gives the hold up at once (a server stopping): another server may take the job now.
+    virtual void release_job(const std::string& job_id, const std::string& server,
+                             int64_t epoch) = 0;
+    // Whether several servers may share this store (PostgreSQL): the server then holds jobs
+    // before it merges them and leases through claim_lease.
+    virtual bool shared() const = 0;
 };
 
 }  // namespace render::server

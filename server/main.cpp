@@ -8,7 +8,7 @@
 //          [--stream-idle-timeout SECONDS]
 //          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
-//          [--health-listen HOST:PORT]
+//          [--health-listen HOST:PORT] [--advertise HOST:PORT] [--hold-seconds SECONDS]
 //
 // The token may also come from the environment variable RENDER_TOKEN, the TLS files from
 // RENDER_TLS_CERT and RENDER_TLS_KEY. A token without TLS needs --insecure on a loopback
@@ -263,6 +263,16 @@ ArgumentParser make_parser(Options& o) {
            "megabytes (server memory with many workers reporting large frames); slower "
            "transfers over links with latency",
            [&] { o.fixed_stream_window = true; });
+    p.value({"--advertise"}, "HOST:PORT",
+            "with several servers on one PostgreSQL store: the address clients and workers "
+            "reach this server at, recorded with the jobs it holds (default: --listen)",
+            [&](const std::string& v) { o.server.advertise_address = v; });
+    p.value(
+        {"--hold-seconds"}, "SECONDS",
+        "with several servers on one PostgreSQL store: how long this server's hold of a "
+        "job's sums lasts without renewal (renewed every quarter of it); a server that "
+        "dies is taken over this long after its last renewal (default 10)",
+        [&](const std::string& v) { o.server.hold_seconds = parse_seconds("--hold-seconds", v); });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
 }
@@ -311,6 +321,7 @@ Options parse(int argc, char** argv) {
                         " needs --data DIR (assets, checkpoints, results)");
     }
     if (o.listen.rfind(':') == std::string::npos) usage_error("--listen expects HOST:PORT");
+    if (o.server.advertise_address.empty()) o.server.advertise_address = o.listen;
     for (const auto& [flag, value] : {std::pair{"--metrics", &o.metrics}, {"--http", &o.http}})
         if (!value->empty() && !split_address(*value))
             usage_error(std::string(flag) + " expects HOST:PORT, got " + *value);

@@ -102,6 +102,20 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                                       "limit); not failures: the job waits for a larger worker")
                                   .Register(r)
                                   .Add({});
+    leases_refused_store_ = &BuildCounter()
+                                 .Name("render_leases_refused_by_store_total")
+                                 .Help(
+                                     "Ranges a shared store's claim_lease refused (another "
+                                     "server's lease or merged range overlapped them)")
+                                 .Register(r)
+                                 .Add({});
+    jobs_taken_ = &BuildCounter()
+                       .Name("render_jobs_taken_total")
+                       .Help(
+                           "Jobs this server took the hold of on a shared store (a job "
+                           "nobody held, or one whose holder's hold ran out)")
+                       .Register(r)
+                       .Add({});
     jobs_expired_ = &BuildCounter()
                          .Name("render_jobs_expired_total")
                          .Help(

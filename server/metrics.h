@@ -57,6 +57,10 @@ class ServerMetrics {
     void lease_failed() { leases_failed_->Increment(); }
     // A worker refused a lease for memory (not a failure: the job waits for a larger one).
     void lease_refused_memory() { leases_refused_memory_->Increment(); }
+    // A shared store's claim_lease refused a range this server's scheduler chose.
+    void lease_refused_by_store() { leases_refused_store_->Increment(); }
+    // This server took a job over on a shared store (its first hold, or a lapsed one's).
+    void job_taken() { jobs_taken_->Increment(); }
     // A report's sums were added (merge) and checkpointed and stored (store).
     void report_merged(double merge_seconds, double store_seconds);
     // A report was dropped; reason as MergeDecision's to_string or "unknown_lease".
@@ -92,6 +96,8 @@ class ServerMetrics {
     prometheus::Counter* leases_requeued_;
     prometheus::Counter* leases_failed_;
     prometheus::Counter* leases_refused_memory_;
+    prometheus::Counter* leases_refused_store_;
+    prometheus::Counter* jobs_taken_;
     prometheus::Counter* jobs_expired_;
     prometheus::Counter* assets_collected_;
     prometheus::Counter* assets_collected_bytes_;

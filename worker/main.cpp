@@ -1,6 +1,7 @@
 // `worker`: leases ranges of iterations from a render server, renders them, reports the sums.
 //
-//   worker --server HOST:PORT [--threads T] [--token T] [--cache DIR] [--cache-max-size SIZE]
+//   worker --server HOST:PORT[,HOST:PORT...] [--threads T] [--token T] [--cache DIR]
+//   [--cache-max-size SIZE]
 //          [--max-memory SIZE] [--test-render-fault FAULT [--test-render-fault-scene NAME]]
 //          [--tls-ca FILE [--tls-server-name NAME]]
 
@@ -17,6 +18,7 @@
 #include "core/util/log.h"
 #include "service/process_setup.h"
 #include "service/rpc.h"
+#include "service/server_list.h"
 #include "worker/worker.h"
 
 namespace {
@@ -28,11 +30,14 @@ struct TlsFlags {
     std::string ca, server_name;
 };
 
-ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, bool& help) {
+ArgumentParser make_parser(WorkerOptions& o, std::string& server, std::string& token, TlsFlags& tls,
+                           bool& help) {
     ArgumentParser p;
-    p.value({"--server"}, "HOST:PORT",
-            "the render server (default: env RENDER_SERVER, else 127.0.0.1:50051)",
-            [&](const std::string& v) { o.server = v; });
+    p.value({"--server"}, "HOST:PORT[,HOST:PORT...]",
+            "the render server, or several servers of one farm in order of preference: the "
+            "worker moves to the next when one cannot be reached (default: env RENDER_SERVER, "
+            "else 127.0.0.1:50051)",
+            [&](const std::string& v) { server = v; });
     p.value({"--threads"}, "T", "render threads (default 0: all cores; never changes the image)",
             [&](const std::string& v) {
                 o.threads = parse_number<int>("--threads", v);
@@ -85,11 +90,12 @@ ArgumentParser make_parser(WorkerOptions& o, std::string& token, TlsFlags& tls, 
 
 std::string usage() {
     WorkerOptions unused_options;
-    std::string unused_token;
+    std::string unused_server, unused_token;
     TlsFlags unused_tls;
     bool unused_help = false;
-    return "usage:\n  worker --server HOST:PORT [options]\n\noptions:\n" +
-           make_parser(unused_options, unused_token, unused_tls, unused_help).help() +
+    return "usage:\n  worker --server HOST:PORT[,HOST:PORT...] [options]\n\noptions:\n" +
+           make_parser(unused_options, unused_server, unused_token, unused_tls, unused_help)
+               .help() +
            "\nLogs are key=value lines on stderr. SIGTERM/SIGINT: finish the current range, "
            "report it and\nexit 0; a second signal gives the range up at once.\n";
 }
@@ -116,12 +122,13 @@ std::filesystem::path default_cache() {
 int main(int argc, char** argv) {
     render::service::prepare_grpc_process();
     WorkerOptions options;
-    if (const char* env = std::getenv("RENDER_SERVER"); env && *env) options.server = env;
+    std::string server;
+    if (const char* env = std::getenv("RENDER_SERVER"); env && *env) server = env;
     std::string token;
     TlsFlags tls;
     bool help = false;
     try {
-        make_parser(options, token, tls, help).parse(argc, argv);
+        make_parser(options, server, token, tls, help).parse(argc, argv);
     } catch (const UsageError& e) {
         usage_error(e.what());
     }
@@ -131,7 +138,12 @@ int main(int argc, char** argv) {
     }
     if (options.test_render_fault.kind != RenderFault::Kind::kNone)
         render::log_warn("test_render_fault").kv("note", "every lease fails: a test worker");
-    if (options.server.empty()) options.server = "127.0.0.1:50051";
+    if (server.empty()) server = "127.0.0.1:50051";
+    try {
+        options.servers = split_server_list(server);
+    } catch (const std::invalid_argument& e) {
+        usage_error(std::string("--server: ") + e.what());
+    }
     options.token = token_or_env(token);
     try {
         options.tls = client_tls_from(tls.ca, tls.server_name);
@@ -139,12 +151,13 @@ int main(int argc, char** argv) {
         std::cerr << "worker: " << e.what() << "\n";
         return 2;
     }
-    if (const std::string problem =
-            check_client_transport(options.server, options.tls.tls, !options.token.empty());
-        !problem.empty()) {
-        std::cerr << "worker: " << problem << "\n";
-        return 2;
-    }
+    for (const std::string& address : options.servers)
+        if (const std::string problem =
+                check_client_transport(address, options.tls.tls, !options.token.empty());
+            !problem.empty()) {
+            std::cerr << "worker: " << problem << "\n";
+            return 2;
+        }
     if (options.cache_dir.empty()) options.cache_dir = default_cache();
 
     struct sigaction action {};

@@ -98,9 +98,26 @@ struct RangeResult {
 
 Worker::Worker(WorkerOptions options)
     : options_(std::move(options)),
-      channel_(make_channel(options_.server, options_.tls)),
-      stub_(v1::WorkerService::NewStub(channel_)),
+      link_(link_to(0)),
       cache_(options_.cache_dir, options_.cache_max_bytes) {}
+
+std::shared_ptr<Worker::ServerLink> Worker::link_to(size_t index) const {
+    auto link = std::make_shared<ServerLink>();
+    link->address = options_.servers.at(index);
+    link->channel = make_channel(link->address, options_.tls);
+    link->stub = v1::WorkerService::NewStub(link->channel);
+    return link;
+}
+
+void Worker::next_server(const char* why) {
+    if (options_.servers.size() < 2) return;
+    server_index_ = (server_index_ + 1) % options_.servers.size();
+    log_warn("server_switch")
+        .kv("from", link_->address)
+        .kv("to", options_.servers[server_index_])
+        .kv("after", why);
+    link_ = link_to(server_index_);
+}
 
 void Worker::nap(double seconds) {
     auto until = Clock::now() + std::chrono::duration<double>(seconds);
@@ -118,54 +135,59 @@ bool Worker::register_worker() {
                                      : int(std::max(1u, std::thread::hardware_concurrency()))));
     request.set_version(kVersion);
     v1::RegisterWorkerReply reply;
-    grpc::Status status = stub_->RegisterWorker(&context, request, &reply);
+    grpc::Status status = link_->stub->RegisterWorker(&context, request, &reply);
     if (!status.ok()) {
         if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
             status.error_code() == grpc::StatusCode::PERMISSION_DENIED)
             token_rejected_ = true;
-        log_warn("register_failed").kv("server", options_.server).kv("status", describe(status));
+        log_warn("register_failed").kv("server", link_->address).kv("status", describe(status));
         return false;
     }
-    worker_id_ = reply.worker_id();
+    link_->worker_id = reply.worker_id();
     if (reply.heartbeat_seconds() > 0) heartbeat_seconds_ = reply.heartbeat_seconds();
     log_info("registered")
-        .kv("worker", worker_id_)
-        .kv("server", options_.server)
+        .kv("worker", link_->worker_id)
+        .kv("server", link_->address)
         .kv("threads", request.threads())
         .kv("heartbeat_s", heartbeat_seconds_);
     return true;
 }
 
 int Worker::run() {
-    log_info("start").kv("server", options_.server).kv("cache", cache_.dir().string());
+    log_info("start").kv("server", link_->address).kv("cache", cache_.dir().string());
     Backoff backoff;
-    IdlePoll idle(std::hash<std::string>{}(options_.server + host_name()) ^ uint64_t(getpid()));
+    IdlePoll idle(std::hash<std::string>{}(link_->address + host_name()) ^ uint64_t(getpid()));
     while (g_stop_requests.load() == 0) {
-        if (worker_id_.empty()) {
+        if (link_->worker_id.empty()) {
             if (!register_worker()) {
                 if (token_rejected_) {
                     log_error("token_rejected").kv("hint", "check --token or RENDER_TOKEN");
                     return 1;
                 }
+                next_server("register");
                 nap(backoff.next());
                 continue;
             }
             backoff.reset();
         }
         v1::LeaseRequest request;
-        request.set_worker_id(worker_id_);
+        request.set_worker_id(link_->worker_id);
         v1::LeaseReply reply;
         grpc::ClientContext context;
         prepare_context(context, options_.token, kRpcTimeout);
-        grpc::Status status = stub_->Lease(&context, request, &reply);
+        grpc::Status status = link_->stub->Lease(&context, request, &reply);
         if (!status.ok()) {
             log_warn("lease_failed").kv("status", describe(status));
             if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED) {
                 log_error("token_rejected").kv("hint", "check --token or RENDER_TOKEN");
                 return 1;
             }
-            // A server that restarted may not know this worker any more: register again.
-            if (!is_transient(status.error_code())) worker_id_.clear();
+            // A server that restarted may not know this worker any more: register again. One
+            // that cannot be reached: the next server of the list, if any.
+            if (!is_transient(status.error_code()))
+                link_->worker_id.clear();
+            else
+                next_server("lease");
             nap(backoff.next());
             continue;
         }
@@ -178,7 +200,7 @@ int Worker::run() {
         process(reply.lease());
     }
     report_in_flight_.wait();  // a stop delivers the last lease's report first
-    log_info("stop").kv("worker", worker_id_);
+    log_info("stop").kv("worker", link_->worker_id);
     return 0;
 }
 
@@ -189,7 +211,7 @@ grpc::Status Worker::fetch_asset(const std::string& sha256,
     v1::FetchAssetRequest request;
     request.set_sha256(sha256);
     std::unique_ptr<grpc::ClientReader<v1::AssetChunk>> reader =
-        stub_->FetchAsset(&context, request);
+        link_->stub->FetchAsset(&context, request);
     v1::AssetChunk chunk;
     while (reader->Read(&chunk)) sink(chunk.data());
     return reader->Finish();
@@ -240,11 +262,11 @@ bool Worker::heartbeat(const std::string& lease_id, const v1::WorkerRates* rates
     grpc::ClientContext context;
     prepare_context(context, options_.token, kRpcTimeout);
     v1::HeartbeatRequest request;
-    request.set_worker_id(worker_id_);
+    request.set_worker_id(link_->worker_id);
     request.add_lease_ids(lease_id);
     if (rates) *request.mutable_rates() = *rates;
     v1::HeartbeatReply reply;
-    grpc::Status status = stub_->Heartbeat(&context, request, &reply);
+    grpc::Status status = link_->stub->Heartbeat(&context, request, &reply);
     if (!status.ok()) {
         log_warn("heartbeat_failed").kv("lease", lease_id).kv("status", describe(status));
         return true;  // keep rendering: the report decides whether the work still counts
@@ -254,13 +276,13 @@ bool Worker::heartbeat(const std::string& lease_id, const v1::WorkerRates* rates
     return true;
 }
 
-void Worker::report_failure(const std::string& lease_id, const std::string& error,
-                            uint64_t memory_needed, uint64_t memory_limit,
+void Worker::report_failure(const ServerLink& link, const std::string& lease_id,
+                            const std::string& error, uint64_t memory_needed, uint64_t memory_limit,
                             bool report_undelivered) {
     grpc::ClientContext context;
     prepare_context(context, options_.token, kRpcTimeout);
     v1::HeartbeatRequest request;
-    request.set_worker_id(worker_id_);
+    request.set_worker_id(link.worker_id);
     v1::LeaseFailure* failure = request.add_failed_leases();
     failure->set_lease_id(lease_id);
     failure->set_error(error);
@@ -268,7 +290,7 @@ void Worker::report_failure(const std::string& lease_id, const std::string& erro
     failure->set_memory_limit(memory_limit);
     failure->set_report_undelivered(report_undelivered);
     v1::HeartbeatReply reply;
-    grpc::Status status = stub_->Heartbeat(&context, request, &reply);
+    grpc::Status status = link.stub->Heartbeat(&context, request, &reply);
     if (!status.ok())
         log_warn("failure_report_failed").kv("lease", lease_id).kv("status", describe(status));
 }
@@ -286,7 +308,7 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         // The server queues the range again and fails the job if it fails on several workers
         // (a refusal for memory excepted: the job waits for a worker with more).
         log_error("lease_failed").kv("lease", lease.lease_id()).kv("error", why);
-        report_failure(lease.lease_id(), why, memory_needed, memory_limit);
+        report_failure(*link_, lease.lease_id(), why, memory_needed, memory_limit);
         return Outcome::Failed;
     };
     if (first < 1 || end <= first) return fail("empty or invalid iteration range");
@@ -482,9 +504,9 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         .kv("lease", lease.lease_id())
         .kv("bytes", bytes)
         .kv("waited_s", seconds_since(wait_start));
-    report_in_flight_.start(bytes, [this, lease, result = std::move(result)] {
+    report_in_flight_.start(bytes, [this, link = link_, lease, result = std::move(result)] {
         try {
-            report(lease, result);
+            report(*link, lease, result);
         } catch (const std::exception& e) {  // e.g. bad_alloc building a chunk
             log_error("report_failed").kv("lease", lease.lease_id()).kv("error", e.what());
         }
@@ -492,7 +514,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     return Outcome::Reported;
 }
 
-Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result) {
+Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
+                               const RangeResult& result) {
     // Retry while the lease may still be alive (the server may be restarting).
     const double patience = std::max(10.0, lease.expires_in_seconds());
     auto t0 = Clock::now();
@@ -502,7 +525,7 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
         prepare_context(context, options_.token, 120.0);
         v1::ReportReply reply;
         std::unique_ptr<grpc::ClientWriter<v1::ReportChunk>> writer =
-            stub_->Report(&context, &reply);
+            link.stub->Report(&context, &reply);
         v1::ReportChunk chunk;
         v1::ReportHeader* header = chunk.mutable_header();
         header->set_lease_id(lease.lease_id());
@@ -550,7 +573,7 @@ Worker::Outcome Worker::report(const v1::Lease& lease, const RangeResult& result
             // Said to the server (best effort) so that it re-leases the range now: otherwise
             // the lease lives on while this worker heartbeats its next one, as a heartbeat
             // extends every lease of its worker.
-            report_failure(lease.lease_id(),
+            report_failure(link, lease.lease_id(),
                            "the worker could not deliver its report: " + describe(status), 0, 0,
                            /*report_undelivered=*/true);
             return Outcome::Failed;

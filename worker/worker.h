@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "core/scene/scene.h"
 #include "render.grpc.pb.h"
@@ -23,8 +24,10 @@ namespace render::service {
 inline constexpr uint64_t kDefaultCacheMaxBytes = uint64_t(8) << 30;
 
 struct WorkerOptions {
-    std::string server;  // HOST:PORT
-    int threads = 0;     // 0 = all cores
+    // HOST:PORT of each server, in order of preference: the worker uses one at a time and
+    // moves to the next when it cannot be reached (docs/guide/service.md, "Several servers").
+    std::vector<std::string> servers;
+    int threads = 0;  // 0 = all cores
     std::string token;
     ClientTls tls;  // plaintext unless tls.tls
     std::filesystem::path cache_dir;
@@ -52,6 +55,20 @@ class Worker {
   private:
     enum class Outcome { Reported, Dropped, Cancelled, Failed };
 
+    // One server of the list: the channel, and this worker's id there (empty until
+    // registered). A lease's heartbeats, report and failure go to the server that granted it
+    // (only it knows the lease), whatever server the worker has moved to since.
+    struct ServerLink {
+        std::string address;
+        std::shared_ptr<grpc::Channel> channel;
+        std::unique_ptr<v1::WorkerService::Stub> stub;
+        std::string worker_id;
+    };
+    // Connects to options_.servers[index] (not yet registered).
+    std::shared_ptr<ServerLink> link_to(size_t index) const;
+    // Moves to the next server of the list (a no-op with one), after `why` failed.
+    void next_server(const char* why);
+
     bool register_worker();
     // Renders the lease and hands its sums to report_in_flight_ (Reported: handed over).
     Outcome process(const v1::Lease& lease);
@@ -65,20 +82,21 @@ class Worker {
     // memory_needed/memory_limit: set for a refusal for memory (MemoryLimitExceeded), which the
     // server does not count toward failing the job; report_undelivered: the range was rendered
     // but its report could not be delivered (LeaseFailure.report_undelivered).
-    void report_failure(const std::string& lease_id, const std::string& error,
-                        uint64_t memory_needed = 0, uint64_t memory_limit = 0,
-                        bool report_undelivered = false);
+    void report_failure(const ServerLink& link, const std::string& lease_id,
+                        const std::string& error, uint64_t memory_needed = 0,
+                        uint64_t memory_limit = 0, bool report_undelivered = false);
     // Sends a finished lease's sums, retrying while the lease may still be alive (runs on
     // report_in_flight_'s thread).
-    Outcome report(const v1::Lease& lease, const struct RangeResult& result);
+    Outcome report(const ServerLink& link, const v1::Lease& lease,
+                   const struct RangeResult& result);
     // Sleeps up to `seconds`, waking early when a stop is requested.
     static void nap(double seconds);
 
     WorkerOptions options_;
-    std::shared_ptr<grpc::Channel> channel_;
-    std::unique_ptr<v1::WorkerService::Stub> stub_;
+    size_t server_index_ = 0;
+    // The server in use (the main thread's; a report in flight keeps its own).
+    std::shared_ptr<ServerLink> link_;
     AssetCache cache_;
-    std::string worker_id_;
     double heartbeat_seconds_ = 2.0;
     bool token_rejected_ = false;
 

@@ -36,8 +36,16 @@ const char* const kMigrations[] = {
     "ALTER TABLE jobs ADD COLUMN IF NOT EXISTS finished_ms BIGINT",
     // 3: claim_lease looks up a frame's leases.
     "CREATE INDEX IF NOT EXISTS leases_by_frame ON leases (job_id, frame)",
+    // 4: which server holds a job's sums, until when, in which epoch.
+    "ALTER TABLE jobs ADD COLUMN IF NOT EXISTS owner TEXT, "
+    "ADD COLUMN IF NOT EXISTS owner_address TEXT, "
+    "ADD COLUMN IF NOT EXISTS owner_epoch BIGINT NOT NULL DEFAULT 0, "
+    "ADD COLUMN IF NOT EXISTS owner_until_ms BIGINT",
 };
 static_assert(std::size(kMigrations) == size_t(kJobStoreSchemaVersion));
+
+// The database's clock in Unix milliseconds: every server's holds are judged by one clock.
+#define RENDER_PG_NOW_MS "(EXTRACT(EPOCH FROM clock_timestamp()) * 1000)::BIGINT"
 
 int64_t i64(uint64_t v) {
     return int64_t(v);
@@ -176,7 +184,9 @@ std::vector<JobRow> PostgresJobStore::load_jobs() {
     pqxx::result rows = w.exec(
         "SELECT id, seq, COALESCE(name, ''), state, priority, request, COALESCE(width, 0), "
         "COALESCE(height, 0), COALESCE(error, ''), COALESCE(submitted_ms, 0), "
-        "COALESCE(finished_ms, 0) FROM jobs ORDER BY seq");
+        "COALESCE(finished_ms, 0), COALESCE(owner, ''), COALESCE(owner_address, ''), "
+        "owner_epoch, (owner IS NOT NULL AND owner_until_ms >= " RENDER_PG_NOW_MS
+        ") FROM jobs ORDER BY seq");
     std::vector<JobRow> out;
     for (const pqxx::row& row : rows) {
         JobRow r;
@@ -191,6 +201,10 @@ std::vector<JobRow> PostgresJobStore::load_jobs() {
         r.error = row[8].as<std::string>();
         r.submitted_unix_ms = row[9].as<int64_t>();
         r.finished_unix_ms = row[10].as<int64_t>();
+        r.owner.server = row[11].as<std::string>();
+        r.owner.address = row[12].as<std::string>();
+        r.owner.epoch = row[13].as<int64_t>();
+        r.owner.live = row[14].as<bool>();
         out.push_back(std::move(r));
     }
     return out;
@@ -344,6 +358,54 @@ int PostgresJobStore::clear_leases() {
     pqxx::result r = w.exec("DELETE FROM leases");
     w.commit();
     return int(r.affected_rows());
+}
+
+int PostgresJobStore::clear_job_leases(const std::string& job_id) {
+    std::lock_guard lock(mu_);
+    pqxx::work w(live().c);
+    pqxx::result r = w.exec_params("DELETE FROM leases WHERE job_id = $1", job_id);
+    w.commit();
+    return int(r.affected_rows());
+}
+
+std::optional<int64_t> PostgresJobStore::take_job(const std::string& job_id,
+                                                  const std::string& server,
+                                                  const std::string& address, int64_t hold_ms) {
+    std::lock_guard lock(mu_);
+    pqxx::work w(live().c);
+    // One UPDATE: of two servers taking the job at once, the second waits for the first's row
+    // lock and then finds the condition false (READ COMMITTED re-checks the updated row).
+    pqxx::result r = w.exec_params(
+        "UPDATE jobs SET owner = $2, owner_address = $3, owner_epoch = owner_epoch + 1, "
+        "owner_until_ms = " RENDER_PG_NOW_MS
+        " + $4 WHERE id = $1 AND (owner IS NULL OR "
+        "owner_until_ms < " RENDER_PG_NOW_MS ") RETURNING owner_epoch",
+        job_id, server, address, hold_ms);
+    w.commit();
+    if (r.empty()) return std::nullopt;
+    return r[0][0].as<int64_t>();
+}
+
+bool PostgresJobStore::renew_job(const std::string& job_id, const std::string& server,
+                                 int64_t epoch, int64_t hold_ms) {
+    std::lock_guard lock(mu_);
+    pqxx::work w(live().c);
+    pqxx::result r = w.exec_params("UPDATE jobs SET owner_until_ms = " RENDER_PG_NOW_MS
+                                   " + $4 WHERE id = $1 AND owner = $2 AND owner_epoch = $3",
+                                   job_id, server, epoch, hold_ms);
+    w.commit();
+    return r.affected_rows() == 1;
+}
+
+void PostgresJobStore::release_job(const std::string& job_id, const std::string& server,
+                                   int64_t epoch) {
+    std::lock_guard lock(mu_);
+    pqxx::work w(live().c);
+    w.exec_params(
+        "UPDATE jobs SET owner = NULL, owner_until_ms = NULL WHERE id = $1 AND owner = $2 AND "
+        "owner_epoch = $3",
+        job_id, server, epoch);
+    w.commit();
 }
 
 }  // namespace render::server

@@ -8,6 +8,9 @@ namespace render::server {
 
 namespace {
 
+// The database's clock (the machine's) in Unix milliseconds.
+#define RENDER_SQLITE_NOW_MS "CAST((julianday('now') - 2440587.5) * 86400000 AS INTEGER)"
+
 sqlite3_stmt* prepare(sqlite3* db, const char* sql) {
     sqlite3_stmt* stmt = nullptr;
     if (sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr) != SQLITE_OK)
@@ -161,6 +164,15 @@ void SqliteJobStore::apply_migration(int version) {
             // claim_lease looks up a frame's leases.
             exec("CREATE INDEX IF NOT EXISTS leases_by_frame ON leases (job_id, frame)");
             break;
+        case 4:
+            // Which server holds a job's sums (one server per SQLite file: always this one).
+            if (!has_column(db_, "jobs", "owner")) {
+                exec("ALTER TABLE jobs ADD COLUMN owner TEXT");
+                exec("ALTER TABLE jobs ADD COLUMN owner_address TEXT");
+                exec("ALTER TABLE jobs ADD COLUMN owner_epoch INTEGER NOT NULL DEFAULT 0");
+                exec("ALTER TABLE jobs ADD COLUMN owner_until_ms INTEGER");
+            }
+            break;
         default:
             throw std::logic_error("no migration to version " + std::to_string(version));
     }
@@ -250,7 +262,9 @@ std::vector<JobRow> SqliteJobStore::load_jobs() {
     std::lock_guard lock(mu_);
     Statement s(db_,
                 "SELECT id, seq, name, state, priority, request, width, height, error, "
-                "submitted_ms, COALESCE(finished_ms, 0) FROM jobs ORDER BY seq");
+                "submitted_ms, COALESCE(finished_ms, 0), COALESCE(owner, ''), "
+                "COALESCE(owner_address, ''), owner_epoch, (owner IS NOT NULL AND "
+                "owner_until_ms >= " RENDER_SQLITE_NOW_MS ") FROM jobs ORDER BY seq");
     std::vector<JobRow> out;
     while (s.step()) {
         JobRow r;
@@ -265,6 +279,10 @@ std::vector<JobRow> SqliteJobStore::load_jobs() {
         r.error = s.str(8);
         r.submitted_unix_ms = s.i64(9);
         r.finished_unix_ms = s.i64(10);
+        r.owner.server = s.str(11);
+        r.owner.address = s.str(12);
+        r.owner.epoch = s.i64(13);
+        r.owner.live = s.i64(14) != 0;
         out.push_back(std::move(r));
     }
     return out;
@@ -476,6 +494,50 @@ int SqliteJobStore::clear_leases() {
     std::lock_guard lock(mu_);
     exec("DELETE FROM leases");
     return sqlite3_changes(db_);
+}
+
+int SqliteJobStore::clear_job_leases(const std::string& job_id) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "DELETE FROM leases WHERE job_id = ?1");
+    s.text(1, job_id);
+    s.run();
+    return sqlite3_changes(db_);
+}
+
+std::optional<int64_t> SqliteJobStore::take_job(const std::string& job_id,
+                                                const std::string& server,
+                                                const std::string& address, int64_t hold_ms) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "UPDATE jobs SET owner = ?2, owner_address = ?3, owner_epoch = owner_epoch + 1, "
+                "owner_until_ms = " RENDER_SQLITE_NOW_MS
+                " + ?4 WHERE id = ?1 AND (owner IS NULL "
+                "OR owner_until_ms < " RENDER_SQLITE_NOW_MS ") RETURNING owner_epoch");
+    s.text(1, job_id).text(2, server).text(3, address).bind(4, hold_ms);
+    if (!s.step()) return std::nullopt;
+    const int64_t epoch = s.i64(0);
+    s.run();
+    return epoch;
+}
+
+bool SqliteJobStore::renew_job(const std::string& job_id, const std::string& server, int64_t epoch,
+                               int64_t hold_ms) {
+    std::lock_guard lock(mu_);
+    Statement s(db_, "UPDATE jobs SET owner_until_ms = " RENDER_SQLITE_NOW_MS
+                     " + ?4 WHERE id = ?1 AND owner = ?2 AND owner_epoch = ?3");
+    s.text(1, job_id).text(2, server).bind(3, epoch).bind(4, hold_ms);
+    s.run();
+    return sqlite3_changes(db_) == 1;
+}
+
+void SqliteJobStore::release_job(const std::string& job_id, const std::string& server,
+                                 int64_t epoch) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "UPDATE jobs SET owner = NULL, owner_until_ms = NULL WHERE id = ?1 AND owner = ?2 "
+                "AND owner_epoch = ?3");
+    s.text(1, job_id).text(2, server).bind(3, epoch);
+    s.run();
 }
 
 }  // namespace render::server

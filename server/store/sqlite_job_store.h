@@ -50,6 +50,14 @@ class SqliteJobStore final : public JobStore {
     void delete_lease(const std::string& lease_id) override;
     std::vector<LeaseRow> load_leases() override;
     int clear_leases() override;
+    int clear_job_leases(const std::string& job_id) override;
+
+    std::optional<int64_t> take_job(const std::string& job_id, const std::string& server,
+                                    const std::string& address, int64_t hold_ms) override;
+    bool renew_job(const std::string& job_id, const std::string& server, int64_t epoch,
+                   int64_t hold_ms) override;
+    void release_job(const std::string& job_id, const std::string& server, int64_t epoch) override;
+    bool shared() const override { return false; }
 
   private:
     void exec(const char* sql);

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -289,6 +290,84 @@ TEST_P(JobStoreTest, ConcurrentClaimsFromTwoConnectionsNeverShareARange) {
     for (size_t i = 1; i < leases.size(); ++i)  // sorted by first
         EXPECT_LE(leases[i - 1].range.end, leases[i].range.first)
             << leases[i - 1].lease_id << " and " << leases[i].lease_id << " overlap";
+}
+
+// A job's hold (several servers on one store, docs/design/job-store.md): taken by one server
+// at a time, renewed only by the epoch that took it, free again once it runs out (on the
+// database's clock) or is given up, and every new holder gets a new epoch.
+TEST_P(JobStoreTest, AHoldIsTakenOnceRenewedByItsEpochAndFreedByTimeOrRelease) {
+    auto a = open();
+    auto b = open();
+    a->insert_job(job_row("j", 1), 1);
+    EXPECT_EQ(a->load_jobs()[0].owner.server, "");
+    EXPECT_FALSE(a->load_jobs()[0].owner.live);
+    const std::optional<int64_t> first = a->take_job("j", "A", "a:1", 60000);
+    ASSERT_TRUE(first.has_value());
+    EXPECT_FALSE(b->take_job("j", "B", "b:1", 60000).has_value());  // A holds it
+    EXPECT_TRUE(a->renew_job("j", "A", *first, 60000));
+    EXPECT_FALSE(b->renew_job("j", "B", *first, 60000));  // not B's
+    JobRow row = b->load_jobs()[0];
+    EXPECT_EQ(row.owner.server, "A");
+    EXPECT_EQ(row.owner.address, "a:1");
+    EXPECT_EQ(row.owner.epoch, *first);
+    EXPECT_TRUE(row.owner.live);
+
+    // A hold of 1 ms has run out 50 ms later: B takes the job, and A's epoch is over.
+    ASSERT_TRUE(a->renew_job("j", "A", *first, 1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_FALSE(a->load_jobs()[0].owner.live);
+    const std::optional<int64_t> second = b->take_job("j", "B", "b:1", 60000);
+    ASSERT_TRUE(second.has_value());
+    EXPECT_GT(*second, *first);
+    EXPECT_FALSE(a->renew_job("j", "A", *first, 60000));  // taken since: A must drop the job
+
+    b->release_job("j", "A", *first);  // not the holder: nothing happens
+    EXPECT_TRUE(a->load_jobs()[0].owner.live);
+    b->release_job("j", "B", *second);
+    EXPECT_FALSE(a->load_jobs()[0].owner.live);
+    const std::optional<int64_t> third = a->take_job("j", "A", "a:1", 60000);
+    ASSERT_TRUE(third.has_value());
+    EXPECT_GT(*third, *second);
+}
+
+// Servers taking one job at once through their own connections: exactly one gets it.
+TEST_P(JobStoreTest, OfServersTakingAJobAtOnceExactlyOneGetsIt) {
+    constexpr int kJobs = 20;
+    auto a = open();
+    auto b = open();
+    for (int j = 0; j < kJobs; ++j) a->insert_job(job_row("j" + std::to_string(j), j + 1), 1);
+    std::atomic<int> taken[2] = {0, 0};
+    std::vector<std::thread> threads;
+    for (int s = 0; s < 2; ++s)
+        threads.emplace_back([&, s] {
+            JobStore& store = s == 0 ? *a : *b;
+            for (int j = 0; j < kJobs; ++j)
+                if (store.take_job("j" + std::to_string(j), s == 0 ? "A" : "B", "x:1", 60000))
+                    ++taken[s];
+        });
+    for (std::thread& t : threads) t.join();
+    EXPECT_EQ(taken[0] + taken[1], kJobs);
+    int held_by_a = 0;
+    for (const JobRow& row : a->load_jobs()) {
+        EXPECT_TRUE(row.owner.live) << row.id;
+        EXPECT_EQ(row.owner.epoch, 1) << row.id;  // taken once, never taken again
+        held_by_a += row.owner.server == "A";
+    }
+    EXPECT_EQ(held_by_a, taken[0].load());
+}
+
+// A new holder voids its predecessor's leases of the job, and only that job's.
+TEST_P(JobStoreTest, ClearJobLeasesVoidsOneJobsLeases) {
+    auto store = open();
+    store->insert_job(job_row("j", 1), 1);
+    store->insert_job(job_row("k", 2), 1);
+    EXPECT_TRUE(store->claim_lease(lease("A", "j", 0, {1, 3})));
+    EXPECT_TRUE(store->claim_lease(lease("B", "k", 0, {1, 3})));
+    EXPECT_EQ(store->clear_job_leases("j"), 1);
+    std::vector<LeaseRow> left = store->load_leases();
+    ASSERT_EQ(left.size(), 1u);
+    EXPECT_EQ(left[0].lease_id, "B");
+    EXPECT_TRUE(store->claim_lease(lease("C", "j", 0, {1, 3})));  // the range is free again
 }
 
 // The database restarting under a running server (a failover, an upgrade): the operation that
