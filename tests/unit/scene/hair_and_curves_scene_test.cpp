@@ -37,7 +37,7 @@ TEST(HairAndCurvesScene, PbrtCurveKindsBasesAndDegrees) {
     EXPECT_EQ(curves_of(*scene, 0)->segment_count(), 1u);
     EXPECT_FLOAT_EQ(curves_of(*scene, 0)->segment(0).radius[0], 0.05f);
     EXPECT_EQ(curves_of(*scene, 1)->type(), CurveType::Cylinder);
-    EXPECT_EQ(curves_of(*scene, 1)->segment_count(), 2u);  // 5 points, cubic B-spline
+    EXPECT_EQ(curves_of(*scene, 1)->segment_count(), 2u);               // 5 points, cubic B-spline
     EXPECT_FLOAT_EQ(curves_of(*scene, 1)->segment(0).radius[0], 0.5f);  // width 1 by default
     EXPECT_EQ(curves_of(*scene, 2)->type(), CurveType::Ribbon);
     EXPECT_EQ(curves_of(*scene, 2)->segment_count(), 2u);
@@ -91,6 +91,19 @@ TEST(HairAndCurvesScene, PbrtHairMaterial) {
                  SceneError);
     EXPECT_THROW(pbrt_scene("Material \"hair\" \"rgb sigma_a\" [1 1 1] \"rgb reflectance\" [0.5 "
                             "0.5 0.5]\nShape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 1 0 3 0 0]"),
+                 SceneError);
+}
+
+// Curves are not area lights in either format (they have no area sampling).
+TEST(HairAndCurvesScene, MitsubaCurveEmitterIsRefused) {
+    const std::string dir = std::string(RENDER_SOURCE_DIR) + "/scenes/tests";
+    EXPECT_THROW(load_scene_from_string(R"(<scene version="3.0.0">
+  <shape type="linearcurve">
+    <string name="filename" value="curves-linear.txt"/>
+    <emitter type="area"><rgb name="radiance" value="1"/></emitter>
+  </shape>
+</scene>)",
+                                        dir),
                  SceneError);
 }
 
