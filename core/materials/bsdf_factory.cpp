@@ -8,6 +8,7 @@
 #include "core/materials/dielectric.h"
 #include "core/materials/diffuse.h"
 #include "core/materials/diffuse_transmission.h"
+#include "core/materials/hair.h"
 #include "core/materials/normal_map.h"
 #include "core/materials/null_bsdf.h"
 #include "core/materials/phong.h"
@@ -25,6 +26,7 @@ constexpr Plugin<std::shared_ptr<const Bsdf> (*)(const Properties&)> kPlugins[] 
     {"diffuse", &DiffuseBsdf::create},
     {"twosided", &TwoSidedBsdf::create},
     {"diffusetransmission", &DiffuseTransmissionBsdf::create},  // pbrt-v4's; ours in XML
+    {"hair", &HairBsdf::create},                                // pbrt-v4's; ours in XML
     {"conductor", &ConductorBsdf::create},
     {"roughconductor", &RoughConductorBsdf::create},
     {"dielectric", &DielectricBsdf::create},

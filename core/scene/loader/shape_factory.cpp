@@ -9,6 +9,8 @@
 #include "core/mesh_io/obj_reader.h"
 #include "core/mesh_io/ply_reader.h"
 #include "core/mesh_io/serialized_reader.h"
+#include "core/shapes/curve.h"
+#include "core/shapes/curve_input.h"
 #include "core/shapes/disk.h"
 #include "core/shapes/sphere.h"
 #include "core/shapes/triangle_mesh.h"
@@ -70,6 +72,30 @@ std::unique_ptr<Shape> make_serialized_mesh(const Properties& props) {
         rethrow_scene_error(e, props.error("filename", e.what()));
     }
     return make_mesh_shape(props, std::move(mesh.data), true, mesh.face_normals);
+}
+
+// Mitsuba 3's `bsplinecurve` and `linearcurve`: round curves from a file of control points
+// and radii (core/shapes/curve_input.h); points go through to_world, radii are taken as written,
+// as Mitsuba does.
+std::unique_ptr<Shape> make_curve_file(const Properties& props,
+                                       const std::filesystem::path& scene_dir) {
+    std::filesystem::path file = props.get_string("filename");
+    if (file.empty()) throw props.error("filename", "empty file name");
+    std::filesystem::path path = file.is_absolute() ? file : scene_dir / file;
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw props.error("filename", "curve file not found: " + path.string());
+    const Transform to_world = props.get_ray_transform("to_world");
+    try {
+        std::vector<CurvePoints> curves = read_curve_file(path);
+        for (CurvePoints& c : curves)
+            for (Vec3& p : c.points) p = to_world.apply_point(p);
+        return std::make_unique<Curves>(
+            mitsuba_curve_segments(curves, props.type() == "bsplinecurve", shape_name(props)),
+            CurveType::Cylinder, shape_name(props));
+    } catch (const SceneError& e) {
+        rethrow_scene_error(e, props.error("filename", e.what()));
+    }
 }
 
 std::unique_ptr<Shape> make_sphere(const Properties& props) {
@@ -165,6 +191,8 @@ std::unique_ptr<Shape> make_shape(const Properties& props, const std::filesystem
         {"obj", make_file_mesh},
         {"ply", make_file_mesh},
         {"serialized", [](const Properties& p, const Path&) { return make_serialized_mesh(p); }},
+        {"bsplinecurve", make_curve_file},
+        {"linearcurve", make_curve_file},
     };
     return find_plugin(kShapes, props, "shape").create(props, scene_dir);
 }

@@ -1,6 +1,7 @@
 #pragma once
 
-// Registry from scene-file shape names (rectangle, cube, sphere, disk, obj, ply) to shapes.
+// Registry from scene-file shape names (rectangle, cube, sphere, disk, obj, ply, serialized,
+// bsplinecurve, linearcurve) to shapes.
 // Every parameter read here is listed in docs/reference/scene-format.md; keep the two in step.
 
 #include <filesystem>

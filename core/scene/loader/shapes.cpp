@@ -80,6 +80,8 @@ void Loader::read_shape(const XmlElement& e) {
         throw SceneError(emitter->where(),
                          "an emitter inside a shapegroup is not supported (instances cannot "
                          "emit, as in Mitsuba)");
+    if (emitter && (props.type() == "bsplinecurve" || props.type() == "linearcurve"))
+        throw SceneError(emitter->where(), "an area emitter on a curve is not supported");
     std::unique_ptr<Shape> shape = build(props, [&] { return make_shape(props, e.file().dir()); });
     check_shape_extent(*shape, e);
     std::unique_ptr<Light> light;

@@ -1,11 +1,13 @@
 // pbrt-v4 materials as the BSDFs of the Mitsuba loader (make_bsdf). docs/reference/scene-format.md,
 // "pbrt-v4 scenes", lists each mapping and where our image differs from pbrt's.
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
 #include "core/base/properties.h"
 #include "core/materials/bsdf_factory.h"
+#include "core/materials/hair.h"
 #include "core/materials/ior.h"
 #include "core/scene/pbrt/builders.h"
 #include "core/textures/texture_factory.h"
@@ -249,6 +251,47 @@ std::shared_ptr<const Bsdf> bump_mapped(std::shared_ptr<const Bsdf> bsdf, const 
     return make_bsdf(props);
 }
 
+// pbrt-v4's hair (core/materials/hair.h), its parameters, defaults and h from the hit's v.
+// Neither two-sided nor one-sided: the fibre model scatters over the whole sphere.
+std::shared_ptr<const Bsdf> hair(const ParamList& params) {
+    for (const char* name :
+         {"sigma_a", "reflectance", "eumelanin", "pheomelanin", "eta", "beta_m", "beta_n", "alpha"})
+        if (params.type_of(name) == "texture")
+            throw params.error(name, "textured hair parameters are not supported yet");
+    HairParams hair;
+    hair.eta = float(params.get_float("eta", 1.55));
+    hair.beta_m = float(params.get_float("beta_m", 0.3));
+    hair.beta_n = float(params.get_float("beta_n", 0.3));
+    hair.alpha = float(params.get_float("alpha", 2));
+    if (!(hair.eta > 0)) throw params.error("eta", "must be positive");
+    for (const char* name : {"beta_m", "beta_n"})
+        if (!(params.get_float(name, 0.3) >= 0 && params.get_float(name, 0.3) <= 1))
+            throw params.error(name, "must lie in [0, 1]");
+    if (!(std::abs(hair.alpha) <= 90)) throw params.error("alpha", "must lie in [-90, 90] degrees");
+    const bool melanin = params.has("eumelanin") || params.has("pheomelanin");
+    if (int(params.has("sigma_a")) + int(params.has("reflectance")) + int(melanin) > 1)
+        throw params.error(params.has("sigma_a") ? "sigma_a" : "reflectance",
+                           "give one of sigma_a, reflectance or eumelanin/pheomelanin");
+    if (params.has("sigma_a")) {
+        hair.sigma_a = *get_rgb(params, "sigma_a");
+        if (!(std::min({hair.sigma_a.r, hair.sigma_a.g, hair.sigma_a.b}) >= 0))
+            throw params.error("sigma_a", "must be non-negative");
+    } else if (params.has("reflectance")) {
+        const Rgb c = *get_rgb(params, "reflectance");
+        if (!(std::min({c.r, c.g, c.b}) > 0 && std::max({c.r, c.g, c.b}) <= 1))
+            throw params.error("reflectance", "must lie in (0, 1]");
+        hair.sigma_a = HairBsdf::sigma_a_from_reflectance(c, hair.beta_n);
+    } else {
+        // pbrt-v4: either concentration alone leaves the other at 0; neither is eumelanin 1.3.
+        const double eu = params.get_float("eumelanin", melanin ? 0.0 : 1.3),
+                     pheo = params.get_float("pheomelanin", 0.0);
+        if (!(eu >= 0 && pheo >= 0))
+            throw params.error(eu >= 0 ? "pheomelanin" : "eumelanin", "must be non-negative");
+        hair.sigma_a = HairBsdf::sigma_a_from_concentration(float(eu), float(pheo));
+    }
+    return HairBsdf::pbrt_material(hair);
+}
+
 }  // namespace
 
 std::shared_ptr<const Bsdf> make_material(
@@ -321,8 +364,9 @@ std::shared_ptr<const Bsdf> make_material(
                 bsdf = make_bsdf(props);
             }
         }
-    } else if (type == "coatedconductor" || type == "hair" || type == "measured" ||
-               type == "subsurface") {
+    } else if (type == "hair") {
+        bsdf = hair(params);
+    } else if (type == "coatedconductor" || type == "measured" || type == "subsurface") {
         throw SceneError(at, params.context() + ": material \"" + type + "\" is not supported yet");
     } else {
         throw SceneError(at, params.context() + ": unknown material \"" + type + "\"");

@@ -507,6 +507,8 @@ class Loader {
                                           "\": area lights in object instances are not "
                                           "supported (nor are they in pbrt-v4)");
         check_ray_transform(d);
+        if (type == "curve" && state_.area_light)
+            throw SceneError(d.where, "Shape \"curve\": an area light on a curve is not supported");
         std::shared_ptr<const AlphaCutout> alpha = read_alpha(p);
         if (alpha && state_.area_light)
             throw p.error("alpha", "an area light with an alpha cut-out is not supported yet");

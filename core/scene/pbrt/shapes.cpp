@@ -1,5 +1,6 @@
 // pbrt-v4 shapes: trianglemesh, plymesh and bilinearmesh as our TriangleMesh; sphere and disk
-// through the Mitsuba loader's shape factory. docs/reference/scene-format.md, "pbrt-v4 scenes".
+// through the Mitsuba loader's shape factory; curve as Curves (core/shapes/curve.h).
+// docs/reference/scene-format.md, "pbrt-v4 scenes".
 
 #include <cmath>
 
@@ -9,6 +10,8 @@
 #include "core/mesh_io/ply_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/pbrt/builders.h"
+#include "core/shapes/curve.h"
+#include "core/shapes/curve_input.h"
 #include "core/shapes/triangle_mesh.h"
 
 namespace render::pbrt {
@@ -122,6 +125,59 @@ MeshData inline_mesh(const ParamList& params, size_t corners) {
     return mesh;
 }
 
+// pbrt-v4's curve (docs/reference/scene-format.md, "Curves"): points to world space, widths
+// scaled by the transform's mean scale (pbrt-v4 intersects in object space; the same for
+// similarity transforms).
+std::unique_ptr<Shape> curve_shape(const ParamList& params, const Transform& to_world) {
+    std::vector<Vec3> points = vec3s(params.get_numbers("P", {"point3", "point"}, 3));
+    if (points.empty()) throw params.error("P", "the control points are required");
+    for (Vec3& p : points) p = to_world.apply_point(p);
+    const std::string basis_name = params.get_string("basis", "bezier");
+    if (basis_name != "bezier" && basis_name != "bspline")
+        throw params.error("basis", "must be \"bezier\" or \"bspline\"");
+    const std::string type_name = params.get_string("type", "flat");
+    CurveType type;
+    if (type_name == "flat")
+        type = CurveType::Flat;
+    else if (type_name == "cylinder")
+        type = CurveType::Cylinder;
+    else if (type_name == "ribbon")
+        type = CurveType::Ribbon;
+    else
+        throw params.error("type", "must be \"flat\", \"cylinder\" or \"ribbon\"");
+    std::vector<Vec3> normals = vec3s(params.get_numbers("N", {"normal", "normal3"}, 3));
+    if (type == CurveType::Ribbon && normals.empty())
+        throw params.error("N", "a ribbon curve needs normals \"N\" at its segment ends");
+    if (type != CurveType::Ribbon && !normals.empty()) {
+        warn(params.find("N")->where, params.context() + ": \"N\" is only used by ribbon curves");
+        normals.clear();
+    }
+    for (Vec3& n : normals) n = normalize(to_world.apply_normal(n));
+    const double width = params.get_float("width", 1.0);
+    const double width0 = params.get_float("width0", width),
+                 width1 = params.get_float("width1", width);
+    for (const char* name : {"width", "width0", "width1"})
+        if (params.has(name) && !(params.get_float(name, 0) >= 0))
+            throw params.error(name, "must be non-negative");
+    if (params.has("splitdepth")) {
+        params.get_int("splitdepth", 3);
+        warn(params.find("splitdepth")->where,
+             params.context() + ": \"splitdepth\" is ignored (Embree intersects the curve itself)");
+    }
+    const float scale = float(std::cbrt(std::abs(to_world.determinant3x3())));
+    const int degree = int(params.get_int("degree", 3));
+    try {
+        std::vector<CurveSegment> segments = pbrt_curve_segments(
+            points, basis_name == "bezier" ? CurveBasis::Bezier : CurveBasis::BSpline, degree,
+            float(width0) * scale, float(width1) * scale, normals, params.context());
+        return std::make_unique<Curves>(std::move(segments), type,
+                                        params.context() + " (" + params.where.to_string() + ")");
+    } catch (const SceneError& e) {
+        rethrow_scene_error(e, params.error("P", e.what()));
+    }
+    return nullptr;
+}
+
 void refuse_partial(const ParamList& params, const char* name, double full) {
     if (params.get_float(name, full) != full)
         throw params.error(name, "partial shapes are not supported yet");
@@ -180,7 +236,9 @@ std::unique_ptr<Shape> make_shape(
                   params.where);
         props.set("flip_normals", flip, params.where);
         shape = render::make_shape(props, {});
-    } else if (type == "cylinder" || type == "curve" || type == "loopsubdiv") {
+    } else if (type == "curve") {
+        shape = curve_shape(params, to_world);
+    } else if (type == "cylinder" || type == "loopsubdiv") {
         throw SceneError(params.where,
                          params.context() + ": shape \"" + type + "\" is not supported yet");
     } else {

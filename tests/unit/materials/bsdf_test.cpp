@@ -759,14 +759,14 @@ std::string error_of(const Properties& props) {
 TEST(BsdfFactory, UnknownTypeNamesTheSupportedOnes) {
     EXPECT_EQ(error_of(bsdf_props("velvet")),
               "scene.xml:10: unknown bsdf type \"velvet\" (supported: diffuse, twosided, "
-              "diffusetransmission, conductor, roughconductor, dielectric, roughdielectric, "
-              "thindielectric, plastic, "
+              "diffusetransmission, hair, conductor, roughconductor, dielectric, "
+              "roughdielectric, thindielectric, plastic, "
               "roughplastic, phong, null, blendbsdf, mask, normalmap, bumpmap)");
 }
 
 TEST(BsdfFactory, BuildsEveryTypeWithDefaults) {
     for (const char* type :
-         {"diffuse", "diffusetransmission", "conductor", "roughconductor", "dielectric",
+         {"diffuse", "diffusetransmission", "hair", "conductor", "roughconductor", "dielectric",
           "roughdielectric", "thindielectric", "plastic", "roughplastic", "phong"}) {
         Properties props = bsdf_props(type);
         std::shared_ptr<const Bsdf> bsdf = make_bsdf(props);

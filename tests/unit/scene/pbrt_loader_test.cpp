@@ -465,7 +465,7 @@ TEST_F(PbrtTest, MaterialErrorsNameTheParameter) {
             .find(at_body_line(3) +
                   " Material \"diffuse\": parameter \"float sigma\" is not supported"),
         std::string::npos);
-    EXPECT_NE(world_error("Material \"hair\"\n").find("not supported yet"), std::string::npos);
+    EXPECT_NE(world_error("Material \"measured\"\n").find("not supported yet"), std::string::npos);
     EXPECT_NE(world_error("Material \"velvet\"\n")
                   .find(at_body_line(1) + " Material \"velvet\": unknown material"),
               std::string::npos);
