@@ -48,8 +48,13 @@ from resultslib import data as datafile, pages  # scripts/ is on sys.path (scrip
 
 SCENES = common.REPO_ROOT / "scenes"
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
-# The UPBP claims use the density sweep's arms (docs/results/upbp.md), radius included.
-UPBP_ARMS = upbp.ARMS
+# The UPBP claims use the density sweep's arms (docs/results/upbp.md), radius included, with
+# the photon beams drawn from a fraction of the light paths (--photon-beam-paths; the fraction
+# measured most efficient on upbp-mirror-balls and isosph, docs/design/media.md "Photon beams").
+UPBP_BEAM_PATHS = ["--photon-beam-paths", "0.03"]
+UPBP_ARMS = {name: (algorithm, [*args, *UPBP_BEAM_PATHS]
+                    if algorithm == "upbp" and "--photon-beams" not in args else args)
+             for name, (algorithm, args) in upbp.ARMS.items()}
 UPBP_SUBJECT = "upbp: all"
 UPBP_FACTOR = 1.5
 
@@ -431,9 +436,13 @@ NOTES = {
         "bias left out of the error; the verdict asks that `upbp: all` is not the worst arm and "
         "that its equal-time RMSE is within the target factor of the best arm's. Compare the "
         "arms' v and t: where `upbp: all` has the lowest variance per iteration but loses at "
-        "equal time, the photon beams' cost decides it (every light path's segments in the "
-        "media become beams, and every camera segment gathers them); drawing the beams from a "
-        "fraction of the light paths, as the reference implementation does, is the lead.",
+        "equal time, its cost decides it. Photon beams come from a fraction of each "
+        "iteration's light paths (`--photon-beam-paths`, its default in the commands below), "
+        "as in the reference implementation, which makes their cost a small part of an "
+        "iteration; what remains is every estimator at once: photon points, query beams and "
+        "photon beams each walk every camera segment in a medium, so where plain connections "
+        "already do well (thin media, bpt the best arm) `upbp: all` pays that cost for little "
+        "less variance.",
 }
 
 
@@ -499,6 +508,11 @@ def write_page(path: Path, data: dict) -> None:
                   + f", by `{row.get('command', '?')}`.", ""]
         if "best" in row:
             lines += [f"Best arm: {row['best']}; worst: {row['worst']}.", ""]
+            subject, best = definition.get("subject"), row["best"]
+            if subject in row["arms"] and subject != best:
+                a, b = row["arms"][subject], row["arms"][best]
+                lines += [f"Per iteration, {subject} costs {a['t'] / b['t']:.3g}× {best}'s CPU "
+                          f"time and has {a['v'] / b['v']:.3g}× its variance.", ""]
         elif "numerator" in definition:
             num, den = definition["numerator"], definition["denominator"]
             a, b = row["arms"][num], row["arms"][den]
