@@ -436,13 +436,17 @@ NOTES = {
         "bias left out of the error; the verdict asks that `upbp: all` is not the worst arm and "
         "that its equal-time RMSE is within the target factor of the best arm's. Compare the "
         "arms' v and t: where `upbp: all` has the lowest variance per iteration but loses at "
-        "equal time, its cost decides it. Photon beams come from a fraction of each "
-        "iteration's light paths (`--photon-beam-paths`, its default in the commands below), "
-        "as in the reference implementation, which makes their cost a small part of an "
-        "iteration; what remains is every estimator at once: photon points, query beams and "
-        "photon beams each walk every camera segment in a medium, so where plain connections "
-        "already do well (thin media, bpt the best arm) `upbp: all` pays that cost for little "
-        "less variance.",
+        "equal time, its cost decides it (the line before this note gives both ratios). Photon "
+        "beams come from a fraction of each iteration's light paths (`--photon-beam-paths` in "
+        "the commands below), as in the reference implementation. What remains is the gathers: "
+        "photon points (query beams) and photon beams are gathered along every camera segment "
+        "in a medium, at a cost of the camera segments times the points or beams near them. "
+        "That is largest in a small dense medium (upbp-lantern: every light path scatters many "
+        "times inside the glass ball, and every camera ray through the ball gathers them), "
+        "where the reference implementation can also keep beams out of media whose mean free "
+        "path is short against the beam radius (its beam storage factor), which ours cannot "
+        "yet. Where bpt is the best arm (thin media), `upbp: all` pays for every estimator at "
+        "once for little less variance.",
 }
 
 
