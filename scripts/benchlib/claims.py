@@ -446,7 +446,12 @@ NOTES = {
         "where the reference implementation can also keep beams out of media whose mean free "
         "path is short against the beam radius (its beam storage factor), which ours cannot "
         "yet. Where bpt is the best arm (thin media), `upbp: all` pays for every estimator at "
-        "once for little less variance.",
+        "once for little less variance, and ties with the other upbp arms for the worst place. "
+        "In upbp-lantern the query beams also raise the variance per iteration (compare the "
+        "arm with connections and query beams with bpt, and `upbp: all` with the arm with "
+        "connections and photon beams): adding an estimator under MIS should not do that, so "
+        "P-B2D's weights in a dense medium behind glass are the next thing to check; the cause "
+        "is not known yet.",
 }
 
 
