@@ -123,6 +123,7 @@ void UniformBeamGrid::query(const Ray& ray, BeamsAlongRay::VisitFunction visit, 
             t_delta[a] = kInfinity;
         }
     }
+    const float radius2_margin = 1.001f * radius_ * radius_;
     float t_enter = t0;
     for (;;) {
         const int a = t_next[0] < t_next[1] ? (t_next[0] < t_next[2] ? 0 : 2)
@@ -133,6 +134,13 @@ void UniformBeamGrid::query(const Ray& ray, BeamsAlongRay::VisitFunction visit, 
         for (uint32_t k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
             const uint32_t i = beam_ids_[k];
             const BeamLine& beam = (*beams_)[i];
+            // Most of a cell's beams pass farther than r from the query's line: rejected
+            // without the square root and divisions of closest_approach, by the squared
+            // distance (dot(w, n)^2 / sin^2) with a margin far above float rounding, so that
+            // only beams the exact test below rejects are skipped (images bit-identical).
+            const Vec3 n = cross(ray.direction, beam.direction);
+            const float wn = dot(ray.origin - beam.origin, n);
+            if (wn * wn > radius2_margin * length_squared(n)) continue;
             BeamApproach ap;
             if (!closest_approach(ray, beam, ap)) continue;
             // This cell's stretch of the query owns the approach: each beam reported once.

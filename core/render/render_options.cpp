@@ -186,6 +186,19 @@ const std::vector<RenderOption>& table() {
          .format = [](const RenderSettings& s) -> std::string {
              return s.photon_beam_eta == 2.0 ? "2r" : "r/2";
          }},
+        {.name = "photon_beam_paths",
+         .flag = "--photon-beam-paths",
+         .metavar = "F",
+         .type = OptionType::Real,
+         .help = "upbp: fraction of each iteration's light paths (the first ones, at least one) "
+                 "whose segments in media become photon beams; the beams' normalisation and MIS "
+                 "weights count those paths",
+         .min = 0,
+         .max = 1,
+         .min_exclusive = true,
+         .default_text = format_real(RenderSettings().photon_beam_paths),
+         .apply = [](RenderSettings& s, const std::string& v) { s.photon_beam_paths = to_real(v); },
+         .format = [](const RenderSettings& s) { return format_real(s.photon_beam_paths); }},
         {.name = "volume_radius_factor",
          .flag = "--volume-radius-factor",
          .metavar = "F",

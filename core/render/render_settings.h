@@ -61,6 +61,9 @@ struct RenderSettings {
     bool photon_beams = true;
     bool short_photon_beams = true;
     double photon_beam_eta = 0.5;
+    // upbp: the fraction of each iteration's light paths (the first ones) whose segments in media
+    // become photon beams (1: all).
+    double photon_beam_paths = 1.0;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

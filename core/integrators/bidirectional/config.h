@@ -52,6 +52,10 @@ struct UpbpSettings {
     bool short_photon_beams = true;
     // The MIS constant eta_1 in units of r_1 (0.5: SmallUPBP's r / 2; 2: the kernel's support).
     double photon_beam_eta = 0.5;
+    // The fraction of the iteration's light paths, the first ones, whose segments become photon
+    // beams (SmallUPBP's photon beam path count): B-B1D's normalisation and MIS constant count
+    // those K paths instead of all N (iteration_plan.cpp).
+    double photon_beam_paths = 1;
     double volume_radius_factor = 0;
     double volume_alpha = 1;
 };

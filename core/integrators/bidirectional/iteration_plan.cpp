@@ -75,8 +75,19 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
     p.vm_normalization = float(1.0 / eta_vcm);
     p.vm_normalization_volume = float(1.0 / eta_vcm_volume);
     p.beam_normalization = float(1.0 / eta_beam);
-    // The box kernel 1 / (2 r_1), each of the N_L light paths' beams one sample.
-    p.photon_beam_normalization = float(1.0 / (2.0 * p.photon_beam_radius * n_light));
+    // Photon beams come from the first K of the N_L light paths (K = ceil(fraction N_L), at
+    // least 1): each of those K paths' beams is one sample of B-B1D, so its normalisation and
+    // its eta count K, where every other estimator counts N_L. The paths are independent and
+    // identically distributed, so any fixed K of them are an unbiased subset.
+    p.photon_beam_path_count = p.light_path_count;
+    if (p.photon_beams && upbp.photon_beam_paths < 1) {
+        const double k = std::ceil(upbp.photon_beam_paths * n_light);
+        p.photon_beam_path_count =
+            std::clamp<uint64_t>(k >= 1 ? uint64_t(k) : 1, 1, p.light_path_count);
+    }
+    const double n_beam = double(p.photon_beam_path_count);
+    // The box kernel 1 / (2 r_1), each of the K light paths' beams one sample.
+    p.photon_beam_normalization = float(1.0 / (2.0 * p.photon_beam_radius * n_beam));
     p.mis_power = config.mis_power;
     p.mis_techniques = MisTechniques{
         .connections = p.vertex_connections,
@@ -84,7 +95,7 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
         .point_eta = p.merge_points ? eta_vcm_volume : 0.0,
         .query_beam_eta = p.query_beams ? eta_beam : 0.0,
         .photon_beam_eta =
-            p.photon_beams ? upbp.photon_beam_eta * p.photon_beam_radius * n_light : 0.0,
+            p.photon_beams ? upbp.photon_beam_eta * p.photon_beam_radius * n_beam : 0.0,
         .short_photon_beams = upbp.short_photon_beams};
 
     p.ic_light_path_count =

@@ -73,9 +73,10 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
     uint32_t beam_piece = 0;
     for (;; ++state.path_length) {
         SampledSegment seg;
-        // Photon beams need the subpath as it was before the segment.
+        // Photon beams (from the first photon_beam_path_count paths) need the subpath as it was
+        // before the segment.
         std::optional<SubpathState> before;
-        if (plan_.photon_beams) before = state;
+        if (plan_.photon_beams && path_index < plan_.photon_beam_path_count) before = state;
         std::optional<SubpathVertex> v =
             next_vertex(ray, TransportMode::Importance, rng, state, stats, seg);
         if (before) emit_photon_beams(ray, *before, seg, path_index, beam_piece, rng, stats);

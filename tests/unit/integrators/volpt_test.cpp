@@ -230,10 +230,18 @@ void long_photon_beams_only(RenderSettings& s) {
     s.short_photon_beams = false;
     s.photon_beam_eta = 2.0;
 }
+// Beams from a quarter of the light paths (--photon-beam-paths 0.25: 64 of the furnace's 256):
+// the estimate normalised by those 64, not by all 256 (which would read 0.25).
+void photon_beams_only_from_a_quarter_of_the_paths(RenderSettings& s) {
+    photon_beams_only(s);
+    s.photon_beam_paths = 0.25;
+}
 INSTANTIATE_TEST_SUITE_P(
     PhotonBeams, MediumFurnace,
     ::testing::Values(
         FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 256, true, photon_beams_only},
+        FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 512, true,
+                    photon_beams_only_from_a_quarter_of_the_paths},
         FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 64, true, long_photon_beams_only},
         FurnaceCase{"upbp", "0.3, 1, 3", kForward, true, 0.02, 256, true, photon_beams_only},
         FurnaceCase{"upbp", "4", kBackward, true, 0.02, 256, true, photon_beams_only}));
