@@ -22,8 +22,9 @@ Two timings (`--reference-timing`):
   disturbs it far less than wall time: on the shared 2-core machine this is the measure that
   can be repeated. The two programs of a round run at the same time, each pinned to its own
   CPU, and swap CPUs every round (with one CPU they run one after the other). Time per
-  iteration: (CPU seconds of the run - those of a one-iteration run) / (iterations - 1), the
-  start-up (scene loading, acceleration structure, plug-ins) taken out.
+  iteration: (CPU seconds of the run - the mean of two one-iteration runs, one on either CPU)
+  / (iterations - 1), the start-up (scene loading, acceleration structure, plug-ins) taken
+  out.
 - wall: whole-process wall seconds of 2-thread runs, both programs pinned to the same 2 CPUs,
   one after the other; meaningful only on a quiet machine.
 
@@ -367,11 +368,13 @@ def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None
 
             fixed = None
             if timing == "cpu" and iterations > 1:
-                # Start-up: one one-iteration run of each (taken out of the time per iteration).
+                # Start-up: one-iteration runs of each, one on either CPU (their CPU seconds
+                # differ), averaged and taken out of the time per iteration.
                 log(f"reference comparison: {scene} {algo} start-up (load "
                     f"{' '.join(loadavg())})")
-                one = measure(commands(1, FIXED_COST_SEED), 0)
-                fixed = {arm: one[arm][2] for arm in one}
+                ones = [measure(commands(1, FIXED_COST_SEED), 0),
+                        measure(commands(1, FIXED_COST_SEED)[::-1], 0)]
+                fixed = {arm: statistics.fmean(one[arm][2] for one in ones) for arm in ones[0]}
             ours, theirs, ours_err, ref_err, ours_images, ref_images = [], [], [], [], [], []
             for r in range(runs):
                 loads.append(loadavg()[0])
@@ -480,7 +483,8 @@ def section(result, previous=None):
                   f"CPU of {result['cpus']}, swapping CPUs every round. "
                   if result.get("together") else "The two programs ran one after the other. ")
                + f"{iterations} iterations of 512 × 512 paths per run. Time per iteration: "
-               "(CPU seconds of a run − those of a one-iteration run of the same program) / "
+               "(CPU seconds of a run − the mean of two one-iteration runs of the same program, "
+               "one on either CPU) / "
                f"({iterations} − 1), the start-up taken out. CPU time is what a quiet machine's "
                "wall time would be and other load disturbs it far less than wall time (not "
                "entirely: caches and the memory bus are shared).")

@@ -17,8 +17,8 @@ bench.reference_error), without SmallVCM and without timing anything:
    its own standard errors of the true one (4 SE: a correct estimate misses by chance with
    probability < 1e-4, and the fixed seeds make the check deterministic). With CPU timing the
    two programs of a round run on different CPUs and swap them each round, the reference gets
-   OMP_NUM_THREADS=1 and ours --threads 1, one one-iteration run of each measures the
-   start-up, and the time per iteration is exactly 1 / 2 with no spread. A fake reference that
+   OMP_NUM_THREADS=1 and ours --threads 1, a one-iteration run of each on either CPU
+   measures the start-up, and the time per iteration is exactly 1 / 2 with no spread. A fake reference that
    ignores the seed is refused: its runs are not independent.
 4. The data file carries the commit, the machine, the load and the command."""
 
@@ -222,9 +222,11 @@ def check_symmetric_run(reference, common, rng, work, timing):
         assert len(calls) == 2 * runs  # no start-up runs
         expected = 4.0 * 2.0  # relative MSE 4 x lower (noise 0.02 against 0.04), time 2 x shorter
     else:
-        # One one-iteration run of each for the start-up, then the rounds.
-        assert len(calls) == 2 * runs + 2, len(calls)
-        assert sorted(iterations_of(c[0]) for c in calls).count(1) == 2
+        # Two one-iteration runs of each for the start-up, one on either CPU, then the rounds.
+        assert len(calls) == 2 * runs + 4, len(calls)
+        starts = [(Path(c[0]).name, next(iter(cpus))) for c, cpus, _ in calls
+                  if iterations_of(c) == 1]
+        assert sorted(starts) == sorted({(n, cpu) for n, _ in starts for _, cpu in starts}), starts
         assert all(c[0][c[0].index("--threads") + 1] == "1" for c in ours_calls)
         assert all(c[2] and c[2].get("OMP_NUM_THREADS") == "1" for c in ref_calls)
         assert all(len(cpus) == 1 for _, cpus, _ in calls)
