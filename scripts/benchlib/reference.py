@@ -1,28 +1,44 @@
 """Ours against the VCM reference implementation (SmallVCM) on its four Cornell boxes, per unit
-of error: efficiency = 1 / (relative MSE x seconds) of 16 iterations at 512 x 512 on 2 threads,
-whole process, the same number of independent runs of each program (the target: ours / reference
->= 2.0 at 2 standard errors; time per iteration <= 0.6x and peak memory <= 1.2x the reference's
-as secondary figures; docs/results/performance-notes.md).
+of error: efficiency = 1 / (relative MSE x seconds), the same number of independent runs of each
+program, against the converged images in docs/references/ (the target: ours / reference >= 2.0
+at 2 standard errors; time per iteration <= 0.6x and peak memory <= 1.2x the reference's as
+secondary figures; docs/design/smallvcm-comparison.md).
 
 The project never downloads or builds the reference: `scripts/bench --reference-smallvcm PATH`
-takes a binary built by hand (docs/results/performance-notes.md, "How the reference binary was
+takes a binary built by hand (docs/design/smallvcm-comparison.md, "How the reference binary is
 built"). Its command line is `-s SCENE -a ALGO -i ITERATIONS -o FILE -seed SEED`: resolution
 (512 x 512), path length (10 segments) and merging radius (0.003 x the scene's bounding-sphere
 radius, alpha 0.75) are fixed in its config.hxx; the seed option is the local build's (SmallVCM's
-driver fixes its base seed, so without it every run would repeat one image). The thread count is
-omp_get_num_procs(), the CPUs in the process's affinity mask (OMP_NUM_THREADS is overridden by
-its omp_set_num_threads). Both programs therefore run pinned to the same THREADS CPUs. Without
-the option the section says "not run".
+driver fixes its base seed, so without it every run would repeat one image). Its thread count
+is omp_get_num_procs(), the CPUs in the process's affinity mask (OMP_NUM_THREADS is overridden
+by its omp_set_num_threads), so a run's thread count is set by pinning. Without the option the
+section says "not run".
 
-Symmetric by construction: run r of each program uses seed r, the two alternate (which one starts
-a round alternates as well), and every image, ours or the reference's, is box-averaged 2 x 2
-down to 256 x 256 (both programs use a box pixel filter, so the average has the coarse pixel's
-expectation) and compared with the box's converged image in docs/references/ (ours, vcm,
-256-1024 iterations at 256 x 256, made once by `scripts/bench --make-references`) by the same
-relative MSE. Each side's efficiency is 1 / (mean relative MSE x mean wall seconds) over its runs;
-the ratio's standard error is first order (the four means' relative standard errors in
-quadrature). `scripts/bench --only reference` writes the run to docs/data/reference/ with the
-commit, the machine and the load. SmallVCM writes its image as PFM (its driver's `.pfm` output:
+Two timings (`--reference-timing`):
+
+- cpu (the default): single-threaded runs, CPU seconds (user + system of the child, wait4).
+  Ours runs with `--threads 1`, the reference pinned to one CPU (and OMP_NUM_THREADS=1), so
+  each uses one thread. CPU time is what a quiet machine's wall time would be, and other load
+  disturbs it far less than wall time: on the shared 2-core machine this is the measure that
+  can be repeated. The two programs of a round run at the same time, each pinned to its own
+  CPU, and swap CPUs every round (with one CPU they run one after the other). Time per
+  iteration: (CPU seconds of the run - the mean of two one-iteration runs, one on either CPU)
+  / (iterations - 1), the start-up (scene loading, acceleration structure, plug-ins) taken
+  out.
+- wall: whole-process wall seconds of 2-thread runs, both programs pinned to the same 2 CPUs,
+  one after the other; meaningful only on a quiet machine.
+
+Symmetric by construction: run r of each program uses seed r, and every image, ours or the
+reference's, is box-averaged 2 x 2 down to 256 x 256 (both programs use a box pixel filter, so
+the average has the coarse pixel's expectation) and compared with the box's converged image in
+docs/references/ (ours, vcm, 256-1024 iterations at 256 x 256, made once by `scripts/bench
+--make-references`) by the same relative MSE. Each side's efficiency is 1 / (mean relative MSE x
+mean seconds) over its runs (whole process); the ratio's standard error is the jackknife's over
+the rounds (leave one round, both programs' runs of it, out), which also carries the
+correlation of a run's error and time and the load shared by a round's two runs. The images'
+means against the converged image's, per side, check that the two programs render the same
+thing. `scripts/bench --only reference` writes the run to docs/data/reference/ with the commit,
+the machine and the load. SmallVCM writes its image as PFM (the local driver's `.pfm` output:
 raw little-endian float RGB, top row first). The timing needs only the standard library; the
 error needs numpy and OpenImageIO (scripts/setup installs them).
 """
@@ -32,6 +48,7 @@ import math
 import os
 import statistics
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -43,13 +60,23 @@ from benchlib import handwritten
 # 3 small spheres + constant background.
 SCENE_IDS = {"0-gbs_s": 0, "1-glm_c": 1, "2-gbs_p": 2, "3-gbs_b": 3}
 ALGORITHMS = ["vcm", "bpt"]
-ITERATIONS = 16  # SmallVCM splits -i over its threads: 2 threads x 8 iterations of 512^2 paths
-RUNS = 5  # independent runs of each program (seeds 0 .. RUNS - 1)
+# Iterations of 512^2 paths per run. Wall timing: SmallVCM splits -i over its threads (2 x 8).
+# CPU timing: one thread; 4 iterations x 4 runs keep the four boxes and two algorithms near
+# 250 CPU seconds on each of the 2 CPUs (the reference costs up to ~3 s a vcm iteration), which
+# a loaded machine gives in well under an hour.
+ITERATIONS = {"cpu": 4, "wall": 16}
+RUNS = 4  # independent runs of each program (seeds 0 .. RUNS - 1)
+TIMINGS = ("cpu", "wall")
+# What `scripts/bench --only reference` measures when run() is not told otherwise
+# (scripts/bench sets these from --reference-timing, --reference-runs, --reference-iterations).
+DEFAULTS = {"timing": "cpu", "runs": None, "iterations": None}
+# Seed of the one-iteration runs that measure each program's start-up (CPU timing).
+FIXED_COST_SEED = 1000
 # The seed option of the reference build (not in SmallVCM's own driver, whose base seed is fixed
 # in config.hxx: the local build adds it; performance-notes.md, "How the reference binary was
 # built"). Without it the reference's runs would repeat one image, which run() refuses.
 REFERENCE_SEED_FLAG = "-seed"
-THREADS = 2
+THREADS = 2  # wall timing; CPU timing runs one thread per program
 # The converged image of each box (docs/references/README.md): name of its EXR.
 REFERENCE_IMAGES = {"0-gbs_s": "gbs_s", "1-glm_c": "glm_c", "2-gbs_p": "gbs_p", "3-gbs_b": "gbs_b"}
 
@@ -79,6 +106,28 @@ def timed(cmd, cpus, env=None):
         raise RuntimeError(f"{' '.join(map(str, cmd))} exited {code}: {stderr.strip()[-500:]}")
     # ru_maxrss is in KiB on Linux
     return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
+
+
+def timed_together(jobs, log=print):
+    """Runs jobs [(cmd, cpus, env), ...] at the same time, each pinned to its CPUs; returns their
+    timed() results in order. CPU seconds are per child (wait4), so running them together does
+    not mix their times."""
+    results, errors = [None] * len(jobs), []
+
+    def one(i, cmd, cpus, env):
+        try:
+            results[i] = timed(cmd, cpus, env)
+        except Exception as e:  # re-raised below, in this thread
+            errors.append(e)
+
+    threads = [threading.Thread(target=one, args=(i, *job)) for i, job in enumerate(jobs)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    if errors:
+        raise errors[0]
+    return results
 
 
 def read_pfm(path):
@@ -172,14 +221,67 @@ def efficiency(relative_mses, seconds):
     return value, relative_se
 
 
+def _ratio_of_means(row, keep):
+    """Ours / reference efficiency over the rounds in `keep`."""
+    def mean(key):
+        return statistics.fmean(row[key][i] for i in keep)
+
+    return (mean("reference_relative_mses") * mean("reference_seconds")) / (
+        mean("ours_relative_mses") * mean("ours_seconds"))
+
+
+def jackknife(statistic, rounds):
+    """A statistic of the rounds 0 .. rounds - 1 (statistic(kept round indices)) and its
+    jackknife standard error: leave one round out, sqrt((n - 1) / n x sum of the squared
+    deviations of the n leave-one-out values from their mean). 0 with fewer than 2 rounds."""
+    everything = list(range(rounds))
+    value = statistic(everything)
+    if rounds < 2:
+        return value, 0.0
+    loo = [statistic([j for j in everything if j != i]) for i in everything]
+    centre = statistics.fmean(loo)
+    return value, math.sqrt((rounds - 1) / rounds * sum((x - centre) ** 2 for x in loo))
+
+
 def efficiency_ratio(row):
-    """Ours / reference efficiency of a row and its standard error: both sides have the same
-    number of independent runs, compared with the same converged image by the same metric,
-    so the ratio's relative standard error is the two efficiencies' in quadrature."""
+    """Ours / reference efficiency of a row, (mean relative MSE x mean seconds) of the
+    reference over ours', and its standard error: the jackknife's over the rounds (round r:
+    both programs' run with seed r). Both sides have the same number of independent runs,
+    compared with the same converged image by the same metric."""
+    rounds = len(row["ours_relative_mses"])
+    return jackknife(lambda keep: _ratio_of_means(row, keep), rounds)
+
+
+def propagated_ratio_se(row):
+    """The first-order standard error of the efficiency ratio (the four means' relative
+    standard errors in quadrature), kept beside the jackknife's as a check."""
     ours, ours_rse = efficiency(row["ours_relative_mses"], row["ours_seconds"])
     ref, ref_rse = efficiency(row["reference_relative_mses"], row["reference_seconds"])
-    ratio = ours / ref
-    return ratio, ratio * math.sqrt(ours_rse ** 2 + ref_rse ** 2)
+    return ours / ref * math.sqrt(ours_rse ** 2 + ref_rse ** 2)
+
+
+def per_iteration(cpu_seconds, fixed_seconds, iterations):
+    """CPU seconds per iteration of each run: (run - one-iteration run) / (iterations - 1)."""
+    return [max(c - fixed_seconds, 1e-9) / (iterations - 1) for c in cpu_seconds]
+
+
+def time_ratio(row):
+    """Ours / reference CPU seconds per iteration (start-up taken out) and its jackknife
+    standard error over the rounds; None without per-iteration times."""
+    if "ours_seconds_per_iteration" not in row:
+        return None
+    ours, ref = row["ours_seconds_per_iteration"], row["reference_seconds_per_iteration"]
+    return jackknife(lambda keep: statistics.fmean(ours[i] for i in keep)
+                     / statistics.fmean(ref[i] for i in keep), len(ours))
+
+
+def mean_difference(row):
+    """Reference image mean / converged minus ours (both against the same converged image),
+    and the standard error of that difference from the two sides' run-to-run spreads: the two
+    programs render the same picture when it is within ~2 standard errors of 0."""
+    ours, ours_se = mean_and_se(row["ours_mean_ratios"])
+    ref, ref_se = mean_and_se(row["reference_mean_ratios"])
+    return ref - ours, math.hypot(ours_se, ref_se)
 
 
 def check_independent(images, who):
@@ -193,68 +295,108 @@ def check_independent(images, who):
 
 
 def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None,
-        iterations=None, runs=None, reference_images=None):
-    """Measures every (scene, algorithm): `runs` independent runs of each program, ours and the
-    reference alternated (a change of the machine's load hits both arms), run r of either
-    with seed r. Every image is compared with the same converged image by the same metric
+        iterations=None, runs=None, reference_images=None, timing=None):
+    """Measures every (scene, algorithm): `runs` independent runs of each program, run r of
+    either with seed r, ours and the reference in the same round (at the same time on two CPUs
+    with CPU timing, one after the other with wall timing; which one goes first or on which
+    CPU alternates). Every image is compared with the same converged image by the same metric
     (relative MSE after a 2 x 2 box average). Returns None without a reference.
 
-    scenes, algorithms, iterations, runs and reference_images (scene -> (pixels, own relative
-    MSE)) default to the benchmark's; the tests pass small synthetic ones."""
+    timing ("cpu" or "wall"), scenes, algorithms, iterations, runs and reference_images (scene
+    -> (pixels, own relative MSE)) default to the benchmark's (DEFAULTS); the tests pass small
+    synthetic ones."""
     if not reference:
         return None
     reference = Path(reference).resolve()
     if not os.access(reference, os.X_OK):
         raise FileNotFoundError(f"--reference-smallvcm {reference}: not an executable file")
+    timing = timing or DEFAULTS["timing"]
+    if timing not in TIMINGS:
+        raise ValueError(f"reference timing {timing!r}: one of {', '.join(TIMINGS)}")
     scenes = scenes or (["1-glm_c"] if quick else list(SCENE_IDS))
     algorithms = algorithms or (ALGORITHMS[:1] if quick else ALGORITHMS)
-    iterations = iterations or (2 if quick else ITERATIONS)
-    runs = runs or (2 if quick else RUNS)
+    iterations = iterations or DEFAULTS["iterations"] or (2 if quick else ITERATIONS[timing])
+    runs = runs or DEFAULTS["runs"] or (2 if quick else RUNS)
+    threads = THREADS if timing == "wall" else 1
     source = Path(__file__).resolve().parents[2]
-    cpus = pinned_cpus()
+    if timing == "wall":
+        cpus = pinned_cpus()
+        slots = [cpus, cpus]
+    else:
+        # One CPU per program; both on the one CPU there is when there is only one.
+        available = sorted(os.sched_getaffinity(0))
+        slots = [{available[0]}, {available[min(1, len(available) - 1)]}]
+        cpus = slots[0] | slots[1]
+    together = timing == "cpu" and slots[0] != slots[1]
+    # The reference's thread count is the CPUs it may run on; OMP_NUM_THREADS says the same.
+    ref_env = dict(os.environ, OMP_NUM_THREADS=str(threads))
     rows = []
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     policy = {os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}.get(
         os.sched_getscheduler(0), "normal")
     load_start = loadavg()
     loads = []
+
+    def measure(arms, first_slot):
+        """Runs [(arm, cmd)] of one round; returns {arm: timed() result}."""
+        jobs = [(cmd, slots[(first_slot + k) % 2], ref_env if arm == "reference" else None)
+                for k, (arm, cmd) in enumerate(arms)]
+        if together:
+            results = timed_together(jobs)
+        else:
+            results = [timed(*job) for job in jobs]
+        return {arm: result for (arm, _), result in zip(arms, results)}
+
     for scene in scenes:
         if reference_images and scene in reference_images:
             converged, own = reference_images[scene]
         else:
             converged, own = converged_image(scene)
         for algo in algorithms:
-            ours_cmd = [str(Path(bin_dir) / "render"),
-                        str(source / "scenes/smallvcm" / f"{scene}.xml"),
-                        "--algo", algo, "--iterations", str(iterations),
-                        "--threads", str(THREADS), "--out", str(Path(work) / "ours.exr")]
-            ref_cmd = [str(reference), "-s", str(SCENE_IDS[scene]), "-a", algo,
-                       "-i", str(iterations), "-o", str(Path(work) / "reference.pfm")]
+            out_ours = Path(work) / "ours.exr"
+            out_ref = Path(work) / "reference.pfm"
+
+            def commands(n, seed):
+                ours_cmd = [str(Path(bin_dir) / "render"),
+                            str(source / "scenes/smallvcm" / f"{scene}.xml"),
+                            "--algo", algo, "--iterations", str(n),
+                            "--threads", str(threads), "--out", str(out_ours),
+                            "--seed", str(seed)]
+                ref_cmd = [str(reference), "-s", str(SCENE_IDS[scene]), "-a", algo,
+                           "-i", str(n), "-o", str(out_ref), REFERENCE_SEED_FLAG, str(seed)]
+                return [("ours", ours_cmd), ("reference", ref_cmd)]
+
+            fixed = None
+            if timing == "cpu" and iterations > 1:
+                # Start-up: one-iteration runs of each, one on either CPU (their CPU seconds
+                # differ), averaged and taken out of the time per iteration.
+                log(f"reference comparison: {scene} {algo} start-up (load "
+                    f"{' '.join(loadavg())})")
+                ones = [measure(commands(1, FIXED_COST_SEED), 0),
+                        measure(commands(1, FIXED_COST_SEED)[::-1], 0)]
+                fixed = {arm: statistics.fmean(one[arm][2] for one in ones) for arm in ones[0]}
             ours, theirs, ours_err, ref_err, ours_images, ref_images = [], [], [], [], [], []
             for r in range(runs):
                 loads.append(loadavg()[0])
                 log(f"reference comparison: {scene} {algo} run {r + 1}/{runs} "
                     f"(load {' '.join(loadavg())})")
-                # Alternate which program starts a round, so neither always runs first.
-                arms = [("ours", ours_cmd + ["--seed", str(r)]),
-                        ("reference", ref_cmd + [REFERENCE_SEED_FLAG, str(r)])]
-                for arm, cmd in (arms if r % 2 == 0 else arms[::-1]):
-                    measured = timed(cmd, cpus)
-                    if arm == "ours":
-                        ours.append(measured)
-                        image = read_ours_image(Path(work) / "ours.exr")
-                        ours_images.append(image)
-                        ours_err.append(image_error(image, converged))
-                    else:
-                        theirs.append(measured)
-                        image = read_pfm(Path(work) / "reference.pfm")
-                        ref_images.append(image)
-                        ref_err.append(image_error(image, converged))
+                # Alternate which program starts a round (wall) or takes the first CPU (cpu).
+                arms = commands(iterations, r)
+                measured = measure(arms if r % 2 == 0 else arms[::-1], 0)
+                ours.append(measured["ours"])
+                theirs.append(measured["reference"])
+                image = read_ours_image(out_ours)
+                ours_images.append(image)
+                ours_err.append(image_error(image, converged))
+                image = read_pfm(out_ref)
+                ref_images.append(image)
+                ref_err.append(image_error(image, converged))
             check_independent(ours_images, "ours")
             check_independent(ref_images, "the reference")
+            seconds = 2 if timing == "cpu" else 0  # timed(): (wall, MiB, CPU)
             row = {
                 "scene": scene, "algorithm": algo, "iterations": iterations, "runs": runs,
-                "seeds": list(range(runs)),
+                "seeds": list(range(runs)), "timing": timing, "threads": threads,
                 "ours_relative_mses": [e["relative_mse"] for e in ours_err],
                 "reference_relative_mses": [e["relative_mse"] for e in ref_err],
                 "ours_mses": [e["mse"] for e in ours_err],
@@ -262,21 +404,33 @@ def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None
                 "ours_mean_ratios": [e["mean_ratio"] for e in ours_err],
                 "reference_mean_ratios": [e["mean_ratio"] for e in ref_err],
                 "converged_own_relative_mse": own,
-                "ours_seconds": [w for w, _, _ in ours],
-                "reference_seconds": [w for w, _, _ in theirs],
-                "ours_mib": [m for _, m, _ in ours], "reference_mib": [m for _, m, _ in theirs],
-                "ours_cpu": [c for _, _, c in ours], "reference_cpu": [c for _, _, c in theirs],
+                # The seconds of the efficiency: CPU (cpu timing) or wall (wall timing).
+                "ours_seconds": [m[seconds] for m in ours],
+                "reference_seconds": [m[seconds] for m in theirs],
+                "ours_wall": [m[0] for m in ours], "reference_wall": [m[0] for m in theirs],
+                "ours_mib": [m[1] for m in ours], "reference_mib": [m[1] for m in theirs],
+                "ours_cpu": [m[2] for m in ours], "reference_cpu": [m[2] for m in theirs],
             }
+            if fixed is not None:
+                row["ours_fixed_cpu"] = fixed["ours"]
+                row["reference_fixed_cpu"] = fixed["reference"]
+                row["ours_seconds_per_iteration"] = per_iteration(row["ours_cpu"],
+                                                                  fixed["ours"], iterations)
+                row["reference_seconds_per_iteration"] = per_iteration(
+                    row["reference_cpu"], fixed["reference"], iterations)
             row["efficiency_ratio"], row["efficiency_ratio_se"] = efficiency_ratio(row)
+            row["efficiency_ratio_propagated_se"] = propagated_ratio_se(row)
             rows.append(row)
-    return {"reference": str(reference), "threads": THREADS, "runs": runs, "rows": rows,
+    return {"reference": str(reference), "timing": timing, "threads": threads, "runs": runs,
+            "iterations": iterations, "rows": rows, "together": together,
             "started": started, "finished": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "load_start": load_start, "load_end": loadavg(), "load_per_run": loads,
-            "cpus": sorted(cpus), "policy": policy,
+            "cpus": sorted(cpus), "policy": policy, "nice": os.nice(0),
             "ours_binary": str((Path(bin_dir) / "render").resolve()),
             "ours_cmd": "build/bin/render scenes/smallvcm/SCENE.xml --algo ALGO --iterations "
-                        f"{iterations} --threads {THREADS} --out OUT.exr --seed RUN",
-            "reference_cmd": f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm "
+                        f"{iterations} --threads {threads} --out OUT.exr --seed RUN",
+            "reference_cmd": (f"OMP_NUM_THREADS={threads} " if timing == "cpu" else "")
+                             + f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm "
                              f"{REFERENCE_SEED_FLAG} RUN"}
 
 
@@ -308,53 +462,60 @@ def section(result, previous=None):
             return previous
         return [TITLE, "",
                 "Not run: `scripts/bench --only reference --reference-smallvcm PATH` compares "
-                "efficiency, 1 / (relative MSE × seconds), whole process (16 iterations, 512 × "
-                "512, 2 threads, the same number of independent runs of each program, "
-                "alternated) with a SmallVCM binary built by hand; the project never downloads "
-                "or builds it. Targets: efficiency ours / reference ≥ 2.0 at 2 standard errors, "
-                "time ≤ 0.6× and peak memory ≤ 1.2× the reference's on each box, for vcm and "
-                "bpt.", ""]
+                "efficiency, 1 / (relative MSE × seconds), with a SmallVCM binary built by hand "
+                "(the project never downloads or builds it): by default single-threaded CPU "
+                "seconds, the same number of independent runs of each program. Targets: "
+                "efficiency ours / reference ≥ 2.0 at 2 standard errors, time per iteration "
+                "≤ 0.6× and peak memory ≤ 1.2× the reference's on each box, for vcm and bpt.",
+                ""]
     # "rounds": a raw file from before both sides' runs were independent.
     runs = result.get("runs", result.get("rounds", 0))
+    timing = result.get("timing", "wall")
+    iterations = result.get("iterations") or (result["rows"][0]["iterations"]
+                                              if result["rows"] else "?")
     L = [TITLE, ""]
-    L.append(f"Whole process (start-up and writing the image included), {result['threads']} "
-             f"threads, both programs pinned to CPUs {result['cpus']} (SmallVCM takes its "
-             "thread count from the affinity mask), the same scene, path length (10 segments), "
-             "resolution and merging radius (0.003 × scene radius, alpha 0.75). Each program "
-             f"ran {runs} independent times (seeds 0 to {runs - 1}, the two "
-             "programs alternated, which one starts a round alternating too); every image is "
-             "compared with the same converged image in `docs/references/` by the same metric. "
-             "Peak memory is the process's maximum resident set and CPU the user + system time "
-             f"(`wait4`). Run {result['started']} to {result['finished']}, 1/5/15-minute load "
-             f"average {' / '.join(result['load_start'])} at the start and "
+    if timing == "cpu":
+        how = ("CPU seconds (user + system of each child, `wait4`) of single-threaded runs, "
+               "whole process (start-up and writing the image included): ours with "
+               "`--threads 1`, SmallVCM pinned to one CPU and `OMP_NUM_THREADS=1` (its thread "
+               "count is the CPUs it may run on). "
+               + ("The two programs of a round ran at the same time, each pinned to its own "
+                  f"CPU of {result['cpus']}, swapping CPUs every round. "
+                  if result.get("together") else "The two programs ran one after the other. ")
+               + f"{iterations} iterations of 512 × 512 paths per run. Time per iteration: "
+               "(CPU seconds of a run − the mean of two one-iteration runs of the same program, "
+               "one on either CPU) / "
+               f"({iterations} − 1), the start-up taken out. CPU time is what a quiet machine's "
+               "wall time would be and other load disturbs it far less than wall time (not "
+               "entirely: caches and the memory bus are shared).")
+    else:
+        how = (f"Whole-process wall seconds (start-up and writing the image included), "
+               f"{result['threads']} threads, both programs pinned to CPUs {result['cpus']} "
+               "(SmallVCM takes its thread count from the affinity mask), one after the other "
+               f"(which one starts a round alternating), {iterations} iterations per run.")
+    L.append(how + " Same scene, path length (10 segments), resolution and merging radius "
+             f"(0.003 × scene radius, alpha 0.75). Each program ran {runs} independent times "
+             f"(seeds 0 to {runs - 1}); every image is compared with the same converged image "
+             "in `docs/references/` by the same metric. Peak memory is the process's maximum "
+             f"resident set. Run {result['started']} to {result['finished']}, 1/5/15-minute "
+             f"load average {' / '.join(result['load_start'])} at the start and "
              f"{' / '.join(result['load_end'])} at the end"
+             + (f" (the benchmark at nice {result['nice']})" if result.get("nice") else "")
              + ("; both arms ran under the real-time scheduling policy "
                 f"{result['policy']} (`chrt -f 10`), which preempts other load but not its "
                 "use of the memory bus and caches" if result.get("policy", "normal") != "normal"
                 else "") + ". "
              f"Ours: `{result['ours_binary']}`; reference: `{result['reference']}` (built as "
-             "described below).")
+             "[design/smallvcm-comparison.md](../design/smallvcm-comparison.md) says).")
     L.append("")
     L.append(f"    {result['ours_cmd']}")
     L.append(f"    {result['reference_cmd']}")
     L.append("")
-    L.extend(efficiency_lines(result["rows"]))
-    L.append("| scene | algorithm | ours s (mean ± SE) | reference s | ours / reference "
-             "(secondary target ≤ 0.6) | ours CPU s | reference CPU s | ours MiB | reference "
-             "MiB | ours / reference (target ≤ 1.2) |")
-    L.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    for row in result["rows"]:
-        t_ours, t_ours_se = mean_and_se(row["ours_seconds"])
-        t_ref, t_ref_se = mean_and_se(row["reference_seconds"])
-        m_ours = max(row["ours_mib"])
-        m_ref = max(row["reference_mib"])
-        L.append(f"| {row['scene']} | {row['algorithm']} | {t_ours:.2f} ± {t_ours_se:.2f} | "
-                 f"{t_ref:.2f} ± {t_ref_se:.2f} | **{t_ours / t_ref:.2f}** | "
-                 f"{statistics.fmean(row['ours_cpu']):.1f} | "
-                 f"{statistics.fmean(row['reference_cpu']):.1f} | {m_ours:.0f} | {m_ref:.0f} | "
-                 f"**{m_ours / m_ref:.2f}** |")
-    L.append("")
-    L.append("Per-run wall seconds (ours / reference): " + "; ".join(
+    L.extend(efficiency_lines(result["rows"], timing))
+    L.extend(time_lines(result["rows"], timing))
+    L.extend(same_image_lines(result["rows"]))
+    unit = "CPU" if timing == "cpu" else "wall"
+    L.append(f"Per-run {unit} seconds (ours / reference): " + "; ".join(
         f"{row['scene']} {row['algorithm']} "
         + ", ".join(f"{a:.1f}/{b:.1f}" for a, b in zip(row["ours_seconds"],
                                                        row["reference_seconds"]))
@@ -362,37 +523,108 @@ def section(result, previous=None):
     return L + [""]
 
 
-def efficiency_lines(rows):
+def met(ratio, se, target, at_least):
+    """The verdict at 2 standard errors: ratio - 2 SE >= target (at_least) or ratio + 2 SE <=
+    target."""
+    ok = ratio - 2 * se >= target if at_least else ratio + 2 * se <= target
+    return "yes" if ok else "**no**"
+
+
+def efficiency_lines(rows, timing="wall"):
     """The per-unit-of-error table: each program's efficiency 1 / (mean relative MSE x mean
-    wall seconds) over its independent runs, their ratio with its standard error, and whether
-    the target (ratio >= 2.0 at 2 standard errors) is met."""
+    seconds) over its independent runs, their ratio with its standard error, and whether the
+    target (ratio >= 2.0 at 2 standard errors) is met."""
     rows = [row for row in rows if "ours_relative_mses" in row]
     if not rows:
         return []
+    unit = "CPU" if timing == "cpu" else "wall"
     L = ["Per unit of error: relative MSE ((x − r)² / (r² + 0.01), as `render --compare`) of "
          "each image, box-averaged 2 × 2 to 256 × 256, against the box's converged image in "
-         "`docs/references/`; efficiency = 1 / (mean relative MSE × mean wall seconds) over "
-         "each program's runs. The ratio's standard error is first order: the four means' "
-         "relative standard errors in quadrature. Target: ours / reference ≥ 2.0 at 2 "
-         "standard errors (ratio − 2 SE ≥ 2). The converged image's own noise (estimated from "
-         "its odd and even iterations) is in both programs' errors alike and pulls the ratio "
-         "toward 1; its share of ours is given.", "",
-         "| scene | algorithm | runs | ours rel. MSE (mean ± SE) | reference rel. MSE | "
-         "converged image's own (share of ours) | ours / reference mean ratio | ours / "
-         "reference efficiency ± SE | ≥ 2.0 at 2 SE |",
-         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+         f"`docs/references/`; efficiency = 1 / (mean relative MSE × mean {unit} seconds of "
+         "the whole process) over each program's runs. The ratio's standard error is the "
+         "jackknife's over the rounds (leave one round, both programs' runs of it, out). "
+         "Target: ours / reference ≥ 2.0 at 2 standard errors (ratio − 2 SE ≥ 2). The "
+         "converged image's own noise (estimated from its odd and even iterations) is in both "
+         "programs' errors alike and pulls the ratio toward 1; its share of ours is given.", "",
+         f"| scene | algorithm | runs | ours rel. MSE (mean ± SE) | reference rel. MSE | "
+         f"converged image's own (share of ours) | ours {unit} s | reference {unit} s | "
+         "ours / reference efficiency ± SE | ≥ 2.0 at 2 SE |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for row in rows:
         e_ours, e_ours_se = mean_and_se(row["ours_relative_mses"])
         e_ref, e_ref_se = mean_and_se(row["reference_relative_mses"])
         ratio, se = efficiency_ratio(row)
         own = row.get("converged_own_relative_mse")
         own_text = f"{own:.2e} ({own / e_ours:.0%})" if own is not None else "—"
-        met = "yes" if ratio - 2 * se >= 2.0 else "no"
         L.append(f"| {row['scene']} | {row['algorithm']} | {len(row['ours_relative_mses'])} | "
                  f"{e_ours:.3e} ± {e_ours_se:.1e} | {e_ref:.3e} ± {e_ref_se:.1e} | {own_text} | "
-                 f"{statistics.fmean(row['ours_mean_ratios']):.4f} / "
-                 f"{statistics.fmean(row['reference_mean_ratios']):.4f} | "
-                 f"**{ratio:.2f} ± {se:.2f}** | {met} |")
+                 f"{statistics.fmean(row['ours_seconds']):.1f} | "
+                 f"{statistics.fmean(row['reference_seconds']):.1f} | "
+                 f"**{ratio:.2f} ± {se:.2f}** | {met(ratio, se, 2.0, True)} |")
+    L.append("")
+    return L
+
+
+def time_lines(rows, timing):
+    """The secondary figures: time per iteration (CPU timing: start-up taken out; wall timing:
+    whole process over the iterations) and peak memory, ours over the reference's."""
+    if not rows:
+        return []
+    if timing == "cpu":
+        head = ("Time per iteration (CPU seconds, start-up taken out; ratio ± jackknife SE, "
+                "target ≤ 0.6 at 2 SE) and peak memory (target ≤ 1.2; with one thread SmallVCM "
+                "holds one iteration's light vertices, as ours does):")
+    else:
+        head = ("Time per iteration (whole-process wall seconds over the iterations, target "
+                "≤ 0.6) and peak memory (target ≤ 1.2):")
+    L = [head, "",
+         "| scene | algorithm | ours s / iteration | reference s / iteration | ours / reference "
+         "± SE | ≤ 0.6 at 2 SE | ours start-up s | reference start-up s | ours MiB | "
+         "reference MiB | ours / reference | ≤ 1.2 |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for row in rows:
+        m_ours, m_ref = max(row["ours_mib"]), max(row["reference_mib"])
+        tr = time_ratio(row)
+        if tr:
+            t_ours = statistics.fmean(row["ours_seconds_per_iteration"])
+            t_ref = statistics.fmean(row["reference_seconds_per_iteration"])
+            ratio, se = tr
+            start = (f"{row['ours_fixed_cpu'] - t_ours:.2f} | "
+                     f"{row['reference_fixed_cpu'] - t_ref:.2f}")
+        else:
+            n = row["iterations"]
+            t_ours = statistics.fmean(row["ours_seconds"]) / n
+            t_ref = statistics.fmean(row["reference_seconds"]) / n
+            ratio, se = jackknife(lambda keep: statistics.fmean(
+                row["ours_seconds"][i] for i in keep) / statistics.fmean(
+                row["reference_seconds"][i] for i in keep), len(row["ours_seconds"]))
+            start = "— | —"
+        L.append(f"| {row['scene']} | {row['algorithm']} | {t_ours:.3f} | {t_ref:.3f} | "
+                 f"**{ratio:.2f} ± {se:.2f}** | {met(ratio, se, 0.6, False)} | {start} | "
+                 f"{m_ours:.0f} | {m_ref:.0f} | **{m_ours / m_ref:.2f}** | "
+                 f"{'yes' if m_ours <= 1.2 * m_ref else '**no**'} |")
+    L.append("")
+    return L
+
+
+def same_image_lines(rows):
+    """The check that both programs render the same picture: each side's image mean over the
+    converged image's (mean of its runs ± SE) and the difference with its SE."""
+    if not rows or "ours_mean_ratios" not in rows[0]:
+        return []
+    L = ["Same picture: each program's image mean over the converged image's (mean of its runs "
+         "± SE; bpt misses the caustics the converged vcm image has, alike in both programs) "
+         "and the reference's minus ours, which is within about 2 standard errors of 0 when "
+         "the two render the same thing:", "",
+         "| scene | algorithm | ours mean / converged | reference mean / converged | "
+         "reference − ours ± SE |",
+         "| --- | --- | --- | --- | --- |"]
+    for row in rows:
+        o, o_se = mean_and_se(row["ours_mean_ratios"])
+        r, r_se = mean_and_se(row["reference_mean_ratios"])
+        d, d_se = mean_difference(row)
+        L.append(f"| {row['scene']} | {row['algorithm']} | {o:.4f} ± {o_se:.4f} | "
+                 f"{r:.4f} ± {r_se:.4f} | {d:+.4f} ± {d_se:.4f} |")
     L.append("")
     return L
 

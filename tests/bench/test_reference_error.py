@@ -5,15 +5,21 @@ bench.reference_error), without SmallVCM and without timing anything:
 1. A PFM written as SmallVCM's driver writes it (top row first, negative scale) reads back in the
    right orientation, both byte orders; the error of a 512 x 512 image against a 256 x 256
    converged one is that of its 2 x 2 box average. Exact inputs, exact checks.
-2. The efficiency ratio and its standard error follow their formulas (exact inputs).
-3. The symmetric run on synthetic programs: a fake `render` and a fake reference write the
-   converged image plus Gaussian noise from their seed (the reference's noise twice ours', its
-   run time, as the replaced timer reports it, twice ours). run() gives both sides the same
-   number of runs with seeds 0.., compares all images with the same converged image, and its
-   ratio is within 4 of its own standard errors of the true ratio 8 (4 x the error, 2 x the
-   time; 4 SE: a correct estimate misses by chance with probability < 1e-4, and the fixed
-   seeds make the check deterministic). A fake reference that ignores the seed is refused:
-   its runs are not independent.
+2. The efficiency ratio and its jackknife standard error over the rounds, the first-order
+   (propagated) standard error, the time-per-iteration ratio and the image-mean difference
+   follow their formulas (exact inputs, each computed here independently of the module).
+3. The symmetric run on synthetic programs, with both timings: a fake `render` and a fake
+   reference write the converged image plus Gaussian noise from their seed (the reference's
+   noise twice ours'); the replaced timer reports their seconds (wall timing: ours 1 s, the
+   reference 2 s; CPU timing: a start-up plus a cost per iteration, ours 0.5 + 1 s x n, the
+   reference 0.1 + 2 s x n). run() gives both sides the same number of runs with seeds 0..,
+   compares all images with the same converged image, and its efficiency ratio is within 4 of
+   its own standard errors of the true one (4 SE: a correct estimate misses by chance with
+   probability < 1e-4, and the fixed seeds make the check deterministic). With CPU timing the
+   two programs of a round run on different CPUs and swap them each round, the reference gets
+   OMP_NUM_THREADS=1 and ours --threads 1, a one-iteration run of each on either CPU
+   measures the start-up, and the time per iteration is exactly 1 / 2 with no spread. A fake reference that
+   ignores the seed is refused: its runs are not independent.
 4. The data file carries the commit, the machine, the load and the command."""
 
 import argparse
@@ -24,6 +30,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -105,19 +112,61 @@ def check_ratio_formula(reference):
     ratio, se = reference.efficiency_ratio(row)
     # means: ours 0.02 and 11 s, reference 0.05 and 21 s
     assert abs(ratio - (0.05 * 21.0) / (0.02 * 11.0)) < 1e-12, ratio
+    # Jackknife over the three rounds: leave round i out of both sides.
+    loo = []
+    for i in range(3):
+        keep = [j for j in range(3) if j != i]
+
+        def m(key):
+            return sum(row[key][j] for j in keep) / 2
+
+        loo.append(m("reference_relative_mses") * m("reference_seconds")
+                   / (m("ours_relative_mses") * m("ours_seconds")))
+    centre = sum(loo) / 3
+    expected = math.sqrt(2 / 3 * sum((x - centre) ** 2 for x in loo))
+    assert abs(se - expected) < 1e-12, (se, expected)
+    # The first-order error: the four means' relative standard errors in quadrature.
     rse = math.sqrt((0.01 / math.sqrt(3) / 0.02) ** 2 + (1.0 / math.sqrt(3) / 11.0) ** 2
                     + (0.01 / math.sqrt(3) / 0.05) ** 2 + (1.0 / math.sqrt(3) / 21.0) ** 2)
-    assert abs(se - ratio * rse) < 1e-12, (se, ratio * rse)
-    # Swapping the sides inverts the ratio and keeps its relative standard error.
+    propagated = reference.propagated_ratio_se(row)
+    assert abs(propagated - ratio * rse) < 1e-12, (propagated, ratio * rse)
+    # Swapping the sides inverts the ratio.
     swapped = {"ours_relative_mses": row["reference_relative_mses"],
                "ours_seconds": row["reference_seconds"],
                "reference_relative_mses": row["ours_relative_mses"],
                "reference_seconds": row["ours_seconds"]}
     ratio2, se2 = reference.efficiency_ratio(swapped)
-    assert abs(ratio * ratio2 - 1) < 1e-12 and abs(se / ratio - se2 / ratio2) < 1e-12
+    assert abs(ratio * ratio2 - 1) < 1e-12, (ratio, ratio2)
+    assert abs(reference.propagated_ratio_se(swapped) / ratio2 - propagated / ratio) < 1e-12
+    # A single round has no spread to estimate from.
+    one = {k: v[:1] for k, v in row.items()}
+    assert reference.efficiency_ratio(one)[1] == 0.0
+
+    # Time per iteration: (run - one-iteration run) / (iterations - 1), ratio by jackknife.
+    assert reference.per_iteration([9.0, 11.0], 3.0, 4) == [2.0, 8.0 / 3]
+    timed = {"ours_seconds_per_iteration": [1.0, 2.0, 3.0],
+             "reference_seconds_per_iteration": [4.0, 4.0, 4.0]}
+    t_ratio, t_se = reference.time_ratio(timed)
+    assert abs(t_ratio - 0.5) < 1e-12, t_ratio
+    loo = [(5 / 2) / 4, (4 / 2) / 4, (3 / 2) / 4]
+    centre = sum(loo) / 3
+    expected = math.sqrt(2 / 3 * sum((x - centre) ** 2 for x in loo))
+    assert abs(t_se - expected) < 1e-12, (t_se, expected)
+    assert reference.time_ratio(row) is None  # no per-iteration times (wall timing)
+
+    # The picture check: reference mean ratio minus ours, SEs in quadrature.
+    means = {"ours_mean_ratios": [0.99, 1.01], "reference_mean_ratios": [1.02, 1.04]}
+    d, d_se = reference.mean_difference(means)
+    assert abs(d - 0.03) < 1e-12, d
+    assert abs(d_se - math.hypot(0.01, 0.01)) < 1e-12, d_se
+    # The verdicts at 2 SE.
+    assert reference.met(2.5, 0.2, 2.0, True) == "yes"
+    assert reference.met(2.5, 0.3, 2.0, True) != "yes"
+    assert reference.met(0.5, 0.04, 0.6, False) == "yes"
+    assert reference.met(0.5, 0.06, 0.6, False) != "yes"
 
 
-def check_symmetric_run(reference, common, rng, work):
+def check_symmetric_run(reference, common, rng, work, timing):
     work = Path(work)
     converged = 0.2 + rng.random((16, 16, 3))
     np.save(work / "converged.npy", converged)
@@ -129,45 +178,95 @@ def check_symmetric_run(reference, common, rng, work):
     fake_program(work / "smallvcm-fixed-seed", work / "converged.npy", 0.04,
                  reference.REFERENCE_SEED_FLAG, "-o", ignore_seed=True)
 
-    commands = []
+    calls = []
+    lock = threading.Lock()
 
-    def fake_timed(cmd, cpus):
-        # No clock: ours "takes" 1 s, the reference 2 s, whatever the machine does.
+    def iterations_of(cmd):
+        return int(cmd[cmd.index("--iterations" if "--iterations" in cmd else "-i") + 1])
+
+    def fake_timed(cmd, cpus, env=None):
+        # No clock. Wall timing: ours "takes" 1 s, the reference 2 s. CPU timing: a start-up
+        # and a cost per iteration (ours 0.5 + 1 x n, the reference 0.1 + 2 x n).
         subprocess.run(cmd, check=True)
-        commands.append(cmd)
-        return (1.0 if Path(cmd[0]).name == "render" else 2.0), 10.0, 1.0
+        ours = Path(cmd[0]).name == "render"
+        n = iterations_of(cmd)
+        seconds = (1.0 if ours else 2.0) if timing == "wall" else (
+            0.5 + n if ours else 0.1 + 2.0 * n)
+        with lock:
+            calls.append((cmd, set(cpus), dict(env) if env else None))
+        return seconds, 10.0, seconds
 
     reference.timed = fake_timed
     reference.read_ours_image = lambda path: np.load(path)
-    runs = 5
+    # Five rounds with wall timing (the first program alternates), four with CPU timing (an even
+    # number: each program runs as often on either CPU).
+    runs = 5 if timing == "wall" else 4
     result = reference.run(bin_dir, work / "smallvcm", False, work, log=lambda m: None,
                            scenes=["2-gbs_p"], algorithms=["vcm"], iterations=2, runs=runs,
-                           reference_images={"2-gbs_p": (converged, 0.0)})
+                           reference_images={"2-gbs_p": (converged, 0.0)}, timing=timing)
     (row,) = result["rows"]
+    assert row["timing"] == timing and result["timing"] == timing
     assert len(row["ours_relative_mses"]) == len(row["reference_relative_mses"]) == runs, row
-    ours_seeds = [int(c[c.index("--seed") + 1]) for c in commands if c[0].endswith("render")]
-    ref_seeds = [int(c[c.index(reference.REFERENCE_SEED_FLAG) + 1]) for c in commands
-                 if c[0].endswith("smallvcm")]
+    main_calls = [c for c in calls if iterations_of(c[0]) == 2]
+    ours_seeds = sorted(int(c[c.index("--seed") + 1]) for c, _, _ in main_calls
+                        if c[0].endswith("render"))
+    ref_seeds = sorted(int(c[c.index(reference.REFERENCE_SEED_FLAG) + 1]) for c, _, _ in main_calls
+                       if c[0].endswith("smallvcm"))
     assert ours_seeds == ref_seeds == list(range(runs)), (ours_seeds, ref_seeds)
-    firsts = [Path(commands[2 * r][0]).name for r in range(runs)]
-    assert firsts == ["render", "smallvcm"] * (runs // 2) + ["render"], firsts
+    ours_calls = [c for c in calls if c[0][0].endswith("render")]
+    ref_calls = [c for c in calls if c[0][0].endswith("smallvcm")]
+    if timing == "wall":
+        firsts = [Path(calls[2 * r][0][0]).name for r in range(runs)]
+        assert firsts == ["render", "smallvcm"] * (runs // 2) + ["render"], firsts
+        assert all(c[0][c[0].index("--threads") + 1] == str(reference.THREADS) for c in ours_calls)
+        assert len(calls) == 2 * runs  # no start-up runs
+        expected = 4.0 * 2.0  # relative MSE 4 x lower (noise 0.02 against 0.04), time 2 x shorter
+    else:
+        # Two one-iteration runs of each for the start-up, one on either CPU, then the rounds.
+        assert len(calls) == 2 * runs + 4, len(calls)
+        starts = [(Path(c[0]).name, next(iter(cpus))) for c, cpus, _ in calls
+                  if iterations_of(c) == 1]
+        assert sorted(starts) == sorted({(n, cpu) for n, _ in starts for _, cpu in starts}), starts
+        assert all(c[0][c[0].index("--threads") + 1] == "1" for c in ours_calls)
+        assert all(c[2] and c[2].get("OMP_NUM_THREADS") == "1" for c in ref_calls)
+        assert all(len(cpus) == 1 for _, cpus, _ in calls)
+        # In each round the two programs ran on different CPUs and swapped them every round.
+        by_seed = {}
+        for cmd, cpus, _ in main_calls:
+            flag = "--seed" if cmd[0].endswith("render") else reference.REFERENCE_SEED_FLAG
+            by_seed.setdefault(int(cmd[cmd.index(flag) + 1]), {})[
+                Path(cmd[0]).name] = next(iter(cpus))
+        for seed, cpus in by_seed.items():
+            assert cpus["render"] != cpus["smallvcm"], (seed, cpus)
+            assert cpus["render"] == by_seed[seed % 2]["render"], by_seed
+        assert by_seed[0]["render"] != by_seed[1]["render"], by_seed
+        # Start-up 0.5 s and 0.1 s; 1 s and 2 s per iteration, exactly.
+        assert row["ours_fixed_cpu"] == 1.5 and row["reference_fixed_cpu"] == 2.1, row
+        t_ratio, t_se = reference.time_ratio(row)
+        assert abs(t_ratio - 0.5) < 1e-12 and t_se < 1e-12, (t_ratio, t_se)
+        expected = 4.0 * (0.1 + 2 * 2.0) / (0.5 + 2 * 1.0)
     ratio, se = row["efficiency_ratio"], row["efficiency_ratio_se"]
     assert (ratio, se) == reference.efficiency_ratio(row)
     assert se > 0, se
-    # True ratio: relative MSE 4 x lower (noise 0.02 against 0.04), time 2 x shorter.
-    assert abs(ratio - 8.0) < 4 * se, (ratio, se)
+    assert abs(ratio - expected) < 4 * se, (ratio, se, expected)
     lines = reference.section(result)
-    table = [line for line in lines if line.startswith("| 2-gbs_p | vcm | 5 |")]
+    table = [line for line in lines if line.startswith(f"| 2-gbs_p | vcm | {runs} |")]
     assert len(table) == 1 and f"**{ratio:.2f} ± {se:.2f}**" in table[0], (table, lines)
-    assert table[0].rstrip().endswith("| yes |"), table[0]  # 8 - 2 SE >= 2
+    assert table[0].rstrip().endswith("| yes |"), table[0]  # true ratio - 2 SE >= 2
+    header = next(i for i, line in enumerate(lines) if "| ours s / iteration |" in line)
+    times = [line for line in lines[header:] if line.startswith("| 2-gbs_p | vcm | ")][:1]
+    assert len(times) == 1, lines
+    if timing == "cpu":
+        assert "**0.50 ± 0.00** | yes |" in times[0], times[0]
 
-    try:
-        reference.run(bin_dir, work / "smallvcm-fixed-seed", False, work, log=lambda m: None,
-                      scenes=["2-gbs_p"], algorithms=["vcm"], iterations=2, runs=2,
-                      reference_images={"2-gbs_p": (converged, 0.0)})
-        raise AssertionError("a reference that ignores the seed was accepted")
-    except RuntimeError as e:
-        assert "not independent" in str(e), e
+    if timing == "wall":  # the refusal does not depend on the timing
+        try:
+            reference.run(bin_dir, work / "smallvcm-fixed-seed", False, work, log=lambda m: None,
+                          scenes=["2-gbs_p"], algorithms=["vcm"], iterations=2, runs=2,
+                          reference_images={"2-gbs_p": (converged, 0.0)}, timing=timing)
+            raise AssertionError("a reference that ignores the seed was accepted")
+        except RuntimeError as e:
+            assert "not independent" in str(e), e
 
     machine = common.machine_info() if common else {"source_revision": "abc123"}
     data = reference.write_data(result, work / "data", machine, "scripts/bench --only reference")
@@ -178,7 +277,7 @@ def check_symmetric_run(reference, common, rng, work):
     assert record["command"] == "scripts/bench --only reference"
     assert json.loads(json.dumps(machine)) == record["machine"], record["machine"]
     assert record["result"]["rows"][0]["runs"] == runs
-    return ratio, se
+    return ratio, se, expected
 
 
 def main():
@@ -198,10 +297,14 @@ def main():
     if len(os.sched_getaffinity(0)) < reference.THREADS:
         print(f"bench.reference_error: the symmetric run needs {reference.THREADS} CPUs")
         return 1
-    with tempfile.TemporaryDirectory() as work:
-        ratio, se = check_symmetric_run(reference, common, rng, work)
-    print(f"bench.reference_error: PFM orientation, relative error, the ratio's formula and a "
-          f"symmetric run on synthetic programs (ratio {ratio:.2f} ± {se:.2f}, true 8) as expected")
+    results = []
+    for timing in reference.TIMINGS:
+        with tempfile.TemporaryDirectory() as work:
+            results.append((timing, *check_symmetric_run(reference, common, rng, work, timing)))
+    print("bench.reference_error: PFM orientation, relative error, the ratios' formulas and a "
+          "symmetric run on synthetic programs with each timing ("
+          + ", ".join(f"{timing}: ratio {r:.2f} ± {se:.2f}, true {e:.2f}"
+                      for timing, r, se, e in results) + ") as expected")
     return 0
 
 
