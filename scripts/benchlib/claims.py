@@ -78,6 +78,27 @@ def div_claim(cid, scene, defines, kind, target, width, paper_paths):
                 width=width, paper="our bar: no more than 15 % worse where every VPL matters")
 
 
+
+def ic_claim(cid, scene, width):
+    """Importance caching against power-proportional VPL choice, both drawing 16 VPLs per
+    shading point from the same VPLs. The paper's estimator (docs/design/algorithms-next.md 2.1)
+    estimates the many-light sum over a given VPL set; its variance is what importance caching
+    lowers. Each run is therefore paired with a `vpl` render of the same seed and iterations
+    (the same light paths, hence the same VPLs, and the same next-event estimation: every
+    shading point connects to every VPL), and v is the variance of the difference, the
+    sampling variance alone. The arms' own variance adds the VPL set's and next-event
+    estimation's, which both arms share (the total, reported beside it)."""
+    return dict(id=cid, method="importance caching", scene=scene, defines=[],
+                arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]),
+                      "ic": ("ic", CLAMP)},
+                paired_reference=("vpl", CLAMP),
+                metric="variance of the VPL sampling, power / ic, at equal sample count (16 "
+                       "VPLs per shading point; each run less a vpl run over the same VPLs)",
+                numerator="power", denominator="ic", direction=">=", target=10.0,
+                equal="samples", width=width, iterations=4,
+                paper="more than an order of magnitude lower variance in highly occluded "
+                      "scenes")
+
 CLAIMS = [
     # Light paths for an equal VPL count: 64 / the share kept (7.6 %, 29.8 %, 59.6 %, measured
     # by `render --vpl-distribution importance`, docs/results/many-lights.md).
@@ -85,19 +106,8 @@ CLAIMS = [
     div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 215),
     div_claim("div-cornell-control", "bitterli/cornell-box/scene_v3.xml", [], "control", 1.15,
               64, 107),
-    dict(id="ic-rooms", method="importance caching", scene="claims/ic-rooms.xml", defines=[],
-         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
-         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
-                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
-         equal="samples", width=96,
-         paper="more than an order of magnitude lower variance in highly occluded scenes"),
-    dict(id="ic-two-rooms", method="importance caching", scene="tests/two-rooms.xml",
-         defines=[],
-         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
-         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
-                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
-         equal="samples", width=64,
-         paper="more than an order of magnitude lower variance in highly occluded scenes"),
+    ic_claim("ic-rooms", "claims/ic-rooms.xml", 96),
+    ic_claim("ic-two-rooms", "tests/two-rooms.xml", 64),
     dict(id="ic-connections-rooms", method="IC-resampled bpt connections",
          scene="claims/ic-rooms.xml", defines=[],
          arms={"bpt": ("bpt", []), "bpt-ic": ("bpt", ["--connections", "ic"])},
@@ -219,6 +229,10 @@ def acceptance(stdout: str):
     return None
 
 
+# The paired reference images already rendered: (claim, seed, iterations, resolution) -> image.
+REFERENCE_RENDERS = {}
+
+
 class Arm:
     """The runs of one arm: images, CPU seconds, the fixed cost, the iterations per run."""
 
@@ -226,6 +240,9 @@ class Arm:
         self.binary, self.claim, self.name = binary, claim, name
         self.resolution, self.workdir = resolution, workdir
         self.images, self.cpu, self.kept = [], [], []
+        # With a paired reference (ic_claim): each run's difference from the reference render
+        # of the same seed and iterations, and the reference images themselves.
+        self.differences, self.references = [], []
         self.command = None
         # The fixed cost (loading, the scene's acceleration structure): the median of three
         # one-iteration runs, which also give the iteration count of the variance runs.
@@ -236,6 +253,10 @@ class Arm:
         # their CPU time to measure t.
         per_iteration = self._render(91_000, 2)[1] - self.fixed
         self.iterations = max(2, round(run_seconds / max(per_iteration, 1e-3)))
+        if claim.get("iterations"):
+            # A variance-only claim (equal sample count): v is per iteration whatever the
+            # run's length, and short runs leave time for more of them.
+            self.iterations = claim["iterations"]
 
     def _render(self, seed, iterations):
         out = self.workdir / f"{self.claim['id']}-{self.name.replace(' ', '_').replace(':', '')}.exr"
@@ -250,6 +271,22 @@ class Arm:
         image, cpu, kept = self._render(seed, self.iterations)
         self.images.append(image)
         self.cpu.append(cpu)
+        if self.claim.get("paired_reference"):
+            key = (self.claim["id"], seed, self.iterations, tuple(self.resolution))
+            reference = REFERENCE_RENDERS.get(key)
+            if reference is None:
+                # Arms with the same seeds and iterations share their reference renders.
+                algo, extra = self.claim["paired_reference"]
+                out = self.workdir / f"{self.claim['id']}-reference.exr"
+                cmd = common.render_command(self.binary, SCENES / self.claim["scene"], out,
+                                            algo=algo, iterations=self.iterations, seed=seed,
+                                            resolution=self.resolution, threads=1,
+                                            extra=[*self.claim["defines"], *extra])
+                run_cpu(cmd)  # its CPU time is not the arm's
+                reference = REFERENCE_RENDERS[key] = read_image(out)
+                out.unlink()
+            self.references.append(reference)
+            self.differences.append(image - reference)
         if kept is not None:
             self.kept.append(kept)
 
@@ -308,7 +345,9 @@ def evaluate(claim, arms):
     mask = light_region(reference) if mae else np.ones(reference.shape, dtype=bool)
     stats = {}
     for name, a in arms.items():
-        v, v_se = jackknife(a.images, a.iterations, weight, mask, mae)
+        paired = bool(claim.get("paired_reference"))
+        v, v_se = jackknife(a.differences if paired else a.images, a.iterations, weight, mask,
+                            mae)
         t, t_se = a.t()
         # The squared-error cost: v t (relMSE x s); for the MAE, sqrt(v) sqrt(t) (MAE x sqrt s).
         if mae:
@@ -324,6 +363,13 @@ def evaluate(claim, arms):
                        "fixed_cpu_seconds": a.fixed,
                        "vpls_kept_percent": (float(np.mean(a.kept)) if a.kept else None),
                        "command": shlex.join(map(str, a.command))}
+        if paired:
+            # The arm's own variance (sampling, VPL set, next-event estimation) and the
+            # reference's (VPL set and next-event estimation only).
+            total, total_se = jackknife(a.images, a.iterations, weight, mask, mae)
+            ref, ref_se = jackknife(a.references, a.iterations, weight, mask, mae)
+            stats[name].update({"v_total": total, "v_total_se": total_se,
+                                "v_reference": ref, "v_reference_se": ref_se})
     if "subject" in claim:
         # RMSE at equal time is sqrt(v t): the subject against the best arm.
         rmse = {n: math.sqrt(s["cost"]) for n, s in stats.items()}
@@ -411,12 +457,13 @@ NOTES = {
         "it drops with underestimated importance (weight up to 1 / P_min).",
     "importance caching":
         "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
-        "comparison: variance only. Power-proportional sampling wastes the samples that land "
-        "on VPLs which light nothing the camera sees, so its variance ratio to importance "
-        "caching grows with the share of the power that is useless: an order of magnitude "
-        "needs well under a tenth of the VPL power to light the visible rooms. In ic-rooms "
-        "the two rooms next to the camera's hold a quarter of the lamps, which bounds what "
-        "this scene can show.",
+        "comparison: the variance of the VPL sampling at a given VPL set (the estimator of "
+        "docs/design/algorithms-next.md 2.1). Power-proportional sampling wastes the samples "
+        "that land on VPLs which light nothing the camera sees; importance caching draws from "
+        "distributions that include visibility. Per iteration, both arms also carry the "
+        "variance of the VPL set itself (a few light paths per iteration) and of next-event "
+        "estimation, which no VPL sampling can lower: the arms' own variance ratio is bounded "
+        "by it (the totals below).",
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
         "and tables every iteration, so it wins only where bpt's own light path is a poor "
@@ -506,6 +553,18 @@ def write_page(path: Path, data: dict) -> None:
                       f"has {a['v'] / b['v']:.3g}× its "
                       f"{'mean absolute error' if definition.get('region') else 'variance'}.",
                       ""]
+            if "v_total" in a and "v_total" in b:
+                ref_algo = definition["paired_reference"][0]
+                lines += [f"v is the variance of (arm − {ref_algo}) over runs of the same seeds: "
+                          "the sampling variance alone. The arms' own variance per iteration, "
+                          "which adds the VPL set's and next-event estimation's, is "
+                          f"{a['v_total']:.4g} ± {a['v_total_se']:.2g} ({num}) and "
+                          f"{b['v_total']:.4g} ± {b['v_total_se']:.2g} ({den}), a ratio of "
+                          f"{a['v_total'] / b['v_total']:.3g}; {ref_algo} alone (every VPL at "
+                          f"every shading point) has {b['v_reference']:.4g} ± "
+                          f"{b['v_reference_se']:.2g}, which bounds that ratio by "
+                          f"{(b['v_reference'] + a['v']) / b['v_reference']:.3g} however "
+                          f"good the sampling.", ""]
         lines += [NOTES.get(row["method"], ""), ""]
         lines += ["| arm | runs × iterations | v (± SE) | CPU s per iteration | cost |"
                   + (" RMSE / best |" if "best" in row else " VPLs kept |"),
