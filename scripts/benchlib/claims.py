@@ -19,8 +19,8 @@ apart:
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
 (first-order propagation of v's and t's standard errors) or the claim's run budget is spent
-(at most 24 runs per arm, or `--budget-minutes` of wall time on a loaded machine); a claim
-that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
+(at most 24 runs per arm, 64 for the short runs of the IC claims, or `--budget-minutes` of
+wall time on a loaded machine); a claim that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
 runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
 budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
 "ratio >= target" is held when ratio - 2 SE >= target, a bar "ratio <= target" when
@@ -95,7 +95,7 @@ def ic_claim(cid, scene, width):
                 metric="variance of the VPL sampling, power / ic, at equal sample count (16 "
                        "VPLs per shading point; each run less a vpl run over the same VPLs)",
                 numerator="power", denominator="ic", direction=">=", target=10.0,
-                equal="samples", width=width, iterations=4,
+                equal="samples", width=width, iterations=4, max_runs=64,
                 paper="more than an order of magnitude lower variance in highly occluded "
                       "scenes")
 
@@ -113,6 +113,9 @@ CLAIMS = [
          arms={"bpt": ("bpt", []), "bpt-ic": ("bpt", ["--connections", "ic"])},
          metric="equal-time relMSE(bpt) / relMSE(bpt --connections ic)", numerator="bpt",
          denominator="bpt-ic", direction=">=", target=1.0, width=96,
+         # Runs of several iterations: t of a 2-iteration run less a 1-iteration one was
+         # dominated by the noise of the two CPU times on a loaded machine.
+         run_seconds=2.0,
          paper="a better choice of light vertices for the connections"),
     dict(id="joint-fog-box", method="joint path sampling", scene="tests/fog-box.xml",
          defines=["-D", "max_depth=3"],
@@ -145,7 +148,7 @@ FULL = {"min_runs": 8, "max_runs": 24, "run_seconds": 0.5, "se_fraction": 0.10,
         "picture_seconds": 2.0, "width_scale": 1.0, "fixed_runs": 2}
 # The smoke test: one claim of each kind on tiny images, three runs per arm, no SE target.
 QUICK = {"min_runs": 3, "max_runs": 3, "run_seconds": 0.02, "se_fraction": 0.10,
-         "picture_seconds": 0.02, "width_scale": 0.25, "fixed_runs": 1}
+         "picture_seconds": 0.02, "width_scale": 0.25, "fixed_runs": 1, "quick": True}
 QUICK_CLAIMS = ("div-corner", "div-cornell-control", "ic-rooms", "ic-connections-rooms",
                 "joint-fog-box", "upbp-mirror-balls")
 
@@ -393,11 +396,16 @@ def evaluate(claim, arms):
 
 
 def measure(binary, claim, cfg, workdir, img_dir):
+    if claim.get("max_runs") and cfg["max_runs"] < claim["max_runs"] and not cfg.get("quick"):
+        # Short variance-only runs (ic_claim): their heavy-tailed sampling variance needs more
+        # runs than the default cap to reach its SE target.
+        cfg = {**cfg, "max_runs": claim["max_runs"]}
     width = max(16, int(claim["width"] * cfg["width_scale"]))
     resolution = common.resolution_for_width(SCENES / claim["scene"], width)
     started = time.monotonic()
-    arms = {name: Arm(binary, claim, name, resolution, workdir, cfg["run_seconds"],
-                      cfg["fixed_runs"])
+    run_seconds = cfg["run_seconds"] if cfg.get("quick") else claim.get("run_seconds",
+                                                                         cfg["run_seconds"])
+    arms = {name: Arm(binary, claim, name, resolution, workdir, run_seconds, cfg["fixed_runs"])
             for name in claim["arms"]}
     for a in arms.values():
         for _ in range(cfg["min_runs"]):
@@ -467,7 +475,14 @@ NOTES = {
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
         "and tables every iteration, so it wins only where bpt's own light path is a poor "
-        "choice for most eye vertices (lights mostly in places the camera does not see).",
+        "choice for most eye vertices (lights mostly in places the camera does not see). The "
+        "caches replace only the connections between a light vertex and an eye vertex; "
+        "next-event estimation, light tracing and emission keep their variance. In callgrind "
+        "instruction counts (CHANGELOG.md, importance caching, 2026-11-29) the records' tables "
+        "(one weighted connection and one shadow ray per record and cached vertex) are the "
+        "largest part of the extra cost, then the record look-up and the four pmfs per draw; "
+        "CPU time per iteration on a loaded machine moves more between runs than the "
+        "instruction counts do, so the cost column carries that noise.",
     "joint path sampling":
         "The metric is the equal-time mean absolute error of the double-scattering layer in a "
         "disc around the light's image; per pixel the absolute error of a mean of independent "
