@@ -471,7 +471,7 @@ NOTES = {
         "distributions that include visibility. Per iteration, both arms also carry the "
         "variance of the VPL set itself (a few light paths per iteration) and of next-event "
         "estimation, which no VPL sampling can lower: the arms' own variance ratio is bounded "
-        "by it (the totals below).",
+        "by it (the totals above).",
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
         "and tables every iteration, so it wins only where bpt's own light path is a poor "
