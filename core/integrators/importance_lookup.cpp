@@ -93,32 +93,43 @@ int32_t IcRecordTree::build(uint32_t begin, uint32_t end) {
 
 namespace {
 
-// Distance from x to the box [lo, hi], in double.
-double box_distance(const Vec3& x, const Vec3& lo, const Vec3& hi) {
+// Squared distance from x to the box [lo, hi], in double.
+double box_distance2(const Vec3& x, const Vec3& lo, const Vec3& hi) {
     double sum = 0;
     for (int a = 0; a < 3; ++a) {
         const double gap = std::max({double(lo[a]) - x[a], double(x[a]) - hi[a], 0.0});
         sum += gap * gap;
     }
-    return std::sqrt(sum);
+    return sum;
+}
+
+// Whether everything at squared position distance >= `bound2` is strictly farther than `d`
+// (d(x, r) >= |x - r|), with a relative margin for the rounding of the square roots, so that a
+// record whose d might tie with or beat `d` is never skipped.
+bool farther(double bound2, double d) {
+    return bound2 * (1 - 1e-12) > d * d;
 }
 
 }  // namespace
 
-void IcRecordTree::search(int32_t id, const Vec3& x, const Vec3& n_x,
-                          const IcLookupSettings& settings, IcNeighbours& best) const {
+// The lookup runs at every shading point (bpt: every eye vertex), so it compares squared
+// distances and skips a record by its position alone before computing d: every skip is one
+// the result does not depend on (`farther`), so the tree still equals the brute force.
+void IcRecordTree::search(int32_t id, double bound2, const Vec3& x, const Vec3& n_x,
+                          const IcLookupSettings& settings, int count, IcNeighbours& best) const {
+    if (farther(bound2, settings.max_distance)) return;
+    if (best.count == count && farther(bound2, best.distance[count - 1])) return;
     const Node& node = nodes_[id];
-    const int count = clamp_count(settings);
-    // Every record below has d >= |x - r| >= box distance. Prune only when strictly farther
-    // than the current R-th best (ties are decided by index, so an equal d may still enter),
-    // with a relative margin for the rounding of the two square roots.
-    const double bound = box_distance(x, node.lo, node.hi) * (1 - 1e-12);
-    if (bound > settings.max_distance) return;
-    if (best.count == count && bound > best.distance[count - 1]) return;
     if (node.left < 0) {
         for (uint32_t k = node.begin; k < node.end; ++k) {
             const uint32_t i = order_[k];
-            const double d = ic_record_distance(x, n_x, records_[i], settings.lambda);
+            const IcRecordPoint& r = records_[i];
+            if (best.count == count) {
+                const double dx = double(x.x) - r.position.x, dy = double(x.y) - r.position.y,
+                             dz = double(x.z) - r.position.z;
+                if (farther(dx * dx + dy * dy + dz * dz, best.distance[count - 1])) continue;
+            }
+            const double d = ic_record_distance(x, n_x, r, settings.lambda);
             if (usable(d, settings)) offer(best, count, i, d);
         }
         return;
@@ -126,16 +137,22 @@ void IcRecordTree::search(int32_t id, const Vec3& x, const Vec3& n_x,
     // Nearer child first, so the bound tightens early.
     const Node& l = nodes_[node.left];
     const Node& r = nodes_[node.right];
-    const bool left_first = box_distance(x, l.lo, l.hi) <= box_distance(x, r.lo, r.hi);
-    search(left_first ? node.left : node.right, x, n_x, settings, best);
-    search(left_first ? node.right : node.left, x, n_x, settings, best);
+    const double bl = box_distance2(x, l.lo, l.hi), br = box_distance2(x, r.lo, r.hi);
+    if (bl <= br) {
+        search(node.left, bl, x, n_x, settings, count, best);
+        search(node.right, br, x, n_x, settings, count, best);
+    } else {
+        search(node.right, br, x, n_x, settings, count, best);
+        search(node.left, bl, x, n_x, settings, count, best);
+    }
 }
 
 IcNeighbours IcRecordTree::nearest(const Vec3& x, const Vec3& n_x,
                                    const IcLookupSettings& settings) const {
     IcNeighbours best;
-    if (nodes_.empty() || clamp_count(settings) == 0) return best;
-    search(0, x, n_x, settings, best);
+    const int count = clamp_count(settings);
+    if (nodes_.empty() || count == 0) return best;
+    search(0, box_distance2(x, nodes_[0].lo, nodes_[0].hi), x, n_x, settings, count, best);
     return best;
 }
 

@@ -76,8 +76,9 @@ class IcRecordTree {
         int32_t right = -1;
     };
     int32_t build(uint32_t begin, uint32_t end);
-    void search(int32_t node, const Vec3& x, const Vec3& n_x, const IcLookupSettings& settings,
-                IcNeighbours& best) const;
+    // bound2: the squared distance from x to the node's box.
+    void search(int32_t node, double bound2, const Vec3& x, const Vec3& n_x,
+                const IcLookupSettings& settings, int count, IcNeighbours& best) const;
 
     std::vector<IcRecordPoint> records_;
     std::vector<uint32_t> order_;  // record indices, grouped by leaf

@@ -23,8 +23,8 @@ apart:
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
 (first-order propagation of v's and t's standard errors) or the claim's run budget is spent
-(at most 24 runs per arm, or `--budget-minutes` of wall time on a loaded machine); a claim
-that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
+(at most 24 runs per arm, 64 for the short runs of the IC claims, or `--budget-minutes` of
+wall time on a loaded machine); a claim that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
 runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
 budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
 "ratio >= target" is held when ratio - 2 SE >= target, a bar "ratio <= target" when
@@ -105,6 +105,27 @@ def light_paths(extra) -> int | None:
     return int(flags[flags.index("--vpl-paths") + 1]) if "--vpl-paths" in flags else None
 
 
+
+def ic_claim(cid, scene, width):
+    """Importance caching against power-proportional VPL choice, both drawing 16 VPLs per
+    shading point from the same VPLs. The paper's estimator (docs/design/algorithms-next.md 2.1)
+    estimates the many-light sum over a given VPL set; its variance is what importance caching
+    lowers. Each run is therefore paired with a `vpl` render of the same seed and iterations
+    (the same light paths, hence the same VPLs, and the same next-event estimation: every
+    shading point connects to every VPL), and v is the variance of the difference, the
+    sampling variance alone. The arms' own variance adds the VPL set's and next-event
+    estimation's, which both arms share (the total, reported beside it)."""
+    return dict(id=cid, method="importance caching", scene=scene, defines=[],
+                arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]),
+                      "ic": ("ic", CLAMP)},
+                paired_reference=("vpl", CLAMP),
+                metric="variance of the VPL sampling, power / ic, at equal sample count (16 "
+                       "VPLs per shading point; each run less a vpl run over the same VPLs)",
+                numerator="power", denominator="ic", direction=">=", target=10.0,
+                equal="samples", width=width, iterations=4, max_runs=64,
+                paper="more than an order of magnitude lower variance in highly occluded "
+                      "scenes")
+
 CLAIMS = [
     # Light paths for an equal VPL count: VPL_PATHS / the share kept at that count (7.0 %,
     # 29.5 %, 59.4 %: the equal-count arms' "VPLs kept" in docs/data/claims.json, measured at
@@ -113,24 +134,16 @@ CLAIMS = [
     div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 217),
     div_claim("div-cornell-control", "bitterli/cornell-box/scene_v3.xml", [], "control", 1.15,
               64, 108),
-    dict(id="ic-rooms", method="importance caching", scene="claims/ic-rooms.xml", defines=[],
-         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
-         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
-                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
-         equal="samples", width=96,
-         paper="more than an order of magnitude lower variance in highly occluded scenes"),
-    dict(id="ic-two-rooms", method="importance caching", scene="tests/two-rooms.xml",
-         defines=[],
-         arms={"power": ("ic", [*CLAMP, "--ic-distributions", "power"]), "ic": ("ic", CLAMP)},
-         metric="variance(power) / variance(ic) at equal sample count (16 VPLs per shading "
-                "point)", numerator="power", denominator="ic", direction=">=", target=10.0,
-         equal="samples", width=64,
-         paper="more than an order of magnitude lower variance in highly occluded scenes"),
+    ic_claim("ic-rooms", "claims/ic-rooms.xml", 96),
+    ic_claim("ic-two-rooms", "tests/two-rooms.xml", 64),
     dict(id="ic-connections-rooms", method="IC-resampled bpt connections",
          scene="claims/ic-rooms.xml", defines=[],
          arms={"bpt": ("bpt", []), "bpt-ic": ("bpt", ["--connections", "ic"])},
          metric="equal-time relMSE(bpt) / relMSE(bpt --connections ic)", numerator="bpt",
          denominator="bpt-ic", direction=">=", target=1.0, width=96,
+         # Runs of several iterations: t of a 2-iteration run less a 1-iteration one was
+         # dominated by the noise of the two CPU times on a loaded machine.
+         run_seconds=2.0,
          paper="a better choice of light vertices for the connections"),
     dict(id="joint-fog-box", method="joint path sampling", scene="tests/fog-box.xml",
          defines=["-D", "max_depth=3"],
@@ -163,7 +176,7 @@ FULL = {"min_runs": 8, "max_runs": 24, "run_seconds": 0.5, "se_fraction": 0.10,
         "picture_seconds": 2.0, "width_scale": 1.0, "fixed_runs": 2}
 # The smoke test: one claim of each kind on tiny images, three runs per arm, no SE target.
 QUICK = {"min_runs": 3, "max_runs": 3, "run_seconds": 0.02, "se_fraction": 0.10,
-         "picture_seconds": 0.02, "width_scale": 0.25, "fixed_runs": 1}
+         "picture_seconds": 0.02, "width_scale": 0.25, "fixed_runs": 1, "quick": True}
 QUICK_CLAIMS = ("div-corner", "div-cornell-control", "ic-rooms", "ic-connections-rooms",
                 "joint-fog-box", "upbp-mirror-balls")
 
@@ -247,6 +260,10 @@ def acceptance(stdout: str):
     return None
 
 
+# The paired reference images already rendered: (claim, seed, iterations, resolution) -> image.
+REFERENCE_RENDERS = {}
+
+
 class Arm:
     """The runs of one arm: images, CPU seconds, the fixed cost, the iterations per run."""
 
@@ -254,6 +271,9 @@ class Arm:
         self.binary, self.claim, self.name = binary, claim, name
         self.resolution, self.workdir = resolution, workdir
         self.images, self.cpu, self.kept = [], [], []
+        # With a paired reference (ic_claim): each run's difference from the reference render
+        # of the same seed and iterations, and the reference images themselves.
+        self.differences, self.references = [], []
         self.command = None
         # The fixed cost (loading, the scene's acceleration structure): the median of three
         # one-iteration runs, which also give the iteration count of the variance runs.
@@ -264,6 +284,10 @@ class Arm:
         # their CPU time to measure t.
         per_iteration = self._render(91_000, 2)[1] - self.fixed
         self.iterations = max(2, round(run_seconds / max(per_iteration, 1e-3)))
+        if claim.get("iterations"):
+            # A variance-only claim (equal sample count): v is per iteration whatever the
+            # run's length, and short runs leave time for more of them.
+            self.iterations = claim["iterations"]
         # Claims whose arms trace different numbers of light paths per iteration hold the
         # light paths of a run equal across the arms (div_claim): heavy-tailed arms then sample
         # their rare paths as often as the others.
@@ -284,6 +308,22 @@ class Arm:
         image, cpu, kept = self._render(seed, self.iterations)
         self.images.append(image)
         self.cpu.append(cpu)
+        if self.claim.get("paired_reference"):
+            key = (self.claim["id"], seed, self.iterations, tuple(self.resolution))
+            reference = REFERENCE_RENDERS.get(key)
+            if reference is None:
+                # Arms with the same seeds and iterations share their reference renders.
+                algo, extra = self.claim["paired_reference"]
+                out = self.workdir / f"{self.claim['id']}-reference.exr"
+                cmd = common.render_command(self.binary, SCENES / self.claim["scene"], out,
+                                            algo=algo, iterations=self.iterations, seed=seed,
+                                            resolution=self.resolution, threads=1,
+                                            extra=[*self.claim["defines"], *extra])
+                run_cpu(cmd)  # its CPU time is not the arm's
+                reference = REFERENCE_RENDERS[key] = read_image(out)
+                out.unlink()
+            self.references.append(reference)
+            self.differences.append(image - reference)
         if kept is not None:
             self.kept.append(kept)
 
@@ -342,7 +382,9 @@ def evaluate(claim, arms):
     mask = light_region(reference) if mae else np.ones(reference.shape, dtype=bool)
     stats = {}
     for name, a in arms.items():
-        v, v_se = jackknife(a.images, a.iterations, weight, mask, mae)
+        paired = bool(claim.get("paired_reference"))
+        v, v_se = jackknife(a.differences if paired else a.images, a.iterations, weight, mask,
+                            mae)
         t, t_se = a.t()
         # The squared-error cost: v t (relMSE x s); for the MAE, sqrt(v) sqrt(t) (MAE x sqrt s).
         if mae:
@@ -358,6 +400,13 @@ def evaluate(claim, arms):
                        "fixed_cpu_seconds": a.fixed,
                        "vpls_kept_percent": (float(np.mean(a.kept)) if a.kept else None),
                        "command": shlex.join(map(str, a.command))}
+        if paired:
+            # The arm's own variance (sampling, VPL set, next-event estimation) and the
+            # reference's (VPL set and next-event estimation only).
+            total, total_se = jackknife(a.images, a.iterations, weight, mask, mae)
+            ref, ref_se = jackknife(a.references, a.iterations, weight, mask, mae)
+            stats[name].update({"v_total": total, "v_total_se": total_se,
+                                "v_reference": ref, "v_reference_se": ref_se})
     if "subject" in claim:
         # RMSE at equal time is sqrt(v t): the subject against the best arm.
         rmse = {n: math.sqrt(s["cost"]) for n, s in stats.items()}
@@ -381,11 +430,16 @@ def evaluate(claim, arms):
 
 
 def measure(binary, claim, cfg, workdir, img_dir):
+    if claim.get("max_runs") and cfg["max_runs"] < claim["max_runs"] and not cfg.get("quick"):
+        # Short variance-only runs (ic_claim): their heavy-tailed sampling variance needs more
+        # runs than the default cap to reach its SE target.
+        cfg = {**cfg, "max_runs": claim["max_runs"]}
     width = max(16, int(claim["width"] * cfg["width_scale"]))
     resolution = common.resolution_for_width(SCENES / claim["scene"], width)
     started = time.monotonic()
-    arms = {name: Arm(binary, claim, name, resolution, workdir, cfg["run_seconds"],
-                      cfg["fixed_runs"])
+    run_seconds = cfg["run_seconds"] if cfg.get("quick") else claim.get("run_seconds",
+                                                                         cfg["run_seconds"])
+    arms = {name: Arm(binary, claim, name, resolution, workdir, run_seconds, cfg["fixed_runs"])
             for name in claim["arms"]}
     for a in arms.values():
         for _ in range(cfg["min_runs"]):
@@ -452,16 +506,24 @@ NOTES = {
         "also pays the records' shadow rays every iteration.",
     "importance caching":
         "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
-        "comparison: variance only. Power-proportional sampling wastes the samples that land "
-        "on VPLs which light nothing the camera sees, so its variance ratio to importance "
-        "caching grows with the share of the power that is useless: an order of magnitude "
-        "needs well under a tenth of the VPL power to light the visible rooms. In ic-rooms "
-        "the two rooms next to the camera's hold a quarter of the lamps, which bounds what "
-        "this scene can show.",
+        "comparison: the variance of the VPL sampling at a given VPL set (the estimator of "
+        "docs/design/algorithms-next.md 2.1). Power-proportional sampling wastes the samples "
+        "that land on VPLs which light nothing the camera sees; importance caching draws from "
+        "distributions that include visibility. Per iteration, both arms also carry the "
+        "variance of the VPL set itself (a few light paths per iteration) and of next-event "
+        "estimation, which no VPL sampling can lower: the arms' own variance ratio is bounded "
+        "by it (the totals above).",
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
         "and tables every iteration, so it wins only where bpt's own light path is a poor "
-        "choice for most eye vertices (lights mostly in places the camera does not see).",
+        "choice for most eye vertices (lights mostly in places the camera does not see). The "
+        "caches replace only the connections between a light vertex and an eye vertex; "
+        "next-event estimation, light tracing and emission keep their variance. In callgrind "
+        "instruction counts (CHANGELOG.md, importance caching, 2026-11-29) the records' tables "
+        "(one weighted connection and one shadow ray per record and cached vertex) are the "
+        "largest part of the extra cost, then the record look-up and the four pmfs per draw; "
+        "CPU time per iteration on a loaded machine moves more between runs than the "
+        "instruction counts do, so the cost column carries that noise.",
     "joint path sampling":
         "The metric is the equal-time mean absolute error of the double-scattering layer in a "
         "disc around the light's image; per pixel the absolute error of a mean of independent "
@@ -565,6 +627,18 @@ def write_page(path: Path, data: dict) -> None:
                       f"has {a['v'] / b['v']:.3g}× its "
                       f"{'mean absolute error' if definition.get('region') else 'variance'}.",
                       ""]
+            if "v_total" in a and "v_total" in b:
+                ref_algo = definition["paired_reference"][0]
+                lines += [f"v is the variance of (arm − {ref_algo}) over runs of the same seeds: "
+                          "the sampling variance alone. The arms' own variance per iteration, "
+                          "which adds the VPL set's and next-event estimation's, is "
+                          f"{a['v_total']:.4g} ± {a['v_total_se']:.2g} ({num}) and "
+                          f"{b['v_total']:.4g} ± {b['v_total_se']:.2g} ({den}), a ratio of "
+                          f"{a['v_total'] / b['v_total']:.3g}; {ref_algo} alone (every VPL at "
+                          f"every shading point) has {b['v_reference']:.4g} ± "
+                          f"{b['v_reference_se']:.2g}, which bounds that ratio by "
+                          f"{(b['v_reference'] + a['v']) / b['v_reference']:.3g} however "
+                          f"good the sampling.", ""]
         if definition.get("run_paths") and "uniform" in row["arms"]:
             lines += [div_paths_line(definition, row), ""]
         lines += [NOTES.get(row["method"], ""), ""]
