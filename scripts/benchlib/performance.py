@@ -832,7 +832,8 @@ def measure_closest_instructions(bench, scene, arm, work):
     rays = int(round(b["items_per_second"] * b["cpu_time"] /
                      {"ns": 1e9, "us": 1e6, "ms": 1e3, "s": 1.0}[b["time_unit"]] / b["iterations"]))
     return {"calls": calls, "instructions": total, "rays_per_call": rays,
-            "per_ray": total / (calls * rays), "command": shlex.join(cmd[:-2])}
+            "per_ray": total / (calls * rays),
+            "command": shlex.join(cmd[:-2]).replace(str(out), "OUT")}
 
 
 def run_ray_instructions(build_dir: Path, docs_dir: Path, quick: bool) -> None:
