@@ -171,24 +171,19 @@ void Scene::count_invalid_ray() const {
     count_thread_invalid_ray();  // the render this thread works for
 }
 
-bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) const {
-    if (!embree_accepts(ray)) [[unlikely]] {
-        count_invalid_ray();
-        return false;
-    }
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    RTCRayHit rh = to_rtc_ray_hit(ray);
-    rtcIntersect1(rtc_scene_, &context, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+bool Scene::fill_other_hit(const Ray& ray, const RTCRayHit& rh, HitDetail detail,
+                           SurfaceInteraction& si) const {
     if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID)
         geometry_to_instance_[rh.hit.instID[0]]->fill_interaction(
             ray, rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
-    else if (const TriangleMesh* mesh = geometry_to_mesh_[rh.hit.geomID])
-        mesh->fill_hit(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
     else
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, detail, si);
+    resolve_material(si);
+    return true;
+}
+
+void Scene::resolve_material(SurfaceInteraction& si) const {
     // Materials that vary over the surface: the shapes filled si.uv, dpdu and dpdv for them
     // (uv_wanted, core/shapes/uv_wanted.h), which the shading-frame hook and at() read.
     if (si.bsdf->varies()) {
@@ -198,7 +193,6 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) 
     } else if (si.hit_bsdf) {
         si.hit_bsdf.reset();  // an interaction reused from a textured hit
     }
-    return true;
 }
 
 float Scene::closest_hit_distance(const Ray& ray) const {

@@ -22,6 +22,8 @@
 #include "core/materials/bsdf.h"
 #include "core/math/ray.h"
 #include "core/sampling/distribution.h"
+#include "core/scene/embree_ray.h"
+#include "core/shapes/triangle_mesh_hit.h"
 
 namespace render {
 
@@ -83,7 +85,11 @@ class Scene {
 
     // --- queries (thread-safe after commit) ---
     // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit; its uv and
-    // dp/du only where the material varies or with HitDetail::kWithUv (interaction.h).
+    // dp/du only where the material varies or with HitDetail::kWithUv (interaction.h). Inline
+    // (below the class) for the common case, a triangle mesh with a plain material, so that the
+    // caller's SurfaceInteraction is filled without a call frame and the stores of its
+    // constructor that the fill overwrites are dropped (docs/results/performance-notes.md,
+    // "Closest hits through Scene::intersect").
     bool intersect(const Ray& ray, SurfaceInteraction& si,
                    HitDetail detail = HitDetail::kShading) const;
     // The distance to the closest hit in (ray.t_min, ray.t_max), infinity if none: for callers
@@ -149,6 +155,13 @@ class Scene {
 
   private:
     [[gnu::cold]] void count_invalid_ray() const;
+    // intersect() out of line: a hit on an instance or an analytic shape (through the shape's
+    // virtual fill), then resolve_material.
+    [[gnu::noinline]] bool fill_other_hit(const Ray& ray, const RTCRayHit& rh, HitDetail detail,
+                                          SurfaceInteraction& si) const;
+    // A material that varies over the surface resolved at the hit (its shading frame and its
+    // BSDF at uv), or the BSDF of a previous textured hit in a reused `si` released.
+    [[gnu::noinline]] void resolve_material(SurfaceInteraction& si) const;
     mutable std::atomic<uint64_t> invalid_rays_{0};
     RTCDevice device_ = nullptr;
     RTCScene rtc_scene_ = nullptr;
@@ -192,5 +205,25 @@ class Scene {
     float ray_epsilon_ = 1e-4f;  // scaled with the scene at commit()
     bool committed_ = false;
 };
+
+inline bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail detail) const {
+    if (!embree_accepts(ray)) [[unlikely]] {
+        count_invalid_ray();
+        return false;
+    }
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh = to_rtc_ray_hit(ray);
+    rtcIntersect1(rtc_scene_, &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    const TriangleMesh* mesh =
+        rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? geometry_to_mesh_[rh.hit.geomID] : nullptr;
+    if (!mesh) [[unlikely]]
+        return fill_other_hit(ray, rh, detail, si);
+    mesh->fill_hit(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
+    if (si.bsdf->varies() || si.hit_bsdf) [[unlikely]]
+        resolve_material(si);
+    return true;
+}
 
 }  // namespace render

@@ -777,6 +777,110 @@ def wait_for_quiet_machine(limit_seconds=240.0):
     return waited
 
 
+# ---------------------------------------------------------------------------------------------
+# Closest hits by instruction count: ours (Scene::intersect) against bare rtcIntersect1
+
+
+# The loops of bench/ray_queries.cpp, out of line for this count (their symbols' names).
+CLOSEST_LOOPS = {"ours": "render::bench::trace_closest_ours", "embree": "render::bench::trace_closest_embree"}
+# Not procedural-1M: building its 1 M-triangle scene under callgrind takes longer than all of
+# these together.
+RAY_INSTRUCTION_SCENES = ["cornell-box", "0-gbs_s", "1-glm_c", "2-gbs_p", "3-gbs_b", "veach-mis"]
+QUICK_RAY_INSTRUCTION_SCENES = ["cornell-box"]
+RAY_INSTRUCTIONS_TARGET = 0.92  # ours / Embree in rays per instruction (issue's speed target)
+
+
+def callgrind_calls_and_cost(out_file, symbol):
+    """(calls, inclusive instructions) of `symbol` in a callgrind output file written with
+    --toggle-collect=SYMBOL*: the collected total is the function's inclusive cost, and the
+    calls are summed from the `calls=` lines under its caller's `cfn=` entries."""
+    names, calls, current_cfn, total = {}, 0, None, None
+    for line in Path(out_file).read_text().splitlines():
+        m = re.match(r"c?fn=\((\d+)\)(?: (.*))?$", line)
+        if m:
+            if m.group(2):
+                names[m.group(1)] = m.group(2)
+            if line.startswith("cfn="):
+                current_cfn = names.get(m.group(1), "")
+            continue
+        if line.startswith("calls=") and current_cfn is not None:
+            if current_cfn.startswith(symbol + "("):
+                calls += int(line.split("=", 1)[1].split()[0])
+            current_cfn = None
+            continue
+        if line.startswith("summary:") or line.startswith("totals:"):
+            total = int(line.split()[1])
+    if total is None or calls == 0:
+        raise RuntimeError(f"{out_file}: no cost or no call of {symbol}")
+    return calls, total
+
+
+def measure_closest_instructions(bench, scene, arm, work):
+    """Instructions per ray of one closest-hit loop (`arm` "ours" or "embree") on `scene`:
+    callgrind collects only inside the loop function, so the ray generation, the scene build
+    and Google Benchmark's own code are not counted. Instruction counts repeat under load,
+    where wall-clock rates do not."""
+    symbol = CLOSEST_LOOPS[arm]
+    out = work / f"callgrind.{arm}.{scene}"
+    js = work / f"bench.{arm}.{scene}.json"
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+           f"--toggle-collect={symbol}*", str(bench),
+           f"--benchmark_filter=^rays/closest/{arm}/{scene}$",
+           "--benchmark_min_time=0.01", f"--benchmark_out={js}", "--benchmark_out_format=json"]
+    run_cmd(cmd, timeout=3600)
+    calls, total = callgrind_calls_and_cost(out, symbol)
+    b = json.loads(js.read_text())["benchmarks"][0]
+    rays = int(round(b["items_per_second"] * b["cpu_time"] /
+                     {"ns": 1e9, "us": 1e6, "ms": 1e3, "s": 1.0}[b["time_unit"]] / b["iterations"]))
+    return {"calls": calls, "instructions": total, "rays_per_call": rays,
+            "per_ray": total / (calls * rays),
+            "command": shlex.join(cmd[:-2]).replace(str(out), "OUT")}
+
+
+def run_ray_instructions(build_dir: Path, docs_dir: Path, quick: bool) -> None:
+    """`scripts/bench --only ray-instructions`: the closest-hit loops of bench/ray_queries.cpp
+    counted by callgrind, ours against bare Embree, written to
+    docs/data/performance/ray_instructions.json; then the page is generated again."""
+    bench = Path(build_dir).resolve() / "bin" / "render_bench"
+    if not os.access(bench, os.X_OK):
+        raise FileNotFoundError(f"{bench} not found: build first")
+    if not shutil.which("valgrind"):
+        raise FileNotFoundError("valgrind not found")
+    load = machine_info()["loadavg"]
+    work = Path(tempfile.mkdtemp(prefix="render-ray-instructions-"))
+    rows, command = [], None
+    try:
+        for scene in QUICK_RAY_INSTRUCTION_SCENES if quick else RAY_INSTRUCTION_SCENES:
+            ours = measure_closest_instructions(bench, scene, "ours", work)
+            embree = measure_closest_instructions(bench, scene, "embree", work)
+            command = ours["command"]
+            ratio = embree["per_ray"] / ours["per_ray"]
+            log(f"{scene}: ours {ours['per_ray']:.1f}, embree {embree['per_ray']:.1f} "
+                f"instructions/ray, ratio {ratio:.3f}")
+            rows.append([scene, ours["rays_per_call"], ours["per_ray"], embree["per_ray"],
+                         ours["per_ray"] - embree["per_ray"], ratio,
+                         ratio >= RAY_INSTRUCTIONS_TARGET])
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    path = Path(docs_dir) / "data" / "performance" / "ray_instructions.json"
+    datafile.write(path, {
+        "stamp": datafile.stamp("scripts/bench --only ray-instructions" +
+                                (" --quick" if quick else ""),
+                                load_before=pages.load_text(tuple(load)),
+                                root=SOURCE_DIR),
+        "measured": True,
+        "values": {"target": RAY_INSTRUCTIONS_TARGET, "callgrind_command": command},
+        "tables": {"closest": {
+            "columns": ["scene", "rays", "ours: instructions / ray",
+                        "Embree: instructions / ray", "ours − Embree", "ours / Embree",
+                        f"≥ {RAY_INSTRUCTIONS_TARGET}"],
+            "formats": [None, None, ".1f", ".1f", ".1f", ".3f", None],
+            "rows": rows}}})
+    log(f"wrote {path}")
+    pages.write(["performance"], Path(docs_dir))
+    log(f"wrote {document_path(docs_dir)}")
+
+
 def run_reference_only(build_dir: Path, docs_dir: Path, quick: bool, reference_smallvcm) -> None:
     """`scripts/bench --only reference`: measures ours against SmallVCM and rewrites only that
     section's data file (docs_dir/data/performance/reference.json), then the page."""

@@ -17,12 +17,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 
 #include "core/base/memory_budget.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
+#include "core/scene/embree_ray.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/scene.h"
 #include "core/shapes/sphere.h"
@@ -136,6 +138,29 @@ TEST(Occlusion, TheShadowRaysBvhIsBuiltAndChargedOnlyForSmallScenes) {
         EXPECT_GT(a.tested, 18000);
         EXPECT_GT(a.blocked, a.tested / 10);
         EXPECT_LE(a.disagreements, a.tested / 10000) << triangles << " triangles";
+    }
+}
+
+// embree_accepts at its boundaries, float by float: each of the ray's eight floats set in turn to
+// the largest accepted value, the next float beyond it, their negatives, infinities and NaN
+// (the origin and direction accept |x| <= kMaxSceneCoordinate; t_min and t_max anything but NaN).
+TEST(Occlusion, RayGuardBoundaryPerFloat) {
+    const float o = kMaxSceneCoordinate, inf = INFINITY, nan = std::nanf("");
+    const float beyond = std::nextafter(o, inf);
+    for (int i = 0; i < 8; ++i) {
+        const bool is_t = i >= 6;
+        const struct {
+            float value;
+            bool accepted;
+        } cases[] = {{0.0f, true},    {o, true},   {-o, true},   {beyond, is_t},
+                     {-beyond, is_t}, {inf, is_t}, {-inf, is_t}, {nan, false}};
+        for (const auto& c : cases) {
+            float v[8] = {1, 2, 3, 0, 0, -1, 0, inf};
+            v[i] = c.value;
+            Ray ray;
+            std::memcpy(&ray, v, sizeof v);
+            EXPECT_EQ(embree_accepts(ray), c.accepted) << "float " << i << " = " << c.value;
+        }
     }
 }
 
