@@ -35,14 +35,22 @@ std::unique_ptr<Shape> make_mesh_shape(const Properties& props, MeshData data,
                                           shape_name(props));
 }
 
-std::unique_ptr<Shape> make_file_mesh(const Properties& props,
-                                      const std::filesystem::path& scene_dir) {
+// The file a shape's `filename` names (relative to the scene's folder); the error names the
+// parameter when it is empty or not a regular file. `kind` says what the file holds.
+std::filesystem::path shape_input_file(const Properties& props,
+                                       const std::filesystem::path& scene_dir, const char* kind) {
     std::filesystem::path file = props.get_string("filename");
     if (file.empty()) throw props.error("filename", "empty file name");
     std::filesystem::path path = file.is_absolute() ? file : scene_dir / file;
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
-        throw props.error("filename", "mesh file not found: " + path.string());
+        throw props.error("filename", std::string(kind) + " file not found: " + path.string());
+    return path;
+}
+
+std::unique_ptr<Shape> make_file_mesh(const Properties& props,
+                                      const std::filesystem::path& scene_dir) {
+    const std::filesystem::path path = shape_input_file(props, scene_dir, "mesh");
     MeshData data;
     try {
         data = props.type() == "ply" ? read_ply(path) : read_obj(path);
@@ -79,12 +87,7 @@ std::unique_ptr<Shape> make_serialized_mesh(const Properties& props) {
 // as Mitsuba does.
 std::unique_ptr<Shape> make_curve_file(const Properties& props,
                                        const std::filesystem::path& scene_dir) {
-    std::filesystem::path file = props.get_string("filename");
-    if (file.empty()) throw props.error("filename", "empty file name");
-    std::filesystem::path path = file.is_absolute() ? file : scene_dir / file;
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec))
-        throw props.error("filename", "curve file not found: " + path.string());
+    const std::filesystem::path path = shape_input_file(props, scene_dir, "curve");
     const Transform to_world = props.get_ray_transform("to_world");
     try {
         std::vector<CurvePoints> curves = read_curve_file(path);

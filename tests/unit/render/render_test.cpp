@@ -304,9 +304,9 @@ TEST(ShippedScenes, RenderWithoutNonFiniteSamples) {
         }
     }
     // 3 Bitterli, 4 SmallVCM, plates, two-rooms, many-emitters, textures, materials,
-    // instances, instances-flat, normalmap, bumpmap, thinlens, and the claims' div-corner and
-    // ic-rooms
-    EXPECT_EQ(surface_scenes, 19);
+    // instances, instances-flat, normalmap, bumpmap, thinlens, curves, and the claims'
+    // div-corner and ic-rooms
+    EXPECT_EQ(surface_scenes, 20);
     // volumetric-caustic, 2 SmallUPBP boxes, smoke, fog box, flame, isosph-point, nested-media,
     // and the claims' four UPBP scenes
     EXPECT_EQ(media_scenes, 12);
