@@ -23,7 +23,7 @@ apart:
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
 (first-order propagation of v's and t's standard errors) or the claim's run budget is spent
-(at most 24 runs per arm, 64 for the short runs of the IC claims, or `--budget-minutes` of
+(at most 24 runs per arm, 400 for the short runs of the IC claims, or `--budget-minutes` of
 wall time on a loaded machine); a claim that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
 runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
 budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
@@ -122,7 +122,7 @@ def ic_claim(cid, scene, width):
                 metric="variance of the VPL sampling, power / ic, at equal sample count (16 "
                        "VPLs per shading point; each run less a vpl run over the same VPLs)",
                 numerator="power", denominator="ic", direction=">=", target=10.0,
-                equal="samples", width=width, iterations=4, max_runs=64,
+                equal="samples", width=width, iterations=4, max_runs=400,
                 paper="more than an order of magnitude lower variance in highly occluded "
                       "scenes")
 
