@@ -23,7 +23,7 @@ apart:
 
 Runs are added to the arms until the ratio's standard error is under 10 % of the ratio
 (first-order propagation of v's and t's standard errors) or the claim's run budget is spent
-(at most 24 runs per arm, 400 for the short runs of the IC claims, or `--budget-minutes` of
+(at most 24 runs per arm, 200 for the DIV claims, whose uniform arm is heavy-tailed, 400 for the short runs of the IC claims, or `--budget-minutes` of
 wall time on a loaded machine); a claim that stops at the budget says so. t's SE is the spread of the variance runs; the one-iteration
 runs that give the fixed cost add an uncertainty it does not include. With few runs (4-6, a
 budgeted run) the jackknife SE is itself uncertain. The verdict is taken at 2 standard errors: a claim
@@ -85,7 +85,7 @@ def div_claim(cid, scene, defines, kind, target, width, paper_paths):
             "importance, equal VPL count": ("vpl", [*importance, "--vpl-paths",
                                                     str(paper_paths)])}
     common_fields = dict(id=cid, scene=scene, defines=defines, arms=arms, target=target,
-                         width=width, run_paths=2 * paper_paths)
+                         width=width, run_paths=2 * paper_paths, max_runs=200)
     if kind == "gain":
         return dict(**common_fields, method="importance-driven VPLs",
                     metric="equal-time relMSE(uniform) / relMSE(importance, equal VPL count)",
