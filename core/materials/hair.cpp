@@ -6,21 +6,21 @@
 
 #include "core/materials/bsdf_params.h"
 #include "core/materials/fresnel.h"
+#include "core/materials/hit_bsdf_storage.h"
 #include "core/materials/textured_bsdf.h"
 #include "core/math/constants.h"
+#include "core/sampling/warp.h"
 
 namespace render {
 namespace {
+
+using warp::safe_sqrt;
 
 constexpr float k2Pi = 2.0f * kPi;
 constexpr float kLn2 = 0.693147181f;
 
 float sqr(float x) {
     return x * x;
-}
-
-float safe_sqrt(float x) {
-    return std::sqrt(std::max(0.0f, x));
 }
 
 float safe_asin(float x) {
@@ -185,7 +185,7 @@ std::shared_ptr<const Bsdf> HairBsdf::pbrt_material(const HairParams& params) {
     auto typical = std::make_shared<HairBsdf>(params, 0.0f);
     const std::string description = typical->to_string();
     return std::make_shared<TexturedBsdf>(
-        [params](Vec2 uv) { return std::make_shared<HairBsdf>(params, -1 + 2 * uv.y); },
+        [params](Vec2 uv) { return make_bsdf_at<HairBsdf>(&uv, params, -1 + 2 * uv.y); },
         std::move(typical), description);
 }
 
