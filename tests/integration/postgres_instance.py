@@ -15,6 +15,8 @@ import socket
 import subprocess
 import tempfile
 
+import cluster
+
 
 def _bin_dir():
     env = os.environ.get("RENDER_PG_BIN")
@@ -124,3 +126,18 @@ class PostgresInstance:
                 pass
             self.port = None
         shutil.rmtree(self.dir, ignore_errors=True)
+
+
+
+class PostgresClusterTestCase(cluster.ClusterTestCase):
+    """ClusterTestCase whose tests each get self.pg, a PostgreSQL of their own, or skip (with
+    the reason) where PostgreSQL is not installed."""
+
+    def setUp(self):
+        super().setUp()
+        self.pg, reason = PostgresInstance.start()
+        if reason:
+            self.skipTest(reason)
+        # Cleanups run last-in first-out: the servers stop before their database.
+        self.addCleanup(self.pg.close)
+        self.addCleanup(lambda: [c.close() for c in self._clusters])

@@ -11,7 +11,7 @@ import time
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 import cluster  # noqa: E402
-from postgres_instance import PostgresInstance  # noqa: E402
+from postgres_instance import PostgresClusterTestCase  # noqa: E402
 
 SEED = 5
 ALGO = "vcm"
@@ -19,17 +19,7 @@ ITERATIONS = 1000  # ~4 s for 2 workers x 1 thread at 32x32
 RESOLUTION = (32, 32)
 
 
-class PostgresStore(cluster.ClusterTestCase):
-    def setUp(self):
-        super().setUp()
-        self.pg, reason = PostgresInstance.start()
-        if reason:
-            self.skipTest(reason)
-        # Cleanups run before ClusterTestCase closes the clusters: stop the servers first,
-        # then their database.
-        self.addCleanup(self.pg.close)
-        self.addCleanup(lambda: [c.close() for c in self._clusters])
-
+class PostgresStore(PostgresClusterTestCase):
     def test_renders_as_render_and_resumes_after_a_restart(self):
         P = cluster.pb()
         c = self.new_cluster(lease_timeout=3, heartbeat=0.5)

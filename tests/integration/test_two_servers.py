@@ -19,7 +19,7 @@ import time
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 import cluster  # noqa: E402
-from postgres_instance import PostgresInstance  # noqa: E402
+from postgres_instance import PostgresClusterTestCase  # noqa: E402
 
 SEED = 7
 RESOLUTION = (24, 24)
@@ -67,16 +67,7 @@ def jobs_taken(log_path):
     return len(re.findall(rb"event=job_taken ", read(log_path, "rb")))
 
 
-class TwoServers(cluster.ClusterTestCase):
-    def setUp(self):
-        super().setUp()
-        self.pg, reason = PostgresInstance.start()
-        if reason:
-            self.skipTest(reason)
-        # Cleanups run last-in first-out: the servers stop before their database.
-        self.addCleanup(self.pg.close)
-        self.addCleanup(lambda: [c.close() for c in self._clusters])
-
+class TwoServers(PostgresClusterTestCase):
     def start_pair(self):
         """Servers A and B on one database and one data folder; returns both clusters (each
         holds one server; workers are started through `a`)."""
