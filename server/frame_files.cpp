@@ -47,8 +47,60 @@ FrameFiles::FrameFiles(fs::path store, JobStore& job_store, Scheduler::ClockFn c
       clock_(std::move(clock)),
       checkpoint_seconds_(checkpoint_seconds) {}
 
-fs::path FrameFiles::checkpoint_path(const std::string& job_id, uint32_t frame) const {
-    return store_ / "checkpoints" / job_id / (std::to_string(frame) + ".ckpt");
+fs::path FrameFiles::checkpoint_path(const std::string& job_id, uint32_t frame,
+                                     int64_t epoch) const {
+    const std::string name = std::to_string(frame);
+    return store_ / "checkpoints" / job_id /
+           (epoch > 0 ? name + ".e" + std::to_string(epoch) + ".ckpt" : name + ".ckpt");
+}
+
+namespace {
+
+// The epoch of a checkpoint file of `frame` ("N.ckpt": 0, "N.eE.ckpt": E), or -1 for another
+// file (another frame's, a temporary one).
+int64_t checkpoint_epoch(const std::string& file, uint32_t frame) {
+    const std::string name = std::to_string(frame);
+    if (file == name + ".ckpt") return 0;
+    const std::string prefix = name + ".e", suffix = ".ckpt";
+    if (file.size() <= prefix.size() + suffix.size() || file.rfind(prefix, 0) != 0 ||
+        file.compare(file.size() - suffix.size(), suffix.size(), suffix) != 0)
+        return -1;
+    const std::string digits =
+        file.substr(prefix.size(), file.size() - prefix.size() - suffix.size());
+    if (digits.empty() || digits.size() > 18 ||
+        digits.find_first_not_of("0123456789") != std::string::npos)
+        return -1;
+    return std::stoll(digits);
+}
+
+}  // namespace
+
+fs::path FrameFiles::latest_checkpoint(const std::string& job_id, uint32_t frame,
+                                       int64_t epoch) const {
+    if (epoch <= 0) {
+        const fs::path only = checkpoint_path(job_id, frame, 0);
+        return fs::exists(only) ? only : fs::path();
+    }
+    fs::path best;
+    int64_t best_epoch = -1;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(store_ / "checkpoints" / job_id, ec)) {
+        const int64_t e = checkpoint_epoch(entry.path().filename().string(), frame);
+        if (e >= 0 && e < epoch && e > best_epoch) {
+            best_epoch = e;
+            best = entry.path();
+        }
+    }
+    return best;
+}
+
+void FrameFiles::remove_checkpoints(const std::string& job_id, uint32_t frame) const {
+    std::error_code ec;
+    std::vector<fs::path> found;
+    for (const auto& entry : fs::directory_iterator(store_ / "checkpoints" / job_id, ec))
+        if (checkpoint_epoch(entry.path().filename().string(), frame) >= 0)
+            found.push_back(entry.path());
+    for (const fs::path& p : found) fs::remove(p, ec);
 }
 
 fs::path FrameFiles::result_path(const std::string& job_id, uint32_t frame) const {
@@ -67,8 +119,8 @@ bool FrameFiles::checkpoint_due(const FrameData& frame, TimePoint now) const {
 
 bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
                                  size_t layers, FrameData& frame, FramePlan& plan) const {
-    const fs::path ckpt = checkpoint_path(job_id, index);
-    if (!fs::exists(ckpt)) return false;
+    const fs::path ckpt = latest_checkpoint(job_id, index, frame.hold_epoch);
+    if (ckpt.empty()) return false;
     try {
         double elapsed = 0;
         auto acc = std::make_unique<FrameAccumulator>(FrameAccumulator::load(ckpt, &elapsed));
@@ -93,10 +145,23 @@ bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int 
 
 bool FrameFiles::save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
                                  double elapsed, const char* reason) const {
+    if (frame.hold_epoch < 0) return false;  // a hold given up: its sums are void
     const TimePoint start = clock_();
     try {
-        frame.acc->save(checkpoint_path(job_id, index), elapsed);
-        job_store_.save_frame(job_id, index, frame.acc->ranges().ranges(), false, elapsed);
+        frame.acc->save(checkpoint_path(job_id, index, frame.hold_epoch), elapsed);
+        job_store_.save_frame(job_id, index, frame.acc->ranges().ranges(), false, elapsed,
+                              frame.hold_epoch);
+        if (frame.hold_epoch > 0) {
+            // The previous holds' checkpoints are superseded by this one (a lapsed holder that
+            // writes one later leaves a file of an older epoch, never read after this).
+            std::error_code ec;
+            std::vector<fs::path> older;
+            for (const auto& entry : fs::directory_iterator(store_ / "checkpoints" / job_id, ec)) {
+                const int64_t e = checkpoint_epoch(entry.path().filename().string(), index);
+                if (e >= 0 && e < frame.hold_epoch) older.push_back(entry.path());
+            }
+            for (const fs::path& p : older) fs::remove(p, ec);
+        }
     } catch (const std::exception& e) {
         Log("error", "checkpoint_failed")
             .kv("job", job_id)

@@ -66,16 +66,24 @@ std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& re
                                                   const FrameAccumulator& acc, double seconds);
 
 // Where the store keeps frames (`store`/checkpoints/JOB/N.ckpt, `store`/results/JOB/N.exr),
-// and the writing of checkpoints, recorded in the job store.
+// and the writing of checkpoints, recorded in the job store. On a shared store a frame's
+// checkpoints are per hold, `N.eEPOCH.ckpt` (FrameData::hold_epoch): a server that lost its
+// hold writes only its own epoch's file, never the new holder's (docs/design/job-store.md,
+// "The write fence").
 class FrameFiles {
   public:
     FrameFiles(std::filesystem::path store, JobStore& job_store, Scheduler::ClockFn clock,
                double checkpoint_seconds);
 
-    std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame) const;
+    // The checkpoint written in the hold of `epoch` (0: one server, `N.ckpt`).
+    std::filesystem::path checkpoint_path(const std::string& job_id, uint32_t frame,
+                                          int64_t epoch) const;
+    // Removes every checkpoint of the frame (all epochs): the frame is finished.
+    void remove_checkpoints(const std::string& job_id, uint32_t frame) const;
     std::filesystem::path result_path(const std::string& job_id, uint32_t frame) const;
-    // Writes the frame's checkpoint and records its ranges in the store; frame.mu held, and
-    // frame.acc set. Returns false (logged) when it could not be written.
+    // Writes the frame's checkpoint (the file of its hold epoch) and records its ranges in the
+    // store, fenced by that epoch; frame.mu held, and frame.acc set. Returns false (logged)
+    // when it could not be written or the hold was lost (HoldLost).
     bool save_checkpoint(const std::string& job_id, uint32_t index, FrameData& frame,
                          double elapsed, const char* reason) const;
     // How long a frame waits between checkpoints: checkpoint_seconds, or kCheckpointCostFactor
@@ -83,14 +91,19 @@ class FrameFiles {
     double checkpoint_interval(const FrameData& frame) const;
     // A dirty frame's checkpoint is due at `now` (frame.mu held).
     bool checkpoint_due(const FrameData& frame, TimePoint now) const;
-    // At restart: loads the frame's checkpoint, if any, into `frame` (its sums, error and
-    // non-finite count) and `plan` (the ranges it holds, and its render time if longer),
-    // provided it has the job's film size and layer count. Returns false without one, or
-    // when it cannot be read (logged): the frame then starts afresh.
+    // At restart or takeover: loads the frame's checkpoint, if any, into `frame` (its sums,
+    // error and non-finite count) and `plan` (the ranges it holds, and its render time if
+    // longer), provided it has the job's film size and layer count. With frame.hold_epoch E > 0
+    // (a new hold on a shared store) the checkpoint is the newest of an epoch before E. Returns
+    // false without one, or when it cannot be read (logged): the frame then starts afresh.
     bool load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
                          size_t layers, FrameData& frame, FramePlan& plan) const;
 
   private:
+    // The newest checkpoint of the frame written before `epoch` (0: `N.ckpt` alone), or empty.
+    std::filesystem::path latest_checkpoint(const std::string& job_id, uint32_t frame,
+                                            int64_t epoch) const;
+
     std::filesystem::path store_;
     JobStore& job_store_;
     Scheduler::ClockFn clock_;

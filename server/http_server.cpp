@@ -175,6 +175,10 @@ HttpServer::HttpServer(JobManager& manager, const Auth& auth, bool dashboard)
                  manager_.cluster_status(&reply);
                  send_message(res, reply);
              });
+    http.Get("/api/farm", [this, authorized](const httplib::Request& req, httplib::Response& res) {
+        if (!authorized(req, res)) return;
+        res.set_content(manager_.farm_json(), "application/json");
+    });
     http.Get(kJob, [this, authorized](const httplib::Request& req, httplib::Response& res) {
         if (!authorized(req, res)) return;
         v1::Job job;

@@ -132,6 +132,10 @@ class JobManager {
                                std::vector<ErrorPoint>* points);
     // The Prometheus text exposition of the server's metrics (server/metrics.h).
     std::string metrics_text();
+    // The farm as this server sees it (several servers on one store; the dashboard's
+    // /api/farm): JSON {"shared", "self", "servers": [{"address", "jobs_held", "self"}],
+    // "jobs_unheld"}, the holds as the last sync read them from the store.
+    std::string farm_json();
     ServerMetrics& metrics() { return metrics_; }
     // Lists the missing assets; the present ones are touched (the client is about to submit a
     // job naming them: the asset sweep's grace period starts again).
@@ -166,6 +170,17 @@ class JobManager {
     // worker; a later report of it is dropped (unknown lease), so nothing merges twice. Counted
     // as a lost lease of a worker that rendered (toward kMaxLostRenderingWorkers).
     void report_stream_idle(const std::string& lease_id);
+    // The address this server's holds advertise (ServerOptions::advertise_address); set once
+    // the listening port is bound, before tick() runs.
+    void set_advertise_address(std::string address) {
+        options_.advertise_address = std::move(address);
+    }
+    // Where a report this server cannot merge (it did not grant the lease) belongs: the
+    // address of the live server that holds the lease's job, when the store is shared, still
+    // records the lease and another server holds the job; empty otherwise (the report is
+    // dropped). docs/design/job-store.md, "Reports reaching a non-holder". `max_value_bytes`
+    // receives the size of the job's largest report's values (sum, odd_sum and layers).
+    std::string report_holder(const std::string& lease_id, size_t* max_value_bytes);
 
     // Expires leases, closes time budgets, finishes complete frames, writes the checkpoints
     // that are due and applies the retention rule. Called periodically, from one thread (a

@@ -113,8 +113,10 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     FrameData& frame = *job->frames[index];
     std::string error;
     std::vector<Range> ranges;  // what the EXR holds
+    int64_t epoch = 0;          // the hold the frame's sums belong to: the store's write fence
     {
         std::lock_guard lock(frame.mu);
+        epoch = frame.hold_epoch;
         if (!frame.acc) {
             error = "frame " + std::to_string(index) + " has no merged sums";
         } else {
@@ -140,9 +142,8 @@ void JobManager::finish_frame(const std::string& job_id, uint32_t index) {
     }
     bool job_done = scheduler_.finish_frame(job_id, index);
     store_or_log("job", job_id, [&] {
-        store_.save_frame(job_id, index, ranges, true, progress.elapsed_seconds);
-        std::error_code ec;
-        fs::remove(frame_files_.checkpoint_path(job_id, index), ec);
+        store_.save_frame(job_id, index, ranges, true, progress.elapsed_seconds, epoch);
+        frame_files_.remove_checkpoints(job_id, index);
     });
     Log("info", "frame_done")
         .kv("job", job_id)

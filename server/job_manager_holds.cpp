@@ -244,6 +244,7 @@ void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::
             plan.elapsed_seconds = fr.elapsed_seconds;
             plan.done = fr.done;
             auto data = std::make_unique<FrameData>();
+            data->hold_epoch = epoch;  // loads the newest checkpoint of an earlier hold
             if (fr.done) {
                 for (const Range& r : store_.merged_ranges(job_id, fr.index)) plan.merged.add(r);
             } else {
@@ -342,6 +343,34 @@ bool JobManager::still_held(const std::string& job_id) {
             give_up(*job, "taken by another server");
     }
     return kept;
+}
+
+std::string JobManager::report_holder(const std::string& lease_id, size_t* max_value_bytes) {
+    if (!shared_ || !is_safe_id(lease_id)) return {};
+    std::optional<LeaseRow> lease;
+    try {
+        lease = store_.find_lease(lease_id);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("lease", lease_id).kv("error", e.what());
+        return {};
+    }
+    if (!lease) return {};  // voided (a new holder) or reported: nobody merges it
+    auto holder = [&]() -> std::string {
+        std::lock_guard lock(mu_);
+        auto job = find(lease->job_id);
+        if (!job || job->held || !job->row.owner.live || job->row.owner.server == server_id_)
+            return {};
+        const size_t layers = TechniqueLayers::names(job->settings.layers).size();
+        *max_value_bytes =
+            size_t(job->row.width) * size_t(job->row.height) * 3 * sizeof(double) * (2 + layers);
+        return job->row.owner.address;
+    };
+    // The hold as the last sync read it, else as the store has it now (a job taken since).
+    // A holder that died since refuses the connection or no longer knows the lease: the
+    // report is then dropped, as it always was.
+    std::string address = known(lease->job_id) ? holder() : std::string();
+    if (address.empty() && learn_job(lease->job_id)) address = holder();
+    return address;
 }
 
 void JobManager::release_holds() {

@@ -4,6 +4,8 @@
 #include "server/job_manager.h"
 
 #include <algorithm>
+#include <map>
+#include <sstream>
 
 #include "server/job_manager_detail.h"
 
@@ -78,6 +80,45 @@ void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
     }
 }
 
+std::string JobManager::farm_json() {
+    std::map<std::string, uint64_t> held;
+    uint64_t unheld = 0;
+    {
+        std::lock_guard lock(mu_);
+        if (shared_) held[options_.advertise_address];  // this server, even holding nothing
+        for (const auto& [id, job] : jobs_) {
+            if (!shared_ || is_terminal(scheduler_.state(id))) continue;
+            if (job->held)
+                ++held[options_.advertise_address];
+            else if (job->row.owner.live)
+                ++held[job->row.owner.address];
+            else
+                ++unheld;
+        }
+    }
+    // Addresses are HOST:PORT as given to --advertise; quotes and backslashes escaped.
+    auto quoted = [](const std::string& s) {
+        std::string out = "\"";
+        for (char c : s) {
+            if (c == '"' || c == '\\') out += '\\';
+            if (static_cast<unsigned char>(c) >= 0x20) out += c;
+        }
+        return out + "\"";
+    };
+    std::ostringstream out;
+    out << "{\"shared\":" << (shared_ ? "true" : "false")
+        << ",\"self\":" << quoted(options_.advertise_address) << ",\"servers\":[";
+    bool first = true;
+    for (const auto& [address, count] : held) {
+        out << (first ? "" : ",") << "{\"address\":" << quoted(address)
+            << ",\"jobs_held\":" << count
+            << ",\"self\":" << (address == options_.advertise_address ? "true" : "false") << "}";
+        first = false;
+    }
+    out << "],\"jobs_unheld\":" << unheld << "}";
+    return out.str();
+}
+
 std::string JobManager::metrics_text() {
     MetricsSnapshot s;
     {
@@ -101,6 +142,14 @@ std::string JobManager::metrics_text() {
             const size_t shown = size_t(shown_state(*job));
             if (shown < s.jobs_by_state.size()) ++s.jobs_by_state[shown];
             if (is_terminal(state)) continue;
+            if (shared_) {
+                if (job->held)
+                    ++s.farm_jobs_held[options_.advertise_address];
+                else if (job->row.owner.live)
+                    ++s.farm_jobs_held[job->row.owner.address];
+                else
+                    ++s.farm_jobs_unheld;
+            }
             JobSnapshot js;
             js.id = id;
             js.relative_error = 0;

@@ -30,6 +30,12 @@ struct JobOwner {
     bool live = false;  // held, and the hold has not run out
 };
 
+// A fenced write (save_frame with a hold epoch) found the hold taken by another server or
+// released: nothing was written.
+struct HoldLost : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
 struct JobRow {
     std::string id;
     int64_t sequence = 0;
@@ -85,9 +91,14 @@ class JobStore {
                                    const std::vector<Range>& ranges) = 0;
     virtual std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame) = 0;
     // In one transaction: the frame's merged ranges become `ranges` (what its checkpoint, or
-    // its finished EXR, holds) and its row gets `done` and `elapsed`.
+    // its finished EXR, holds) and its row gets `done` and `elapsed`. `hold_epoch` 0: written
+    // (one server). Otherwise the write fence of a shared store (docs/design/job-store.md,
+    // "The write fence"): written only while the job's hold is still of that epoch, the job's
+    // row locked meanwhile so that no take_job passes in between; else HoldLost is thrown
+    // and nothing is written.
     virtual void save_frame(const std::string& job_id, uint32_t frame,
-                            const std::vector<Range>& ranges, bool done, double elapsed) = 0;
+                            const std::vector<Range>& ranges, bool done, double elapsed,
+                            int64_t hold_epoch) = 0;
 
     virtual void add_asset(const std::string& sha256, uint64_t size) = 0;
     // The rows of assets removed from the asset store with no job (never submitted, or their
@@ -108,6 +119,9 @@ class JobStore {
     virtual bool claim_lease(const LeaseRow& lease) = 0;
     virtual void delete_lease(const std::string& lease_id) = 0;
     virtual std::vector<LeaseRow> load_leases() = 0;
+    // One outstanding lease by its id (a report that reached a server which did not grant it
+    // is forwarded to the job's holder: docs/design/job-store.md).
+    virtual std::optional<LeaseRow> find_lease(const std::string& lease_id) = 0;
     // Voids every lease of a previous run; returns how many there were.
     virtual int clear_leases() = 0;
     // Voids the job's leases (a new holder voids its predecessor's); returns how many.

@@ -9,6 +9,7 @@
 //          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT] [--advertise HOST:PORT] [--hold-seconds SECONDS]
+//          [--peer-tls-ca FILE]
 //
 // The token may also come from the environment variable RENDER_TOKEN, the TLS files from
 // RENDER_TLS_CERT and RENDER_TLS_KEY. A token without TLS needs --insecure on a loopback
@@ -59,6 +60,7 @@ struct Options {
     std::string metrics;               // HOST:PORT for /metrics alone
     std::string http;                  // HOST:PORT for the dashboard, /api/ and /metrics
     std::string tls_cert, tls_key;     // PEM files; both empty: plaintext
+    std::string peer_tls_ca;           // trusted for forwarding reports (default: tls_cert)
     bool insecure = false;             // a token over plaintext (loopback only)
     std::string health;                // HOST:PORT for grpc.health.v1 (no render API), plaintext
     bool fixed_stream_window = false;  // gRPC's bandwidth-delay probe off
@@ -267,6 +269,11 @@ ArgumentParser make_parser(Options& o) {
             "with several servers on one PostgreSQL store: the address clients and workers "
             "reach this server at, recorded with the jobs it holds (default: --listen)",
             [&](const std::string& v) { o.server.advertise_address = v; });
+    p.value({"--peer-tls-ca"}, "FILE",
+            "with several servers on one PostgreSQL store and TLS: the certificate authority "
+            "(PEM) the other servers' certificates are checked against when a report is "
+            "forwarded to the server holding its job (default: --tls-cert itself)",
+            [&](const std::string& v) { o.peer_tls_ca = v; });
     p.value(
         {"--hold-seconds"}, "SECONDS",
         "with several servers on one PostgreSQL store: how long this server's hold of a "
@@ -392,7 +399,24 @@ int main(int argc, char** argv) {
     Auth auth(options.token);
     std::atomic<bool> stopping{false};
     JobServiceImpl job_service(*manager, auth, stopping);
-    WorkerServiceImpl worker_service(*manager, auth);
+    // Reports for leases another server of a shared store granted go to that server
+    // (docs/design/job-store.md, "Reports reaching a non-holder"); over TLS they are checked
+    // against --peer-tls-ca, else against this server's own certificate.
+    std::string peer_root_pem;
+    if (!options.tls_cert.empty()) {
+        const bool ca = !options.peer_tls_ca.empty();
+        try {
+            peer_root_pem =
+                service::read_pem_file(ca ? "--peer-tls-ca" : "--tls-cert",
+                                       ca ? options.peer_tls_ca : options.tls_cert, "CERTIFICATE");
+        } catch (const std::exception& e) {
+            std::cerr << "server: " << e.what() << "\n";
+            Log("error", "tls_files_unreadable").kv("error", e.what());
+            return 2;  // a configuration error: restarting does not help
+        }
+    }
+    ReportForwarder report_forwarder(options.token, peer_root_pem);
+    WorkerServiceImpl worker_service(*manager, auth, &report_forwarder);
 
     std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
     const bool tls = !options.tls_cert.empty();
@@ -437,6 +461,11 @@ int main(int argc, char** argv) {
         Log("error", "listen_failed").kv("address", options.listen);
         return 1;
     }
+    // A --listen port of 0 (tests): the holds advertise the port bound, where other servers
+    // forward reports (before the tick thread takes any hold).
+    if (const std::string& a = options.server.advertise_address;
+        a.size() > 2 && a.compare(a.size() - 2, 2, ":0") == 0)
+        manager->set_advertise_address(a.substr(0, a.size() - 1) + std::to_string(port));
     // The health service without the render API, in plaintext, for probes that cannot speak
     // TLS (server reflection comes along: the reflection library adds it to every server).
     std::unique_ptr<grpc::Server> health_server;

@@ -150,6 +150,28 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                             .Register(r);
     for (const char* reason : {"duplicate", "unknown_lease", "reissued", "job_inactive"})
         reports_dropped_->Add({{"reason", reason}});
+    farm_jobs_held_ = &BuildGauge()
+                           .Name("render_farm_jobs_held")
+                           .Help(
+                               "Several servers on one store: the unfinished jobs each server "
+                               "holds, by its advertised address (the store at the last sync)")
+                           .Register(r);
+    farm_jobs_unheld_ = &BuildGauge()
+                             .Name("render_farm_jobs_unheld")
+                             .Help(
+                                 "Several servers on one store: unfinished jobs no live server "
+                                 "holds (waiting for a server with workers to take them)")
+                             .Register(r)
+                             .Add({});
+    reports_forwarded_ = &BuildCounter()
+                              .Name("render_reports_forwarded_total")
+                              .Help(
+                                  "Reports for leases another server granted, forwarded to "
+                                  "the job's holder on a shared store, by result (merged, "
+                                  "not_merged: the holder dropped it, failed: not reached)")
+                              .Register(r);
+    for (const char* result : {"merged", "not_merged", "failed"})
+        reports_forwarded_->Add({{"result", result}});
     auto& bytes = BuildCounter()
                       .Name("render_received_bytes_total")
                       .Help("Bytes received from workers (reports) and clients (asset uploads)")
@@ -222,6 +244,11 @@ void ServerMetrics::report_dropped(std::string_view reason) {
     reports_dropped_->Add({{"reason", label}}).Increment();
 }
 
+void ServerMetrics::report_forwarded(std::string_view result) {
+    std::lock_guard lock(mu_);
+    reports_forwarded_->Add({{"result", std::string(result)}}).Increment();
+}
+
 void ServerMetrics::report_received(uint64_t bytes) {
     bytes_reports_->Increment(double(bytes));
     report_bytes_->Observe(double(bytes));
@@ -292,6 +319,20 @@ std::string ServerMetrics::exposition(const MetricsSnapshot& s) {
         worker_rays_->Remove(it->second[2]);
         worker_leases_->Remove(it->second[3]);
         it = worker_children_.erase(it);
+    }
+    farm_jobs_unheld_->Set(double(s.farm_jobs_unheld));
+    for (const auto& [server, count] : s.farm_jobs_held) {
+        auto& child = farm_held_children_[server];
+        if (!child) child = &farm_jobs_held_->Add({{"server", server}});
+        child->Set(double(count));
+    }
+    for (auto it = farm_held_children_.begin(); it != farm_held_children_.end();) {
+        if (s.farm_jobs_held.count(it->first)) {
+            ++it;
+            continue;
+        }
+        farm_jobs_held_->Remove(it->second);
+        it = farm_held_children_.erase(it);
     }
     std::ostringstream out;
     prometheus::TextSerializer().Serialize(out, registry_->Collect());

@@ -47,6 +47,11 @@ struct MetricsSnapshot {
     LeaseCounters leases;
     std::vector<WorkerSnapshot> workers;  // connected ones
     std::vector<JobSnapshot> jobs;        // unfinished ones
+    // Several servers on one store (docs/design/job-store.md): the unfinished jobs each live
+    // server holds, by its advertised address, and those nobody holds, as the last sync read
+    // them from the store (empty and 0 on a store of one server).
+    std::map<std::string, uint64_t> farm_jobs_held;
+    uint64_t farm_jobs_unheld = 0;
 };
 
 class ServerMetrics {
@@ -65,6 +70,10 @@ class ServerMetrics {
     void report_merged(double merge_seconds, double store_seconds);
     // A report was dropped; reason as MergeDecision's to_string or "unknown_lease".
     void report_dropped(std::string_view reason);
+    // A report for a lease this server did not grant, forwarded to the job's holder on a
+    // shared store: result "merged" (the holder merged it), "not_merged" (the holder dropped
+    // it) or "failed" (the holder could not be reached).
+    void report_forwarded(std::string_view result);
     // A report's bytes on the wire (header and values), merged or not.
     void report_received(uint64_t bytes);
     // An uploaded asset's bytes.
@@ -103,6 +112,7 @@ class ServerMetrics {
     prometheus::Counter* assets_collected_bytes_;
     prometheus::Counter* reports_merged_;
     prometheus::Family<prometheus::Counter>* reports_dropped_;
+    prometheus::Family<prometheus::Counter>* reports_forwarded_;
     prometheus::Counter* bytes_reports_;
     prometheus::Counter* bytes_assets_;
     prometheus::Histogram* merge_seconds_;
@@ -118,6 +128,9 @@ class ServerMetrics {
     // Children of the per-job and per-worker families, by job or worker id, so that those of
     // finished jobs and departed workers are removed.
     std::map<std::string, std::vector<prometheus::Gauge*>> job_children_, worker_children_;
+    prometheus::Family<prometheus::Gauge>* farm_jobs_held_;
+    prometheus::Gauge* farm_jobs_unheld_;
+    std::map<std::string, prometheus::Gauge*> farm_held_children_;
 };
 
 }  // namespace render::server

@@ -65,6 +65,46 @@ Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,
     return manager_.heartbeat(*request, reply);
 }
 
+Status WorkerServiceImpl::forward_report(const std::string& holder, size_t max_value_bytes,
+                                         v1::ReportChunk&& header_chunk,
+                                         grpc::ServerReader<v1::ReportChunk>* reader,
+                                         std::unique_ptr<StreamGuards::Guard>& guard,
+                                         v1::ReportReply* reply) {
+    const std::string lease_id = header_chunk.header().lease_id();
+    // Received whole before it is sent on (the holder's stream rules apply to this server's
+    // sending, not to the worker's): at most the job's largest report.
+    std::vector<v1::ReportChunk> chunks;
+    chunks.push_back(std::move(header_chunk));
+    size_t bytes = 0;
+    v1::ReportChunk chunk;
+    while (reader->Read(&chunk)) {
+        guard->progress();
+        bytes += chunk.values().size();
+        if (chunk.has_header() || bytes > max_value_bytes)
+            return Status(StatusCode::INVALID_ARGUMENT, chunk.has_header()
+                                                            ? "a report has exactly one header"
+                                                            : "report larger than its job's sums");
+        chunks.push_back(std::move(chunk));
+    }
+    if (guard->timed_out()) return guard->idle_status();
+    // Received: sending it on may take longer than the idle timeout and must not be cut.
+    guard.reset();
+    manager_.metrics().report_received(chunks.front().header().ByteSizeLong() + bytes);
+    const Status s = forwarder_->forward(holder, chunks, reply);
+    const char* result = !s.ok() ? "failed" : reply->merged() ? "merged" : "not_merged";
+    manager_.metrics().report_forwarded(result);
+    Log log(s.ok() ? "info" : "warn", "report_forwarded");
+    log.kv("lease", lease_id).kv("holder", holder).kv("bytes", bytes).kv("result", result);
+    if (!s.ok()) {
+        log.kv("error", s.error_message());
+        // Not reached: answered as an unknown lease is (the holder leases the range again when
+        // the lease expires), so the worker does not retry against this server for ever.
+        reply->Clear();
+        reply->set_merged(false);
+    }
+    return Status::OK;
+}
+
 Status WorkerServiceImpl::Report(grpc::ServerContext* context,
                                  grpc::ServerReader<v1::ReportChunk>* reader,
                                  v1::ReportReply* reply) {
@@ -90,6 +130,12 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
             .kv("lease", header.lease_id())
             .kv("error", s.error_message());
         return s;
+    }
+    if (drop && forwarder_ && !ReportForwarder::forwarded(*context)) {
+        size_t max_value_bytes = 0;
+        const std::string holder = manager_.report_holder(header.lease_id(), &max_value_bytes);
+        if (!holder.empty())
+            return forward_report(holder, max_value_bytes, std::move(chunk), reader, guard, reply);
     }
     if (drop) {
         uint64_t bytes = header.ByteSizeLong();

@@ -5,12 +5,17 @@
 #include "render.grpc.pb.h"
 #include "server/auth.h"
 #include "server/job_manager.h"
+#include "server/report_forwarder.h"
+#include "server/stream_guard.h"
 
 namespace render::server {
 
 class WorkerServiceImpl final : public v1::WorkerService::Service {
   public:
-    WorkerServiceImpl(JobManager& manager, const Auth& auth) : manager_(manager), auth_(auth) {}
+    // `forwarder`: where reports for leases another server of a shared store granted go (null:
+    // they are dropped).
+    WorkerServiceImpl(JobManager& manager, const Auth& auth, ReportForwarder* forwarder = nullptr)
+        : manager_(manager), auth_(auth), forwarder_(forwarder) {}
 
     grpc::Status RegisterWorker(grpc::ServerContext* context,
                                 const v1::RegisterWorkerRequest* request,
@@ -25,8 +30,16 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
                         v1::ReportReply* reply) override;
 
   private:
+    // Reads the rest of a report this server did not grant and sends it to the job's holder.
+    grpc::Status forward_report(const std::string& holder, size_t max_value_bytes,
+                                v1::ReportChunk&& header_chunk,
+                                grpc::ServerReader<v1::ReportChunk>* reader,
+                                std::unique_ptr<StreamGuards::Guard>& guard,
+                                v1::ReportReply* reply);
+
     JobManager& manager_;
     const Auth& auth_;
+    ReportForwarder* forwarder_;
 };
 
 }  // namespace render::server

@@ -1,6 +1,7 @@
-// `farm_sim`: many simulated workers against one real server, to measure how many workers a
-// server carries (docs/results/service-measurements.md, "How many workers one server
-// carries").
+// `farm_sim`: many simulated workers against one real server (or several servers of one farm on
+// a shared store), to measure how many workers a server carries
+// (docs/results/service-measurements.md, "How many workers one server carries", "Two servers on
+// one PostgreSQL").
 //
 // Each simulated worker is a thread with its own gRPC channel (its own TCP connection, as a
 // real worker process has) that follows the worker protocol of proto/render.proto: register,
@@ -15,6 +16,11 @@
 // Lease, Heartbeat and Report call, counts leases and reports, and samples the server's CPU
 // time and memory from /proc/PID (--server-pid). Output: one JSON object (--json FILE, else
 // stdout).
+//
+// --server A:P,B:P (several servers of one farm): simulated worker i registers with and leases
+// from server i mod n, the jobs are submitted to the first; --server-pid P1,P2 sums the
+// servers' CPU and memory; --database-pid lists the database's processes, whose CPU is counted
+// apart (database_cpu_*).
 //
 //   farm_sim --server 127.0.0.1:PORT --workers 200 --seconds 30 --warmup 10 --server-pid PID
 //   farm_sim --server 127.0.0.1:PORT --workers 4 --jobs 2 --iterations 300 --until-done
@@ -54,7 +60,7 @@ namespace v1 = ::render::v1;
 using Clock = std::chrono::steady_clock;
 
 struct Options {
-    std::string server = "127.0.0.1:50051";
+    std::vector<std::string> servers = {"127.0.0.1:50051"};
     std::string token;
     int workers = 50;
     double seconds = 30;
@@ -65,17 +71,33 @@ struct Options {
     uint64_t iterations = 0;  // per job; 0 = the largest the server accepts
     bool until_done = false;
     int duplicate_every = 0;  // with --until-done: resend every Nth report
-    int server_pid = 0;
+    std::vector<int> server_pids;
+    std::vector<int> database_pids;
     std::string json;
 };
 
 [[noreturn]] void usage(const std::string& error) {
     std::cerr << "farm_sim: " << error << "\n"
-              << "usage: farm_sim --server HOST:PORT [--workers N] [--seconds S] [--warmup S]\n"
-                 "                [--iteration-ms MS] [--resolution WxH] [--jobs J]\n"
+              << "usage: farm_sim --server HOST:PORT[,HOST:PORT...] [--workers N] [--seconds S]\n"
+                 "                [--warmup S] [--iteration-ms MS] [--resolution WxH] [--jobs J]\n"
                  "                [--iterations N] [--until-done] [--duplicate-every K]\n"
-                 "                [--server-pid PID] [--token T] [--json FILE]\n";
+                 "                [--server-pid PID[,PID...]] [--database-pid PID[,PID...]]\n"
+                 "                [--token T] [--json FILE]\n";
     std::exit(2);
+}
+
+std::vector<std::string> split_commas(const std::string& list) {
+    std::vector<std::string> out;
+    std::stringstream in(list);
+    for (std::string item; std::getline(in, item, ',');)
+        if (!item.empty()) out.push_back(item);
+    return out;
+}
+
+std::vector<int> pid_list(const std::string& list) {
+    std::vector<int> out;
+    for (const std::string& item : split_commas(list)) out.push_back(std::stoi(item));
+    return out;
 }
 
 Options parse(int argc, char** argv) {
@@ -88,7 +110,7 @@ Options parse(int argc, char** argv) {
         };
         try {
             if (a == "--server")
-                o.server = value();
+                o.servers = split_commas(value());
             else if (a == "--token")
                 o.token = value();
             else if (a == "--workers")
@@ -108,7 +130,9 @@ Options parse(int argc, char** argv) {
             else if (a == "--duplicate-every")
                 o.duplicate_every = std::stoi(value());
             else if (a == "--server-pid")
-                o.server_pid = std::stoi(value());
+                o.server_pids = pid_list(value());
+            else if (a == "--database-pid")
+                o.database_pids = pid_list(value());
             else if (a == "--json")
                 o.json = value();
             else if (a == "--resolution") {
@@ -126,6 +150,7 @@ Options parse(int argc, char** argv) {
         usage("--resolution and --iteration-ms must be positive, --jobs at least 0");
     if (o.until_done && o.jobs < 1) usage("--until-done needs --jobs of at least 1");
     if (o.until_done && o.iterations == 0) usage("--until-done needs --iterations");
+    if (o.servers.empty()) usage("--server needs an address");
     return o;
 }
 
@@ -215,6 +240,20 @@ struct ProcSample {
     double peak_rss_mb = 0;
 };
 
+ProcSample sample_process(int pid);
+
+// The sum over processes (memory summed too: the servers' RSS together).
+ProcSample sample_processes(const std::vector<int>& pids) {
+    ProcSample out;
+    for (int pid : pids) {
+        const ProcSample one = sample_process(pid);
+        out.cpu_seconds += one.cpu_seconds;
+        out.rss_mb += one.rss_mb;
+        out.peak_rss_mb += one.peak_rss_mb;
+    }
+    return out;
+}
+
 ProcSample sample_process(int pid) {
     ProcSample out;
     const std::string dir = pid > 0 ? "/proc/" + std::to_string(pid) : "/proc/self";
@@ -239,7 +278,10 @@ ProcSample sample_process(int pid) {
 
 class Farm {
   public:
-    explicit Farm(Options o) : o_(std::move(o)), values_(size_t(o_.width) * o_.height * 3) {}
+    explicit Farm(Options o)
+        : o_(std::move(o)),
+          values_(size_t(o_.width) * o_.height * 3),
+          leases_by_server_(o_.servers.size()) {}
 
     int run();
 
@@ -250,8 +292,11 @@ class Farm {
         // equal channels otherwise).
         args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
         args.SetInt("farm_sim.worker", index);
-        return grpc::CreateCustomChannel(o_.server, grpc::InsecureChannelCredentials(), args);
+        return grpc::CreateCustomChannel(o_.servers[server_of(index)],
+                                         grpc::InsecureChannelCredentials(), args);
     }
+    // Worker i's server; the submits and checks (negative indices) go to the first.
+    size_t server_of(int index) const { return index < 0 ? 0 : size_t(index) % o_.servers.size(); }
     void prepare(grpc::ClientContext& c, double timeout = 60) const {
         if (!o_.token.empty()) c.AddMetadata("authorization", "Bearer " + o_.token);
         c.set_deadline(std::chrono::system_clock::now() +
@@ -273,7 +318,8 @@ class Farm {
         ++error_count_;
     }
     std::string json(double window, const ProcSample& s0, const ProcSample& s1,
-                     const ProcSample& self0, const ProcSample& self1, double peak_rss);
+                     const ProcSample& self0, const ProcSample& self1, const ProcSample& db0,
+                     const ProcSample& db1, double peak_rss);
 
     Options o_;
     size_t values_;
@@ -285,6 +331,7 @@ class Farm {
     Latencies lease_latency_, empty_lease_latency_, report_latency_, heartbeat_latency_;
     std::atomic<uint64_t> leases_{0}, leases_empty_{0}, reports_{0}, reports_merged_{0},
         heartbeats_{0}, cancelled_{0}, abandoned_{0};
+    std::vector<std::atomic<uint64_t>> leases_by_server_;  // measured leases, per server
     // Over the whole run (--until-done checks): leases granted, first reports merged,
     // duplicate reports sent and those (wrongly) merged.
     std::atomic<uint64_t> total_leases_{0}, total_merged_{0}, total_not_merged_{0},
@@ -441,6 +488,7 @@ void Farm::worker(int index) {
         if (measuring_) {
             lease_latency_.add(latency);
             ++leases_;
+            ++leases_by_server_[server_of(index)];
         }
         const v1::Lease& lease = reply.lease();
         // "Render": the lease's iterations take iteration_ms each; heartbeat meanwhile.
@@ -525,11 +573,17 @@ bool Farm::all_jobs_done() {
 }
 
 std::string Farm::json(double window, const ProcSample& s0, const ProcSample& s1,
-                       const ProcSample& self0, const ProcSample& self1, double peak_rss) {
+                       const ProcSample& self0, const ProcSample& self1, const ProcSample& db0,
+                       const ProcSample& db1, double peak_rss) {
     std::ostringstream j;
     auto rate = [&](uint64_t n) { return number(window > 0 ? double(n) / window : 0); };
+    const bool measured = !o_.server_pids.empty();
     j << "{\n";
     j << "  \"workers\": " << o_.workers << ",\n";
+    j << "  \"servers\": " << o_.servers.size() << ", \"leases_by_server\": [";
+    for (size_t i = 0; i < leases_by_server_.size(); ++i)
+        j << (i ? ", " : "") << leases_by_server_[i].load();
+    j << "],\n";
     j << "  \"iteration_ms\": " << number(o_.iteration_ms) << ",\n";
     j << "  \"width\": " << o_.width << ", \"height\": " << o_.height << ",\n";
     j << "  \"window_seconds\": " << number(window) << ",\n";
@@ -549,13 +603,22 @@ std::string Farm::json(double window, const ProcSample& s0, const ProcSample& s1
     lat("report", report_latency_);
     lat("heartbeat", heartbeat_latency_);
     j << "  \"server_cpu_percent\": "
-      << number(window > 0 && o_.server_pid ? 100 * (s1.cpu_seconds - s0.cpu_seconds) / window : 0)
+      << number(window > 0 && measured ? 100 * (s1.cpu_seconds - s0.cpu_seconds) / window : 0)
       << ",\n";
     // Server CPU per lease cycle (Lease + Heartbeats + Report): what one worker costs the
     // server per lease, less sensitive to the machine's other load than the rates.
     j << "  \"server_cpu_ms_per_lease\": "
-      << number(leases_ + leases_empty_ > 0 && o_.server_pid
+      << number(leases_ + leases_empty_ > 0 && measured
                     ? 1e3 * (s1.cpu_seconds - s0.cpu_seconds) / double(leases_ + leases_empty_)
+                    : 0)
+      << ",\n";
+    // The database's processes (a shared store), counted apart from the servers.
+    const bool db = !o_.database_pids.empty();
+    j << "  \"database_cpu_percent\": "
+      << number(window > 0 && db ? 100 * (db1.cpu_seconds - db0.cpu_seconds) / window : 0)
+      << ", \"database_cpu_ms_per_lease\": "
+      << number(leases_ + leases_empty_ > 0 && db
+                    ? 1e3 * (db1.cpu_seconds - db0.cpu_seconds) / double(leases_ + leases_empty_)
                     : 0)
       << ",\n";
     j << "  \"server_rss_mb\": " << number(s1.rss_mb)
@@ -603,13 +666,14 @@ int Farm::run() {
     const auto start = Clock::now();
     const auto deadline = start + std::chrono::duration_cast<Clock::duration>(
                                       std::chrono::duration<double>(o_.seconds));
-    ProcSample s0, self0;
+    ProcSample s0, self0, db0;
     double peak_rss = 0;
     bool done = false;
     if (o_.until_done) {
         // Correctness run: everything is counted; ends when every job is DONE.
         measuring_ = true;
-        s0 = sample_process(o_.server_pid);
+        s0 = sample_processes(o_.server_pids);
+        db0 = sample_processes(o_.database_pids);
         self0 = sample_process(0);
         while (Clock::now() < deadline && !(done = all_jobs_done()))
             std::this_thread::sleep_for(std::chrono::milliseconds(200));
@@ -617,14 +681,16 @@ int Farm::run() {
         std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
                                                   std::chrono::duration<double>(o_.warmup)));
         measuring_ = true;
-        s0 = sample_process(o_.server_pid);
+        s0 = sample_processes(o_.server_pids);
+        db0 = sample_processes(o_.database_pids);
         self0 = sample_process(0);
         while (Clock::now() < deadline) {
             std::this_thread::sleep_for(std::chrono::milliseconds(500));
-            if (o_.server_pid) peak_rss = std::max(peak_rss, sample_process(o_.server_pid).rss_mb);
+            peak_rss = std::max(peak_rss, sample_processes(o_.server_pids).rss_mb);
         }
     }
-    const ProcSample s1 = sample_process(o_.server_pid), self1 = sample_process(0);
+    const ProcSample s1 = sample_processes(o_.server_pids), self1 = sample_process(0),
+                     db1 = sample_processes(o_.database_pids);
     const double window = std::chrono::duration<double>(Clock::now() - start).count() -
                           (o_.until_done ? 0 : o_.warmup);
     measuring_ = false;
@@ -635,7 +701,7 @@ int Farm::run() {
     stop_cv_.notify_all();
     for (std::thread& t : threads) t.join();
     peak_rss = std::max(peak_rss, s1.rss_mb);
-    const std::string out = json(window, s0, s1, self0, self1, peak_rss);
+    const std::string out = json(window, s0, s1, self0, self1, db0, db1, peak_rss);
     if (o_.json.empty()) {
         std::cout << out;
     } else {

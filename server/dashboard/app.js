@@ -165,6 +165,23 @@ function drawWorkers(cluster) {
     `${(cluster.workers || []).length} workers`;
 }
 
+// Several servers on one queue (/api/farm): each server and the jobs it holds.
+function drawFarm(farm) {
+  document.getElementById("farm").hidden = !farm.shared;
+  if (!farm.shared) return;
+  const body = document.querySelector("#servers tbody");
+  body.replaceChildren();
+  for (const s of farm.servers || []) {
+    const tr = document.createElement("tr");
+    tr.dataset.server = s.address;
+    tr.append(cell(s.self ? `${s.address} (this server)` : s.address),
+              cell(String(s.jobs_held), "num"));
+    body.append(tr);
+  }
+  document.getElementById("farm-unheld").textContent =
+    `${farm.jobs_unheld} unfinished jobs held by no server.`;
+}
+
 function select(id) {
   selected = id;
   selectedFrame = 0;
@@ -256,14 +273,16 @@ async function refresh() {
   if (busy) return;
   busy = true;
   try {
-    const [jobs, cluster] = await Promise.all([
+    const [jobs, cluster, farm] = await Promise.all([
       api("/api/jobs").then((r) => r.json()),
       api("/api/cluster").then((r) => r.json()),
+      api("/api/farm").then((r) => r.json()),
     ]);
     const list = jobs.jobs || [];
     if (!selected && list.length) selected = list[0].id;
     drawJobs(list);
     drawWorkers(cluster);
+    drawFarm(farm);
     await drawDetail(list);
     document.body.dataset.refreshed = String(Date.now());
     setStatus("");

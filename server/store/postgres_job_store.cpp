@@ -258,9 +258,18 @@ std::vector<Range> PostgresJobStore::merged_ranges(const std::string& job_id, ui
 }
 
 void PostgresJobStore::save_frame(const std::string& job_id, uint32_t frame,
-                                  const std::vector<Range>& ranges, bool done, double elapsed) {
+                                  const std::vector<Range>& ranges, bool done, double elapsed,
+                                  int64_t hold_epoch) {
     std::lock_guard lock(mu_);
     pqxx::work w(live().c);
+    // The fence: FOR SHARE holds a take_job (an UPDATE of the row) back until this commits.
+    if (hold_epoch != 0 &&
+        w.exec_params("SELECT 1 FROM jobs WHERE id = $1 AND owner IS NOT NULL AND "
+                      "owner_epoch = $2 FOR SHARE",
+                      job_id, hold_epoch)
+            .empty())
+        throw HoldLost("the hold of job " + job_id + " in epoch " + std::to_string(hold_epoch) +
+                       " is lost");
     replace_ranges(w, job_id, frame, ranges);
     w.exec_params("UPDATE frames SET done = $3, elapsed = $4 WHERE job_id = $1 AND idx = $2",
                   job_id, int64_t(frame), done ? 1 : 0, elapsed);
@@ -350,6 +359,20 @@ std::vector<LeaseRow> PostgresJobStore::load_leases() {
                        uint32_t(row[3].as<int64_t>()),
                        Range{uint64_t(row[4].as<int64_t>()), uint64_t(row[5].as<int64_t>())}});
     return out;
+}
+
+std::optional<LeaseRow> PostgresJobStore::find_lease(const std::string& lease_id) {
+    std::lock_guard lock(mu_);
+    pqxx::work w(live().c);
+    pqxx::result rows = w.exec_params(
+        "SELECT lease_id, COALESCE(worker_id, ''), job_id, frame, first, end_ FROM leases "
+        "WHERE lease_id = $1",
+        lease_id);
+    if (rows.empty()) return std::nullopt;
+    const pqxx::row row = rows[0];
+    return LeaseRow{row[0].as<std::string>(), row[1].as<std::string>(), row[2].as<std::string>(),
+                    uint32_t(row[3].as<int64_t>()),
+                    Range{uint64_t(row[4].as<int64_t>()), uint64_t(row[5].as<int64_t>())}};
 }
 
 int PostgresJobStore::clear_leases() {

@@ -40,7 +40,7 @@ class PostgresJobStore final : public JobStore {
                            const std::vector<Range>& ranges) override;
     std::vector<Range> merged_ranges(const std::string& job_id, uint32_t frame) override;
     void save_frame(const std::string& job_id, uint32_t frame, const std::vector<Range>& ranges,
-                    bool done, double elapsed) override;
+                    bool done, double elapsed, int64_t hold_epoch) override;
 
     void add_asset(const std::string& sha256, uint64_t size) override;
     void delete_assets(const std::vector<std::string>& assets) override;
@@ -51,6 +51,7 @@ class PostgresJobStore final : public JobStore {
     bool claim_lease(const LeaseRow& lease) override;
     void delete_lease(const std::string& lease_id) override;
     std::vector<LeaseRow> load_leases() override;
+    std::optional<LeaseRow> find_lease(const std::string& lease_id) override;
     int clear_leases() override;
     int clear_job_leases(const std::string& job_id) override;
 

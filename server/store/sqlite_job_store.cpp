@@ -341,10 +341,21 @@ void SqliteJobStore::replace_merged_ranges(const std::string& job_id, uint32_t f
 }
 
 void SqliteJobStore::save_frame(const std::string& job_id, uint32_t frame,
-                                const std::vector<Range>& ranges, bool done, double elapsed) {
+                                const std::vector<Range>& ranges, bool done, double elapsed,
+                                int64_t hold_epoch) {
     std::lock_guard lock(mu_);
     exec("BEGIN IMMEDIATE");
     try {
+        if (hold_epoch != 0) {
+            // The fence, as on PostgreSQL (BEGIN IMMEDIATE: no take_job passes meanwhile).
+            Statement f(db_,
+                        "SELECT 1 FROM jobs WHERE id = ?1 AND owner IS NOT NULL AND "
+                        "owner_epoch = ?2");
+            f.text(1, job_id).bind(2, hold_epoch);
+            if (!f.step())
+                throw HoldLost("the hold of job " + job_id + " in epoch " +
+                               std::to_string(hold_epoch) + " is lost");
+        }
         replace_merged_ranges(job_id, frame, ranges);
         Statement u(db_,
                     "UPDATE frames SET done = ?3, elapsed = ?4 WHERE job_id = ?1 AND idx = ?2");
@@ -488,6 +499,17 @@ std::vector<LeaseRow> SqliteJobStore::load_leases() {
         out.push_back({s.str(0), s.str(1), s.str(2), uint32_t(s.i64(3)),
                        Range{uint64_t(s.i64(4)), uint64_t(s.i64(5))}});
     return out;
+}
+
+std::optional<LeaseRow> SqliteJobStore::find_lease(const std::string& lease_id) {
+    std::lock_guard lock(mu_);
+    Statement s(db_,
+                "SELECT lease_id, worker_id, job_id, frame, first, end_ FROM leases "
+                "WHERE lease_id = ?1");
+    s.text(1, lease_id);
+    if (!s.step()) return std::nullopt;
+    return LeaseRow{s.str(0), s.str(1), s.str(2), uint32_t(s.i64(3)),
+                    Range{uint64_t(s.i64(4)), uint64_t(s.i64(5))}};
 }
 
 int SqliteJobStore::clear_leases() {

@@ -1,4 +1,5 @@
-"""Offline schema check of deploy/kubernetes/*.yaml against the Kubernetes API's object models.
+"""Offline schema check of deploy/kubernetes/**/*.yaml (the one-server manifests and the farm's
+in deploy/kubernetes/farm/) against the Kubernetes API's object models.
 
 No API server is needed: the models come from Debian's python3-kubernetes (the generated
 client of the Kubernetes API; 22.6.0 in Debian 12 = the API of Kubernetes 1.22). Each model
@@ -190,7 +191,12 @@ class Checker:
                 self.error(path, f"required field {key!r} is missing")
 
 
-def check_files(files):
+def manifest_name(path, source_dir):
+    """A manifest's path under deploy/kubernetes/ (farm/server-statefulset.yaml)."""
+    return os.path.relpath(path, os.path.join(source_dir, "deploy", "kubernetes"))
+
+
+def check_files(files, source_dir):
     checker = Checker()
     documents = 0
     for path in files:
@@ -198,22 +204,24 @@ def check_files(files):
             try:
                 docs = [d for d in yaml.safe_load_all(f) if d is not None]
             except yaml.YAMLError as e:
-                checker.error(os.path.basename(path), f"not YAML: {e}")
+                checker.error(manifest_name(path, source_dir), f"not YAML: {e}")
                 continue
         for i, doc in enumerate(docs):
             documents += 1
-            checker.check_document(doc, f"{os.path.basename(path)}#{i}")
+            checker.check_document(doc, f"{manifest_name(path, source_dir)}#{i}")
     return checker.errors, documents
 
 
-def self_test(files):
+def self_test(files, source_dir):
     """Plants one error at a time into the manifests; each must be reported."""
     loaded = {p: [d for d in yaml.safe_load_all(open(p)) if d] for p in files}
-    sts = next(d for ds in loaded.values() for d in ds if d["kind"] == "StatefulSet")
-    dep = next(d for ds in loaded.values() for d in ds if d["kind"] == "Deployment")
-
     def container(doc):
         return doc["spec"]["template"]["spec"]["containers"][0]
+
+    # A server's StatefulSet (the one with gRPC probes), and a Deployment.
+    sts = next(d for ds in loaded.values() for d in ds
+               if d["kind"] == "StatefulSet" and "livenessProbe" in container(d))
+    dep = next(d for ds in loaded.values() for d in ds if d["kind"] == "Deployment")
 
     plants = {
         "misspelt field": lambda: container(sts)["ports"][0].update(containerport=1),
@@ -235,7 +243,7 @@ def self_test(files):
         checker = Checker()
         for path, docs in loaded.items():
             for i, doc in enumerate(docs):
-                checker.check_document(doc, f"{os.path.basename(path)}#{i}")
+                checker.check_document(doc, f"{manifest_name(path, source_dir)}#{i}")
         sts.clear(), sts.update(original[0])
         dep.clear(), dep.update(original[1])
         if checker.errors:
@@ -251,16 +259,17 @@ def main():
     parser.add_argument("--source-dir", default=".")
     parser.add_argument("--self-test", action="store_true")
     args = parser.parse_args()
-    files = sorted(glob.glob(os.path.join(args.source_dir, "deploy", "kubernetes", "*.yaml")))
+    files = sorted(glob.glob(os.path.join(args.source_dir, "deploy", "kubernetes", "**", "*.yaml"),
+                             recursive=True))
     if not files:
         print("no manifests in deploy/kubernetes/")
         return 1
     print(f"python3-kubernetes {getattr(k8s, '__version__', '?')} models")
     if args.self_test:
-        failures = self_test(files)
+        failures = self_test(files, args.source_dir)
         print(f"{failures} planted errors missed")
         return 1 if failures else 0
-    errors, documents = check_files(files)
+    errors, documents = check_files(files, args.source_dir)
     for e in errors:
         print(e)
     print(f"{len(files)} files, {documents} documents, {len(errors)} errors")

@@ -9,8 +9,15 @@ test skips, with the reason, where PostgreSQL is not installed).
   server A is killed with SIGKILL, restarted, then server B is killed with SIGKILL and
   restarted. Every job finishes with `render`'s image bit for bit (a range merged twice, or
   lost, would change it), and its iteration count is the target. The watcher moves to the
-  other server and sees the job end."""
+  other server and sees the job end. No lease stays lost for longer than its bound (from the
+  servers' logs: an expired lease's range is leased again within the workers' idle pause, a
+  killed server's once its hold ran out and the lease timed out).
+* Forwarding: a report sent to the server that did not grant its lease (a worker that failed
+  over while the holder lives) is forwarded to the holder and merged there once; a second copy
+  is dropped; the job ends with `render`'s image."""
 
+import datetime
+import json
 import os
 import re
 import subprocess
@@ -19,11 +26,15 @@ import time
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 import cluster  # noqa: E402
+import numpy as np  # noqa: E402
 from postgres_instance import PostgresClusterTestCase  # noqa: E402
 
 SEED = 7
 RESOLUTION = (24, 24)
 HOLD_SECONDS = 2  # a dead server's jobs are taken over ~2 s after its last renewal
+LEASE_TIMEOUT = 3
+TARGET_LEASE_SECONDS = 3  # the server's default --lease-seconds
+IDLE_PAUSE_SECONDS = 2  # an idle worker's longest pause between Lease calls
 # (algorithm, scene, iterations): a few seconds each on 4 one-thread workers
 SHARED_JOBS = [
     ("vcm", ("bitterli", "cornell-box", "scene_v3.xml"), 300),
@@ -62,22 +73,80 @@ def merged_twice_within_a_hold(log_path):
     return twice
 
 
+TS = re.compile(rb"ts=(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3})Z")
+LEASE = re.compile(rb"event=lease .*?lease=(\S+) .*?job=(\S+) frame=(\d+) first=(\d+) "
+                   rb"end=(\d+)")
+MERGED_LEASE = re.compile(rb"event=merged .*?lease=(\S+)")
+LEASE_LOST = re.compile(rb"event=lease_lost .*?lease=(\S+)")
+
+
+def log_seconds(line):
+    """A log line's time stamp (ts=...Z, UTC) in seconds since the epoch."""
+    m = TS.search(line)
+    return datetime.datetime.strptime(m.group(1).decode(), "%Y-%m-%dT%H:%M:%S.%f").replace(
+        tzinfo=datetime.timezone.utc).timestamp()
+
+
+def lost_lease_gaps(log_paths, killed_at):
+    """How long each lease that was lost stayed lost: for every lease granted and never merged
+    (by any server), from when it was lost (its server killed: `killed_at[log_path]`; or its
+    expiry, event=lease_lost) to the next grant of an overlapping range of its frame by any
+    server. Returns [(lease, lost_at, gap seconds or None when never leased again, how)] and
+    the leases unmerged for another reason (neither killed nor expired)."""
+    grants, merged, lost = [], set(), {}
+    for path in log_paths:
+        for line in read(path, "rb").splitlines():
+            if m := LEASE.search(line):
+                grants.append((log_seconds(line), path, m.group(1), m.group(2), int(m.group(3)),
+                               int(m.group(4)), int(m.group(5))))
+            elif m := MERGED_LEASE.search(line):
+                merged.add(m.group(1))
+            elif m := LEASE_LOST.search(line):
+                lost[m.group(1)] = log_seconds(line)
+    grants.sort()
+    gaps, other = [], []
+    for t, path, lease, job, frame, first, end in grants:
+        if lease in merged:
+            continue
+        if lease in lost:
+            lost_at, how = lost[lease], "expired"
+        elif path in killed_at and killed_at[path] >= t:
+            lost_at, how = killed_at[path], "server killed"
+        else:
+            other.append(lease)
+            continue
+        again = [g[0] for g in grants if g[0] > t and g[3] == job and g[4] == frame
+                 and g[5] < end and first < g[6]]
+        gaps.append((lease, lost_at, (min(again) - lost_at) if again else None, how))
+    return gaps, other
+
+
+def metric(metrics, name, **labels):
+    """One sample of parse_metrics' output by its name and labels (None when absent)."""
+    if labels:
+        name += "{" + ",".join(f'{k}="{v}"' for k, v in sorted(labels.items())) + "}"
+    return metrics.get(name)
+
+
 def jobs_taken(log_path):
     """How many jobs the server of this log took a hold of (event=job_taken)."""
     return len(re.findall(rb"event=job_taken ", read(log_path, "rb")))
 
 
+FORWARDED = re.compile(rb"event=report_forwarded .*?result=(\S+)")
+
+
 class TwoServers(PostgresClusterTestCase):
-    def start_pair(self):
+    def start_pair(self, extra=(), lease_timeout=LEASE_TIMEOUT):
         """Servers A and B on one database and one data folder; returns both clusters (each
         holds one server; workers are started through `a`)."""
-        a = self.new_cluster(lease_timeout=3, heartbeat=0.5)
-        b = self.new_cluster(lease_timeout=3, heartbeat=0.5)
+        a = self.new_cluster(lease_timeout=lease_timeout, heartbeat=0.5)
+        b = self.new_cluster(lease_timeout=lease_timeout, heartbeat=0.5)
         data = a.store  # the shared folder: assets, checkpoints, results
         for c in (a, b):
             c.store = self.pg.url()
             c.server_args = ["--data", data, "--checkpoint-seconds", "1",
-                             "--hold-seconds", str(HOLD_SECONDS)]
+                             "--hold-seconds", str(HOLD_SECONDS), *extra]
             c.start_server()
         return a, b
 
@@ -148,6 +217,8 @@ class TwoServers(PostgresClusterTestCase):
                 done += j.frames[0].iterations_done if j.frames else 0
             return done / total
 
+        killed_at = {}  # a killed server's log: when it was killed
+
         def kill_when(victim, survivor, fraction):
             cluster.wait_until(lambda: (progress(survivor.api) or 0) >= fraction, timeout=180,
                                poll=0.1, what=f"{fraction:.0%} of the iterations merged")
@@ -155,6 +226,7 @@ class TwoServers(PostgresClusterTestCase):
             print(f"SIGKILL server {victim.address} at {at:.0%} of all iterations merged")
             port = victim.port
             victim.kill_server()
+            killed_at[victim.server.log_path] = time.time()
             return port, at
 
         port_a, at_a = kill_when(a, b, 0.15)
@@ -183,6 +255,87 @@ class TwoServers(PostgresClusterTestCase):
         taken = sum(jobs_taken(p.log_path) for p in servers)
         print(f"jobs taken over in all: {taken}")
         self.assertGreaterEqual(taken, len(jobs) + 1, "no job changed hands")
+        # No lease lost for longer than its bound. An expired lease's range is queued at once
+        # and leased by the next worker that asks: within a lease's length (the server's
+        # target, 3 s) plus an idle worker's pause (at most 2 s). A killed server's leases are
+        # lost from the kill: the other server takes the job once the hold ran out and at its
+        # next sync (HOLD_SECONDS and a quarter of it), and leases the range as above; the
+        # lease timeout on top is the margin for a loaded machine.
+        gaps, other = lost_lease_gaps([p.log_path for p in servers], killed_at)
+        asks = TARGET_LEASE_SECONDS + IDLE_PAUSE_SECONDS
+        limits = {"expired": asks + LEASE_TIMEOUT,
+                  "server killed": HOLD_SECONDS * 1.25 + asks + LEASE_TIMEOUT}
+        print(f"leases lost: {len(gaps)} ({sum(g[3] == 'expired' for g in gaps)} expired), "
+              f"longest until leased again: "
+              f"{max((g[2] for g in gaps if g[2] is not None), default=0):.2f} s; "
+              f"unmerged otherwise: {len(other)}")
+        self.assertGreater(len(gaps), 0, "no lease was lost: the kills hit no lease")
+        for lease, lost_at, gap, how in gaps:
+            self.assertIsNotNone(gap, f"lease {lease} ({how}) was never leased again")
+            self.assertLessEqual(gap, limits[how], f"lease {lease} ({how}) stayed lost {gap:.2f} s")
+
+    def test_a_report_to_the_server_that_did_not_grant_its_lease_is_forwarded(self):
+        from test_duplicate_report import ALGO, ITERATIONS, SEED as FAKE_SEED, W, H
+        from test_duplicate_report import FakeWorker, range_sum
+        # A long lease timeout: the fake worker does not heartbeat while `render` computes the
+        # range's sums (a lease that expired is no longer outstanding and is not forwarded).
+        a, b = self.start_pair(extra=["--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0"],
+                               lease_timeout=60)
+        scene = cluster.cornell_box()
+        # Registered with A only: A has a live worker and takes the job, B has none and never
+        # holds it.
+        fake = FakeWorker(a.api)
+        job = a.api.submit(scene, algorithm=ALGO, iterations=ITERATIONS, resolution=(W, H),
+                           seed=FAKE_SEED, name="forwarded")
+        lease = fake.lease()
+        self.assertEqual(lease.job_id, job.id)
+        first, end = lease.first_iteration, lease.end_iteration
+        print(f"leased [{first}, {end}) from A")
+        sum_, odd = range_sum(scene, first, end)
+        # The same worker, failed over to B: B did not grant the lease and forwards it.
+        to_b = FakeWorker.__new__(FakeWorker)
+        to_b.api, to_b.worker_id = b.api, fake.worker_id
+        merged = to_b.report(lease.lease_id, first, end, sum_, odd)
+        self.assertTrue(merged, "a report sent to the server that did not grant its lease was "
+                        "not merged by the holder")
+        # A second copy: the lease is no longer outstanding (A deleted its row when it merged
+        # the first), so B drops it without forwarding.
+        garbage = np.full(W * H * 3, 1000.0)
+        self.assertFalse(to_b.report(lease.lease_id, first, end, garbage, garbage),
+                         "a second copy of a forwarded report was merged")
+        self.assertEqual([m for m in FORWARDED.findall(read(b.server.log_path, "rb"))],
+                         [b"merged"])
+        metrics = cluster.parse_metrics(
+            cluster.http_get(b.http_addresses["metrics"], "/metrics")[2].decode())
+        forwarded = {k: v for k, v in metrics.items()
+                     if k.startswith("render_reports_forwarded_total")}
+        print(f"B's forwarded reports: {forwarded}")
+        self.assertEqual(metric(metrics, "render_reports_forwarded_total", result="merged"), 1)
+        self.assertEqual(metric(metrics, "render_reports_forwarded_total", result="not_merged"),
+                         0)
+        # The shared queue's figures, as B reads them from the store: A holds the job.
+        self.assertEqual(metric(metrics, "render_farm_jobs_held", server=a.address), 1)
+        self.assertEqual(metric(metrics, "render_farm_jobs_unheld"), 0)
+        # The dashboard's view of the farm, from B: A holding the job, B nothing.
+        status, _, body = cluster.http_get(b.http_addresses["http"], "/api/farm")
+        self.assertEqual(status, 200)
+        farm = json.loads(body)
+        print(f"B's /api/farm: {farm}")
+        self.assertTrue(farm["shared"])
+        self.assertEqual(farm["self"], b.address)
+        self.assertEqual({s["address"]: s["jobs_held"] for s in farm["servers"]},
+                         {a.address: 1, b.address: 0})
+        self.assertEqual(farm["jobs_unheld"], 0)
+        merged_at_a = [m for m in MERGED.findall(read(a.server.log_path, "rb"))
+                       if int(m[2]) == first and int(m[3]) == end]
+        self.assertEqual(len(merged_at_a), 1, "the forwarded report was not merged at A once")
+        # A real worker on A renders the rest: the forwarded sums are in the image.
+        a.start_worker(threads=1)
+        b.api.wait_job(job.id, timeout=60, procs=[a.server, b.server])  # as B reads the store
+        self.assertEqual(b.api.get_job(job.id).frames[0].iterations_done, ITERATIONS)
+        ref = cluster.render_reference(scene, ALGO, ITERATIONS, (W, H), FAKE_SEED)
+        print("forwarded:", self.assertImagesMatch(b.api.fetch_to(job.id, b.path("f.exr")), ref))
+        self.assertEqual(merged_twice_within_a_hold(a.server.log_path), [])
 
 
 if __name__ == "__main__":

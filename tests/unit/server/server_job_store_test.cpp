@@ -129,7 +129,14 @@ TEST_P(JobStoreTest, PersistsJobsFramesAndRangesAcrossReopening) {
     EXPECT_EQ(leases[0].lease_id, "L1");
     EXPECT_EQ(leases[0].worker_id, "w");
     EXPECT_EQ(leases[0].range, (Range{5, 6}));
+    const std::optional<LeaseRow> found = store->find_lease("L1");
+    ASSERT_TRUE(found.has_value());
+    EXPECT_EQ(found->job_id, "job-1");
+    EXPECT_EQ(found->frame, leases[0].frame);
+    EXPECT_EQ(found->range, (Range{5, 6}));
+    EXPECT_FALSE(store->find_lease("L2").has_value());
     EXPECT_EQ(store->clear_leases(), 1);
+    EXPECT_FALSE(store->find_lease("L1").has_value());
     EXPECT_EQ(store->clear_leases(), 0);
 }
 
@@ -162,11 +169,11 @@ TEST_P(JobStoreTest, SaveFrameReplacesRangesAndDeleteJobRemovesEverything) {
     store->add_merged_range("j", 0, {1, 3});
     store->add_merged_range("j", 0, {7, 9});
     store->add_merged_range("other", 0, {1, 2});
-    store->save_frame("j", 0, {{1, 5}, {6, 10}}, false, 1.5);
+    store->save_frame("j", 0, {{1, 5}, {6, 10}}, false, 1.5, 0);
     EXPECT_EQ(store->merged_ranges("j", 0), (std::vector<Range>{{1, 5}, {6, 10}}));
     store->set_merged_ranges("j", 0, {{1, 4}});
     EXPECT_EQ(store->merged_ranges("j", 0), (std::vector<Range>{{1, 4}}));
-    store->save_frame("j", 1, {{1, 9}}, true, 3.0);
+    store->save_frame("j", 1, {{1, 9}}, true, 3.0, 0);
     auto frames = store->load_frames("j");
     ASSERT_EQ(frames.size(), 2u);
     EXPECT_FALSE(frames[0].done);
@@ -241,7 +248,7 @@ TEST_P(JobStoreTest, MigratesAStoreMadeBeforeVersions) {
 TEST_P(JobStoreTest, ClaimLeaseRefusesOverlapWithLeasesAndMergedRanges) {
     auto store = open();
     store->insert_job(job_row("j", 1), 2);
-    store->save_frame("j", 0, {{1, 4}}, false, 0);
+    store->save_frame("j", 0, {{1, 4}}, false, 0, 0);
     EXPECT_TRUE(store->claim_lease(lease("A", "j", 0, {4, 8})));
     EXPECT_FALSE(store->claim_lease(lease("B", "j", 0, {7, 9})));   // overlaps A
     EXPECT_FALSE(store->claim_lease(lease("C", "j", 0, {3, 4})));   // overlaps merged [1, 4)
@@ -328,6 +335,31 @@ TEST_P(JobStoreTest, AHoldIsTakenOnceRenewedByItsEpochAndFreedByTimeOrRelease) {
     const std::optional<int64_t> third = a->take_job("j", "A", "a:1", 60000);
     ASSERT_TRUE(third.has_value());
     EXPECT_GT(*third, *second);
+}
+
+// The write fence (docs/design/job-store.md, "The write fence"): a frame's ranges are written
+// with a hold's epoch only while the job is held in that epoch; a holder whose hold was taken
+// (or released) writes nothing, and the new holder's ranges stay.
+TEST_P(JobStoreTest, AFencedSaveFrameWritesOnlyInTheCurrentHold) {
+    auto a = open();
+    auto b = open();
+    a->insert_job(job_row("j", 1), 1);
+    EXPECT_THROW(a->save_frame("j", 0, {{1, 3}}, false, 1, 1), HoldLost);  // never held
+    const std::optional<int64_t> first = a->take_job("j", "A", "a:1", 1);
+    ASSERT_TRUE(first.has_value());
+    a->save_frame("j", 0, {{1, 3}}, false, 1, *first);
+    EXPECT_EQ(b->merged_ranges("j", 0), (std::vector<Range>{{1, 3}}));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // A's hold of 1 ms ran out
+    const std::optional<int64_t> second = b->take_job("j", "B", "b:1", 60000);
+    ASSERT_TRUE(second.has_value());
+    b->save_frame("j", 0, {{1, 5}}, false, 2, *second);
+    EXPECT_THROW(a->save_frame("j", 0, {{1, 9}}, true, 3, *first), HoldLost);
+    EXPECT_EQ(a->merged_ranges("j", 0), (std::vector<Range>{{1, 5}}));
+    EXPECT_FALSE(a->load_frames("j")[0].done);
+    b->release_job("j", "B", *second);
+    EXPECT_THROW(b->save_frame("j", 0, {{1, 9}}, true, 3, *second), HoldLost);  // released
+    a->save_frame("j", 0, {{1, 9}}, true, 3, 0);  // unfenced (one server): written
+    EXPECT_EQ(a->merged_ranges("j", 0), (std::vector<Range>{{1, 9}}));
 }
 
 // Servers taking one job at once through their own connections: exactly one gets it.

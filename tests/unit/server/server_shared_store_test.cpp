@@ -16,7 +16,9 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/sha256.h"
+#include "server/frame_files.h"
 #include "server/job_manager.h"
+#include "server/store/open_job_store.h"
 #include "tests/support/server_test_scene.h"
 #include "tests/support/temp_dir.h"
 #include "tests/unit/server/postgres_instance.h"
@@ -316,4 +318,64 @@ TEST_F(SharedStoreTest, AServerWhoseHoldWasTakenStopsMergingTheJob) {
     ASSERT_EQ(cancelled.cancelled_lease_ids_size(), 1);
     EXPECT_FALSE(render_and_report(a, stale.lease()));
     EXPECT_FALSE(lease(a, wa).granted());  // A no longer leases the job
+}
+
+// The write fence (docs/design/job-store.md, "The write fence"): a holder that lost its hold
+// while a checkpoint was on its way (it renewed, then stalled past its hold) writes only its
+// own epoch's file, which the store refuses to record; the new holder's checkpoint and ranges
+// stay, and a later holder loads the new holder's checkpoint, not the lapsed one's.
+TEST_F(SharedStoreTest, ALapsedHoldersCheckpointNeverReplacesTheNewHolders) {
+    const fs::path data = dir_ / "data";
+    JobManager m(options(data, 1000));  // submits the job; no worker, so it never holds it
+    v1::Job job;
+    ASSERT_TRUE(m.submit(request(m, 16), &job).ok());
+    auto store_a = open_job_store(pg_->url());
+    auto store_b = open_job_store(pg_->url());
+    FrameFiles files_a(data, *store_a, SteadyClock::now, 0);
+    FrameFiles files_b(data, *store_b, SteadyClock::now, 0);
+    // Sums of one value per range, so that whose sums a checkpoint holds is plain.
+    auto add = [](FrameData& frame, Range r, double value) {
+        if (!frame.acc) frame.acc = std::make_unique<FrameAccumulator>(8, 6);
+        const std::vector<double> sum(frame.acc->value_count(), value * double(r.size()));
+        const std::vector<double> odd(frame.acc->value_count(), 0.0);
+        frame.acc->add(r, sum, odd, {}, r.end / 2 - r.first / 2, RenderStats{});
+    };
+    const std::optional<int64_t> ea = store_a->take_job(job.id(), "A", "a:1", 1);
+    ASSERT_TRUE(ea.has_value());
+    FrameData a;
+    a.hold_epoch = *ea;
+    add(a, {1, 3}, 1.0);
+    ASSERT_TRUE(files_a.save_checkpoint(job.id(), 0, a, 1, "test"));
+
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // A's 1-ms hold ran out
+    const std::optional<int64_t> eb = store_b->take_job(job.id(), "B", "b:1", 60000);
+    ASSERT_TRUE(eb.has_value());
+    FrameData b;
+    b.hold_epoch = *eb;
+    FramePlan plan;
+    ASSERT_TRUE(files_b.load_checkpoint(job.id(), 0, 8, 6, 0, b, plan));
+    EXPECT_EQ(plan.merged.ranges(), (std::vector<Range>{{1, 3}}));
+    add(b, {3, 5}, 2.0);
+    ASSERT_TRUE(files_b.save_checkpoint(job.id(), 0, b, 2, "test"));
+    EXPECT_FALSE(fs::exists(files_a.checkpoint_path(job.id(), 0, *ea)));  // superseded
+
+    // A, lapsed, merges the range B merged and writes: its file only, and the store refuses.
+    add(a, {3, 5}, 100.0);
+    EXPECT_FALSE(files_a.save_checkpoint(job.id(), 0, a, 3, "test"));
+    EXPECT_EQ(store_b->merged_ranges(job.id(), 0), (std::vector<Range>{{1, 5}}));
+    EXPECT_TRUE(fs::exists(files_b.checkpoint_path(job.id(), 0, *eb)));
+
+    // The next holder loads B's checkpoint: B's sums, never A's late ones.
+    store_b->release_job(job.id(), "B", *eb);
+    const std::optional<int64_t> ec = store_a->take_job(job.id(), "C", "c:1", 60000);
+    ASSERT_TRUE(ec.has_value());
+    FrameData c;
+    c.hold_epoch = *ec;
+    FramePlan plan_c;
+    ASSERT_TRUE(files_a.load_checkpoint(job.id(), 0, 8, 6, 0, c, plan_c));
+    EXPECT_EQ(plan_c.merged.ranges(), (std::vector<Range>{{1, 5}}));
+    ASSERT_TRUE(c.acc);
+    EXPECT_EQ(c.acc->count(), 4u);
+    // Sum over [1, 5): 2 iterations of 1.0 (A's, before it lapsed) and 2 of 2.0 (B's).
+    EXPECT_DOUBLE_EQ(c.acc->average().data()[0], (2 * 1.0 + 2 * 2.0) / 4);
 }
