@@ -36,13 +36,16 @@ SCENES = [
     "scenes/tests/media-rule/emitter-inside.xml",
     "scenes/tests/media-rule/dielectric-boundary.xml",
     "scenes/tests/media-rule/thindielectric-nested-emitter.xml",
+    # An emitting medium in nested interior-only spheres: what the bidirectional family's
+    # volume-light probe gives under the rule.
+    "scenes/tests/media-rule/emissive-nested.xml",
 ]
 ALGORITHMS = ["volpt", "lt", "bpt", "vcm", "upbp"]
 RESOLUTION = (32, 32)
 ITERATIONS = 16
 SEEDS = 8
 REFERENCE_ITERATIONS = 64
-REFERENCE_SEEDS = 8
+REFERENCE_SEEDS = 16
 REFERENCE_EXTRA = ["--no-equiangular", "--volpt-technique", "dl"]
 QUICK = {"iterations": 4, "seeds": 3, "reference_iterations": 8, "reference_seeds": 3}
 
