@@ -34,6 +34,7 @@ AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
     inv_area_ = area_ > 0 ? 1.0f / area_ : 0.0f;
     // A denormal area would make 1 / area overflow.
     if (!std::isfinite(inv_area_)) area_ = inv_area_ = 0;
+    patches_ = dynamic_cast<const BilinearPatches*>(shape);
 }
 
 bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const {
@@ -98,6 +99,10 @@ LightRadiance AreaLight::radiance(const Vec3& hit_point, const Vec3& hit_normal,
     } else {
         r.radiance =
             textured_ ? radiance_param_.texture->eval(shape_->uv_at(hit_point)) : radiance_;
+        if (patches_) {
+            pdf_area = patches_->pdf_area_at(hit_point);
+            if (!(pdf_area > 0)) return {};  // not on the patches
+        }
     }
     r.pdf_direct_a = pdf_area;
     r.pdf_emission_w = pdf_area * cos_light * kInvPi;

@@ -21,10 +21,14 @@
 // density is found back from a hit (textured_mesh_emission.h): pdf_area above is then that
 // density, in every routine alike. On a sphere or disk they are sampled uniformly by area and
 // uv comes from the shape's uv_at. power() uses the texture's mean.
+//
+// Bilinear patches (core/shapes/bilinear_patch.h) are sampled by their bilinear warp, which is
+// not uniform by area: pdf_area is then the patches' density at the point, sampled or hit.
 
 #include "core/base/shape.h"
 #include "core/lights/light.h"
 #include "core/lights/textured_mesh_emission.h"
+#include "core/shapes/bilinear_patch.h"
 #include "core/textures/texture_param.h"
 
 namespace render {
@@ -72,7 +76,8 @@ class AreaLight final : public Light {
     RgbParam radiance_param_;
     bool textured_ = false;
     std::unique_ptr<TexturedMeshEmission> mesh_emission_;  // textured meshes: the point lookup
-    bool uniform_mesh_ = false;  // ... but sampled uniformly by area all the same
+    bool uniform_mesh_ = false;                 // ... but sampled uniformly by area all the same
+    const BilinearPatches* patches_ = nullptr;  // a shape whose density varies over it
     float area_;
     float inv_area_;  // 0 for a zero-area shape
 };

@@ -179,13 +179,53 @@ std::shared_ptr<const Bsdf> HairBsdf::create(const Properties& props) {
     return std::make_shared<HairBsdf>(params, HairOffset::FromDirection);
 }
 
-std::shared_ptr<const Bsdf> HairBsdf::pbrt_material(const HairParams& params) {
+HairParams HairTextures::at(Vec2 uv, const HairParams& constant) const {
+    HairParams p = constant;
+    if (eta) p.eta = std::max(eta->eval_1(uv), 1e-3f);
+    if (beta_m) p.beta_m = std::clamp(beta_m->eval_1(uv), 0.0f, 1.0f);
+    if (beta_n) p.beta_n = std::clamp(beta_n->eval_1(uv), 0.0f, 1.0f);
+    if (alpha) p.alpha = std::clamp(alpha->eval_1(uv), -90.0f, 90.0f);
+    switch (absorption) {
+        case Absorption::SigmaA:
+            if (sigma_a) p.sigma_a = sigma_a->eval(uv);
+            break;
+        case Absorption::Reflectance:
+            // Depends on beta_n, so recomputed when either varies.
+            if (reflectance || beta_n) {
+                const Rgb c = reflectance ? reflectance->eval(uv) : reflectance_value;
+                p.sigma_a = HairBsdf::sigma_a_from_reflectance(
+                    Rgb(std::clamp(c.r, 1e-4f, 1.0f), std::clamp(c.g, 1e-4f, 1.0f),
+                        std::clamp(c.b, 1e-4f, 1.0f)),
+                    p.beta_n);
+            }
+            break;
+        case Absorption::Melanin:
+            if (eumelanin || pheomelanin)
+                p.sigma_a = HairBsdf::sigma_a_from_concentration(
+                    std::max(0.0f, eumelanin ? eumelanin->eval_1(uv) : eumelanin_value),
+                    std::max(0.0f, pheomelanin ? pheomelanin->eval_1(uv) : pheomelanin_value));
+            break;
+    }
+    p.sigma_a =
+        Rgb(std::max(0.0f, p.sigma_a.r), std::max(0.0f, p.sigma_a.g), std::max(0.0f, p.sigma_a.b));
+    return p;
+}
+
+std::shared_ptr<const Bsdf> HairBsdf::pbrt_material(const HairParams& params,
+                                                    const HairTextures& textures) {
     // h comes from the hit (its v), so the material is resolved at every hit like a textured
-    // one; evaluated without a hit it is the fibre's centre.
-    auto typical = std::make_shared<HairBsdf>(params, 0.0f);
+    // one; evaluated without a hit it is the fibre's centre, with the textures at uv (1/2, 1/2).
+    const HairParams centre = textures.any() ? textures.at(Vec2(0.5f, 0.5f), params) : params;
+    auto typical = std::make_shared<HairBsdf>(centre, 0.0f);
     const std::string description = typical->to_string();
+    if (!textures.any())
+        return std::make_shared<TexturedBsdf>(
+            [params](Vec2 uv) { return make_bsdf_at<HairBsdf>(&uv, params, -1 + 2 * uv.y); },
+            std::move(typical), description);
     return std::make_shared<TexturedBsdf>(
-        [params](Vec2 uv) { return make_bsdf_at<HairBsdf>(&uv, params, -1 + 2 * uv.y); },
+        [params, textures](Vec2 uv) {
+            return make_bsdf_at<HairBsdf>(&uv, textures.at(uv, params), -1 + 2 * uv.y);
+        },
         std::move(typical), description);
 }
 

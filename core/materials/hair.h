@@ -31,8 +31,11 @@
 
 #include <array>
 
+#include <memory>
+
 #include "core/base/properties.h"
 #include "core/materials/bsdf.h"
+#include "core/textures/texture.h"
 
 namespace render {
 
@@ -44,6 +47,25 @@ struct HairParams {
     float beta_m = 0.3f;  // longitudinal roughness, [0, 1]
     float beta_n = 0.3f;  // azimuthal roughness, [0, 1]
     float alpha = 2.0f;   // cuticle scale angle, degrees
+};
+
+// pbrt-v4's hair parameters given as textures, looked up at the hit's uv (null: the constant of
+// HairParams, or the constants below). sigma_a comes from one of three sources, as at load.
+struct HairTextures {
+    enum class Absorption { SigmaA, Reflectance, Melanin };
+    Absorption absorption = Absorption::SigmaA;
+    std::shared_ptr<const Texture> sigma_a, reflectance, eumelanin, pheomelanin;
+    std::shared_ptr<const Texture> eta, beta_m, beta_n, alpha;
+    Rgb reflectance_value;                                // Reflectance without a texture
+    float eumelanin_value = 1.3f, pheomelanin_value = 0;  // Melanin without textures
+
+    bool any() const {
+        return sigma_a || reflectance || eumelanin || pheomelanin || eta || beta_m || beta_n ||
+               alpha;
+    }
+    // The parameters at uv: `constant` with the textured ones replaced, each clamped to its
+    // valid range (sigma_a >= 0, eta > 0, betas in [0, 1], alpha in [-90, 90]).
+    HairParams at(Vec2 uv, const HairParams& constant) const;
 };
 
 class HairBsdf final : public Bsdf {
@@ -60,8 +82,9 @@ class HairBsdf final : public Bsdf {
     // `scale_tilt` (2, degrees). h FromDirection, as Mitsuba.
     static std::shared_ptr<const Bsdf> create(const Properties& props);
     // pbrt-v4's `hair` material: h FromHitV, so the material varies over the surface and the
-    // scene resolves it into a HairBsdf at every hit.
-    static std::shared_ptr<const Bsdf> pbrt_material(const HairParams& params);
+    // scene resolves it into a HairBsdf at every hit, with `textures` looked up there.
+    static std::shared_ptr<const Bsdf> pbrt_material(const HairParams& params,
+                                                     const HairTextures& textures = {});
 
     // pbrt-v4's conversions: sigma_a from melanin concentrations, and from the reflectance after
     // multiple scattering for a given beta_n (Chiang et al. 2016, section 4.2).

@@ -9,6 +9,7 @@
 #include "core/materials/bsdf_factory.h"
 #include "core/materials/hair.h"
 #include "core/materials/ior.h"
+#include "core/math/constants.h"
 #include "core/scene/pbrt/builders.h"
 #include "core/textures/texture_factory.h"
 
@@ -251,21 +252,58 @@ std::shared_ptr<const Bsdf> bump_mapped(std::shared_ptr<const Bsdf> bsdf, const 
     return make_bsdf(props);
 }
 
+// A hair parameter given as "texture NAME": the named texture (float or spectrum), or null.
+std::shared_ptr<const Texture> hair_texture(const ParamList& params, const char* name,
+                                            const TextureTable& textures) {
+    if (params.type_of(name) != "texture") return nullptr;
+    const Param* p = params.find(name);
+    p->used = true;
+    if (p->strings.size() != 1) throw params.error(name, "expects one texture name");
+    for (const auto* table : {&textures.floats, &textures.spectrum})
+        if (auto it = table->find(p->strings[0]); it != table->end()) return it->second;
+    throw params.error(name, "unknown texture \"" + p->strings[0] +
+                                 "\" (a texture must be defined before it is used)");
+}
+
 // pbrt-v4's hair (core/materials/hair.h), its parameters, defaults and h from the hit's v.
-// Neither two-sided nor one-sided: the fibre model scatters over the whole sphere.
-std::shared_ptr<const Bsdf> hair(const ParamList& params) {
-    for (const char* name :
-         {"sigma_a", "reflectance", "eumelanin", "pheomelanin", "eta", "beta_m", "beta_n", "alpha"})
-        if (params.type_of(name) == "texture")
-            throw params.error(name, "textured hair parameters are not supported yet");
+// Neither two-sided nor one-sided: the fibre model scatters over the whole sphere. Every
+// parameter may be a texture, looked up at the hit's uv (HairTextures); a texture whose range
+// leaves the parameter's is refused, as a constant would be.
+std::shared_ptr<const Bsdf> hair(const ParamList& params, const TextureTable& textures) {
+    HairTextures tex;
+    tex.sigma_a = hair_texture(params, "sigma_a", textures);
+    tex.reflectance = hair_texture(params, "reflectance", textures);
+    tex.eumelanin = hair_texture(params, "eumelanin", textures);
+    tex.pheomelanin = hair_texture(params, "pheomelanin", textures);
+    tex.eta = hair_texture(params, "eta", textures);
+    tex.beta_m = hair_texture(params, "beta_m", textures);
+    tex.beta_n = hair_texture(params, "beta_n", textures);
+    tex.alpha = hair_texture(params, "alpha", textures);
+    const auto range = [&](const char* name, const std::shared_ptr<const Texture>& t, float lo,
+                           float hi, const char* what) {
+        if (t && !(t->min_value() >= lo && t->max_value() <= hi))
+            throw params.error(name, std::string("the texture's values must ") + what);
+    };
+    range("eta", tex.eta, 1e-6f, kInfinity, "be positive");
+    range("beta_m", tex.beta_m, 0, 1, "lie in [0, 1]");
+    range("beta_n", tex.beta_n, 0, 1, "lie in [0, 1]");
+    range("alpha", tex.alpha, -90, 90, "lie in [-90, 90] degrees");
+    range("sigma_a", tex.sigma_a, 0, kInfinity, "be non-negative");
+    range("reflectance", tex.reflectance, 1e-6f, 1, "lie in (0, 1]");
+    range("eumelanin", tex.eumelanin, 0, kInfinity, "be non-negative");
+    range("pheomelanin", tex.pheomelanin, 0, kInfinity, "be non-negative");
+    // The constants (get_float of a textured parameter gives the default).
+    const auto constant = [&](const char* name, double def) {
+        return params.type_of(name) == "texture" ? def : params.get_float(name, def);
+    };
     HairParams hair;
-    hair.eta = float(params.get_float("eta", 1.55));
-    hair.beta_m = float(params.get_float("beta_m", 0.3));
-    hair.beta_n = float(params.get_float("beta_n", 0.3));
-    hair.alpha = float(params.get_float("alpha", 2));
+    hair.eta = float(constant("eta", 1.55));
+    hair.beta_m = float(constant("beta_m", 0.3));
+    hair.beta_n = float(constant("beta_n", 0.3));
+    hair.alpha = float(constant("alpha", 2));
     if (!(hair.eta > 0)) throw params.error("eta", "must be positive");
     for (const char* name : {"beta_m", "beta_n"})
-        if (!(params.get_float(name, 0.3) >= 0 && params.get_float(name, 0.3) <= 1))
+        if (!(constant(name, 0.3) >= 0 && constant(name, 0.3) <= 1))
             throw params.error(name, "must lie in [0, 1]");
     if (!(std::abs(hair.alpha) <= 90)) throw params.error("alpha", "must lie in [-90, 90] degrees");
     const bool melanin = params.has("eumelanin") || params.has("pheomelanin");
@@ -273,23 +311,31 @@ std::shared_ptr<const Bsdf> hair(const ParamList& params) {
         throw params.error(params.has("sigma_a") ? "sigma_a" : "reflectance",
                            "give one of sigma_a, reflectance or eumelanin/pheomelanin");
     if (params.has("sigma_a")) {
-        hair.sigma_a = *get_rgb(params, "sigma_a");
-        if (!(std::min({hair.sigma_a.r, hair.sigma_a.g, hair.sigma_a.b}) >= 0))
-            throw params.error("sigma_a", "must be non-negative");
+        tex.absorption = HairTextures::Absorption::SigmaA;
+        if (!tex.sigma_a) {
+            hair.sigma_a = *get_rgb(params, "sigma_a");
+            if (!(std::min({hair.sigma_a.r, hair.sigma_a.g, hair.sigma_a.b}) >= 0))
+                throw params.error("sigma_a", "must be non-negative");
+        }
     } else if (params.has("reflectance")) {
-        const Rgb c = *get_rgb(params, "reflectance");
+        tex.absorption = HairTextures::Absorption::Reflectance;
+        const Rgb c = tex.reflectance ? tex.reflectance->mean() : *get_rgb(params, "reflectance");
         if (!(std::min({c.r, c.g, c.b}) > 0 && std::max({c.r, c.g, c.b}) <= 1))
             throw params.error("reflectance", "must lie in (0, 1]");
+        tex.reflectance_value = c;
         hair.sigma_a = HairBsdf::sigma_a_from_reflectance(c, hair.beta_n);
     } else {
+        tex.absorption = HairTextures::Absorption::Melanin;
         // pbrt-v4: either concentration alone leaves the other at 0; neither is eumelanin 1.3.
-        const double eu = params.get_float("eumelanin", melanin ? 0.0 : 1.3),
-                     pheo = params.get_float("pheomelanin", 0.0);
+        const double eu = constant("eumelanin", melanin ? 0.0 : 1.3),
+                     pheo = constant("pheomelanin", 0.0);
         if (!(eu >= 0 && pheo >= 0))
             throw params.error(eu >= 0 ? "pheomelanin" : "eumelanin", "must be non-negative");
+        tex.eumelanin_value = float(eu);
+        tex.pheomelanin_value = float(pheo);
         hair.sigma_a = HairBsdf::sigma_a_from_concentration(float(eu), float(pheo));
     }
-    return HairBsdf::pbrt_material(hair);
+    return HairBsdf::pbrt_material(hair, tex);
 }
 
 }  // namespace
@@ -365,7 +411,7 @@ std::shared_ptr<const Bsdf> make_material(
             }
         }
     } else if (type == "hair") {
-        bsdf = hair(params);
+        bsdf = hair(params, textures);
     } else if (type == "coatedconductor" || type == "measured" || type == "subsurface") {
         throw SceneError(at, params.context() + ": material \"" + type + "\" is not supported yet");
     } else {

@@ -1,4 +1,5 @@
-// pbrt-v4 shapes: trianglemesh, plymesh and bilinearmesh as our TriangleMesh; sphere and disk
+// pbrt-v4 shapes: trianglemesh, plymesh and planar bilinearmesh as our TriangleMesh, non-planar
+// bilinearmesh as BilinearPatches; sphere and disk
 // through the Mitsuba loader's shape factory; curve as Curves (core/shapes/curve.h).
 // docs/reference/scene-format.md, "pbrt-v4 scenes".
 
@@ -10,6 +11,7 @@
 #include "core/mesh_io/ply_reader.h"
 #include "core/scene/loader/shape_factory.h"
 #include "core/scene/pbrt/builders.h"
+#include "core/shapes/bilinear_patch.h"
 #include "core/shapes/curve.h"
 #include "core/shapes/curve_input.h"
 #include "core/shapes/triangle_mesh.h"
@@ -75,7 +77,9 @@ void check_inline_mesh(const ParamList& params, uint64_t vertices, uint64_t tria
     }
 }
 
-MeshData inline_mesh(const ParamList& params, size_t corners) {
+// A trianglemesh (corners 3) or bilinearmesh (corners 4). Non-planar bilinear patches are left
+// in `patches` (4 indices each) with mesh.indices empty.
+MeshData inline_mesh(const ParamList& params, size_t corners, std::vector<uint32_t>* patches) {
     MeshData mesh;
     mesh.positions = vec3s(params.get_numbers("P", {"point3", "point"}, 3));
     if (mesh.positions.empty()) throw params.error("P", "the vertex positions are required");
@@ -107,22 +111,54 @@ MeshData inline_mesh(const ParamList& params, size_t corners) {
         params.get_ints("faceIndices");  // per-face ids for Ptex: no effect here
         return mesh;
     }
-    // Bilinear patches (p00, p10, p01, p11) as two triangles; only planar patches, which the
-    // triangles reproduce exactly.
-    for (size_t q = 0; q < indices.size(); q += 4) {
-        const uint32_t v[4] = {uint32_t(indices[q]), uint32_t(indices[q + 1]),
-                               uint32_t(indices[q + 2]), uint32_t(indices[q + 3])};
-        const Vec3 &p00 = mesh.positions[v[0]], &p10 = mesh.positions[v[1]],
-                   &p01 = mesh.positions[v[2]], &p11 = mesh.positions[v[3]];
+    // Bilinear patches (p00, p10, p01, p11): when every one is planar, two triangles each,
+    // which reproduce them exactly; otherwise the patches themselves (`patches`).
+    bool planar = true;
+    for (size_t q = 0; q < indices.size() && planar; q += 4) {
+        const Vec3 &p00 = mesh.positions[size_t(indices[q])],
+                   &p10 = mesh.positions[size_t(indices[q + 1])],
+                   &p01 = mesh.positions[size_t(indices[q + 2])],
+                   &p11 = mesh.positions[size_t(indices[q + 3])];
         const Vec3 n = cross(p10 - p00, p01 - p00);
         const float size = std::max(length(p10 - p00), length(p01 - p00));
         const float len = length(n);
-        if (len > 0 && std::abs(dot(n / len, p11 - p00)) > 1e-4f * size)
-            throw params.error("P", "bilinear patch " + std::to_string(q / 4) +
-                                        " is not planar (only planar patches are supported)");
+        planar = !(len > 0 && std::abs(dot(n / len, p11 - p00)) > 1e-4f * size);
+    }
+    if (!planar) {
+        for (long long i : indices) patches->push_back(uint32_t(i));
+        return mesh;
+    }
+    for (size_t q = 0; q < indices.size(); q += 4) {
+        const uint32_t v[4] = {uint32_t(indices[q]), uint32_t(indices[q + 1]),
+                               uint32_t(indices[q + 2]), uint32_t(indices[q + 3])};
         for (uint32_t i : {v[0], v[1], v[3], v[0], v[3], v[2]}) mesh.indices.push_back(i);
     }
     return mesh;
+}
+
+// Non-planar bilinear patches (core/shapes/bilinear_patch.h), in world space. The normal
+// flips with ReverseOrientation and with a mirroring transform, as pbrt-v4's (and our triangles:
+// the vertex normals, transformed as normals, only with ReverseOrientation).
+std::unique_ptr<Shape> patch_shape(MeshData mesh, std::vector<uint32_t> patches,
+                                   const ParamList& params, const Transform& to_world,
+                                   bool reverse_orientation) {
+    if (to_world.is_singular()) throw params.error("P", "the transform is singular");
+    for (Vec3& p : mesh.positions) p = to_world.apply_point(p);
+    for (Vec3& n : mesh.normals) {
+        const Vec3 w = to_world.apply_normal(n);
+        const float len = length(w);
+        n = len > 0 && std::isfinite(len) ? w / len : Vec3(0.0f);
+        if (reverse_orientation) n = -n;  // as TriangleMesh's flip_normals
+    }
+    flip_v(mesh);
+    const bool flip = reverse_orientation != (to_world.determinant3x3() < 0);
+    try {
+        return std::make_unique<BilinearPatches>(
+            std::move(mesh.positions), std::move(patches), std::move(mesh.normals),
+            std::move(mesh.uvs), flip, params.context() + " (" + params.where.to_string() + ")");
+    } catch (const SceneError& e) {
+        rethrow_scene_error(e, SceneError(params.where, e.what()));
+    }
 }
 
 // pbrt-v4's curve (docs/reference/scene-format.md, "Curves"): points to world space, widths
@@ -192,8 +228,12 @@ std::unique_ptr<Shape> make_shape(
     std::unique_ptr<Shape> shape;
     if (type == "trianglemesh" || type == "bilinearmesh") {
         if (params.has("S")) throw params.error("S", "per-vertex tangents are not supported");
-        shape = finish_mesh(inline_mesh(params, type == "trianglemesh" ? 3 : 4), params, to_world,
-                            reverse_orientation);
+        std::vector<uint32_t> patches;
+        MeshData mesh = inline_mesh(params, type == "trianglemesh" ? 3 : 4, &patches);
+        shape = patches.empty()
+                    ? finish_mesh(std::move(mesh), params, to_world, reverse_orientation)
+                    : patch_shape(std::move(mesh), std::move(patches), params, to_world,
+                                  reverse_orientation);
     } else if (type == "plymesh") {
         const std::string name = params.get_string("filename", "");
         if (name.empty()) throw params.error("filename", "a file name is required");

@@ -85,13 +85,53 @@ TEST(HairAndCurvesScene, PbrtHairMaterial) {
     defaults.sigma_a = HairBsdf::sigma_a_from_concentration(1.3f, 0);
     EXPECT_EQ(scene->shapes()[1]->bsdf->at(Vec2(0, 0.5f))->to_string(),
               HairBsdf(defaults, 0).to_string());
-    EXPECT_THROW(pbrt_scene("Texture \"t\" \"float\" \"constant\" \"float value\" [1]\n"
-                            "Material \"hair\" \"texture eumelanin\" \"t\"\n"
+    // A texture outside its parameter's range is refused as a constant would be.
+    EXPECT_THROW(pbrt_scene("Texture \"t\" \"float\" \"checkerboard\" \"float tex1\" [0.5] "
+                            "\"float tex2\" [2]\n"
+                            "Material \"hair\" \"texture beta_m\" \"t\"\n"
                             "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 1 0 3 0 0]"),
                  SceneError);
     EXPECT_THROW(pbrt_scene("Material \"hair\" \"rgb sigma_a\" [1 1 1] \"rgb reflectance\" [0.5 "
                             "0.5 0.5]\nShape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 1 0 3 0 0]"),
                  SceneError);
+}
+
+// Textured hair parameters (pbrt-v4's): looked up at the hit's uv, each texel giving the
+// parameters a constant of its value would. A checkerboard of eumelanin 0.5 and 2 (2 x 2 cells
+// over uv) and one of beta_n 0.2 and 0.6 under a textured reflectance's constant.
+TEST(HairAndCurvesScene, PbrtHairTexturedParameters) {
+    auto scene = pbrt_scene(
+        "Texture \"mel\" \"float\" \"checkerboard\" \"float tex1\" [0.5] \"float tex2\" [2] "
+        "\"float uscale\" [2] \"float vscale\" [2]\n"
+        "Texture \"bn\" \"float\" \"checkerboard\" \"float tex1\" [0.2] \"float tex2\" [0.6] "
+        "\"float uscale\" [2] \"float vscale\" [2]\n"
+        "Material \"hair\" \"texture eumelanin\" \"mel\" \"float pheomelanin\" [0.3]\n"
+        "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 1 0 3 0 0]\n"
+        "Material \"hair\" \"rgb reflectance\" [0.4 0.3 0.2] \"texture beta_n\" \"bn\"\n"
+        "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 1 0 3 0 0]\n");
+    ASSERT_EQ(scene->shapes().size(), 2u);
+    // Two uvs in neighbouring cells of the checkerboards (u differs by a cell).
+    const Vec2 a(0.1f, 0.9f), b(0.6f, 0.9f);
+    const auto hair_at = [&](size_t shape, Vec2 uv) {
+        return scene->shapes()[shape]->bsdf->at(uv)->to_string();
+    };
+    const auto melanin = [&](float eu, Vec2 uv) {
+        HairParams p;
+        p.sigma_a = HairBsdf::sigma_a_from_concentration(eu, 0.3f);
+        return HairBsdf(p, -1 + 2 * uv.y).to_string();
+    };
+    const bool a_first = hair_at(0, a) == melanin(0.5f, a);
+    EXPECT_EQ(hair_at(0, a), a_first ? melanin(0.5f, a) : melanin(2, a));
+    EXPECT_EQ(hair_at(0, b), a_first ? melanin(2, b) : melanin(0.5f, b));
+    const auto reflectance = [&](float beta_n, Vec2 uv) {
+        HairParams p;
+        p.beta_n = beta_n;
+        p.sigma_a = HairBsdf::sigma_a_from_reflectance(Rgb(0.4f, 0.3f, 0.2f), beta_n);
+        return HairBsdf(p, -1 + 2 * uv.y).to_string();
+    };
+    EXPECT_EQ(hair_at(1, a), a_first ? reflectance(0.2f, a) : reflectance(0.6f, a));
+    EXPECT_EQ(hair_at(1, b), a_first ? reflectance(0.6f, b) : reflectance(0.2f, b));
+    EXPECT_NE(hair_at(1, a), hair_at(1, b));
 }
 
 // Curves are not area lights in either format (they have no area sampling).
