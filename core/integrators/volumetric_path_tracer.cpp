@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "core/integrators/direct_light.h"
 #include "core/integrators/medium_segment.h"
@@ -24,6 +25,14 @@ struct MediumSegment {
     const Medium* medium = nullptr;
 };
 
+// U3 of a joint segment toward one light point, as J3 built it there: the densities of the
+// segment's other vertices toward the same point (every vertex, with a point light) evaluate it
+// instead of building it again.
+struct JointEyeDensity {
+    std::optional<JointEyeDistanceSampler> sampler;
+    Vec3 light_point;
+};
+
 // The first medium vertex c of a pair (c, b) that joint sampling could have produced: its
 // segment, distance on it and the densities with which distance and phase sampling produced c
 // and the direction c -> b.
@@ -34,6 +43,13 @@ struct JointOrigin {
     float t = 0;
     float distance_pdf_l = 0;
     float direction_pdf_w = 0;
+    const JointEyeDensity* eye = nullptr;  // U3 on `segment`, when J3 built it
+    // u3 u2 / shared of joint_pdf_ratio for `cached_light`: it depends on c, the direction
+    // c -> b and the light point only, so the techniques on the segment from c (EL, DL, and
+    // emission found there) share it.
+    mutable bool cached = false;
+    mutable Vec3 cached_light;
+    mutable double cached_ratio = 0;
 };
 
 // The last real scattering vertex of the path, for weighting emission that the next segment
@@ -86,28 +102,47 @@ class Tracer {
             .pdf_l(t);
     }
 
-    // The same for the EL technique (zero when it is switched off).
-    float equiangular_pdf_l(const MediumSegment& segment, const Light* light,
-                            const Vec3& light_point, float t) const {
-        return equiangular_ ? segment_equiangular_pdf_l(segment, light, light_point, t) : 0.0f;
-    }
-
     // Density of joint sampling (J3) producing the path ... c -> b -> light point, b at
     // distance t_cb on `segment_cb`, divided by the densities p_d(t_dc) p_phase(w_cb) that DL,
     // DP and EL share for c and w_cb, so that it compares with their remaining factors (per unit
-    // length x solid angle at b). `light_pdf_w` is light sampling's density at b. Zero when b
-    // has no joint origin c or for infinite lights.
-    static double joint_pdf_ratio(const JointOrigin& c, const MediumSegment& segment_cb, float t_cb,
-                                  const Light* light, const Vec3& light_point, float light_pdf_w) {
+    // length x solid angle at b). `light_pdf_w` is light sampling's density at b; `u1` the
+    // equi-angular density of t_cb on `segment_cb` toward the light point
+    // (segment_equiangular_pdf_l, which the caller has for EL's own weight). Zero when b has no
+    // joint origin c or for infinite lights.
+    static double joint_pdf_ratio(const JointOrigin& c, const MediumSegment& segment_cb,
+                                  const Light* light, const Vec3& light_point, float light_pdf_w,
+                                  float u1) {
         if (!c.valid || !light->is_finite()) return 0.0;
+        if (!c.cached || !(c.cached_light == light_point)) {
+            c.cached = true;
+            c.cached_light = light_point;
+            c.cached_ratio = joint_origin_ratio(c, segment_cb, light_point);
+        }
+        return c.cached_ratio * u1 * light_pdf_w;
+    }
+
+    // u3 u2 / shared of joint_pdf_ratio.
+    static double joint_origin_ratio(const JointOrigin& c, const MediumSegment& segment_cb,
+                                     const Vec3& light_point) {
         const double shared = double(c.distance_pdf_l) * c.direction_pdf_w;
         if (!(shared > 0)) return 0.0;
-        const double u3 = JointEyeDistanceSampler(c.segment.ray.origin, c.segment.ray.direction,
-                                                  light_point, 0.0f, c.segment.t_end)
-                              .pdf_l(c.t);
-        const double u2 = JointDirectionSampler(c.p, light_point).pdf_w(segment_cb.ray.direction);
-        const double u1 = segment_equiangular_pdf_l(segment_cb, light, light_point, t_cb);
-        return u3 * u2 / shared * u1 * light_pdf_w;
+        const bool built = c.eye && c.eye->sampler && c.eye->light_point == light_point;
+        const double u3 =
+            built ? c.eye->sampler->pdf_l(c.t)
+                  : JointEyeDistanceSampler(c.segment.ray.origin, c.segment.ray.direction,
+                                            light_point, 0.0f, c.segment.t_end)
+                        .pdf_l(c.t);
+        const double u2 = JointDirectionSampler::pdf_w(c.p, light_point, segment_cb.ray.direction);
+        return u3 * u2 / shared;
+    }
+
+    // The equi-angular density of t on `segment` toward `light_point` when EL or J3 needs it.
+    static float el_or_joint_pdf_l(bool equiangular, const JointOrigin& joint,
+                                   const MediumSegment& segment, const Light* light,
+                                   const Vec3& light_point, float t) {
+        return equiangular || joint.valid
+                   ? segment_equiangular_pdf_l(segment, light, light_point, t)
+                   : 0.0f;
     }
 
     // Transmittance from `p` along the light sample's direction to the light.
@@ -130,12 +165,14 @@ class Tracer {
         if (!(phase > 0)) return Rgb(0.0f);
         const float light_pdf_w = dl.pdf_w();
         const Vec3 light_point = v.p + ls.wi * ls.distance;
-        const float equiangular = equiangular_pdf_l(v.segment, dl.light, light_point, v.t);
+        const float u1 =
+            el_or_joint_pdf_l(equiangular_, v.joint, v.segment, dl.light, light_point, v.t);
+        const float equiangular = equiangular_ ? u1 : 0.0f;
         const float w =
             weight(double(v.distance_pdf_l) * light_pdf_w,
                    dl.light->is_delta() ? 0.0 : double(v.distance_pdf_l) * phase,
                    double(equiangular) * light_pdf_w,
-                   joint_pdf_ratio(v.joint, v.segment, v.t, dl.light, light_point, light_pdf_w));
+                   joint_pdf_ratio(v.joint, v.segment, dl.light, light_point, light_pdf_w, u1));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr = light_visibility(v.p, Vec3(0.0f), dl, v.segment.medium);
         return ls.radiance * tr * (phase * w / light_pdf_w);
@@ -166,9 +203,10 @@ class Tracer {
         if (!(phase > 0) || sigma_s.is_black()) return Rgb(0.0f);
         const float light_pdf_w = pick_probability * ls.pdf_direct_w;
         const float distance = medium.pdf_scatter_l(segment.ray, t);
-        const float w = weight(double(equiangular) * light_pdf_w, double(distance) * light_pdf_w,
-                               light->is_delta() ? 0.0 : double(distance) * phase,
-                               joint_pdf_ratio(joint, segment, t, light, light_point, light_pdf_w));
+        const float w =
+            weight(double(equiangular) * light_pdf_w, double(distance) * light_pdf_w,
+                   light->is_delta() ? 0.0 : double(distance) * phase,
+                   joint_pdf_ratio(joint, segment, light, light_point, light_pdf_w, equiangular));
         if (!(w > 0)) return Rgb(0.0f);
         const Rgb tr_to_q = medium.transmittance(segment.ray, t, rng_);
         if (tr_to_q.is_black()) return Rgb(0.0f);
@@ -185,7 +223,8 @@ class Tracer {
     // G(c, b) G(b, a) (up to the truncation of U1 and the log-growing constant of U3), which
     // distance sampling leaves in the estimate near small lights. The segment must be in a
     // homogeneous medium with a finite end.
-    Rgb joint_double_scattering(const MediumSegment& segment) {
+    // `eye` keeps U3 toward the light point for the densities of the segment's other vertices.
+    Rgb joint_double_scattering(const MediumSegment& segment, JointEyeDensity& eye_density) {
         float pick_probability = 0;
         const Light* light = scene_.sample_light(rng_.next_1d(), &pick_probability);
         const Vec2 u_light = rng_.next_2d();
@@ -198,14 +237,14 @@ class Tracer {
             return Rgb(0.0f);
         const Medium& medium = *segment.medium;
 
-        const JointEyeDistanceSampler eye(segment.ray.origin, segment.ray.direction, a, 0.0f,
-                                          segment.t_end);
+        eye_density.light_point = a;
+        const JointEyeDistanceSampler& eye = eye_density.sampler.emplace(
+            segment.ray.origin, segment.ray.direction, a, 0.0f, segment.t_end);
         const float t_dc = eye.sample(u_dc);
         const double pdf_dc = eye.pdf_l(t_dc);
         const Vec3 c = segment.ray.at(t_dc);
-        const JointDirectionSampler direction(c, a);
-        const Vec3 w_cb = direction.sample(u_direction);
-        const double pdf_w_cb = direction.pdf_w(w_cb);
+        float pdf_w_cb = 0;
+        const Vec3 w_cb = JointDirectionSampler(c, a).sample(u_direction, pdf_w_cb);
         const float phase_c = medium.phase().p(-segment.ray.direction, w_cb);
         if (!(pdf_dc > 0) || !(pdf_w_cb > 0) || !(phase_c > 0)) return Rgb(0.0f);
 
@@ -226,11 +265,16 @@ class Tracer {
         const Rgb sigma_s = medium.sigma_s(c) * medium.sigma_s(b);
         if (!(phase_b > 0) || sigma_s.is_black()) return Rgb(0.0f);
 
-        // MIS against DL, DP and EL at b, all in the measure dt_dc dw_cb dt_cb dw_ba.
+        // MIS against DL, DP and EL at b, all in the measure dt_dc dw_cb dt_cb dw_ba. The medium
+        // is homogeneous: distance sampling's density (spectral MIS) is (sigma_t T(t)).average()
+        // (homogeneous_medium.cpp), from the transmittances the estimate needs anyway.
+        const Rgb tr_dc = medium.transmittance(segment.ray, t_dc, rng_);
+        const Rgb tr_cb = medium.transmittance(ray_cb, t_cb, rng_);
+        const Rgb sigma_t = medium.sigma_t(c);
         const double light_pdf_w = double(pick_probability) * ls.pdf_direct_w;
         const double joint = pdf_dc * pdf_w_cb * pdf_cb * light_pdf_w;
-        const double shared = double(medium.pdf_scatter_l(segment.ray, t_dc)) * phase_c;
-        const double distance_cb = shared * medium.pdf_scatter_l(ray_cb, t_cb);
+        const double shared = double((sigma_t * tr_dc).average()) * phase_c;
+        const double distance_cb = shared * (sigma_t * tr_cb).average();
         const float w = technique_ == VolptTechnique::Joint
                             ? 1.0f
                             : power_heuristic4(joint, distance_cb * light_pdf_w,
@@ -238,8 +282,7 @@ class Tracer {
                                                equiangular_ ? shared * pdf_cb * light_pdf_w : 0.0);
         if (!(w > 0) || !(joint > 0) || !std::isfinite(joint)) return Rgb(0.0f);
 
-        const Rgb tr = medium.transmittance(segment.ray, t_dc, rng_) *
-                       medium.transmittance(ray_cb, t_cb, rng_);
+        const Rgb tr = tr_dc * tr_cb;
         if (tr.is_black()) return Rgb(0.0f);
         const Rgb tr_to_light = light_visibility(
             b, Vec3(0.0f), DirectLightSample{light, pick_probability, ls}, segment.medium);
@@ -278,11 +321,13 @@ class Tracer {
             light_pdf_w *= length_squared(light_point - v.p) / cos_light;
         }
         if (!v.in_medium) return power_heuristic(v.direction_pdf_w, light_pdf_w);
-        const float equiangular =
-            solid_angle ? 0.0f : equiangular_pdf_l(v.segment, light, light_point, v.t);
+        const float u1 = solid_angle ? 0.0f
+                                     : el_or_joint_pdf_l(equiangular_, v.joint, v.segment, light,
+                                                         light_point, v.t);
+        const float equiangular = equiangular_ ? u1 : 0.0f;
         const double joint =
             solid_angle ? 0.0
-                        : joint_pdf_ratio(v.joint, v.segment, v.t, light, light_point, light_pdf_w);
+                        : joint_pdf_ratio(v.joint, v.segment, light, light_point, light_pdf_w, u1);
         return weight(double(v.distance_pdf_l) * v.direction_pdf_w,
                       double(v.distance_pdf_l) * light_pdf_w, double(equiangular) * light_pdf_w,
                       joint);
@@ -324,6 +369,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
     const bool has_lights = !scene.lights().empty();
     const bool can_extend_any = max_depth_ < 0;
     int null_crossings = 0;
+    JointEyeDensity joint_eye;  // U3 on the camera segment (joint_double_scattering)
 
     // depth = segments of the path including `ray`
     for (int depth = 1;;) {
@@ -339,8 +385,13 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
             // medium vertex c on a joint segment without crossing a boundary.
             JointOrigin joint_origin;
             if (prev.in_medium && prev.joint_segment && null_crossings == 0)
-                joint_origin = JointOrigin{
-                    true, prev.p, prev.segment, prev.t, prev.distance_pdf_l, prev.direction_pdf_w};
+                joint_origin = JointOrigin{true,
+                                           prev.p,
+                                           prev.segment,
+                                           prev.t,
+                                           prev.distance_pdf_l,
+                                           prev.direction_pdf_w,
+                                           &joint_eye};
             if (equiangular_ && has_lights && can_extend && std::isfinite(t_end)) {
                 const Rgb c = beta * tracer.equiangular_inscattering(segment, joint_origin);
                 L += c;
@@ -352,7 +403,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
                                        medium->is_homogeneous() && std::isfinite(t_end) &&
                                        (can_extend_any || depth + 1 < max_depth_);
             if (joint_segment) {
-                const Rgb c = beta * tracer.joint_double_scattering(segment);
+                const Rgb c = beta * tracer.joint_double_scattering(segment, joint_eye);
                 L += c;
                 sink.add(Technique::Connection, 1, depth + 2, c);
             }

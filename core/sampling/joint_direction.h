@@ -28,6 +28,50 @@ class JointDirectionSampler {
 
     // The vertex c and the light point a.
     JointDirectionSampler(const Vec3& c, const Vec3& light) {
+        unit_axis(c, light, axis64_);
+        axis_ = Vec3(float(axis64_[0]), float(axis64_[1]), float(axis64_[2]));
+        frame_ = Frame::from_normal(axis_);
+    }
+
+    Vec3 sample(Vec2 u) const {
+        float pdf;
+        return sample(u, pdf);
+    }
+
+    // The same direction and its density per steradian from the angle drawn, which saves
+    // evaluating pdf_w() (the angle back from the direction) for it; the two differ by what the
+    // float direction resolves of its angle (joint_sampling_test).
+    Vec3 sample(Vec2 u, float& pdf) const {
+        const double root = std::sqrt(1.0 - double(u.x));
+        const double theta = kPi64 * u.x / (1.0 + root);
+        const double phi = 2.0 * kPi64 * u.y;
+        const double sin_theta = std::sin(theta);
+        // (pi - theta) / sin(theta) with pi - theta = pi root exactly, clamped as pdf_w() is.
+        const double ratio = theta >= kMinAngle ? kPi64 * root / sin_theta
+                                                : (kPi64 - kMinAngle) / std::sin(kMinAngle);
+        pdf = float(ratio / (kPi64 * kPi64 * kPi64));
+        const Vec3 local(float(sin_theta * std::cos(phi)), float(sin_theta * std::sin(phi)),
+                         float(std::cos(theta)));
+        return normalize(frame_.to_world(local));
+    }
+
+    // Density per steradian of direction w (unit).
+    float pdf_w(const Vec3& w) const { return pdf_about_axis(axis64_, w); }
+
+    // The same for the vertex c and the light point without building the sampler (its frame
+    // serves sample() only): the density MIS evaluates for paths other techniques made.
+    static float pdf_w(const Vec3& c, const Vec3& light, const Vec3& w) {
+        double axis[3];
+        unit_axis(c, light, axis);
+        return pdf_about_axis(axis, w);
+    }
+
+    const Vec3& axis() const { return axis_; }
+
+  private:
+    static constexpr double kPi64 = 3.14159265358979323846;
+
+    static void unit_axis(const Vec3& c, const Vec3& light, double* axis) {
         // In double: the density near the axis depends on the angle to it, which float
         // differences would resolve only to ~1e-7 / theta relative.
         double d[3], length2 = 0;
@@ -37,23 +81,10 @@ class JointDirectionSampler {
         }
         const double length = std::sqrt(length2);
         const bool defined = length > 0 && std::isfinite(length);
-        for (int k = 0; k < 3; ++k) axis64_[k] = defined ? d[k] / length : (k == 2 ? 1.0 : 0.0);
-        axis_ = Vec3(float(axis64_[0]), float(axis64_[1]), float(axis64_[2]));
-        frame_ = Frame::from_normal(axis_);
+        for (int k = 0; k < 3; ++k) axis[k] = defined ? d[k] / length : (k == 2 ? 1.0 : 0.0);
     }
 
-    Vec3 sample(Vec2 u) const {
-        const double theta = kPi64 * u.x / (1.0 + std::sqrt(1.0 - double(u.x)));
-        const double phi = 2.0 * kPi64 * u.y;
-        const double sin_theta = std::sin(theta);
-        const Vec3 local(float(sin_theta * std::cos(phi)), float(sin_theta * std::sin(phi)),
-                         float(std::cos(theta)));
-        return normalize(frame_.to_world(local));
-    }
-
-    // Density per steradian of direction w (unit).
-    float pdf_w(const Vec3& w) const {
-        const double* a = axis64_;
+    static float pdf_about_axis(const double* a, const Vec3& w) {
         const double wx = w.x, wy = w.y, wz = w.z;
         const double c = a[0] * wx + a[1] * wy + a[2] * wz;
         const double cx = a[1] * wz - a[2] * wy, cy = a[2] * wx - a[0] * wz,
@@ -70,10 +101,6 @@ class JointDirectionSampler {
         return float(ratio / (kPi64 * kPi64 * kPi64));
     }
 
-    const Vec3& axis() const { return axis_; }
-
-  private:
-    static constexpr double kPi64 = 3.14159265358979323846;
     double axis64_[3];
     Vec3 axis_;
     Frame frame_;

@@ -48,7 +48,7 @@ class JointEyeDistanceSampler {
         x0_ = t0 - delta_;
         r0_ = std::hypot(distance_, x0_);
         const double x1 = t1 - delta_;
-        log_range_ = std::log(plus_root(x1) / plus_root(x0_));
+        log_range_ = std::log(plus_root(x1, std::hypot(distance_, x1)) / plus_root(x0_, r0_));
         uniform_ = !(log_range_ > 0 && std::isfinite(log_range_));
     }
 
@@ -58,7 +58,7 @@ class JointEyeDistanceSampler {
         // second term is negative for x0 < 0, where r0 + x0 = D^2 / (r0 - x0) is small; so
         // write it as (r0 + x0) sinh(s) - x0 (1 - e^-s) (each term >= 0 when x0 <= 0).
         const double s = u * log_range_;
-        const double dt = x0_ <= 0 ? plus_root(x0_) * std::sinh(s) - x0_ * -std::expm1(-s)
+        const double dt = x0_ <= 0 ? plus_root(x0_, r0_) * std::sinh(s) - x0_ * -std::expm1(-s)
                                    : r0_ * std::sinh(s) + x0_ * (std::cosh(s) - 1.0);
         return std::clamp(float(t0_ + dt), t0_, t1_);
     }
@@ -74,9 +74,8 @@ class JointEyeDistanceSampler {
     double log_range() const { return uniform_ ? 0.0 : log_range_; }
 
   private:
-    // x + sqrt(D^2 + x^2) without cancellation.
-    double plus_root(double x) const {
-        const double r = std::hypot(distance_, x);
+    // x + r, r = sqrt(D^2 + x^2) given, without cancellation.
+    double plus_root(double x, double r) const {
         return x >= 0 ? x + r : distance_ * distance_ / (r - x);
     }
 

@@ -6,14 +6,20 @@ radius r_i alone (docs/reference/algorithms.md, "Merging radius"), not on the re
 light-path count: so the bias of the image mean after n iterations can be measured on a small
 image (the image mean does not depend on the resolution). For each merging algorithm and each
 n, `render --iterations n` runs with several seeds; the mean of the runs' image means is compared
-with the converged mean: vcm's image mean after many iterations (REFERENCE_ITERATIONS), rendered
-here with REFERENCE_SEEDS seeds of its own. The table gives the relative difference and its
-standard error (over the seeds, both sides): beyond about 2 standard errors it is bias, not
-noise. The converged render's own remaining bias is that of vcm at its last iterations (radius
-about 0.42 of the first at 1024 iterations with alpha 0.75), so the differences are lower
-bounds of the bias against the exact mean. docs/references/water-caustic.exr is not used: its
-image mean is about twice what today's renderer gives at any iteration count (a change since it
-was made, 2026-11-25, not yet explained).
+with the converged mean, that of docs/references/water-caustic.exr. The table gives the relative
+difference and its standard error (over the seeds): beyond about 2 standard errors it is bias,
+not noise.
+
+Every pixel is clipped at CLIP (10) first, in the runs and in the reference. The scene's
+estimators are heavy-tailed (caustic paths through the water that connections find with a tiny
+density): the reference holds one such pixel, (20, 127), of about 1.2e4, which alone doubles its
+image mean (0.255 unclipped, 0.1367 clipped, 0.1366 without that pixel), and a vcm render of our
+own of 1024 iterations at 64x64 had an unclipped mean of 0.39 +- 0.17 over two seeds for the
+same reason. Clipping makes the means measurable; what it removes from the runs (their rare
+pixels above 10) is a loss that shrinks as n grows, so the differences at small n are the
+merging kernel's bias plus that clipping loss, an upper bound on the loss of energy due to
+merging alone. The reference's own remaining bias (a converged vcm render) is not known and
+not included.
 
 Writes docs/data/performance/merging_bias.json; docs/results/performance.md shows it.
 """
@@ -32,10 +38,9 @@ RESOLUTION = (64, 64)
 ALGORITHMS = ["ppm", "vcm"]
 ITERATIONS = [1, 4, 16, 64]
 SEEDS = 8
-REFERENCE_ALGORITHM = "vcm"
-REFERENCE_ITERATIONS = 1024
-REFERENCE_SEEDS = 2
-QUICK = {"iterations": [1, 4], "seeds": 2, "reference_iterations": 16}
+REFERENCE = "docs/references/water-caustic.exr"
+CLIP = 10.0
+QUICK = {"iterations": [1, 4], "seeds": 2}
 
 
 def image_mean(binary, algo, iterations, seed, work):
@@ -45,8 +50,12 @@ def image_mean(binary, algo, iterations, seed, work):
     run = common.run_render(cmd)
     pixels, _ = common.read_exr(out)
     out.unlink()
-    # Luminance-like mean of the three channels: the bias is a loss of energy in every channel.
-    return float(pixels.mean()), run
+    # Mean of the three channels (the bias is a loss of energy in every channel), clipped.
+    return clipped_mean(pixels), run
+
+
+def clipped_mean(pixels):
+    return float(pixels.clip(max=CLIP).mean())
 
 
 def mean_and_se(values):
@@ -63,19 +72,17 @@ def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="render-merging-bias-") as tmp:
         work = Path(tmp)
-        reference_iterations = QUICK["reference_iterations"] if quick else REFERENCE_ITERATIONS
-        ref_mean, ref_se = mean_and_se(
-            [image_mean(binary, REFERENCE_ALGORITHM, reference_iterations, 1000 + s, work)[0]
-             for s in range(REFERENCE_SEEDS)])
-        print(f"merging-bias: {REFERENCE_ALGORITHM} x{reference_iterations}: mean "
-              f"{ref_mean:.6g} ± {ref_se:.2g}", flush=True)
+        reference_pixels, _ = common.read_exr(common.REPO_ROOT / REFERENCE)
+        ref_mean = clipped_mean(reference_pixels)
+        print(f"merging-bias: {REFERENCE}: clipped mean {ref_mean:.6g} (unclipped "
+              f"{float(reference_pixels.mean()):.6g})", flush=True)
         rows = []
         for algo in ALGORITHMS:
             for n in iterations:
                 means = [image_mean(binary, algo, n, 1 + s, work)[0] for s in range(seeds)]
                 m, se = mean_and_se(means)
                 rel = m / ref_mean - 1
-                rel_se = math.hypot(se / ref_mean, ref_se * m / ref_mean ** 2)
+                rel_se = se / ref_mean
                 print(f"merging-bias: {algo} n={n}: mean {m:.6g} ± {se:.2g}, "
                       f"relative {rel:+.4f} ± {rel_se:.4f}", flush=True)
                 rows.append([algo, n, m, se, rel, rel_se,
@@ -88,10 +95,9 @@ def run(build_dir: Path, docs_dir: Path, quick: bool) -> None:
         "stamp": datafile.stamp(command, load_before=load),
         "measured": True,
         "values": {"scene": SCENE, "resolution": f"{RESOLUTION[0]}x{RESOLUTION[1]}",
-                   "seeds": seeds, "reference_algorithm": REFERENCE_ALGORITHM,
-                   "reference_iterations": reference_iterations,
-                   "reference_seeds": REFERENCE_SEEDS, "reference_mean": ref_mean,
-                   "reference_se": ref_se,
+                   "seeds": seeds, "reference": REFERENCE, "clip": CLIP,
+                   "reference_mean": ref_mean,
+                   "reference_mean_unclipped": float(reference_pixels.mean()),
                    "example_command": " ".join(example),
                    "minutes": round((time.monotonic() - t0) / 60, 1)},
         "tables": {"bias": {
