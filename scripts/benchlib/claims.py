@@ -580,7 +580,15 @@ NOTES = {
         "distributions that include visibility. Per iteration, both arms also carry the "
         "variance of the VPL set itself (a few light paths per iteration) and of next-event "
         "estimation, which no VPL sampling can lower: the arms' own variance ratio is bounded "
-        "by it (the totals above).",
+        "by it (the totals above). The sampling variance of ic is heavy-tailed: over paired "
+        "runs a few single pixels hold most of it, each one draw of a bright VPL with a tiny "
+        "pmf, where the shading point's three records cannot see the VPL even unoccluded and "
+        "only the uniform table C (pmf 1 / M) draws it. Shading points behind a record's "
+        "surface (the far side of a doorway's wall) no longer use it (docs/reference/"
+        "algorithms.md, importance caching); what remains is the concave corner: a point on "
+        "the ceiling next to a wall whose nearest records, presumably on the wall, see a VPL on "
+        "the wall edge-on (one pixel of the top row held 98 % of the worst of 20 paired runs and 45 % "
+        "of all of them).",
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
         "and tables every iteration, so it wins only where bpt's own light path is a poor "
@@ -763,7 +771,8 @@ def div_pooled_check(row) -> str:
     parts = [f"{name} {s['v_of_run_means']:.4g} ± {s['v_of_run_means_se']:.2g}"
              for name, s in row["arms"].items() if "v_of_run_means" in s]
     if not parts:
-        return ""
+        return (" This row was measured before the pooled estimator: its v is the variance of "
+                "the runs' means.")
     return (" v pools every iteration of the runs (the per-pixel variance layers); the "
             "variance of the runs' means alone, the same quantity with more noise, is "
             + ", ".join(parts) + ".")
