@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace render {
 
@@ -11,6 +12,14 @@ double ic_record_distance(const Vec3& x, const Vec3& n_x, const IcRecordPoint& r
     const double cosine =
         double(n_x.x) * r.normal.x + double(n_x.y) * r.normal.y + double(n_x.z) * r.normal.z;
     return std::sqrt(dx * dx + dy * dy + dz * dz) + lambda * std::sqrt(std::max(0.0, 1 - cosine));
+}
+
+bool ic_record_faces(const IcRecordPoint& r, const Vec3& x, double behind_slack) {
+    if (!(behind_slack < std::numeric_limits<double>::infinity())) return true;
+    const double dx = double(x.x) - r.position.x, dy = double(x.y) - r.position.y,
+                 dz = double(x.z) - r.position.z;
+    const double along = dx * r.normal.x + dy * r.normal.y + dz * r.normal.z;
+    return along >= -behind_slack * std::sqrt(dx * dx + dy * dy + dz * dz);
 }
 
 namespace {
@@ -51,6 +60,7 @@ IcNeighbours ic_nearest_records_brute_force(std::span<const IcRecordPoint> recor
     const int count = clamp_count(settings);
     if (count == 0) return best;
     for (size_t i = 0; i < records.size(); ++i) {
+        if (!ic_record_faces(records[i], x, settings.behind_slack)) continue;
         const double d = ic_record_distance(x, n_x, records[i], settings.lambda);
         if (usable(d, settings)) offer(best, count, uint32_t(i), d);
     }
@@ -129,6 +139,7 @@ void IcRecordTree::search(int32_t id, double bound2, const Vec3& x, const Vec3& 
                              dz = double(x.z) - r.position.z;
                 if (farther(dx * dx + dy * dy + dz * dz, best.distance[count - 1])) continue;
             }
+            if (!ic_record_faces(r, x, settings.behind_slack)) continue;
             const double d = ic_record_distance(x, n_x, r, settings.lambda);
             if (usable(d, settings)) offer(best, count, i, d);
         }

@@ -10,9 +10,17 @@
 // near-ties. If the thesis meant the position term divided by D, the equivalent is lambda =
 // 0.5 * D. lambda is therefore a parameter; ic_default_lambda() is the spec's value.
 //
-// A record is usable when d(x, r) <= max_distance (default: any). With none usable the
-// shading point gets no records and IcMixture falls back to C over all VPLs (uniform VPL
-// sampling, unbiased; pg2015 skipped the connection there, which loses energy).
+// A record is usable when d(x, r) <= max_distance (default: any) and x is not behind the
+// record's surface: (x - r) . n_r >= -behind_slack * |x - r|, with n_r facing the side the record
+// was seen from. A record's tables describe the light arriving at the front of its surface; a
+// shading point just behind it (the other side of a thin wall, a point around a corner) is
+// lit by VPLs the record cannot see even unoccluded (U and B are 0 for VPLs behind the
+// record's plane), so with such records only C covers them, with pmf 1 / M: the rare draws of a
+// bright VPL there carry weight M / n and dominate the variance (docs/design/algorithms-next.md
+// 2.3; measured on scenes/claims/ic-rooms.xml, the doorways' far side). Which records x uses
+// never biases the estimator (C covers every VPL); it only shapes the variance.
+// With none usable the shading point gets no records and IcMixture falls back to C over all VPLs
+// (uniform VPL sampling, unbiased; pg2015 skipped the connection there, which loses energy).
 
 #include <array>
 #include <cstddef>
@@ -28,14 +36,21 @@ namespace render {
 
 struct IcRecordPoint {
     Vec3 position;
-    Vec3 normal;  // unit; shading normal of the record's surface
+    Vec3 normal;  // unit; shading normal of the record's surface, facing the side it was seen
+                  // from (zero in a medium: no side)
 };
 
 struct IcLookupSettings {
     int count = 3;      // R, at most kIcMaxRecords
     double lambda = 0;  // weight of the normal term (ic_default_lambda)
     double max_distance = std::numeric_limits<double>::infinity();
+    // x may lie this far behind a record's tangent plane, relative to |x - r| (0.1: about 6
+    // degrees, for curved surfaces and the rounding of coplanar points); infinity: no test.
+    double behind_slack = 0.1;
 };
+
+// Whether x is in front of the record's surface in the sense above.
+bool ic_record_faces(const IcRecordPoint& r, const Vec3& x, double behind_slack);
 
 inline double ic_default_lambda(double scene_diagonal) {
     return scene_diagonal > 0 ? 0.5 / scene_diagonal : 0.0;

@@ -124,7 +124,11 @@ void Iteration::build_importance_cache(RenderStats& stats) {
         for (size_t i = 0; i < records[j].size(); ++i) {
             usable.push_back(&records[j][i]);
             usable_radii.push_back(radii[j][i]);
-            points.push_back(IcRecordPoint{records[j][i].vertex.p, records[j][i].vertex.n});
+            // The normal faces the side the record was seen from (importance_lookup.h: shading
+            // points behind a record do not use it).
+            const Record& r = records[j][i];
+            points.push_back(
+                IcRecordPoint{r.vertex.p, dot(r.vertex.n, r.wo) < 0 ? -r.vertex.n : r.vertex.n});
         }
     }
     ic_tables_.resize(usable.size());

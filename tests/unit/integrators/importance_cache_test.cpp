@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -685,6 +686,35 @@ TEST(importance_cache_lookup, NormalTermAndTiesDecide) {
     EXPECT_EQ(best.index[0], 1u);  // exact tie with record 2: the lower index first
     EXPECT_EQ(best.index[1], 2u);
     EXPECT_EQ(best.distance[0], 1.0);
+}
+
+// A shading point behind a record's surface (the far side of a thin wall) does not use it: the
+// record's tables hold nothing for the VPLs that light the far side (importance_lookup.h).
+// Within the slack (a point on the record's own plane, or slightly behind it) it does.
+TEST(importance_cache_lookup, RecordsBehindTheShadingPointAreNotUsed) {
+    // A wall z in [0, 0.1]: record 0 on its near face (normal +z, toward its viewer), record 1
+    // on the floor of the far side, farther from x than record 0.
+    const std::vector<IcRecordPoint> points = {{{0, 0, 0.1f}, {0, 0, 1}},
+                                               {{1, 0, -0.3f}, {0, 1, 0}}};
+    const Vec3 x(0.2f, 0, -0.05f), n_x(0, 1, 0);
+    const IcLookupSettings settings{.count = 2, .lambda = 0.05};
+    for (const IcNeighbours& near : {ic_nearest_records_brute_force(points, x, n_x, settings),
+                                     IcRecordTree(points).nearest(x, n_x, settings)}) {
+        ASSERT_EQ(near.count, 1);
+        EXPECT_EQ(near.index[0], 1u);
+    }
+    // Without the test both are used, the wall's record first (it is nearer).
+    IcLookupSettings any = settings;
+    any.behind_slack = std::numeric_limits<double>::infinity();
+    const IcNeighbours both = ic_nearest_records_brute_force(points, x, n_x, any);
+    ASSERT_EQ(both.count, 2);
+    EXPECT_EQ(both.index[0], 0u);
+    // On the record's plane, and 5 % of the distance behind it: in front (within the slack).
+    EXPECT_TRUE(ic_record_faces(points[0], {3, 1, 0.1f}, settings.behind_slack));
+    EXPECT_TRUE(ic_record_faces(points[0], {1, 0, 0.05f}, settings.behind_slack));
+    EXPECT_FALSE(ic_record_faces(points[0], {1, 0, -0.1f}, settings.behind_slack));
+    // A record in a medium (no normal) faces everything.
+    EXPECT_TRUE(ic_record_faces({{0, 0, 0}, {0, 0, 0}}, {0, 0, -1}, settings.behind_slack));
 }
 
 // The k-d tree returns exactly the brute force's records (same order) on random records,
