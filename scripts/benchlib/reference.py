@@ -517,8 +517,9 @@ def section(result, previous=None):
     L.append(how + " Same scene, path length (10 segments), resolution and merging radius "
              f"(0.003 × scene radius, alpha 0.75). Each program ran {runs} independent times "
              f"(seeds 0 to {runs - 1}); every image is compared with the same converged image "
-             "in `docs/references/` by the same metric. Peak memory is the process's maximum "
-             f"resident set. Run {result['started']} to {result['finished']}, 1/5/15-minute "
+             "in `docs/references/` by the same metric. Peak memory is each program's own maximum "
+             "resident set, as GNU time reports it (design/smallvcm-comparison.md). "
+             f"Run {result['started']} to {result['finished']}, 1/5/15-minute "
              f"load average {' / '.join(result['load_start'])} at the start and "
              f"{' / '.join(result['load_end'])} at the end"
              + (f" (the benchmark at nice {result['nice']})" if result.get("nice") else "")
