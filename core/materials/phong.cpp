@@ -41,17 +41,18 @@ Rgb PhongBsdf::f(const Vec3& wo, const Vec3& wi, TransportMode) const {
     return result;
 }
 
-float PhongBsdf::sample_density(const Vec3& wo, const Vec3& wi) const {
-    if (wo.z <= 0 || wi.z <= 0) return 0.0f;
+BsdfPdf PhongBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
+    // p(wi | wo) of sample(), the mixture of both lobes, and p(wo | wi), with one power of the
+    // lobe's cosine: dot(reflect_z(wi), wo) is dot(reflect_z(wo), wi) bit for bit (the same
+    // products, negated alike, summed in the same order), so the two share it.
+    if (wo.z <= 0 || wi.z <= 0) return {};
     const float cos_alpha = std::min(dot(reflect_z(wo), wi), 1.0f);
     const float specular =
         cos_alpha > 0 ? (exponent_ + 1.0f) * kInv2Pi * std::pow(cos_alpha, exponent_) : 0.0f;
-    const float diffuse = wi.z * kInvPi;
-    return specular_sampling_weight_ * specular + (1.0f - specular_sampling_weight_) * diffuse;
-}
-
-BsdfPdf PhongBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
-    return {sample_density(wo, wi), sample_density(wi, wo)};
+    return {
+        specular_sampling_weight_ * specular + (1.0f - specular_sampling_weight_) * (wi.z * kInvPi),
+        specular_sampling_weight_ * specular +
+            (1.0f - specular_sampling_weight_) * (wo.z * kInvPi)};
 }
 
 std::optional<BsdfSample> PhongBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u,

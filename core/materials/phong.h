@@ -28,9 +28,6 @@ class PhongBsdf final : public Bsdf {
     std::string to_string() const override;
 
   private:
-    // p(wi | wo) of sample(): the mixture of both lobes.
-    float sample_density(const Vec3& wo, const Vec3& wi) const;
-
     Rgb diffuse_reflectance_, specular_reflectance_;
     float exponent_;
     float specular_sampling_weight_;  // probability of sampling the specular lobe

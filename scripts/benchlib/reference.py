@@ -49,6 +49,7 @@ import os
 import statistics
 import subprocess
 import threading
+import tempfile
 import time
 from pathlib import Path
 
@@ -91,21 +92,41 @@ def pinned_cpus():
     return set(cpus[:THREADS])
 
 
+# GNU time, through which each program is started so that its peak RSS is its own: a child
+# forked from this (Python) process inherits the fork's high-water mark across exec (Linux keeps
+# it in the signal struct, which exec does not reset), so wait4's ru_maxrss of a child started
+# directly is at least the benchmark's own peak (which grows with the images it holds): `true`
+# reported 413 MiB under a 400 MiB parent. GNU time is itself such a child, but the program is
+# forked from it (~1 MiB), and it reports the program's own ru_maxrss.
+PEAK_RSS_TOOL = "/usr/bin/time"
+
+
+def peak_rss_tool():
+    """The GNU time binary if it is there (None: peak memory is not measured)."""
+    return PEAK_RSS_TOOL if os.access(PEAK_RSS_TOOL, os.X_OK) else None
+
+
 def timed(cmd, cpus, env=None):
-    """Runs cmd pinned to cpus; returns (wall s, peak RSS MiB, user+system CPU s) of that child
-    alone (wait4's rusage)."""
-    start = time.monotonic()
-    process = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
-                               preexec_fn=lambda: os.sched_setaffinity(0, cpus))
-    _, status, usage = os.wait4(process.pid, 0)
-    wall = time.monotonic() - start
-    stderr = process.stderr.read().decode(errors="replace")
-    process.stderr.close()
-    code = os.waitstatus_to_exitcode(status)
-    if code != 0:
-        raise RuntimeError(f"{' '.join(map(str, cmd))} exited {code}: {stderr.strip()[-500:]}")
-    # ru_maxrss is in KiB on Linux
-    return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
+    """Runs cmd pinned to cpus; returns (wall s, peak RSS MiB of cmd itself, user+system CPU s).
+    CPU seconds are wait4's of the child (GNU time's own ~1 ms included); the peak RSS is GNU
+    time's report of cmd (nan without GNU time)."""
+    tool = peak_rss_tool()
+    with tempfile.NamedTemporaryFile("r", suffix=".rss") as rss:
+        full = [tool, "-f", "%M", "-o", rss.name, *map(str, cmd)] if tool else cmd
+        start = time.monotonic()
+        process = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   env=env, preexec_fn=lambda: os.sched_setaffinity(0, cpus))
+        _, status, usage = os.wait4(process.pid, 0)
+        wall = time.monotonic() - start
+        stderr = process.stderr.read().decode(errors="replace")
+        process.stderr.close()
+        code = os.waitstatus_to_exitcode(status)
+        if code != 0:
+            raise RuntimeError(f"{' '.join(map(str, cmd))} exited {code}: {stderr.strip()[-500:]}")
+        # GNU time's %M is in KiB; its last line (it may note a signal on the lines before).
+        lines = rss.read().split()
+        peak_mib = float(lines[-1]) / 1024.0 if tool and lines else math.nan
+    return wall, peak_mib, usage.ru_utime + usage.ru_stime
 
 
 def timed_together(jobs, log=print):
@@ -496,8 +517,9 @@ def section(result, previous=None):
     L.append(how + " Same scene, path length (10 segments), resolution and merging radius "
              f"(0.003 × scene radius, alpha 0.75). Each program ran {runs} independent times "
              f"(seeds 0 to {runs - 1}); every image is compared with the same converged image "
-             "in `docs/references/` by the same metric. Peak memory is the process's maximum "
-             f"resident set. Run {result['started']} to {result['finished']}, 1/5/15-minute "
+             "in `docs/references/` by the same metric. Peak memory is each program's own maximum "
+             "resident set, as GNU time reports it (design/smallvcm-comparison.md). "
+             f"Run {result['started']} to {result['finished']}, 1/5/15-minute "
              f"load average {' / '.join(result['load_start'])} at the start and "
              f"{' / '.join(result['load_end'])} at the end"
              + (f" (the benchmark at nice {result['nice']})" if result.get("nice") else "")
