@@ -1,5 +1,6 @@
 #include "core/integrators/points_along_ray.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "core/scene/embree_ray.h"
@@ -56,15 +57,16 @@ PointsAlongRay::~PointsAlongRay() {
     if (device_) rtcReleaseDevice(device_);
 }
 
-void PointsAlongRay::build(const std::vector<Vec3>& positions, float radius) {
+void PointsAlongRay::build(const std::vector<Vec3>& positions, float radius, size_t count) {
     positions_ = &positions;
+    count_ = std::min(count, positions.size());
     radius_ = radius;
     if (scene_) rtcReleaseScene(scene_);
     scene_ = rtcNewScene(device_);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_LOW);
-    if (!positions.empty()) {
+    if (count_ > 0) {
         RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_USER);
-        rtcSetGeometryUserPrimitiveCount(geometry, unsigned(positions.size()));
+        rtcSetGeometryUserPrimitiveCount(geometry, unsigned(count_));
         rtcSetGeometryUserData(geometry, this);
         rtcSetGeometryBoundsFunction(geometry, ball_bounds, nullptr);
         rtcSetGeometryIntersectFunction(geometry, ball_intersect);
@@ -77,7 +79,7 @@ void PointsAlongRay::build(const std::vector<Vec3>& positions, float radius) {
 
 void PointsAlongRay::query(const Ray& ray, VisitFunction visit, void* user) const {
     // A ray Embree would not accept finds nothing (it was a miss in the scene already).
-    if (!scene_ || !positions_ || positions_->empty() || !embree_accepts(ray)) return;
+    if (!scene_ || !positions_ || count_ == 0 || !embree_accepts(ray)) return;
     QueryContext q;
     rtcInitIntersectContext(&q.context);
     q.positions = positions_;

@@ -24,9 +24,9 @@ class PointsAlongRay {
     PointsAlongRay(const PointsAlongRay&) = delete;
     PointsAlongRay& operator=(const PointsAlongRay&) = delete;
 
-    // Indexes `positions` (kept by reference: it must outlive the queries) as balls of
-    // `radius`.
-    void build(const std::vector<Vec3>& positions, float radius);
+    // Indexes the first `count` of `positions` (all when count exceeds the size; kept by
+    // reference: it must outlive the queries) as balls of `radius`.
+    void build(const std::vector<Vec3>& positions, float radius, size_t count = SIZE_MAX);
 
     // Calls visit(i, t, distance2) for every point i whose closest approach to the ray's line
     // is at parameter t in [ray.t_min, ray.t_max] and at squared distance distance2 <= r^2.
@@ -52,6 +52,7 @@ class PointsAlongRay {
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
     const std::vector<Vec3>* positions_ = nullptr;
+    size_t count_ = 0;  // the indexed prefix of *positions_
     float radius_ = 0;
 };
 

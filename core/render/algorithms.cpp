@@ -194,7 +194,8 @@ std::vector<Algorithm>& table() {
          .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
                      "alpha", "vertex_connections", "surface_merging", "photon_points",
                      "query_beams", "photon_beams", "photon_beam_length", "photon_beam_eta",
-                     "photon_beam_paths", "volume_radius_factor", "volume_alpha"},
+                     "photon_beam_paths", "query_beam_paths", "volume_radius_factor",
+                     "volume_alpha"},
          // Query and photon beams beside connections only; query beams, then photon beams (long,
          // with the other eta_1), as the only estimator in media.
          .variants = {{{"surface_merging", "off"}, {"photon_points", "off"}},
@@ -216,6 +217,7 @@ std::vector<Algorithm>& table() {
                             .short_photon_beams = s.short_photon_beams,
                             .photon_beam_eta = s.photon_beam_eta,
                             .photon_beam_paths = s.photon_beam_paths,
+                            .query_beam_paths = s.query_beam_paths,
                             .volume_radius_factor = s.volume_radius_factor,
                             .volume_alpha = s.volume_alpha};
              return std::make_unique<BidirectionalIntegrator>(config);

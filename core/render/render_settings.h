@@ -64,6 +64,8 @@ struct RenderSettings {
     // upbp: the fraction of each iteration's light paths (the first ones) whose segments in media
     // become photon beams (1: all).
     double photon_beam_paths = 1.0;
+    // upbp: the same fraction for the photon points that query beams gather (1: all).
+    double query_beam_paths = 1.0;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

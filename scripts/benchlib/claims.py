@@ -55,11 +55,24 @@ SCENES = common.REPO_ROOT / "scenes"
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
 # The UPBP claims use the density sweep's arms (docs/results/upbp.md), radius included, with
 # the photon beams drawn from a fraction of the light paths (--photon-beam-paths; the fraction
-# measured most efficient on upbp-mirror-balls and isosph, docs/design/media.md "Photon beams").
+# measured most efficient on upbp-mirror-balls and isosph, docs/design/media.md "Photon beams")
+# and the query beams gathering the photon points of the same fraction (--query-beam-paths;
+# measured on upbp-lantern, where gathering every path's photons gave the query beams the wall
+# pixels that light tracing samples better: docs/design/media.md "Query beams from a fraction").
 UPBP_BEAM_PATHS = ["--photon-beam-paths", "0.03"]
-UPBP_ARMS = {name: (algorithm, [*args, *UPBP_BEAM_PATHS]
-                    if algorithm == "upbp" and "--photon-beams" not in args else args)
-             for name, (algorithm, args) in upbp.ARMS.items()}
+UPBP_QUERY_PATHS = ["--query-beam-paths", "0.03"]
+
+
+def _upbp_arm(algorithm, args):
+    if algorithm != "upbp":
+        return algorithm, args
+    beams_off = "--photon-beams" in args and args[args.index("--photon-beams") + 1] == "off"
+    query_off = "--query-beams" in args and args[args.index("--query-beams") + 1] == "off"
+    return algorithm, [*args, *([] if beams_off else UPBP_BEAM_PATHS),
+                       *([] if query_off else UPBP_QUERY_PATHS)]
+
+
+UPBP_ARMS = {name: _upbp_arm(algorithm, args) for name, (algorithm, args) in upbp.ARMS.items()}
 UPBP_SUBJECT = "upbp: all"
 UPBP_FACTOR = 1.5
 
@@ -621,11 +634,14 @@ NOTES = {
         "path is short against the beam radius (its beam storage factor), which ours cannot "
         "yet. Where bpt is the best arm (thin media), `upbp: all` pays for every estimator at "
         "once for little less variance, and ties with the other upbp arms for the worst place. "
-        "In upbp-lantern the query beams also raise the variance per iteration (compare the "
-        "arm with connections and query beams with bpt, and `upbp: all` with the arm with "
-        "connections and photon beams): adding an estimator under MIS should not do that, so "
-        "P-B2D's weights in a dense medium behind glass are the next thing to check; the cause "
-        "is not known yet.",
+        "Query beams likewise gather the photon points of a fraction of the light paths "
+        "(`--query-beam-paths`). In upbp-lantern, gathering every path's photons raised the "
+        "relative variance per iteration above bpt's although the absolute variance fell 4x: "
+        "the merge densities count every light path as an independent sample, but all of them "
+        "share the one eye subpath, so on the walls (eye path: wall, glass, the wax) the query "
+        "beams took 80-90 % of the weight from light tracing and made rare large values; with "
+        "the photons of 3 % of the paths they take less of those paths and cost less "
+        "(docs/design/media.md, \"Query beams from a fraction of the light paths\").",
 }
 
 

@@ -70,8 +70,17 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
     // Photon points in media: the kernel is a ball, eta = 4/3 pi r^3 N_light.
     const double eta_vcm_volume =
         4.0 / 3.0 * kPi * p.volume_radius * p.volume_radius * p.volume_radius * n_light;
-    // Query beams: the kernel is a disc around the camera segment, eta = pi r^2 N_light.
-    const double eta_beam = kPi * p.beam_radius * p.beam_radius * n_light;
+    // The light paths whose photon points query beams gather: the first K of N_L (K =
+    // ceil(fraction N_L), at least 1), an unbiased subset as for photon beams below.
+    auto path_subset = [&](double fraction) -> uint64_t {
+        if (!(fraction < 1)) return p.light_path_count;
+        const double k = std::ceil(fraction * n_light);
+        return std::clamp<uint64_t>(k >= 1 ? uint64_t(k) : 1, 1, p.light_path_count);
+    };
+    p.query_beam_path_count =
+        p.query_beams ? path_subset(upbp.query_beam_paths) : p.light_path_count;
+    // Query beams: the kernel is a disc around the camera segment, eta = pi r^2 K.
+    const double eta_beam = kPi * p.beam_radius * p.beam_radius * double(p.query_beam_path_count);
     p.vm_normalization = float(1.0 / eta_vcm);
     p.vm_normalization_volume = float(1.0 / eta_vcm_volume);
     p.beam_normalization = float(1.0 / eta_beam);
@@ -79,12 +88,8 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
     // least 1): each of those K paths' beams is one sample of B-B1D, so its normalisation and
     // its eta count K, where every other estimator counts N_L. The paths are independent and
     // identically distributed, so any fixed K of them are an unbiased subset.
-    p.photon_beam_path_count = p.light_path_count;
-    if (p.photon_beams && upbp.photon_beam_paths < 1) {
-        const double k = std::ceil(upbp.photon_beam_paths * n_light);
-        p.photon_beam_path_count =
-            std::clamp<uint64_t>(k >= 1 ? uint64_t(k) : 1, 1, p.light_path_count);
-    }
+    p.photon_beam_path_count =
+        p.photon_beams ? path_subset(upbp.photon_beam_paths) : p.light_path_count;
     const double n_beam = double(p.photon_beam_path_count);
     // The box kernel 1 / (2 r_1), each of the K light paths' beams one sample.
     p.photon_beam_normalization = float(1.0 / (2.0 * p.photon_beam_radius * n_beam));

@@ -39,6 +39,8 @@ struct IterationPlan {
     // upbp: the light paths 0 .. photon_beam_path_count - 1 make photon beams (all where there
     // are no photon beams).
     uint64_t photon_beam_path_count = 0;
+    // upbp: query beams gather the photon points of light paths 0 .. query_beam_path_count - 1.
+    uint64_t query_beam_path_count = 0;
 
     // Merging radii: surfaces, photon points (P-P3D), query beams (P-B2D), photon beams (B-B1D).
     double radius = 0, volume_radius = 0, beam_radius = 0, photon_beam_radius = 0;

@@ -220,7 +220,16 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     }
     if (plan_.query_beams) {
         if (!storage_.beam_lookup) storage_.beam_lookup = std::make_unique<PointsAlongRay>();
-        storage_.beam_lookup->build(medium_positions_, float(plan_.beam_radius));
+        // The photon points of the first query_beam_path_count paths: a prefix (paths are
+        // gathered in order, and medium_index_ increases).
+        const uint32_t vertex_end =
+            path_ends_.empty() || plan_.query_beam_path_count == 0
+                ? 0
+                : path_ends_[std::min<size_t>(plan_.query_beam_path_count, path_ends_.size()) - 1];
+        const size_t points =
+            size_t(std::lower_bound(medium_index_.begin(), medium_index_.end(), vertex_end) -
+                   medium_index_.begin());
+        storage_.beam_lookup->build(medium_positions_, float(plan_.beam_radius), points);
     }
     if (plan_.photon_beams) build_photon_beams();
 }

@@ -197,13 +197,22 @@ void query_beams_only(RenderSettings& s) {
     s.photon_points = false;
     s.photon_beams = false;
 }
-INSTANTIATE_TEST_SUITE_P(QueryBeams, MediumFurnace,
-                         ::testing::Values(FurnaceCase{"upbp", "1", kIsotropic, true},
-                                           FurnaceCase{"upbp", "0.3, 1, 3", kForward, true},
-                                           FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 256,
-                                                       true, query_beams_only},
-                                           FurnaceCase{"upbp", "4", kBackward, true, 0.02, 256,
-                                                       true, query_beams_only}));
+// Query beams gathering the photon points of a quarter of the light paths (--query-beam-paths
+// 0.25: 64 of the furnace's 256): the estimate normalised by those 64, not by all 256 (which
+// would read 0.25).
+void query_beams_only_from_a_quarter_of_the_paths(RenderSettings& s) {
+    query_beams_only(s);
+    s.query_beam_paths = 0.25;
+}
+INSTANTIATE_TEST_SUITE_P(
+    QueryBeams, MediumFurnace,
+    ::testing::Values(FurnaceCase{"upbp", "1", kIsotropic, true},
+                      FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 512, true,
+                                  query_beams_only_from_a_quarter_of_the_paths},
+                      FurnaceCase{"upbp", "0.3, 1, 3", kForward, true},
+                      FurnaceCase{"upbp", "1", kIsotropic, true, 0.02, 256, true, query_beams_only},
+                      FurnaceCase{"upbp", "4", kBackward, true, 0.02, 256, true,
+                                  query_beams_only}));
 
 // upbp's photon beams (B-B1D) as the only estimator in the medium (no connections, no photon
 // points, no query beams: every path with a medium vertex is a photon beam gathered by a camera

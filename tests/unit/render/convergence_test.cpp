@@ -394,6 +394,12 @@ TEST(Convergence, UpbpMatchesBptOnTheVolumetricCaustic) {
                                {"query_beams", "off"},
                                {"photon_beam_paths", "0.25"}}),
                        "upbp {bpt, bb1d}, photon beams from K = N / 4 paths", "bpt");
+    // Query beams gathering the photons of a quarter of the light paths (--query-beam-paths
+    // 0.25): P-B2D's normalisation and MIS constant count K, the other techniques N.
+    expect_same_blocks(reference,
+                       blocks("upbp", kCausticIterations,
+                              {{"query_beam_paths", "0.25"}, {"photon_beam_paths", "0.25"}}),
+                       "upbp, query beams and photon beams from K = N / 4 paths", "bpt");
 }
 
 // The image mean (the channels' average) of each of `batches` consecutive batches of

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "core/integrators/bidirectional/iteration_plan.h"
+#include "core/math/constants.h"
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
@@ -27,13 +28,14 @@ std::unique_ptr<Scene> isosph(int size) {
                       {{"resx", std::to_string(size)}, {"resy", std::to_string(size)}});
 }
 
-BidirectionalConfig upbp_config(double photon_beam_paths) {
+BidirectionalConfig upbp_config(double photon_beam_paths, double query_beam_paths = 1) {
     BidirectionalConfig c;
     c.algorithm = BidirectionalAlgorithm::Upbp;
     c.merging.radius_factor = 0.01;
     c.upbp.query_beams = true;
     c.upbp.photon_beams = true;
     c.upbp.photon_beam_paths = photon_beam_paths;
+    c.upbp.query_beam_paths = query_beam_paths;
     return c;
 }
 
@@ -84,6 +86,41 @@ TEST(PhotonBeamPaths, IterationContractWithBeamsFromAFractionOfThePaths) {
     RenderSettings many_chunks = settings;
     many_chunks.light_path_count = 8192;
     many_chunks.photon_beam_paths = 0.1;
+    testing::expect_thread_count_changes_nothing(*scene, many_chunks, IterationRange{3, 4});
+}
+
+// --query-beam-paths: query beams gather the photon points of the first K paths; P-B2D's
+// normalisation and MIS constant count K (pi r^2 K), every other constant is unchanged.
+TEST(QueryBeamPaths, PlanCountsThePathsInTheQueryBeamTermsOnly) {
+    auto scene = isosph(32);
+    const IterationPlan all = plan_iteration(upbp_config(1.0), *scene, 3);
+    const IterationPlan quarter = plan_iteration(upbp_config(1.0, 0.25), *scene, 3);
+    EXPECT_EQ(all.query_beam_path_count, 1024u);
+    EXPECT_EQ(quarter.query_beam_path_count, 256u);
+    EXPECT_EQ(quarter.photon_beam_path_count, 1024u);
+    const double r = all.beam_radius;
+    EXPECT_FLOAT_EQ(all.beam_normalization, float(1.0 / (kPi * r * r * 1024)));
+    EXPECT_FLOAT_EQ(quarter.beam_normalization, float(1.0 / (kPi * r * r * 256)));
+    EXPECT_DOUBLE_EQ(quarter.mis_techniques.query_beam_eta, kPi * r * r * 256);
+    EXPECT_EQ(quarter.vm_normalization_volume, all.vm_normalization_volume);
+    EXPECT_EQ(quarter.photon_beam_normalization, all.photon_beam_normalization);
+    EXPECT_EQ(quarter.mis_techniques.point_eta, all.mis_techniques.point_eta);
+    EXPECT_EQ(quarter.mis_techniques.photon_beam_eta, all.mis_techniques.photon_beam_eta);
+    EXPECT_EQ(plan_iteration(upbp_config(1.0, 1e-9), *isosph(10), 1).query_beam_path_count, 1u);
+}
+
+// The iteration contract with query beams over a prefix of the photons that ends inside a chunk
+// (8192 light paths in chunks of 256, K = 820).
+TEST(QueryBeamPaths, IterationContractWithPhotonsFromAFractionOfThePaths) {
+    auto scene = isosph(24);
+    RenderSettings settings = resolve_render_settings("upbp", {}, scene->settings);
+    settings.seed = 1234;
+    settings.radius_factor = 0.02;
+    settings.query_beam_paths = 0.3;
+    ASSERT_NO_FATAL_FAILURE(testing::expect_split_ranges_add_up(*scene, settings, 1, 3, 5));
+    RenderSettings many_chunks = settings;
+    many_chunks.light_path_count = 8192;
+    many_chunks.query_beam_paths = 0.1;
     testing::expect_thread_count_changes_nothing(*scene, many_chunks, IterationRange{3, 4});
 }
 
