@@ -88,20 +88,18 @@ IterationResult render_farm(const Scene& scene, const RenderSettings& settings, 
 // the job iteration by iteration or 1, 2 or 3 "workers" split every round and their results
 // are merged in reverse order; the images agree to summation order. The threshold leaves a
 // part of the pixels active, so the masks matter.
-TEST(AdaptiveRender, SameSumsAndCountsForAnySplit) {
-    auto scene = cornell_box(kSize);
-    const RenderSettings settings = adaptive_settings(3, 0.3);
+void expect_same_for_any_split(const Scene& scene, const RenderSettings& settings) {
     constexpr uint64_t kIterations = 32;
-    const IterationResult alone = render_alone(*scene, settings, kIterations);
+    const IterationResult alone = render_alone(scene, settings, kIterations);
     uint64_t total = 0;
     for (uint64_t n : alone.adaptive.count) total += n;
-    const uint64_t pixels = uint64_t(kSize) * kSize;
+    const uint64_t pixels = uint64_t(scene.camera().width()) * scene.camera().height();
     // Not every pixel took every iteration, and not only the first 8 (the test needs both).
     EXPECT_LT(total, pixels * kIterations);
     EXPECT_GT(total, pixels * 8 + 4);
     for (int workers : {1, 2, 3}) {
         std::vector<std::vector<uint8_t>> masks;
-        const IterationResult farm = render_farm(*scene, settings, kIterations, workers, masks);
+        const IterationResult farm = render_farm(scene, settings, kIterations, workers, masks);
         ASSERT_EQ(farm.count, kIterations);
         EXPECT_EQ(farm.adaptive.count, alone.adaptive.count) << workers << " workers";
         EXPECT_EQ(farm.adaptive.odd_count, alone.adaptive.odd_count) << workers << " workers";
@@ -117,6 +115,22 @@ TEST(AdaptiveRender, SameSumsAndCountsForAnySplit) {
             }
         EXPECT_EQ(farm.stats.samples, total) << "one sample per active pixel and iteration";
     }
+}
+
+TEST(AdaptiveRender, SameSumsAndCountsForAnySplit) {
+    auto scene = cornell_box(kSize);
+    expect_same_for_any_split(*scene, adaptive_settings(3, 0.3));
+}
+
+// volpt in a scene with a homogeneous medium (isosph: a sphere of it under an area light).
+TEST(AdaptiveRender, SameSumsAndCountsForAnySplitVolpt) {
+    auto scene = load_scene(std::string(RENDER_SOURCE_DIR) + "/scenes/smallupbp/isosph.xml",
+                            {{"resx", std::to_string(kSize)}, {"resy", std::to_string(kSize)}});
+    if (scene->camera().width() != kSize)
+        scene->set_camera(scene->camera().with_resolution(kSize, kSize));
+    RenderSettings settings = adaptive_settings(3, 0.3);
+    settings.algorithm = "volpt";
+    expect_same_for_any_split(*scene, settings);
 }
 
 // Each pixel's count is the number of iterations of the rounds whose mask has it active (every
