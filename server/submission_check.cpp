@@ -106,6 +106,13 @@ SubmissionCheck check_submission(const v1::SubmitJobRequest& in, const fs::path&
             resolve_render_settings(job_algorithm(s->algorithm(), scene->settings.integrator),
                                     service::request_options(*s), scene->settings);
         check_algorithm_supports_scene(settings, *scene);
+        // Adaptive sampling needs each round's mask in the leases and the exact sums in the
+        // reports, which the service does not carry yet (docs/reference/adaptive-sampling.md):
+        // refused rather than rendered without masks.
+        if (settings.adaptive > 0)
+            throw std::invalid_argument(
+                "adaptive sampling (adaptive > 0) is supported by `render` only, not yet by the "
+                "service");
         s->set_algorithm(settings.algorithm);
         service::set_request_options(*s, render_settings_options(settings));
         if (s->iterations() == 0 && s->time_budget_seconds() == 0)

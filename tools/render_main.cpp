@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -215,10 +216,21 @@ int render_scene(const Options& o) {
     double elapsed = 0;
     // One iteration per call: the sum over [1, N+1) equals one big call, and it lets the
     // progress bar and the time budget act between iterations.
+    // Adaptive sampling (docs/reference/adaptive-sampling.md) also stops when every pixel has
+    // converged: its threshold is then a per-pixel target error.
+    const bool adaptive = settings.adaptive > 0;
+    bool converged = false;
     for (uint64_t i = 1;; ++i) {
         if (total && i > *total) break;
         if (o.job.seconds && elapsed >= *o.job.seconds && i > 1) break;
-        renderer->add(IterationRange{i, i + 1}, accumulated);
+        if (adaptive && renderer->adaptive_active_pixels(accumulated) == 0) {
+            converged = true;
+            break;
+        }
+        if (adaptive)
+            renderer->add_adaptive(IterationRange{i, i + 1}, accumulated);
+        else
+            renderer->add(IterationRange{i, i + 1}, accumulated);
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
         if (o.job.target_error && accumulated.count >= kMinTargetErrorIterations &&
@@ -228,7 +240,16 @@ int render_scene(const Options& o) {
     progress.finish();
     renderer.reset();
 
-    Image image = accumulated.sum.average(double(accumulated.count));
+    Image image = mean_image(accumulated);
+    if (adaptive) {
+        uint64_t samples = 0;
+        for (uint64_t n : accumulated.adaptive.count) samples += n;
+        std::fprintf(
+            stderr, "render: adaptive, %.2f iterations per pixel on average (%llu iterations)%s\n",
+            double(samples) / double(std::max<size_t>(1, accumulated.adaptive.count.size())),
+            (unsigned long long)accumulated.count,
+            converged ? ", every pixel below the threshold" : "");
+    }
     const double error = estimate_relative_error(accumulated);
     RenderedImageFacts facts{
         o.scene, accumulated.count, elapsed, error, accumulated.stats.non_finite, o.job.defines};

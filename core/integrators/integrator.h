@@ -40,11 +40,19 @@ class PixelIntegrator : public Integrator {
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           TechniqueLayers* layers, RenderStats& stats) const override;
 
+    // Adaptive sampling (docs/reference/adaptive-sampling.md): the next iterations estimate only
+    // the pixels whose entry is 1 (one entry per pixel; the caller keeps it alive); nullptr,
+    // every pixel.
+    void set_active_pixels(const uint8_t* active) { active_ = active; }
+
   protected:
     // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats and
     // reports each technique's contribution to `sink`.
     virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
                    const LayerSink& sink) const = 0;
+
+  private:
+    const uint8_t* active_ = nullptr;
 };
 
 }  // namespace render

@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include <cstdint>
+#include <utility>
 
 #include "core/base/render_stats.h"
 #include "core/image/image.h"
@@ -17,9 +18,13 @@
 namespace render {
 
 // estimate(pixel, stats) returns the pixel's estimate and counts the rays it traces in stats.
+// With `active` (one entry per pixel; adaptive sampling, docs/reference/adaptive-sampling.md),
+// a pixel whose entry is 0 is skipped: no estimate, no sample, its target value untouched.
+// Skipping draws no random numbers from other pixels' streams, so the active pixels' values are
+// those of a render without the mask.
 template <typename Estimate>
 void for_each_pixel(int width, int height, AccumulationBuffer& target, RenderStats& stats,
-                    Estimate&& estimate) {
+                    const uint8_t* active, Estimate&& estimate) {
     constexpr int kTile = 16;
     tbb::combinable<RenderStats> tile_stats;
     tbb::parallel_for(
@@ -29,6 +34,7 @@ void for_each_pixel(int width, int height, AccumulationBuffer& target, RenderSta
             for (int y = tile.rows().begin(); y < tile.rows().end(); ++y)
                 for (int x = tile.cols().begin(); x < tile.cols().end(); ++x) {
                     const uint64_t pixel = uint64_t(y) * uint64_t(width) + uint64_t(x);
+                    if (active && !active[pixel]) continue;
                     const Rgb value = estimate(pixel, local);
                     ++local.samples;
                     if (!value.is_finite()) {
@@ -40,6 +46,12 @@ void for_each_pixel(int width, int height, AccumulationBuffer& target, RenderSta
         },
         tbb::simple_partitioner());
     tile_stats.combine_each([&](const RenderStats& s) { stats += s; });
+}
+
+template <typename Estimate>
+void for_each_pixel(int width, int height, AccumulationBuffer& target, RenderStats& stats,
+                    Estimate&& estimate) {
+    for_each_pixel(width, height, target, stats, nullptr, std::forward<Estimate>(estimate));
 }
 
 }  // namespace render

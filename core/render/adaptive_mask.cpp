@@ -27,10 +27,26 @@ std::vector<uint8_t> adaptive_active_mask(const FixedPointSums& sums, int width,
     const size_t pixels = size_t(width) * size_t(height);
     if (sums.pixel_count() != pixels || count.size() != pixels || odd_count.size() != pixels)
         throw std::invalid_argument("adaptive_active_mask: buffers of another size");
-    std::vector<uint8_t> unconverged(pixels);
+    std::vector<double> error(pixels);
     for (size_t p = 0; p < pixels; ++p)
-        unconverged[p] = pixel_relative_error(sums.sum(p), sums.odd_sum(p), count[p], odd_count[p],
-                                              settings.dark) > settings.threshold;
+        error[p] = pixel_relative_error(sums.sum(p), sums.odd_sum(p), count[p], odd_count[p],
+                                        settings.dark);
+    std::vector<uint8_t> unconverged(pixels);
+    const int w = std::max(settings.error_window, 0);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            // The window's errors are summed in a fixed order: the mask stays a pure function
+            // of the exact sums.
+            double squares = 0;
+            int n = 0;
+            for (int yy = std::max(0, y - w); yy <= std::min(height - 1, y + w); ++yy)
+                for (int xx = std::max(0, x - w); xx <= std::min(width - 1, x + w); ++xx) {
+                    const double e = error[size_t(yy) * width + xx];
+                    squares += e * e;
+                    ++n;
+                }
+            unconverged[size_t(y) * width + x] = std::sqrt(squares / n) > settings.threshold;
+        }
     std::vector<uint8_t> active(pixels, 0);
     const int r = std::max(settings.spread, 0);
     for (int y = 0; y < height; ++y)

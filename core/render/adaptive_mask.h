@@ -23,6 +23,11 @@ struct AdaptiveMaskSettings {
     // An unconverged pixel keeps the pixels within this many pixels (a square) active: one
     // pixel's error estimate has one degree of freedom and misses noise by chance.
     int spread = 1;
+    // A pixel's error is the root mean square of the relative errors of the pixels within this
+    // many pixels (a square, clipped at the frame's edge): one pixel's odd/even estimate has one
+    // degree of freedom (it exceeds twice the true error one time in twenty), a 3 x 3 window's
+    // nine. 0: the pixel's own estimate.
+    int error_window = 0;
 };
 
 // The estimated relative error of one pixel's mean brightness from its exact sums: with n

@@ -86,7 +86,8 @@ std::vector<Algorithm>& table() {
          .aliases = {"path"},
          .pbrt_integrators = {"path"},
          .description = "path tracing with next-event estimation (surfaces only)",
-         .options = {"max_depth", "rr_depth", "roulette"},
+         .options = {"max_depth", "rr_depth", "roulette", "adaptive", "adaptive_min_iterations",
+                     "adaptive_round"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<PathTracer>(s.max_depth, s.rr_depth, s.roulette);
          },
@@ -99,7 +100,8 @@ std::vector<Algorithm>& table() {
              "volumetric path tracing: delta/ratio tracking, equi-angular and joint sampling (any "
              "media)",
          .support = {.homogeneous_media = true, .grid_media = true, .emissive_media = true},
-         .options = {"max_depth", "rr_depth", "equiangular", "jis", "volpt_technique"},
+         .options = {"max_depth", "rr_depth", "equiangular", "jis", "volpt_technique", "adaptive",
+                     "adaptive_min_iterations", "adaptive_round"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              return std::make_unique<VolumetricPathTracer>(s.max_depth, s.rr_depth, s.equiangular,
                                                            s.jis, s.volpt_technique);

@@ -6,9 +6,11 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "core/image/variance_layers.h"
+#include "core/integrators/integrator.h"
 #include "core/render/algorithms.h"
 #include "core/render/arena_invalid_ray_tally.h"
 
@@ -36,6 +38,12 @@ struct IterationRenderer::State {
     // The invalid rays of this render's threads alone (not the scene's count, which other
     // renders of the scene in the process add to).
     ArenaInvalidRayTally invalid_rays;
+    // Adaptive sampling: the pixel integrator that takes the masks, the rounds, and for
+    // add_adaptive the mask of round `mask_round` (none yet: the largest value).
+    PixelIntegrator* pixel_integrator = nullptr;
+    AdaptiveRounds rounds;
+    uint64_t mask_round = std::numeric_limits<uint64_t>::max();
+    std::vector<uint8_t> mask;
 
     State(const Scene& s, const RenderSettings& rs, uint32_t f)
         : scene(s),
@@ -44,13 +52,32 @@ struct IterationRenderer::State {
           integrator(make_integrator(rs)),
           iteration_image(s.camera().width(), s.camera().height()),
           arena(rs.threads > 0 ? rs.threads : tbb::task_arena::automatic),
-          invalid_rays(arena) {}
+          invalid_rays(arena),
+          rounds(rs) {}
 };
 
 IterationRenderer::IterationRenderer(const Scene& scene, const RenderSettings& settings,
                                      uint32_t frame)
     : state_(std::make_unique<State>(scene, settings, frame)) {
     check_algorithm_supports_scene(settings, scene);
+    if (settings.adaptive > 0) {
+        // Only an eye pass of independent pixels can skip a pixel without changing the others
+        // (docs/reference/adaptive-sampling.md, "Algorithms").
+        state_->pixel_integrator = dynamic_cast<PixelIntegrator*>(state_->integrator.get());
+        if (!state_->pixel_integrator)
+            throw std::invalid_argument(
+                "adaptive sampling (--adaptive) is supported by the pixel algorithms pt and "
+                "volpt, not by " +
+                settings.algorithm);
+        if (settings.layers != LayerMode::None)
+            throw std::invalid_argument(
+                "adaptive sampling (--adaptive) writes its own layer (samples); --layers is "
+                "not supported with it");
+        if (settings.adaptive_min_iterations < 2 || settings.adaptive_round < 1)
+            throw std::invalid_argument(
+                "adaptive sampling needs --adaptive-min-iterations >= 2 (both halves of every "
+                "pixel's error estimate) and --adaptive-round >= 1");
+    }
 }
 
 IterationRenderer::~IterationRenderer() = default;
@@ -61,14 +88,35 @@ IterationResult IterationRenderer::empty_result() const {
     result.sum = AccumulationBuffer(width, height);
     result.odd_sum = AccumulationBuffer(width, height);
     result.layers = TechniqueLayers(state_->settings.layers, width, height);
+    if (state_->settings.adaptive > 0) result.adaptive = AdaptiveSums(size_t(width) * height);
     return result;
 }
 
-void IterationRenderer::add(IterationRange range, IterationResult& result) {
+void IterationRenderer::add(IterationRange range, IterationResult& result,
+                            std::span<const uint8_t> active) {
     if (range.first < 1 || range.end <= range.first)
         throw std::invalid_argument("invalid iteration range [" + std::to_string(range.first) +
                                     ", " + std::to_string(range.end) + ")");
     State& s = *state_;
+    const bool adaptive = s.settings.adaptive > 0;
+    if (adaptive) {
+        const uint64_t round = s.rounds.round_of(range.first);
+        if (s.rounds.round_of(range.end - 1) != round)
+            throw std::invalid_argument("adaptive sampling: iteration range [" +
+                                        std::to_string(range.first) + ", " +
+                                        std::to_string(range.end) + ") spans two rounds");
+        if (round > 0 && active.size() != result.adaptive.count.size())
+            throw std::invalid_argument("adaptive sampling: iterations after the first " +
+                                        std::to_string(s.settings.adaptive_min_iterations) +
+                                        " need their round's mask");
+        if (result.adaptive.empty())
+            throw std::invalid_argument("adaptive sampling: a result without adaptive sums");
+        if (round == 0) active = {};
+    } else if (!active.empty()) {
+        throw std::invalid_argument("an active-pixel mask for a job that is not adaptive");
+    }
+    if (s.pixel_integrator)
+        s.pixel_integrator->set_active_pixels(active.empty() ? nullptr : active.data());
     const uint64_t invalid_rays_before = s.invalid_rays.count();
     AccumulationBuffer& image = s.iteration_image;
     s.arena.execute([&] {
@@ -97,11 +145,51 @@ void IterationRenderer::add(IterationRange range, IterationResult& result) {
                 if (squares)
                     for (size_t k = begin; k < end; ++k) squares[k] += values[k] * values[k];
             });
+            if (adaptive) result.adaptive.add_iteration(values, i, active);
             if (odd) ++result.odd_count;
             ++result.count;
         }
     });
+    if (s.pixel_integrator) s.pixel_integrator->set_active_pixels(nullptr);
     result.stats.invalid_rays += s.invalid_rays.count() - invalid_rays_before;
+}
+
+const std::vector<uint8_t>& IterationRenderer::adaptive_mask_for(uint64_t iteration,
+                                                                 const IterationResult& result) {
+    State& s = *state_;
+    if (s.settings.adaptive <= 0 || result.adaptive.empty())
+        throw std::invalid_argument("add_adaptive: the job is not adaptive");
+    if (result.count != iteration - 1)
+        throw std::invalid_argument("add_adaptive: the result must hold exactly iterations [1, " +
+                                    std::to_string(iteration) + ")");
+    const uint64_t round = s.rounds.round_of(iteration);
+    if (round != s.mask_round) {
+        if (round > 0 && iteration != s.rounds.first(round))
+            throw std::invalid_argument(
+                "add_adaptive: a round's mask is taken at its first iteration");
+        const int width = s.scene.camera().width(), height = s.scene.camera().height();
+        s.mask = round == 0 ? std::vector<uint8_t>(size_t(width) * height, 1)
+                            : adaptive_round_mask(result.adaptive, width, height, s.settings);
+        s.mask_round = round;
+    }
+    return s.mask;
+}
+
+void IterationRenderer::add_adaptive(IterationRange range, IterationResult& result) {
+    for (uint64_t first = range.first; first < range.end;) {
+        const uint64_t round = state_->rounds.round_of(first);
+        const uint64_t end = std::min(range.end, state_->rounds.end(round));
+        const std::vector<uint8_t>& mask = adaptive_mask_for(first, result);
+        add({first, end}, result, round == 0 ? std::span<const uint8_t>() : std::span(mask));
+        first = end;
+    }
+}
+
+uint64_t IterationRenderer::adaptive_active_pixels(const IterationResult& result) {
+    const std::vector<uint8_t>& mask = adaptive_mask_for(result.count + 1, result);
+    uint64_t active = 0;
+    for (uint8_t m : mask) active += m;
+    return active;
 }
 
 IterationResult render_iterations(const Scene& scene, const RenderSettings& settings,
@@ -115,8 +203,29 @@ IterationResult render_iterations(const Scene& scene, const RenderSettings& sett
     return result;
 }
 
+Image mean_image(const IterationResult& result) {
+    if (result.adaptive.empty()) return result.sum.average(double(result.count));
+    Image image(result.sum.width(), result.sum.height());
+    for (size_t p = 0; p < image.pixel_count(); ++p) {
+        const uint64_t n = result.adaptive.count[p];
+        const double scale = n > 0 ? 1.0 / double(n) : 0.0;
+        image.set(
+            p, Rgb(float(result.sum.channel(p, 0) * scale), float(result.sum.channel(p, 1) * scale),
+                   float(result.sum.channel(p, 2) * scale)));
+    }
+    return image;
+}
+
 std::vector<NamedLayer> output_layers(const IterationResult& result) {
     if (result.count == 0) return {};
+    if (!result.adaptive.empty()) {
+        Image samples(result.sum.width(), result.sum.height());
+        for (size_t p = 0; p < samples.pixel_count(); ++p) {
+            const float n = float(result.adaptive.count[p]);
+            samples.set(p, Rgb(n, n, n));
+        }
+        return {NamedLayer{"samples", std::move(samples)}};
+    }
     if (result.layers.mode() == LayerMode::Variance)
         return variance_layers(result.sum, result.odd_sum, result.layers.buffer(0), result.count,
                                result.odd_count);
@@ -124,6 +233,25 @@ std::vector<NamedLayer> output_layers(const IterationResult& result) {
 }
 
 double estimate_relative_error(const IterationResult& result) {
+    if (!result.adaptive.empty()) {
+        // Each pixel's standard error from its own halves: |m_o - m_e| sqrt(n_o n_e) / n
+        // (core/render/adaptive_mask.h), squared and summed over the image like the mean.
+        const auto& sum = result.sum.values();
+        const auto& odd = result.odd_sum.values();
+        double error2 = 0, mean2 = 0;
+        for (size_t p = 0; p < result.adaptive.count.size(); ++p) {
+            const uint64_t n = result.adaptive.count[p], n_odd = result.adaptive.odd_count[p];
+            if (n_odd == 0 || n_odd == n) return 1.0;
+            const double nd = double(n), no = double(n_odd), ne = double(n - n_odd);
+            for (int c = 0; c < 3; ++c) {
+                const double s = sum[3 * p + c], o = odd[3 * p + c];
+                const double diff = o / no - (s - o) / ne;
+                error2 += diff * diff * no * ne / (nd * nd);
+                mean2 += (s / nd) * (s / nd);
+            }
+        }
+        return mean2 <= 0 ? 0.0 : std::sqrt(error2 / mean2);
+    }
     uint64_t even_count = result.count - result.odd_count;
     if (result.odd_count == 0 || even_count == 0) return 1.0;
     const auto& sum = result.sum.values();

@@ -6,10 +6,12 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "core/image/image.h"
 #include "core/image/technique_layers.h"
+#include "core/render/adaptive_rounds.h"
 #include "core/render/render_settings.h"
 #include "core/scene/scene.h"
 
@@ -26,6 +28,10 @@ struct IterationResult {
     uint64_t count = 0;          // iterations rendered
     uint64_t odd_count = 0;      // odd-indexed iterations among them
     TechniqueLayers layers;      // per-technique sums or the sum of squares (settings.layers)
+    // Adaptive sampling's exact sums and per-pixel counts (settings.adaptive > 0; else empty).
+    // With them a pixel's mean is its sum over its own count, and `count` stays the number of
+    // global iterations merged.
+    AdaptiveSums adaptive;
     RenderStats stats;
 };
 
@@ -52,17 +58,36 @@ class IterationRenderer {
 
     // An empty result with the frame's buffers (and layers, if the settings ask for them).
     IterationResult empty_result() const;
-    // Renders `range` and adds it to `result` (made by empty_result()).
-    void add(IterationRange range, IterationResult& result);
+    // Renders `range` and adds it to `result` (made by empty_result()). For an adaptive job
+    // the range lies within one round (AdaptiveRounds) and `active` is that round's mask (one
+    // entry per pixel), given by whoever merged every iteration before the round (the server,
+    // or add_adaptive); empty for round 0, where every pixel is active.
+    void add(IterationRange range, IterationResult& result, std::span<const uint8_t> active = {});
+
+    // An adaptive job rendered in one process (`render`): `result` holds exactly iterations
+    // [1, range.first), and each round's mask is computed from it at the round's first
+    // iteration. The same image as any split of the job over workers whose masks come from
+    // the merged sums (docs/reference/adaptive-sampling.md).
+    void add_adaptive(IterationRange range, IterationResult& result);
+    // The active pixels of iteration result.count + 1 of an adaptive job rendered by
+    // add_adaptive (its mask computed, if it starts a round): 0 when every pixel has converged.
+    uint64_t adaptive_active_pixels(const IterationResult& result);
 
   private:
+    const std::vector<uint8_t>& adaptive_mask_for(uint64_t iteration,
+                                                  const IterationResult& result);
     struct State;
     std::unique_ptr<State> state_;
 };
 
+// The image of a result: its sum over the iteration count, or over each pixel's own count for an
+// adaptive job (a pixel that never took an iteration is black).
+Image mean_image(const IterationResult& result);
+
 // The extra EXR layers of a result, as `render` and the server write them: the per-technique
 // layers' means, or for LayerMode::Variance the per-pixel error layers (variance_layers: the
-// variance of each pixel's mean and the odd and even half images). None before any iteration.
+// variance of each pixel's mean and the odd and even half images); for an adaptive job the layer
+// "samples", each pixel's iteration count in R, G and B. None before any iteration.
 std::vector<NamedLayer> output_layers(const IterationResult& result);
 
 // The sums behind estimate_relative_error, pixel value by pixel value (`sum` over all `count`
@@ -88,7 +113,8 @@ class RelativeErrorSums {
 };
 
 // Estimated relative error of the mean image from the even/odd half sums: the RMS of the
-// difference of the two half means over the RMS of the full mean (0 if black).
+// difference of the two half means over the RMS of the full mean (0 if black). For an adaptive
+// job each pixel's halves and mean use its own counts.
 double estimate_relative_error(const IterationResult& result);
 
 }  // namespace render

@@ -96,6 +96,13 @@ struct RenderSettings {
     int connection_samples = 1;
     // Per-technique images (extra EXR layers): none, connection/merging, or per (s, t).
     LayerMode layers = LayerMode::None;
+    // Adaptive sampling (docs/reference/adaptive-sampling.md), pixel algorithms only: 0 = off,
+    // else the per-pixel relative error under which a pixel stops taking iterations. Every pixel
+    // takes the first adaptive_min_iterations; after that the active pixels are chosen again
+    // every adaptive_round iterations, from the sums at that fixed boundary.
+    double adaptive = 0;
+    uint64_t adaptive_min_iterations = 16;
+    uint64_t adaptive_round = 8;
 };
 
 }  // namespace render

@@ -119,7 +119,12 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
         c.wait_workers_registered(2)
 
         cases = []
+        # Adaptive sampling is rendered by `render` only: the service refuses it until leases
+        # carry the rounds' masks (docs/reference/adaptive-sampling.md, "The service").
+        render_only = {o["name"] for o in tables["options"] if o["name"].startswith("adaptive")}
         for option in tables["options"]:
+            if option["name"] in render_only:
+                continue
             algorithm, scene = pick_algorithm(option, tables)
             value = other_value(option)
             # --seed is also given by the harness; the later flag wins in both programs.
@@ -135,7 +140,8 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
                 cases.append((option["name"], algorithm, scene, needs + [option["negated_flag"]],
                               None, needs))
         # Every option of the tables is exercised.
-        self.assertEqual({name for name, *_ in cases}, {o["name"] for o in tables["options"]})
+        self.assertEqual({name for name, *_ in cases},
+                         {o["name"] for o in tables["options"]} - render_only)
 
         for i, (name, algorithm, scene, extra, value, needs) in enumerate(cases):
             with self.subTest(option=name, flags=" ".join(extra), algorithm=algorithm["name"]):
