@@ -9,6 +9,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,14 @@ namespace render::bench {
 
 namespace {
 
+// The share of `rays` that this benchmark thread traces: with ->Threads(2) each thread takes
+// its half (different rays on each core, as in a render); with one thread, all of them.
+std::span<const Ray> thread_share(const benchmark::State& state, const std::vector<Ray>& rays) {
+    const size_t threads = size_t(state.threads()), index = size_t(state.thread_index());
+    const size_t begin = rays.size() * index / threads, end = rays.size() * (index + 1) / threads;
+    return std::span<const Ray>(rays).subspan(begin, end - begin);
+}
+
 void closest_ours(benchmark::State& state, const std::string& name) {
     const Scene& s = scene(name);
     const std::vector<Ray>& rays = bench::rays(name).closest;
@@ -60,7 +69,7 @@ void closest_embree(benchmark::State& state, const std::string& name) {
 
 void occluded_ours(benchmark::State& state, const std::string& name) {
     const Scene& s = scene(name);
-    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    const std::span<const Ray> rays = thread_share(state, bench::rays(name).shadow);
     for (auto _ : state) {
         int blocked = 0;
         for (const Ray& ray : rays) blocked += s.occluded(ray) ? 1 : 0;
@@ -71,7 +80,7 @@ void occluded_ours(benchmark::State& state, const std::string& name) {
 
 void occluded_embree(benchmark::State& state, const std::string& name) {
     const RTCScene rtc = scene(name).embree_scene();
-    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    const std::span<const Ray> rays = thread_share(state, bench::rays(name).shadow);
     for (auto _ : state) {
         int blocked = 0;
         for (const Ray& ray : rays) {
@@ -92,7 +101,7 @@ void occluded_embree(benchmark::State& state, const std::string& name) {
 // (docs/results/performance-notes.md, "Shadow rays in batches").
 void occluded_embree_stream(benchmark::State& state, const std::string& name, int batch) {
     const RTCScene rtc = scene(name).embree_scene();
-    const std::vector<Ray>& rays = bench::rays(name).shadow;
+    const std::span<const Ray> rays = thread_share(state, bench::rays(name).shadow);
     std::vector<RTCRay> buffer(static_cast<size_t>(batch));
     for (auto _ : state) {
         int blocked = 0;
@@ -121,6 +130,25 @@ void occluded_embree_stream(benchmark::State& state, const std::string& name, in
             benchmark::RegisterBenchmark(
                 ("rays/occluded/embree-stream" + std::to_string(batch) + "/" + name).c_str(),
                 occluded_embree_stream, name, batch);
+        // Both cores at once, each thread on its half of the rays; rates per wall-clock second
+        // of the pair (UseRealTime), so the 2-thread rate over the 1-thread one is the speed-up
+        // and the stream's lead on two cores shows whether batching still pays when the cores
+        // share the caches and the memory bus (docs/results/performance-notes.md, "Shadow rays
+        // in batches").
+        benchmark::RegisterBenchmark(("rays/occluded-2/ours/" + name).c_str(), occluded_ours, name)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
+        benchmark::RegisterBenchmark(("rays/occluded-2/embree/" + name).c_str(), occluded_embree,
+                                     name)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
+        benchmark::RegisterBenchmark(("rays/occluded-2/embree-stream64/" + name).c_str(),
+                                     occluded_embree_stream, name, 64)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
     }
     return true;
 }();

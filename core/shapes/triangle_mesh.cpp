@@ -88,13 +88,22 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
     area_ = float(total);
     triangle_distribution_ = Distribution1D(std::move(areas));
     keep_flat_frames();
+    frames_per_triangle_ = !flat_frames_.empty() && !has_degenerate_;
 }
 
 void TriangleMesh::keep_flat_frames() {
+    if (normals_.empty()) {
+        // Shaded by the face normal: the frame a hit would build from it, built here once. Not
+        // with degenerate triangles, whose hits build theirs from the ray (facing_normal).
+        if (has_degenerate_ || triangle_count() > kMaxFaceFrameTriangles) return;
+        flat_frames_.resize(triangle_count());
+        for (size_t i = 0; i < triangle_count(); ++i)
+            flat_frames_[i] = Frame::from_normal(face_normals_[i]);
+        return;
+    }
     // At most twice the memory of the vertex normals they replace (equal for unshared vertices,
     // 1.5x for the rectangle and the cube; a finely tessellated plane would take 6x).
-    if (normals_.empty() || triangle_count() * sizeof(Frame) > 2 * normals_.size() * sizeof(Vec3))
-        return;
+    if (triangle_count() * sizeof(Frame) > 2 * normals_.size() * sizeof(Vec3)) return;
     std::vector<Frame> frames(triangle_count());
     for (size_t i = 0; i < triangle_count(); ++i) {
         const Vec3& n = normals_[indices_[3 * i]];
@@ -137,6 +146,38 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
 void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                                     HitDetail detail, SurfaceInteraction& si) const {
     fill_hit(ray, t, prim_id, u, v, detail, si);
+}
+
+void TriangleMesh::fill_hit_interpolated(const Ray& ray, float t, unsigned prim_id, float u,
+                                         float v, SurfaceInteraction& si) const {
+    const uint32_t* index = &indices_[3 * size_t(prim_id)];
+    const uint32_t i0 = index[0], i1 = index[1], i2 = index[2];
+    const Vec3 &p0 = positions_[i0], &p1 = positions_[i1], &p2 = positions_[i2];
+    const float b0 = 1.0f - u - v;
+    si.p = p0 * b0 + p1 * u + p2 * v;
+    si.t = t;
+    Vec3 ng = face_normals_[prim_id];
+    if (has_degenerate_) ng = facing_normal(ng, ray);
+    si.geometric_normal = ng;
+    if (!flat_frames_.empty()) {
+        si.shading = flat_frames_[prim_id];
+        return;
+    }
+    Vec3 ns = ng;
+    if (!normals_.empty()) {
+        const Vec3 n = normals_[i0] * b0 + normals_[i1] * u + normals_[i2] * v;
+        const float nlen = length(n);
+        if (nlen > 0 && std::isfinite(nlen)) {
+            ns = n / nlen;
+            if (flip_normals_) ns = -ns;
+        }
+    }
+    si.shading = Frame::from_normal(ns);
+}
+
+void TriangleMesh::fill_uv(unsigned prim_id, float u, float v, SurfaceInteraction& si) const {
+    si.uv = uv_of(prim_id, u, v);
+    tangents_of(prim_id, si.dpdu, si.dpdv);
 }
 
 Vec3 TriangleMesh::facing_normal(const Vec3& ng, const Ray& ray) const {

@@ -55,13 +55,25 @@ class TriangleMesh final : public Shape {
     Vec2 uv_of(size_t tri, float b1, float b2) const;
 
   private:
+    // fill_hit's p, t, geometric normal and shading frame where the mesh has no frame per
+    // triangle (interpolated vertex normals) or has degenerate triangles.
+    [[gnu::noinline]] void fill_hit_interpolated(const Ray& ray, float t, unsigned prim_id, float u,
+                                                 float v, SurfaceInteraction& si) const;
+    // fill_hit's uv, dp/du and dp/dv.
+    [[gnu::noinline]] void fill_uv(unsigned prim_id, float u, float v,
+                                   SurfaceInteraction& si) const;
     // dp/du and dp/dv of triangle `tri` (constant over it; zero for degenerate uv).
     void tangents_of(size_t tri, Vec3& dpdu, Vec3& dpdv) const;
     // ng, or for a degenerate triangle (zero ng) the reverse ray direction (flipped if
     // flip_normals_). Out of line: only meshes with degenerate triangles call it.
     Vec3 facing_normal(const Vec3& ng, const Ray& ray) const;
-    // Replaces normals_ by flat_frames_ if the mesh is flat-shaded.
+    // Replaces normals_ by flat_frames_ if the mesh is flat-shaded; fills flat_frames_ from
+    // the face normals of a mesh without vertex normals (up to kMaxFaceFrameTriangles).
     void keep_flat_frames();
+    // A mesh shaded by its face normals keeps their frames up to this many triangles (144 KiB):
+    // the frame copied at a hit instead of Frame::from_normal's ~35 instructions, without
+    // adding 36 bytes per triangle to large meshes, whose hits miss the cache anyway.
+    static constexpr size_t kMaxFaceFrameTriangles = 4096;
 
     std::vector<Vec3> positions_;
     // Unit geometric normal of each triangle (flipped if flip_normals_), zero for a degenerate
@@ -73,8 +85,13 @@ class TriangleMesh final : public Shape {
     // flat-shaded mesh such as the rectangle or the cube): a hit copies it instead of
     // interpolating three normals, renormalising (which gave the same normal up to rounding)
     // and building the frame. 36 bytes per triangle, what three unshared vertex normals take;
-    // kept only where that is at most twice the vertex normals' memory. Empty otherwise.
+    // kept only where that is at most twice the vertex normals' memory. Also the frames of the
+    // face normals of a small mesh without vertex normals (the same frames its hits built).
+    // Empty otherwise.
     std::vector<Frame> flat_frames_;
+    // flat_frames_ holds every triangle's frame and no triangle is degenerate: a hit copies
+    // its frame and face normal (fill_hit's inline path).
+    bool frames_per_triangle_ = false;
     std::vector<Vec2> uvs_;
     std::vector<uint32_t> indices_;
     bool flip_normals_;

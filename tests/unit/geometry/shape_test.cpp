@@ -140,6 +140,54 @@ TEST(TriangleMesh, AMeshWithOneSmoothTriangleInterpolatesItsNormals) {
     EXPECT_LT(si.shading.n.x, 0.01f);
 }
 
+// A mesh shaded by its face normals (no vertex normals, or face_normals set) reports the frame
+// Frame::from_normal builds around the geometric normal, bit for bit, whether the frame was
+// built at load (a small mesh without degenerate triangles: TriangleMesh keeps one per
+// triangle), at the hit (a mesh with a degenerate triangle), or at the hit because the mesh is
+// larger than the meshes whose frames are kept (a 64 x 64 grid, 8192 triangles). Bit for bit
+// because images must not change with where the frame is built.
+MeshData grid_mesh(int n) {
+    MeshData data;
+    for (int y = 0; y <= n; ++y)
+        for (int x = 0; x <= n; ++x)
+            data.positions.push_back(
+                Vec3(2.0f * float(x) / float(n) - 1, 2.0f * float(y) / float(n) - 1, 0));
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+            const uint32_t i = uint32_t(y * (n + 1) + x), right = i + 1, up = i + uint32_t(n + 1);
+            data.indices.insert(data.indices.end(), {i, right, up + 1, i, up + 1, up});
+        }
+    return data;
+}
+
+TEST(TriangleMesh, FaceNormalMeshesReportTheFrameOfTheGeometricNormal) {
+    MeshData with_degenerate = make_rectangle_mesh();
+    with_degenerate.indices.insert(with_degenerate.indices.end(), {0, 0, 1});
+    const Transform to_world = Transform::rotate(normalize(Vec3(1, 2, 3)), 37.0f);
+    const Vec3 face = normalize(to_world.apply_normal(Vec3(0, 0, 1)));
+    for (const MeshData& data : {make_rectangle_mesh(), with_degenerate, grid_mesh(64)}) {
+        for (bool flip : {false, true}) {
+            auto scene =
+                scene_with(std::make_unique<TriangleMesh>(data, to_world, flip, true, "faces"));
+            for (const Vec3 target :
+                 {Vec3(0.5f, -0.7f, 0), Vec3(-0.9f, 0.8f, 0), Vec3(0.1f, 0.2f, 0)}) {
+                const Vec3 p = to_world.apply_point(target);
+                SurfaceInteraction si;
+                ASSERT_TRUE(scene->intersect(Ray(p + face * 2.0f, face * -1.0f), si));
+                const Frame want = Frame::from_normal(si.geometric_normal);
+                for (int a = 0; a < 3; ++a) {
+                    EXPECT_EQ(si.shading.s[a], want.s[a]) << "flip " << flip;
+                    EXPECT_EQ(si.shading.t[a], want.t[a]) << "flip " << flip;
+                    EXPECT_EQ(si.shading.n[a], want.n[a]) << "flip " << flip;
+                }
+                // The geometric normal itself: the face's, flipped with flip_normals.
+                EXPECT_GT(std::abs(dot(si.geometric_normal, face)), 0.9f);
+                EXPECT_GT(dot(si.geometric_normal, face) * (flip ? -1.0f : 1.0f), 0.0f);
+            }
+        }
+    }
+}
+
 TEST(TriangleMesh, RejectsBadIndices) {
     MeshData data = make_rectangle_mesh();
     data.indices.push_back(0);
