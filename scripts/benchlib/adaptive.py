@@ -68,20 +68,7 @@ QUICK = {"adaptive_iterations": 32, "reference_iterations": 128, "seeds": 1}
 
 def read_layers(path: Path) -> dict:
     """Every layer of an EXR as H x W x 3 float64 arrays: "" for the image, else the layer name."""
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
-    inp.close()
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-    layers = {}
-    for i, name in enumerate(spec.channelnames):
-        layer, _, channel = name.rpartition(".")
-        layers.setdefault(layer, [None, None, None])["RGB".index(channel)] = pixels[..., i]
-    return {k: np.stack(v, axis=-1) for k, v in layers.items()}
+    return common.read_exr_layers(path)[0]
 
 
 def cpu_run(cmd: list[str]) -> tuple[float, str]:

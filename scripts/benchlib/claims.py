@@ -240,18 +240,7 @@ def check_arms(table: dict, claims) -> None:
 
 def read_image(path: Path, layer=None):
     """RGB of the image (or of one `--layers st` layer) as float64 H x W x 3."""
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
-    inp.close()
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-    names = list(spec.channelnames)
-    prefix = f"{layer}." if layer else ""
-    return pixels[:, :, [names.index(prefix + c) for c in "RGB"]]
+    return common.read_exr_layers(path)[0][layer or ""]
 
 
 def run_cpu(cmd) -> tuple[float, str]:

@@ -303,6 +303,28 @@ def read_exr(path: Path) -> tuple[np.ndarray, dict]:
     return np.asarray(pixels, dtype=np.float64).reshape(spec.height, spec.width, 3), attributes
 
 
+def read_exr_layers(path: Path) -> tuple[dict, dict]:
+    """Every RGB layer of an EXR as float64 H x W x 3 arrays, keyed by layer name ("" for the
+    image itself: `--layers` writes "st.R" beside "R"), and the file's attributes."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
+    spec = inp.spec()
+    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
+    inp.close()
+    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
+    channels = {}
+    for i, name in enumerate(spec.channelnames):
+        layer, _, channel = name.rpartition(".")
+        if channel in ("R", "G", "B"):
+            channels.setdefault(layer, {})[channel] = pixels[..., i]
+    layers = {layer: np.stack([c[k] for k in "RGB"], axis=-1)
+              for layer, c in channels.items() if len(c) == 3}
+    return layers, {a.name: a.value for a in spec.extra_attribs}
+
+
 def write_exr(path: Path, pixels: np.ndarray, attributes: dict, *, half: bool = True,
               compression: str = "zip") -> None:
     """Writes an RGB EXR (half or float, given compression) with string/number attributes."""

@@ -76,19 +76,8 @@ PICTURE_LINES = [
 
 def read_layer(path: Path, layer: str):
     """The RGB channels of one EXR layer (float64, H x W x 3) and the file's attributes."""
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
-    inp.close()
-    names = list(spec.channelnames)
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-    prefix = f"{layer}." if layer else ""
-    image = pixels[:, :, [names.index(f"{prefix}{c}") for c in "RGB"]]
-    return image, {a.name: a.value for a in spec.extra_attribs}
+    layers, attributes = common.read_exr_layers(path)
+    return layers[layer or ""], attributes
 
 
 BPT_ARMS = {"bpt": ["--joint-connections", "off"], "bpt + J1": ["--joint-connections", "on"],

@@ -67,19 +67,8 @@ def indirect_image(path: Path):
     """The image without the emitter seen directly (the s0_t2 layer of `--layers st`): every
     arm samples those paths alike (pixel jitter over the lamp's edges), and their variance would
     hide the differences in the medium."""
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise RuntimeError(f"cannot open {path}: {oiio.geterror()}")
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT), dtype=np.float64)
-    inp.close()
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-    names = list(spec.channelnames)
-    image = pixels[:, :, [names.index(c) for c in "RGB"]]
-    direct = pixels[:, :, [names.index(f"s0_t2.{c}") for c in "RGB"]]
-    return image - direct, {a.name: a.value for a in spec.extra_attribs}
+    layers, attributes = common.read_exr_layers(path)
+    return layers[""] - layers["s0_t2"], attributes
 
 
 def variance(images, iterations) -> float:
