@@ -54,6 +54,21 @@ bool finite_positive(double x) {
 
 // ---- U3: distance on the eye ray ----------------------------------------------------------
 
+// A camera ray (origin d, unit direction w) and a light point a, uniform in [-2, 2]^3 and over
+// directions (by rejection from the unit ball), for the random-configuration tests below.
+struct CameraRayAndLight {
+    Vec3 d, a, w;
+};
+CameraRayAndLight random_camera_ray_and_light(Rng& rng) {
+    auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * rng.next_1d(); };
+    const Vec3 d(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
+    const Vec3 a(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
+    Vec3 w;
+    do w = Vec3(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
+    while (length_squared(w) > 1 || length_squared(w) < 1e-4f);
+    return {d, a, normalize(w)};
+}
+
 struct EyeCase {
     const char* name;
     double delta, distance;
@@ -251,12 +266,7 @@ TEST(JointSampling, ProductOfTheDensitiesIsTheGeometryTermOverTheConstant) {
     int checked = 0;
     double worst = 0;
     for (int i = 0; i < 10000; ++i) {
-        const Vec3 d(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
-        const Vec3 a(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
-        Vec3 w;
-        do w = Vec3(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
-        while (length_squared(w) > 1 || length_squared(w) < 1e-4f);
-        w = normalize(w);
+        const auto [d, a, w] = random_camera_ray_and_light(rng);
         const float t_end = uniform(0.01f, 8.0f);
         const JointEyeDistanceSampler u3(d, w, a, 0.0f, t_end);
         const float t_dc = u3.sample(rng.next_1d());
@@ -304,12 +314,7 @@ TEST(JointSampling, WeightsOfADoubleScatteringPathSumToOne) {
     auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * rng.next_1d(); };
     int checked = 0;
     for (int i = 0; i < 10000; ++i) {
-        const Vec3 d(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
-        const Vec3 a(uniform(-2, 2), uniform(-2, 2), uniform(-2, 2));
-        Vec3 w;
-        do w = Vec3(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
-        while (length_squared(w) > 1 || length_squared(w) < 1e-4f);
-        w = normalize(w);
+        const auto [d, a, w] = random_camera_ray_and_light(rng);
         const float t_end = uniform(0.01f, 8.0f), t_hit = uniform(0.01f, 8.0f);
         // J3's route.
         const JointEyeDistanceSampler u3(d, w, a, 0.0f, t_end);
