@@ -48,6 +48,7 @@ struct Options {
     uint64_t max_memory = 0;  // 0: no limit
     bool help = false;
     bool describe = false;
+    bool target_error_per_pixel = false;  // --target-error bounds every pixel's estimate
 };
 
 ArgumentParser make_parser(Options& o) {
@@ -71,6 +72,11 @@ ArgumentParser make_parser(Options& o) {
             "numbers with the seed); with that frame's -D defines the image equals the "
             "service's frame F (default 0)",
             [&](const std::string& v) { o.frame = parse_number<uint32_t>("--frame", v); });
+    p.flag({"--target-error-per-pixel"},
+           "--target-error E bounds every pixel's estimated relative error (the RMS of the "
+           "relative errors of its brightness R+G+B over its 3x3 neighbourhood, odd/even "
+           "iterations) instead of the image's (render only; the service takes the image's)",
+           [&] { o.target_error_per_pixel = true; });
     p.value({"--png"}, "FILE.png", "also write a tone-mapped sRGB preview",
             [&](const std::string& v) { o.png = v; });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
@@ -110,6 +116,8 @@ Options parse_options(int argc, char** argv) {
     }
     if (o.scene.empty()) throw UsageError("no scene file given");
     if (o.out.empty()) throw UsageError("--out FILE.exr is required");
+    if (o.target_error_per_pixel && !o.job.target_error)
+        throw UsageError("--target-error-per-pixel needs --target-error E");
     return o;
 }
 
@@ -234,7 +242,9 @@ int render_scene(const Options& o) {
         elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
         progress.update(accumulated.count, elapsed);
         if (o.job.target_error && accumulated.count >= kMinTargetErrorIterations &&
-            estimate_relative_error(accumulated) <= *o.job.target_error)
+            (o.target_error_per_pixel
+                 ? max_pixel_relative_error(accumulated)
+                 : estimate_relative_error(accumulated)) <= *o.job.target_error)
             break;
     }
     progress.finish();

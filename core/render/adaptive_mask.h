@@ -14,19 +14,21 @@
 namespace render {
 
 struct AdaptiveMaskSettings {
-    // A pixel converges when its estimated relative error is at most this.
+    // A pixel stays active while its noise per iteration, sigma / (n * image mean), exceeds
+    // this: it stops after sigma / (threshold * image mean) iterations, a count proportional to
+    // its standard deviation (docs/reference/adaptive-sampling.md, "The norm").
     double threshold = 0.02;
-    // Brightness (R + G + B) under which the error is taken relative to this value instead:
-    // a black pixel's relative error is undefined, and a nearly black one is not worth
-    // iterations for its relative error alone.
+    // Floor of the image mean and of a pixel's standard deviation (brightness R + G + B): a
+    // black image has no scale, and a pixel whose halves happen to agree exactly still takes
+    // iterations as the threshold goes to 0 (consistency).
     double dark = 1e-3;
-    // An unconverged pixel keeps the pixels within this many pixels (a square) active: one
-    // pixel's error estimate has one degree of freedom and misses noise by chance.
+    // An active pixel keeps the pixels within this many pixels (a square) active: one pixel's
+    // estimate misses the rare bright paths of a caustic by chance.
     int spread = 1;
-    // A pixel's error is the root mean square of the relative errors of the pixels within this
-    // many pixels (a square, clipped at the frame's edge): one pixel's odd/even estimate has one
-    // degree of freedom (it exceeds twice the true error one time in twenty), a 3 x 3 window's
-    // nine. 0: the pixel's own estimate.
+    // A pixel's standard deviation is the root mean square of the estimates of the pixels
+    // within this many pixels (a square, clipped at the frame's edge): one pixel's odd/even
+    // estimate has one degree of freedom (it is below half the true value one time in three),
+    // a 3 x 3 window's nine. 0: the pixel's own estimate.
     int error_window = 0;
 };
 
@@ -37,8 +39,16 @@ struct AdaptiveMaskSettings {
 // max(mean, dark). Infinity when either half is empty (the error is unknown).
 double pixel_relative_error(int64_t sum, int64_t odd_sum, uint64_t count, uint64_t odd_count,
                             double dark);
+// The same from sums as values (the image's double sums: --target-error per pixel).
+double halves_relative_error(double sum, double odd_sum, uint64_t count, uint64_t odd_count,
+                             double dark);
 
-// The mask (1 = active) of a width x height frame: pixels whose relative error exceeds the
+// The estimated standard deviation of one iteration's brightness in a pixel: its mean's
+// standard error (as above) times sqrt(n), i.e. |m_o - m_e| sqrt(n_o n_e / n). Infinity when
+// either half is empty.
+double pixel_deviation(int64_t sum, int64_t odd_sum, uint64_t count, uint64_t odd_count);
+
+// The mask (1 = active) of a width x height frame: pixels whose noise per iteration exceeds the
 // threshold, spread to their neighbours. `count` and `odd_count` are each pixel's iterations
 // (one entry per pixel).
 std::vector<uint8_t> adaptive_active_mask(const FixedPointSums& sums, int width, int height,

@@ -33,7 +33,10 @@ std::vector<uint8_t> adaptive_round_mask(const AdaptiveSums& sums, int width, in
                                          const RenderSettings& settings) {
     AdaptiveMaskSettings mask;
     mask.threshold = settings.adaptive;
+    // Nine pixels' estimates of the standard deviation; an active pixel keeps its neighbours
+    // active (docs/reference/adaptive-sampling.md, "The norm").
     mask.error_window = 1;
+    mask.spread = 1;
     return adaptive_active_mask(sums.exact, width, height, sums.count, sums.odd_count, mask);
 }
 

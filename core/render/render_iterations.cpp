@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -16,6 +17,10 @@
 
 namespace render {
 namespace {
+
+// Brightness under which a pixel's error is taken relative to this value (as the mask's
+// default, AdaptiveMaskSettings::dark): a black pixel's relative error is undefined.
+constexpr double kPixelErrorDark = 1e-3;
 
 // f(begin, end) over [0, n) in parallel ranges: for the element-wise passes over a frame's
 // values, which give the same values whatever the split.
@@ -234,23 +239,17 @@ std::vector<NamedLayer> output_layers(const IterationResult& result) {
 
 double estimate_relative_error(const IterationResult& result) {
     if (!result.adaptive.empty()) {
-        // Each pixel's standard error from its own halves: |m_o - m_e| sqrt(n_o n_e) / n
-        // (core/render/adaptive_mask.h), squared and summed over the image like the mean.
+        // Each pixel's halves and mean with its own counts, summed over the image like the
+        // uniform figure's.
         const auto& sum = result.sum.values();
         const auto& odd = result.odd_sum.values();
-        double error2 = 0, mean2 = 0;
+        RelativeErrorSums error;
         for (size_t p = 0; p < result.adaptive.count.size(); ++p) {
             const uint64_t n = result.adaptive.count[p], n_odd = result.adaptive.odd_count[p];
-            if (n_odd == 0 || n_odd == n) return 1.0;
-            const double nd = double(n), no = double(n_odd), ne = double(n - n_odd);
-            for (int c = 0; c < 3; ++c) {
-                const double s = sum[3 * p + c], o = odd[3 * p + c];
-                const double diff = o / no - (s - o) / ne;
-                error2 += diff * diff * no * ne / (nd * nd);
-                mean2 += (s / nd) * (s / nd);
-            }
+            if (n_odd == 0 || n_odd >= n) return 1.0;
+            for (size_t c = 3 * p; c < 3 * p + 3; ++c) error.add_pixel(sum[c], odd[c], n, n_odd);
         }
-        return mean2 <= 0 ? 0.0 : std::sqrt(error2 / mean2);
+        return error.relative_error();
     }
     uint64_t even_count = result.count - result.odd_count;
     if (result.odd_count == 0 || even_count == 0) return 1.0;
@@ -259,6 +258,44 @@ double estimate_relative_error(const IterationResult& result) {
     RelativeErrorSums error(result.count, result.odd_count);
     for (size_t i = 0; i < sum.size(); ++i) error.add(sum[i], odd[i]);
     return error.relative_error();
+}
+
+std::vector<double> estimate_pixel_relative_errors(const IterationResult& result) {
+    if (result.count == 0) return {};
+    const int width = result.sum.width(), height = result.sum.height();
+    const size_t pixels = size_t(width) * size_t(height);
+    const bool adaptive = !result.adaptive.empty();
+    std::vector<double> own(pixels);
+    for (size_t p = 0; p < pixels; ++p) {
+        const uint64_t n = adaptive ? result.adaptive.count[p] : result.count;
+        const uint64_t n_odd = adaptive ? result.adaptive.odd_count[p] : result.odd_count;
+        double s = 0, o = 0;
+        for (int c = 0; c < 3; ++c) {
+            s += result.sum.channel(p, c);
+            o += result.odd_sum.channel(p, c);
+        }
+        own[p] = halves_relative_error(s, o, n, n_odd, kPixelErrorDark);
+    }
+    std::vector<double> error(pixels);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            double squares = 0;
+            int n = 0;
+            for (int yy = std::max(0, y - 1); yy <= std::min(height - 1, y + 1); ++yy)
+                for (int xx = std::max(0, x - 1); xx <= std::min(width - 1, x + 1); ++xx) {
+                    const double e = own[size_t(yy) * width + xx];
+                    squares += e * e;
+                    ++n;
+                }
+            error[size_t(y) * width + x] = std::sqrt(squares / n);
+        }
+    return error;
+}
+
+double max_pixel_relative_error(const IterationResult& result) {
+    const std::vector<double> errors = estimate_pixel_relative_errors(result);
+    if (errors.empty()) return std::numeric_limits<double>::infinity();
+    return *std::max_element(errors.begin(), errors.end());
 }
 
 }  // namespace render

@@ -90,31 +90,57 @@ Image mean_image(const IterationResult& result);
 // "samples", each pixel's iteration count in R, G and B. None before any iteration.
 std::vector<NamedLayer> output_layers(const IterationResult& result);
 
-// The sums behind estimate_relative_error, pixel value by pixel value (`sum` over all `count`
-// iterations, `odd` over the `odd_count` odd ones; both must be > 0 and odd_count < count): the
-// means of odd and even iterations, whose difference has variance ~ 4 var(mean). The server
-// takes them in the pass that adds a report (server/accumulator.cpp).
+// The sums behind estimate_relative_error, pixel value by pixel value: the means of odd and even
+// iterations, whose difference has variance ~ 4 var(mean) for equal halves. Either every value
+// shares one count (`sum` over all `count` iterations, `odd` over the `odd_count` odd ones; both
+// must be > 0 and odd_count < count; the server takes them in the pass that adds a report,
+// server/accumulator.cpp), or each value comes with its pixel's own counts (adaptive sampling).
 class RelativeErrorSums {
   public:
     RelativeErrorSums(uint64_t count, uint64_t odd_count)
         : n_odd_(double(odd_count)), n_even_(double(count - odd_count)), n_(double(count)) {}
+    // For values with their own counts (add_pixel only).
+    RelativeErrorSums() = default;
     void add(double sum, double odd) {
         const double mean_odd = odd / n_odd_, mean_even = (sum - odd) / n_even_;
         const double mean = sum / n_;
         diff2_ += (mean_odd - mean_even) * (mean_odd - mean_even);
         mean2_ += mean * mean;
     }
+    // A value over its pixel's `count` iterations, `odd_count` of them odd (both halves non-empty):
+    // the mean's variance is var (1/n_o + 1/n_e) n_o n_e / n^2 of the halves' difference's.
+    void add_pixel(double sum, double odd, uint64_t count, uint64_t odd_count) {
+        const double n = double(count), n_odd = double(odd_count),
+                     n_even = double(count - odd_count);
+        const double diff = odd / n_odd - (sum - odd) / n_even, mean = sum / n;
+        weighted_diff2_ += diff * diff * n_odd * n_even / (n * n);
+        mean2_ += mean * mean;
+    }
     // The full mean's error is half the half-means' difference (two independent halves).
-    double relative_error() const { return mean2_ <= 0 ? 0.0 : 0.5 * std::sqrt(diff2_ / mean2_); }
+    double relative_error() const {
+        if (mean2_ <= 0) return 0.0;
+        return n_ > 0 ? 0.5 * std::sqrt(diff2_ / mean2_) : std::sqrt(weighted_diff2_ / mean2_);
+    }
 
   private:
-    double n_odd_, n_even_, n_;
-    double diff2_ = 0, mean2_ = 0;
+    double n_odd_ = 0, n_even_ = 0, n_ = 0;
+    double diff2_ = 0, weighted_diff2_ = 0, mean2_ = 0;
 };
 
 // Estimated relative error of the mean image from the even/odd half sums: the RMS of the
 // difference of the two half means over the RMS of the full mean (0 if black). For an adaptive
 // job each pixel's halves and mean use its own counts.
 double estimate_relative_error(const IterationResult& result);
+
+// Each pixel's estimated relative error (--target-error per pixel,
+// docs/reference/adaptive-sampling.md): the root mean square, over the pixel's 3 x 3
+// neighbourhood clipped at the frame's edge, of the pixels' relative errors of their mean
+// brightness R + G + B (pixel_relative_error: the odd/even halves' standard error over
+// max(mean, 1e-3)), each with its own counts for an adaptive job. One pixel's own estimate has
+// one degree of freedom, the window's nine. Infinity where a pixel in the window has an empty
+// half (the error is unknown); empty before any iteration.
+std::vector<double> estimate_pixel_relative_errors(const IterationResult& result);
+// The largest of them (infinity when unknown): every pixel's estimate is at most this.
+double max_pixel_relative_error(const IterationResult& result);
 
 }  // namespace render

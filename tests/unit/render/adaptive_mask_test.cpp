@@ -48,7 +48,7 @@ Merged merge_ranges(const std::vector<std::vector<double>>& images,
     return out;
 }
 
-// The mask after 48 iterations of pt in the Cornell box (threshold: the median pixel error) is
+// The mask after 48 iterations of pt in the Cornell box (threshold: the median pixel's) is
 // the same for one range, for three ranges merged in two orders and for 48 single iterations
 // merged backwards: the exact sums
 // are equal bit for bit, so the mask (a function of them) is too. The image's double sums of
@@ -70,15 +70,19 @@ TEST(AdaptiveMask, IsTheSameForAnySplitAndMergeOrder) {
     const size_t pixels = size_t(kSize) * kSize;
     const std::vector<uint64_t> count(pixels, kIterations), odd(pixels, kIterations / 2);
     const Merged reference = merge_ranges(images, splits[0]);
-    // The threshold is the median pixel error, without spreading: half the pixels at the
-    // threshold's either side, so that many decisions are close to it.
-    std::vector<double> errors;
-    for (size_t p = 0; p < pixels; ++p)
-        errors.push_back(pixel_relative_error(reference.exact.sum(p), reference.exact.odd_sum(p),
-                                              kIterations, kIterations / 2, 1e-3));
-    std::nth_element(errors.begin(), errors.begin() + pixels / 2, errors.end());
+    // The threshold is the median pixel's noise per iteration (deviation / (n * image mean)),
+    // without window or spreading: half the pixels at the threshold's either side, so that many
+    // decisions are close to it.
+    std::vector<double> deviations;
+    double image_mean = 0;
+    for (size_t p = 0; p < pixels; ++p) {
+        deviations.push_back(pixel_deviation(reference.exact.sum(p), reference.exact.odd_sum(p),
+                                             kIterations, kIterations / 2));
+        image_mean += FixedPointSums::to_value(reference.exact.sum(p)) / kIterations / pixels;
+    }
+    std::nth_element(deviations.begin(), deviations.begin() + pixels / 2, deviations.end());
     AdaptiveMaskSettings mask_settings;
-    mask_settings.threshold = errors[pixels / 2];
+    mask_settings.threshold = deviations[pixels / 2] / (double(kIterations) * image_mean);
     mask_settings.spread = 0;
     const std::vector<uint8_t> mask =
         adaptive_active_mask(reference.exact, kSize, kSize, count, odd, mask_settings);
@@ -138,8 +142,9 @@ TEST(AdaptiveMask, FixedPointSumsAreExactWhereDoubleSumsAreNot) {
 }
 
 TEST(AdaptiveMask, Rules) {
-    // 3 x 3 frame, 4 iterations each, 2 odd. Pixel 0: odd and even means 1 and 1.1 (relative
-    // error 0.05 / 1.05); the others: equal halves (error 0).
+    // 3 x 3 frame, 4 iterations each, 2 odd. Pixel 0: odd and even means 1 and 1.1 (standard
+    // error 0.05, deviation per iteration 0.05 * sqrt(4) = 0.1); the others: equal halves of 0.5
+    // (deviation 0). Image mean: (1.05 + 8 * 0.5) / 9.
     FixedPointSums sums(9);
     for (uint64_t i = 1; i <= 4; ++i) {
         std::vector<double> rgb(27, 0.5 / 3);
@@ -149,21 +154,57 @@ TEST(AdaptiveMask, Rules) {
     std::vector<uint64_t> count(9, 4), odd(9, 2);
     EXPECT_NEAR(pixel_relative_error(sums.sum(0), sums.odd_sum(0), 4, 2, 1e-3), 0.05 / 1.05, 1e-5);
     EXPECT_EQ(pixel_relative_error(sums.sum(4), sums.odd_sum(4), 4, 2, 1e-3), 0.0);
+    EXPECT_NEAR(pixel_deviation(sums.sum(0), sums.odd_sum(0), 4, 2), 0.1, 1e-5);
+    EXPECT_EQ(pixel_deviation(sums.sum(4), sums.odd_sum(4), 4, 2), 0.0);
+    const double image_mean = (1.05 + 8 * 0.5) / 9;
+    // Pixel 0's noise per iteration: 0.1 / (4 * image mean); the others': dark / (4 * mean).
+    const double noise0 = 0.1 / (4 * image_mean);
     AdaptiveMaskSettings s;
-    s.threshold = 0.04;
+    s.threshold = noise0 * 0.99;
     s.spread = 0;
     std::vector<uint8_t> mask = adaptive_active_mask(sums, 3, 3, count, odd, s);
     EXPECT_EQ(mask, (std::vector<uint8_t>{1, 0, 0, 0, 0, 0, 0, 0, 0}));
     s.spread = 1;  // pixel 0's neighbours (1, 3, 4) join it
     mask = adaptive_active_mask(sums, 3, 3, count, odd, s);
     EXPECT_EQ(mask, (std::vector<uint8_t>{1, 1, 0, 1, 1, 0, 0, 0, 0}));
-    s.threshold = 0.05;  // above pixel 0's error: nothing active
+    s.threshold = noise0 * 1.01;  // above pixel 0's noise: nothing active
     mask = adaptive_active_mask(sums, 3, 3, count, odd, s);
     EXPECT_EQ(mask, std::vector<uint8_t>(9, 0));
-    // A pixel without even iterations has an unknown error: active.
+    // The count is per pixel: with twice the iterations (and the same sums' halves scaled, so
+    // the same deviation), pixel 0's noise per iteration halves.
+    s.threshold = noise0 * 0.6;
+    s.spread = 0;
+    EXPECT_EQ(adaptive_active_mask(sums, 3, 3, count, odd, s)[0], 1);
+    FixedPointSums doubled(9);
+    doubled.add(sums);
+    doubled.add(sums);  // as 8 iterations, 4 odd, with the same halves' means
+    std::vector<uint64_t> count8(9, 8), odd8(9, 4);
+    // The image mean is unchanged; the deviation grows by sqrt(2) (|m_o - m_e| sqrt(n) / 2),
+    // the count by 2: noise0 * sqrt(2) / 2 = 0.71 noise0 > 0.6 noise0, still active; at
+    // 0.75 noise0 it has stopped.
+    EXPECT_EQ(adaptive_active_mask(doubled, 3, 3, count8, odd8, s)[0], 1);
+    s.threshold = noise0 * 0.75;
+    EXPECT_EQ(adaptive_active_mask(doubled, 3, 3, count8, odd8, s)[0], 0);
+    // The 3 x 3 window: pixel 4 (the centre) sees pixel 0's deviation in its window's RMS,
+    // 0.1 / 3; pixel 8 (the far corner) does not.
+    s.error_window = 1;
+    s.threshold = (0.1 / 3) / (4 * image_mean) * 0.99;
+    mask = adaptive_active_mask(sums, 3, 3, count, odd, s);
+    EXPECT_EQ(mask, (std::vector<uint8_t>{1, 1, 0, 1, 1, 0, 0, 0, 0}));
+    s.error_window = 0;
+    s.threshold = noise0 * 1.01;
+    // A pixel without even iterations has an unknown error: active, and with the spread its
+    // neighbours too.
     odd[8] = 4;
+    s.spread = 1;
     mask = adaptive_active_mask(sums, 3, 3, count, odd, s);
     EXPECT_EQ(mask, (std::vector<uint8_t>{0, 0, 0, 0, 1, 1, 0, 1, 1}));
+    // Consistency: a pixel whose halves agree exactly still takes iterations once the threshold
+    // is below dark / (n * image mean).
+    odd[8] = 2;
+    s.spread = 0;
+    s.threshold = s.dark / (4 * image_mean) * 0.99;
+    EXPECT_EQ(adaptive_active_mask(sums, 3, 3, count, odd, s), std::vector<uint8_t>(9, 1));
     // NaN and huge values are quantized to the grid's range, never overflow.
     EXPECT_EQ(FixedPointSums::quantize(std::nan("")), 0);
     EXPECT_EQ(FixedPointSums::quantize(-1), 0);

@@ -285,5 +285,82 @@ TEST(AdaptiveRender, EstimatorMatchesAConvergedUniformRender) {
         << "the test cannot tell the wrong estimator from the right one";
 }
 
+// With every pixel active in every round (a threshold below any pixel's noise), an adaptive
+// result's per-pixel counts all equal the global ones, and its error figures equal the uniform
+// render's: estimate_relative_error's per-pixel-count sums (RelativeErrorSums::add_pixel) give
+// the uniform figure for an even count, and for an odd one the uniform figure (which takes the
+// halves as equal: half the difference) times the exact factor sqrt(4 n_o n_e) / n; the
+// per-pixel errors are the same bit for bit.
+TEST(AdaptiveRender, ErrorFiguresWithPerPixelCountsMatchTheUniformOnes) {
+    auto scene = cornell_box(kSize);
+    for (uint64_t iterations : {20, 21}) {
+        SCOPED_TRACE(iterations);
+        const IterationResult uniform =
+            render_iterations(*scene, adaptive_settings(9, 0), 0, {1, iterations + 1});
+        const IterationResult all_active =
+            render_alone(*scene, adaptive_settings(9, 1e-300), iterations);
+        for (uint64_t n : all_active.adaptive.count) ASSERT_EQ(n, iterations);
+        const double a = estimate_relative_error(uniform), b = estimate_relative_error(all_active);
+        const double n = double(iterations), n_odd = double((iterations + 1) / 2);
+        const double factor = std::sqrt(4 * n_odd * (n - n_odd)) / n;
+        std::printf(
+            "%llu iterations: relative error uniform %.6g, adaptive with every pixel "
+            "active %.6g (factor %.6g)\n",
+            (unsigned long long)iterations, a, b, factor);
+        EXPECT_GT(a, 0.0);
+        EXPECT_NEAR(b, a * factor, 1e-12 * a);
+        EXPECT_EQ(estimate_pixel_relative_errors(all_active),
+                  estimate_pixel_relative_errors(uniform));
+    }
+}
+
+// The per-pixel error estimate (--target-error per pixel) is calibrated: after kIterations
+// uniform iterations of the Cornell box, each pixel's actual relative error of its brightness
+// against a converged render (kReference iterations, whose own variance is 1/64 of the test's,
+// left out) is compared with its estimate e_p (the 3 x 3 RMS of odd/even estimates). If e_p is the
+// standard error of the pixel's relative brightness, the mean over pixels of (actual / e_p)^2 is
+// 1; with 256 pixels, each ratio's variance about 2 + the nine-degree-of-freedom estimate's
+// spread, and the windows' overlap, its standard error is about 0.15: the tolerance [0.5, 1.8]
+// is more than 3 of them. A wrong estimate fails it: the per-iteration deviation instead of the
+// mean's error (sqrt(n) = 8 times too large) gives 1/64, a missing factor of one half 1/4 or 4.
+// And the largest estimate is an upper bound for every pixel's own (windowed) estimate.
+TEST(AdaptiveRender, PerPixelRelativeErrorIsCalibrated) {
+    auto scene = cornell_box(kSize);
+    constexpr uint64_t kIterations = 64, kReference = 4096;
+    const IterationResult test =
+        render_iterations(*scene, adaptive_settings(11, 0), 0, {1, kIterations + 1});
+    const IterationResult reference =
+        render_iterations(*scene, adaptive_settings(1000, 0), 0, {1, kReference + 1});
+    const std::vector<double> estimate = estimate_pixel_relative_errors(test);
+    const size_t pixels = size_t(kSize) * kSize;
+    ASSERT_EQ(estimate.size(), pixels);
+    double ratio2 = 0;
+    size_t used = 0;
+    for (size_t p = 0; p < pixels; ++p) {
+        double mean = 0, ref = 0;
+        for (int c = 0; c < 3; ++c) {
+            mean += test.sum.channel(p, c) / double(kIterations);
+            ref += reference.sum.channel(p, c) / double(kReference);
+        }
+        if (!(estimate[p] > 0) || !std::isfinite(estimate[p])) continue;
+        const double actual = (mean - ref) / std::max(ref, 1e-3);
+        ratio2 += (actual / estimate[p]) * (actual / estimate[p]);
+        ++used;
+    }
+    ASSERT_GT(used, pixels * 3 / 4);
+    ratio2 /= double(used);
+    const double largest = max_pixel_relative_error(test);
+    std::printf(
+        "per-pixel relative error: mean (actual / estimate)^2 %.3f over %zu pixels, "
+        "largest estimate %.4f\n",
+        ratio2, used, largest);
+    EXPECT_GT(ratio2, 0.5);
+    EXPECT_LT(ratio2, 1.8);
+    for (double e : estimate) EXPECT_LE(e, largest);
+    // Before any iteration the error is unknown.
+    IterationRenderer renderer(*scene, adaptive_settings(11, 0), 0);
+    EXPECT_TRUE(std::isinf(max_pixel_relative_error(renderer.empty_result())));
+}
+
 }  // namespace
 }  // namespace render
