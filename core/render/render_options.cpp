@@ -527,9 +527,11 @@ const std::vector<RenderOption>& table() {
          .flag = "--adaptive",
          .metavar = "T",
          .type = OptionType::Real,
-         .help = "adaptive sampling: a pixel stops taking iterations once its estimated "
-                 "relative error (odd/even halves of its brightness R+G+B) is at most T, and "
-                 "the render stops when no pixel is left (0 = off, every pixel every iteration)",
+         .help = "adaptive sampling: a pixel stops taking iterations once its noise per "
+                 "iteration, sigma / (iterations x image mean), is at most T (sigma: the "
+                 "standard deviation of its brightness R+G+B from odd/even halves, over its 3x3 "
+                 "neighbourhood), i.e. after about sigma / (T x image mean) iterations; the "
+                 "render stops when no pixel is left (0 = off, every pixel every iteration)",
          .min = 0,
          .max = 1,
          .default_text = "0",
