@@ -66,7 +66,7 @@ THRESHOLD = 0.05
 MIN_ITERATIONS = 16
 ROUND = 8
 ADAPTIVE_ITERATIONS = 1024
-REFERENCE_ITERATIONS = 1024
+REFERENCE_ITERATIONS = 4096
 SEEDS = 2
 # One render thread: the benchmark's 64 x 64 film is 16 tiles, and when few pixels are left a
 # second thread's wait for the last tiles is CPU time that a full-size film does not spend.
