@@ -20,7 +20,7 @@ namespace render {
 // direction, and the densities MIS needs (selection probability included): direct_pdf_a =
 // P p_V (next-event estimation's, volume measure), emission_pdf_w = P p_V / 4 pi. y_0 emits if
 // the subpath is in the medium there by the medium rule, read along its own first direction
-// (VolumeEmitter::source_seen_from): where shapes disagree about the medium, a position alone
+// (VolumeEmitter::source_leaving): where shapes disagree about the medium, a position alone
 // does not say.
 struct VolumeLightSample {
     bool valid = false;
@@ -37,7 +37,7 @@ inline VolumeLightSample sample_volume_light_start(const VolumeEmitter& emitter,
     VolumeLightSample out;
     out.p = y.p;
     out.direction = warp::square_to_uniform_sphere(ud);
-    out.source = emitter.source_seen_from(y.p, out.direction, kInfinity, nullptr);
+    out.source = emitter.source_leaving(y.p, out.direction);
     out.direct_pdf_a = pick_probability * y.pdf_volume;
     out.emission_pdf_w = out.direct_pdf_a * kInv4Pi;
     out.valid = !y.source.is_black() && out.emission_pdf_w > 0;

@@ -164,6 +164,16 @@ Rgb VolumeEmitter::source_seen_from(const Vec3& p, const Vec3& d, float distance
                : Rgb(0.0f);
 }
 
+Rgb VolumeEmitter::source_leaving(const Vec3& p, const Vec3& d) const {
+    SurfaceInteraction si;
+    if (scene_.intersect(Ray(p, d), si) && is_medium_transition(*si.shape)) {
+        const Medium* here =
+            dot(d, si.geometric_normal) > 0 ? si.shape->interior : si.shape->exterior;
+        return here == &emitting_medium_ ? source_in_medium(p) : Rgb(0.0f);
+    }
+    return source(p);
+}
+
 Rgb VolumeEmitter::source_in_medium(const Vec3& p) const {
     const Rgb sigma_a = emitting_medium_.sigma_t(p) - emitting_medium_.sigma_s(p);
     const Rgb s =

@@ -23,7 +23,7 @@
 // medium for a path that entered the outer shape and in vacuum for one that left the inner one.
 // So the sampler gives sigma_a L_e as if the point were in the medium, and the techniques decide
 // with the path (source_seen_from): next-event estimation from the receiver's side, a light
-// subpath's start along its own first direction.
+// subpath's start along its own first direction (source_leaving).
 
 #include <memory>
 #include <string>
@@ -62,6 +62,12 @@ class VolumeEmitter final : public Light {
     // `distance` is in this medium at p (medium_seen_from), else zero.
     Rgb source_seen_from(const Vec3& p, const Vec3& d, float distance,
                          const Medium* medium_there) const;
+    // sigma_a(p) L_e(p) for a light subpath that starts at p along d (unit), if it is in this
+    // medium there: the side facing p of the first surface along d when that surface declares a
+    // medium (the camera's path would cross it last before p). When it declares none the
+    // subpath scatters or passes there with a medium this cannot know, and the probe decides
+    // (source): a floor that coincides with the medium's boundary must not hide the boundary.
+    Rgb source_leaving(const Vec3& p, const Vec3& d) const;
     // sigma_a(p) L_e(p) for a point known to be in the medium (a path's vertex there): no probe.
     Rgb source_in_medium(const Vec3& p) const;
     // Whether p lies in this medium (a probe ray: the side of the first surface it hits).
