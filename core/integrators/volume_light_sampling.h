@@ -18,7 +18,10 @@ namespace render {
 
 // The start y_0 of a light subpath at a volume light: a point with density p_V, an isotropic
 // direction, and the densities MIS needs (selection probability included): direct_pdf_a =
-// P p_V (next-event estimation's, volume measure), emission_pdf_w = P p_V / 4 pi.
+// P p_V (next-event estimation's, volume measure), emission_pdf_w = P p_V / 4 pi. y_0 emits if
+// the subpath is in the medium there by the medium rule, read along its own first direction
+// (VolumeEmitter::source_leaving): where shapes disagree about the medium, a position alone
+// does not say.
 struct VolumeLightSample {
     bool valid = false;
     Vec3 p, direction;
@@ -34,7 +37,7 @@ inline VolumeLightSample sample_volume_light_start(const VolumeEmitter& emitter,
     VolumeLightSample out;
     out.p = y.p;
     out.direction = warp::square_to_uniform_sphere(ud);
-    out.source = y.source;
+    out.source = emitter.source_leaving(y.p, out.direction);
     out.direct_pdf_a = pick_probability * y.pdf_volume;
     out.emission_pdf_w = out.direct_pdf_a * kInv4Pi;
     out.valid = !y.source.is_black() && out.emission_pdf_w > 0;
@@ -73,8 +76,12 @@ inline bool volume_light_illuminate(const Vec3& receiver, const Vec3& y, const R
 
 // Next-event estimation toward any emitter: as sample_direct_light, and for a volume light a
 // point y with density p_V (volume_light_illuminate), so that radiance f / (P pdf_direct_w) T is
-// the estimate of integral sigma_a L_e T f / d^2 dV.
-inline bool sample_direct_emitter(const Scene& scene, const Vec3& receiver, Rng& rng,
+// the estimate of integral sigma_a L_e T f / d^2 dV. y emits if the shadow ray, leaving the
+// receiver in medium_toward(wi), arrives there in the emitting medium (the medium rule along the
+// path, not y's position: VolumeEmitter::source_seen_from).
+template <class MediumToward>
+inline bool sample_direct_emitter(const Scene& scene, const Vec3& receiver,
+                                  const MediumToward& medium_toward, Rng& rng,
                                   DirectLightSample& out) {
     if (scene.volume_lights().empty()) return sample_direct_light(scene, receiver, rng, out);
     out.light = scene.sample_emitter(rng.next_1d(), &out.pick_probability);
@@ -87,7 +94,10 @@ inline bool sample_direct_emitter(const Scene& scene, const Vec3& receiver, Rng&
     const Vec3 u = rng.next_3d();
     const VolumePointSample y = emitter->sample_point(u);
     if (y.source.is_black() || !(y.pdf_volume > 0)) return false;
-    return volume_light_illuminate(receiver, y.p, y.source, y.pdf_volume, out.ls);
+    if (!volume_light_illuminate(receiver, y.p, y.source, y.pdf_volume, out.ls)) return false;
+    out.ls.radiance =
+        emitter->source_seen_from(y.p, -out.ls.wi, out.ls.distance, medium_toward(out.ls.wi));
+    return !out.ls.radiance.is_black();
 }
 
 }  // namespace render

@@ -317,7 +317,8 @@ int find_property(const PlyElement& e, std::initializer_list<const char*> names)
 }
 
 template <typename Cursor>
-MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
+MeshData read_body(Cursor& in, const Header& h, const std::string& name,
+                   std::vector<PlyQuad>* quads) {
     MeshData mesh;
     const PlyElement* vertex = nullptr;
     const PlyElement* face = nullptr;
@@ -404,6 +405,9 @@ MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
                 if (is_index_list)
                     check_mesh_counts(name, vertex_count,
                                       mesh.indices.size() / 3 + polygon.size() - 2);
+                if (is_index_list && quads && polygon.size() == 4)
+                    quads->push_back(PlyQuad{{polygon[0], polygon[1], polygon[2], polygon[3]},
+                                             mesh.indices.size() / 3});
                 if (is_index_list)
                     for (size_t j = 1; j + 1 < polygon.size(); ++j)
                         mesh.indices.insert(mesh.indices.end(),
@@ -428,23 +432,24 @@ MeshData read_body(Cursor& in, const Header& h, const std::string& name) {
 
 }  // namespace
 
-MeshData read_ply_from_memory(std::string_view bytes, const std::string& name) {
+MeshData read_ply_from_memory(std::string_view bytes, const std::string& name,
+                              std::vector<PlyQuad>* quads) {
     Header h = parse_header(bytes, name);
     if (h.format == Format::Ascii) {
         AsciiCursor in(bytes, h.body_offset, h.body_line, name);
-        MeshData mesh = read_body(in, h, name);
+        MeshData mesh = read_body(in, h, name, quads);
         if (!in.at_end())
             throw SceneError(name + ":" + std::to_string(in.line()) +
                              ": unexpected data after the last element");
         return mesh;
     }
     BinaryCursor in(bytes, h.body_offset, h.format == Format::BinaryBig, name);
-    return read_body(in, h, name);
+    return read_body(in, h, name, quads);
 }
 
-MeshData read_ply(const std::filesystem::path& path) {
+MeshData read_ply(const std::filesystem::path& path, std::vector<PlyQuad>* quads) {
     std::string bytes = read_file_bytes(path);
-    return read_ply_from_memory(bytes, path.string());
+    return read_ply_from_memory(bytes, path.string(), quads);
 }
 
 }  // namespace render

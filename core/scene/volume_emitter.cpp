@@ -6,6 +6,7 @@
 
 #include "core/math/constants.h"
 #include "core/media/medium.h"
+#include "core/media/medium_interface.h"
 #include "core/sampling/rng.h"
 #include "core/scene/scene.h"
 #include "core/shapes/instance.h"
@@ -33,22 +34,27 @@ float source_luminance(const Medium& m, const Vec3& p) {
 
 }  // namespace
 
-bool point_in_medium(const Scene& scene, const Vec3& p, const Medium* medium) {
-    Ray ray(p, kProbeDirection);
+const Medium* medium_seen_from(const Scene& scene, const Vec3& p, const Vec3& d, float distance,
+                               const Medium* medium_there) {
+    Ray ray(p, d, 0.0f, distance);
     for (int crossing = 0; crossing <= kMaxProbeCrossings; ++crossing) {
         SurfaceInteraction si;
-        if (!scene.intersect(ray, si)) return false;
+        if (!scene.intersect(ray, si)) return medium_there;
         const Shape& shape = *si.shape;
-        // The probe leaves p through the first surface that declares a medium: p is on its
-        // interior side when the probe goes along the geometric normal (medium_interface.h).
+        // Traced from the far end toward p, the path would cross this surface last, into the side
+        // facing p: its interior when d goes along the geometric normal (medium_interface.h).
         // Surfaces that declare none (a diffuse ball in the flame) keep the medium around them.
-        if (shape.interior || shape.exterior) {
-            const bool inside = dot(kProbeDirection, si.geometric_normal) > 0;
-            return (inside ? shape.interior : shape.exterior) == medium;
-        }
-        ray = scene.spawn_ray(si.p, si.geometric_normal, kProbeDirection);
+        if (is_medium_transition(shape))
+            return dot(d, si.geometric_normal) > 0 ? shape.interior : shape.exterior;
+        ray = scene.spawn_ray(si.p, si.geometric_normal, d);
+        ray.t_max = distance - dot(si.p - p, d);
+        if (!(ray.t_max > 0)) return medium_there;
     }
-    return false;
+    return nullptr;
+}
+
+bool point_in_medium(const Scene& scene, const Vec3& p, const Medium* medium) {
+    return medium_seen_from(scene, p, kProbeDirection, kInfinity, nullptr) == medium;
 }
 
 Aabb volume_emitter_region(const Scene& scene, const Medium* medium, std::string& why) {
@@ -137,7 +143,7 @@ VolumePointSample VolumeEmitter::sample_point(const Vec3& u) const {
     VolumePointSample s;
     s.p = corner + Vec3(std::min(remapped, 0x1.fffffep-1f), u.y, u.z) * cell_size_;
     s.pdf_volume = probability / cell_volume_;
-    s.source = source(s.p);
+    s.source = source_in_medium(s.p);
     return s;
 }
 
@@ -149,6 +155,23 @@ float VolumeEmitter::pdf_volume(const Vec3& p) const {
 
 Rgb VolumeEmitter::source(const Vec3& p) const {
     return contains(p) ? source_in_medium(p) : Rgb(0.0f);
+}
+
+Rgb VolumeEmitter::source_seen_from(const Vec3& p, const Vec3& d, float distance,
+                                    const Medium* medium_there) const {
+    return medium_seen_from(scene_, p, d, distance, medium_there) == &emitting_medium_
+               ? source_in_medium(p)
+               : Rgb(0.0f);
+}
+
+Rgb VolumeEmitter::source_leaving(const Vec3& p, const Vec3& d) const {
+    SurfaceInteraction si;
+    if (scene_.intersect(Ray(p, d), si) && is_medium_transition(*si.shape)) {
+        const Medium* here =
+            dot(d, si.geometric_normal) > 0 ? si.shape->interior : si.shape->exterior;
+        return here == &emitting_medium_ ? source_in_medium(p) : Rgb(0.0f);
+    }
+    return source(p);
 }
 
 Rgb VolumeEmitter::source_in_medium(const Vec3& p) const {

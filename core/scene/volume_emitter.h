@@ -16,6 +16,14 @@
 // medium has one cell: p_V = 1 / |B|. A point of B that is not in the medium (outside the
 // bounding shapes) carries no emission: the sample is wasted, never biased. Emission is
 // isotropic: a direction has density 1 / 4 pi.
+//
+// Whether a point is in the medium depends on the path through it (Mitsuba's rule: the medium is
+// set by the last declaring interface crossed, docs/design/media.md "Which medium a path is in"):
+// in nested shapes that name an interior and no exterior, the region between them is in the
+// medium for a path that entered the outer shape and in vacuum for one that left the inner one.
+// So the sampler gives sigma_a L_e as if the point were in the medium, and the techniques decide
+// with the path (source_seen_from): next-event estimation from the receiver's side, a light
+// subpath's start along its own first direction (source_leaving).
 
 #include <memory>
 #include <string>
@@ -43,12 +51,23 @@ class VolumeEmitter final : public Light {
     // the emitter; `box` is the medium's region (volume_emitter_region).
     VolumeEmitter(const Scene& scene, const Medium& medium, const Aabb& box, std::string name);
 
-    // Three uniform numbers to a point with density p_V.
+    // Three uniform numbers to a point with density p_V; its source is source_in_medium (the
+    // caller decides with the path whether the point is in the medium: source_seen_from).
     VolumePointSample sample_point(const Vec3& u) const;
     // p_V(p), for a point of the medium.
     float pdf_volume(const Vec3& p) const;
-    // sigma_a(p) L_e(p) where the medium is, else zero.
+    // sigma_a(p) L_e(p) where a probe ray finds the medium, else zero.
     Rgb source(const Vec3& p) const;
+    // sigma_a(p) L_e(p) if a path that goes from p along d (unit) and is in `medium_there` at
+    // `distance` is in this medium at p (medium_seen_from), else zero.
+    Rgb source_seen_from(const Vec3& p, const Vec3& d, float distance,
+                         const Medium* medium_there) const;
+    // sigma_a(p) L_e(p) for a light subpath that starts at p along d (unit), if it is in this
+    // medium there: the side facing p of the first surface along d when that surface declares a
+    // medium (the camera's path would cross it last before p). When it declares none the
+    // subpath scatters or passes there with a medium this cannot know, and the probe decides
+    // (source): a floor that coincides with the medium's boundary must not hide the boundary.
+    Rgb source_leaving(const Vec3& p, const Vec3& d) const;
     // sigma_a(p) L_e(p) for a point known to be in the medium (a path's vertex there): no probe.
     Rgb source_in_medium(const Vec3& p) const;
     // Whether p lies in this medium (a probe ray: the side of the first surface it hits).
@@ -88,7 +107,17 @@ class VolumeEmitter final : public Light {
 Aabb volume_emitter_region(const Scene& scene, const Medium* medium, std::string& why);
 
 // Whether point p is in `medium`: a probe ray from p, the side of the first surface it meets
-// that declares a medium.
+// that declares a medium. Exact where the scene's declarations agree; where they do not, the
+// answer depends on the path (medium_seen_from).
 bool point_in_medium(const Scene& scene, const Vec3& p, const Medium* medium);
+
+// The medium at p of a path one of whose segments joins p to p + distance d (d unit; distance
+// may be infinite), being in `medium_there` at the far end: Mitsuba's rule read backwards, the
+// side facing p of the first surface between them that declares a medium, or `medium_there`
+// when none does. Surfaces that declare none are passed (the path's medium does not change
+// there). Nested shapes naming an interior and no exterior give different answers for
+// different segments through the same point, as the rule does.
+const Medium* medium_seen_from(const Scene& scene, const Vec3& p, const Vec3& d, float distance,
+                               const Medium* medium_there);
 
 }  // namespace render

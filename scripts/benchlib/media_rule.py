@@ -36,8 +36,11 @@ SCENES = [
     "scenes/tests/media-rule/emitter-inside.xml",
     "scenes/tests/media-rule/dielectric-boundary.xml",
     "scenes/tests/media-rule/thindielectric-nested-emitter.xml",
-    # An emitting medium in nested interior-only spheres: what the bidirectional family's
-    # volume-light probe gives under the rule.
+    # The same with declarations that agree: what is left when light subpaths and camera paths
+    # read the rule alike.
+    "scenes/tests/media-rule/thindielectric-nested-consistent.xml",
+    # An emitting medium in nested interior-only spheres: whether a point emits depends on the
+    # path through it.
     "scenes/tests/media-rule/emissive-nested.xml",
 ]
 ALGORITHMS = ["volpt", "lt", "bpt", "vcm", "upbp"]

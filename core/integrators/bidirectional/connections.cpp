@@ -47,7 +47,8 @@ Rgb Iteration::medium_emission(const SubpathState& state, const Vertex& v) const
 Rgb Iteration::direct_illumination(const SubpathState& state, const SubpathVertex& v,
                                    const Vec3& wo, Rng& rng, RenderStats& stats) const {
     DirectLightSample dl;
-    if (!sample_direct_emitter(scene_, v.p, rng, dl)) return Rgb(0.0f);
+    const auto medium_toward = [&v](const Vec3& wi) { return v.medium_toward(wi); };
+    if (!sample_direct_emitter(scene_, v.p, medium_toward, rng, dl)) return Rgb(0.0f);
     return direct_contribution(state.mis, v, wo, dl, rng, stats);
 }
 

@@ -46,8 +46,10 @@ std::shared_ptr<const Bsdf> make_material(
     const std::map<std::string, std::shared_ptr<const Bsdf>>& named,
     const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);
 
-// `Shape "type"` with the current transform. `resolve` maps a file name to the file to open.
-std::unique_ptr<Shape> make_shape(
+// `Shape "type"` with the current transform: one shape, or two for a plymesh of triangles and
+// non-planar quads (a TriangleMesh and BilinearPatches). `resolve` maps a file name to the file
+// to open.
+std::vector<std::unique_ptr<Shape>> make_shapes(
     const std::string& type, const ParamList& params, const Transform& object_to_world,
     bool reverse_orientation,
     const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve);

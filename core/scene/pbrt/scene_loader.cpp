@@ -512,22 +512,8 @@ class Loader {
         std::shared_ptr<const AlphaCutout> alpha = read_alpha(p);
         if (alpha && state_.area_light)
             throw p.error("alpha", "an area light with an alpha cut-out is not supported yet");
-        std::unique_ptr<Shape> shape =
-            make_shape(type, p, state_.ctm, state_.reverse_orientation, resolver());
-        shape->alpha = std::move(alpha);
-        check_extent(*shape, d);
-        std::unique_ptr<Light> light;
-        if (state_.area_light) {
-            light = make_area_light(state_.area_light->type, *state_.area_light->params,
-                                    shape.get(), resolver());
-            shape->emitter = light.get();
-            light->medium = state_.outside;  // it emits on its outside
-        }
-        // pbrt: a shape is a medium boundary only when the media on its sides differ.
-        if (state_.inside != state_.outside) {
-            shape->interior = state_.inside;
-            shape->exterior = state_.outside;
-        }
+        std::vector<std::unique_ptr<Shape>> shapes =
+            make_shapes(type, p, state_.ctm, state_.reverse_orientation, resolver());
         if (!state_.material) {
             // pbrt-v4's default material: diffuse, reflectance 0.5.
             ParamList none;
@@ -535,9 +521,28 @@ class Loader {
             state_.material =
                 make_material("diffuse", none, textures_, named_materials_, resolver());
         }
-        if (object_) return object_->add(std::move(shape), keep(state_.material));
-        scene_.add_shape(std::move(shape), keep(state_.material));
-        if (light) scene_.add_light(std::move(light));
+        for (std::unique_ptr<Shape>& shape : shapes) {
+            shape->alpha = alpha;
+            check_extent(*shape, d);
+            std::unique_ptr<Light> light;
+            if (state_.area_light) {
+                light = make_area_light(state_.area_light->type, *state_.area_light->params,
+                                        shape.get(), resolver());
+                shape->emitter = light.get();
+                light->medium = state_.outside;  // it emits on its outside
+            }
+            // pbrt: a shape is a medium boundary only when the media on its sides differ.
+            if (state_.inside != state_.outside) {
+                shape->interior = state_.inside;
+                shape->exterior = state_.outside;
+            }
+            if (object_) {
+                object_->add(std::move(shape), keep(state_.material));
+                continue;
+            }
+            scene_.add_shape(std::move(shape), keep(state_.material));
+            if (light) scene_.add_light(std::move(light));
+        }
     }
 
     // pbrt-v4's `alpha`: a float or a float texture; null for an opaque shape (alpha 1).

@@ -1,5 +1,5 @@
 // pbrt-v4 shapes: trianglemesh, plymesh and planar bilinearmesh as our TriangleMesh, non-planar
-// bilinearmesh as BilinearPatches; sphere and disk
+// bilinearmesh and a plymesh's non-planar quads as BilinearPatches; sphere and disk
 // through the Mitsuba loader's shape factory; curve as Curves (core/shapes/curve.h).
 // docs/reference/scene-format.md, "pbrt-v4 scenes".
 
@@ -77,6 +77,15 @@ void check_inline_mesh(const ParamList& params, uint64_t vertices, uint64_t tria
     }
 }
 
+// Whether the bilinear patch p00 p10 p01 p11 is flat (its fourth corner within 1e-4 of its size
+// of the plane of the other three): then its two triangles (p00 p10 p11, p00 p11 p01) are it.
+bool patch_is_planar(const Vec3& p00, const Vec3& p10, const Vec3& p01, const Vec3& p11) {
+    const Vec3 n = cross(p10 - p00, p01 - p00);
+    const float size = std::max(length(p10 - p00), length(p01 - p00));
+    const float len = length(n);
+    return !(len > 0 && std::abs(dot(n / len, p11 - p00)) > 1e-4f * size);
+}
+
 // A trianglemesh (corners 3) or bilinearmesh (corners 4). Non-planar bilinear patches are left
 // in `patches` (4 indices each) with mesh.indices empty.
 MeshData inline_mesh(const ParamList& params, size_t corners, std::vector<uint32_t>* patches) {
@@ -114,16 +123,10 @@ MeshData inline_mesh(const ParamList& params, size_t corners, std::vector<uint32
     // Bilinear patches (p00, p10, p01, p11): when every one is planar, two triangles each,
     // which reproduce them exactly; otherwise the patches themselves (`patches`).
     bool planar = true;
-    for (size_t q = 0; q < indices.size() && planar; q += 4) {
-        const Vec3 &p00 = mesh.positions[size_t(indices[q])],
-                   &p10 = mesh.positions[size_t(indices[q + 1])],
-                   &p01 = mesh.positions[size_t(indices[q + 2])],
-                   &p11 = mesh.positions[size_t(indices[q + 3])];
-        const Vec3 n = cross(p10 - p00, p01 - p00);
-        const float size = std::max(length(p10 - p00), length(p01 - p00));
-        const float len = length(n);
-        planar = !(len > 0 && std::abs(dot(n / len, p11 - p00)) > 1e-4f * size);
-    }
+    for (size_t q = 0; q < indices.size() && planar; q += 4)
+        planar = patch_is_planar(
+            mesh.positions[size_t(indices[q])], mesh.positions[size_t(indices[q + 1])],
+            mesh.positions[size_t(indices[q + 2])], mesh.positions[size_t(indices[q + 3])]);
     if (!planar) {
         for (long long i : indices) patches->push_back(uint32_t(i));
         return mesh;
@@ -159,6 +162,34 @@ std::unique_ptr<Shape> patch_shape(MeshData mesh, std::vector<uint32_t> patches,
     } catch (const SceneError& e) {
         rethrow_scene_error(e, SceneError(params.where, e.what()));
     }
+}
+
+// pbrt-v4 reads a PLY file's four-sided faces as bilinear patches, corners v0 v1 v3 v2 as
+// p00 p10 p01 p11 (its TriQuadMesh). As for bilinearmesh: when all are planar the fan's two
+// triangles per face, which read_ply already made, are them exactly and stay; otherwise every
+// quad becomes a patch (returned) and its triangles leave `mesh`.
+std::vector<uint32_t> ply_patches(MeshData& mesh, const std::vector<PlyQuad>& quads) {
+    bool planar = true;
+    for (size_t q = 0; q < quads.size() && planar; ++q) {
+        const uint32_t* v = quads[q].v;
+        planar = patch_is_planar(mesh.positions[v[0]], mesh.positions[v[1]], mesh.positions[v[3]],
+                                 mesh.positions[v[2]]);
+    }
+    if (planar) return {};
+    std::vector<uint32_t> patches;
+    patches.reserve(4 * quads.size());
+    std::vector<bool> from_quad(mesh.indices.size() / 3, false);
+    for (const PlyQuad& q : quads) {
+        patches.insert(patches.end(), {q.v[0], q.v[1], q.v[3], q.v[2]});
+        from_quad[q.first_triangle] = from_quad[q.first_triangle + 1] = true;
+    }
+    std::vector<uint32_t> triangles;
+    for (size_t t = 0; t < from_quad.size(); ++t)
+        if (!from_quad[t])
+            triangles.insert(triangles.end(), mesh.indices.begin() + long(3 * t),
+                             mesh.indices.begin() + long(3 * t + 3));
+    mesh.indices = std::move(triangles);
+    return patches;
 }
 
 // pbrt-v4's curve (docs/reference/scene-format.md, "Curves"): points to world space, widths
@@ -221,11 +252,11 @@ void refuse_partial(const ParamList& params, const char* name, double full) {
 
 }  // namespace
 
-std::unique_ptr<Shape> make_shape(
+std::vector<std::unique_ptr<Shape>> make_shapes(
     const std::string& type, const ParamList& params, const Transform& to_world,
     bool reverse_orientation,
     const std::function<std::filesystem::path(const ParamList&, const std::string&)>& resolve) {
-    std::unique_ptr<Shape> shape;
+    std::unique_ptr<Shape> shape, second;
     if (type == "trianglemesh" || type == "bilinearmesh") {
         if (params.has("S")) throw params.error("S", "per-vertex tangents are not supported");
         std::vector<uint32_t> patches;
@@ -242,14 +273,27 @@ std::unique_ptr<Shape> make_shape(
         if (!std::filesystem::is_regular_file(path, ec))
             throw params.error("filename", "mesh file not found: " + path.string());
         MeshData mesh;
+        std::vector<PlyQuad> quads;
         try {
-            mesh = read_ply(path);
+            mesh = read_ply(path, &quads);
         } catch (const SceneError& e) {
             rethrow_scene_error(e, params.error("filename", e.what()));
         }
         if (params.has("displacement"))
             throw params.error("displacement", "displacement is not supported");
-        shape = finish_mesh(std::move(mesh), params, to_world, reverse_orientation);
+        std::vector<uint32_t> patches = ply_patches(mesh, quads);
+        if (patches.empty()) {
+            shape = finish_mesh(std::move(mesh), params, to_world, reverse_orientation);
+        } else {
+            MeshData corners;
+            corners.positions = mesh.positions;
+            corners.normals = mesh.normals;
+            corners.uvs = mesh.uvs;
+            shape = patch_shape(std::move(corners), std::move(patches), params, to_world,
+                                reverse_orientation);
+            if (!mesh.indices.empty())
+                second = finish_mesh(std::move(mesh), params, to_world, reverse_orientation);
+        }
     } else if (type == "sphere") {
         // pbrt flips a quadric's normal when the transform swaps handedness (a mirrored sphere
         // faces inwards), as well as for ReverseOrientation.
@@ -286,7 +330,10 @@ std::unique_ptr<Shape> make_shape(
     }
     // `alpha` is read by the caller (the cut-out, core/shapes/alpha_cutout.h).
     params.check_all_used();
-    return shape;
+    std::vector<std::unique_ptr<Shape>> shapes;
+    shapes.push_back(std::move(shape));
+    if (second) shapes.push_back(std::move(second));
+    return shapes;
 }
 
 }  // namespace render::pbrt

@@ -323,6 +323,58 @@ TEST_F(PbrtTest, ShapesAreasAndBounds) {
     EXPECT_NEAR(scene->shapes()[0]->surface_area(), 1, 1e-5);
 }
 
+// pbrt-v4 reads a PLY file's quads as bilinear patches, corners v0 v1 v3 v2 as p00 p10 p01 p11
+// (docs/reference/scene-format.md, "pbrt-v4 scenes"). Planar quads stay two triangles (the same
+// surface); a file with a non-planar quad gives patches, beside a triangle mesh for its
+// triangles, and the patch is the bilinearmesh with those corners, hit for hit.
+TEST_F(PbrtTest, PlyQuadsAreBilinearPatchesAsInPbrt) {
+    const std::string header =
+        "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
+    // The saddle z = x y over the unit square as the face 0 1 3 2 (a quad's corners go round),
+    // and a triangle beside it.
+    write("models/saddle.ply", header + "0 0 0\n1 0 0\n0 1 0\n1 1 1\n2 0 0\n4 0 1 3 2\n3 1 4 3\n");
+    auto scene = load_world("Shape \"plymesh\" \"string filename\" \"models/saddle.ply\"\n");
+    ASSERT_EQ(scene->shapes().size(), 2u);
+    const auto* patches = dynamic_cast<const BilinearPatches*>(scene->shapes()[0].get());
+    ASSERT_TRUE(patches);
+    EXPECT_NEAR(patches->surface_area(), 1.280789, 2e-5);
+    const auto* triangles = dynamic_cast<const TriangleMesh*>(scene->shapes()[1].get());
+    ASSERT_TRUE(triangles);
+    // The triangle (1 0 0) (2 0 0) (1 1 1): base 1, height sqrt(2) over it.
+    EXPECT_NEAR(triangles->surface_area(), std::sqrt(2.0) / 2, 1e-5);
+    auto reference = load_world(
+        "Shape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 1]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [1 0 0 2 0 0 1 1 1] \"integer indices\" [0 1 2]\n");
+    int hits = 0;
+    for (int i = 0; i < 16; ++i)
+        for (int j = 0; j < 16; ++j) {
+            const Ray ray(Vec3(-0.2f + 0.15f * i, -0.1f + 0.08f * j, 3.0f),
+                          normalize(Vec3(0.1f, 0.05f, -1.0f)));
+            SurfaceInteraction a, b;
+            const bool hit_a = scene->intersect(ray, a), hit_b = reference->intersect(ray, b);
+            ASSERT_EQ(hit_a, hit_b) << i << " " << j;
+            if (!hit_a) continue;
+            ++hits;
+            EXPECT_EQ(a.t, b.t);
+            EXPECT_EQ(a.geometric_normal.x, b.geometric_normal.x);
+            EXPECT_EQ(a.geometric_normal.y, b.geometric_normal.y);
+            EXPECT_EQ(a.geometric_normal.z, b.geometric_normal.z);
+        }
+    EXPECT_GT(hits, 100);
+    // A planar quad: two triangles, as before.
+    write("models/flat.ply", header + "0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 0 0\n4 0 1 3 2\n3 1 4 3\n");
+    scene = load_world("Shape \"plymesh\" \"string filename\" \"models/flat.ply\"\n");
+    ASSERT_EQ(scene->shapes().size(), 1u);
+    EXPECT_TRUE(dynamic_cast<const TriangleMesh*>(scene->shapes()[0].get()));
+    EXPECT_NEAR(scene->shapes()[0]->surface_area(), 1.5, 1e-5);
+    // As an area light, each part is its own light.
+    scene = load_world(
+        "AreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n"
+        "Shape \"plymesh\" \"string filename\" \"models/saddle.ply\"\n");
+    EXPECT_EQ(scene->lights().size(), 2u);
+}
+
 // The geometric normal where a ray from (0, 0, 5) towards the origin first hits the scene.
 Vec3 normal_seen_from_above(const Scene& scene) {
     SurfaceInteraction si;

@@ -93,6 +93,30 @@ TEST(PbrtScenes, ShippedScenesRenderWithPtAndVcm) {
     }
 }
 
+// scenes/tests/ply-quads.pbrt is bilinear.pbrt with its two non-planar patches read from PLY
+// quads: the same shapes, lights and random numbers, so the same image bit for bit, with pt and
+// bpt (a quad read in the file's order instead of pbrt-v4's v0 v1 v3 v2 would be another
+// surface, or kept as triangles another image).
+TEST(PbrtScenes, PlyQuadsRenderAsTheirBilinearMesh) {
+    auto quads = load_small("tests/ply-quads.pbrt", 16);
+    auto patches = load_small("tests/bilinear.pbrt", 16);
+    for (const char* algorithm : {"pt", "bpt"}) {
+        RenderSettings settings = resolve_render_settings(algorithm, {}, quads->settings);
+        settings.seed = 9;
+        const IterationResult a = render_iterations(*quads, settings, 0, IterationRange{1, 3});
+        const IterationResult b = render_iterations(*patches, settings, 0, IterationRange{1, 3});
+        double total = 0;
+        int differing = 0;
+        for (size_t p = 0; p < 16 * 16; ++p)
+            for (int c = 0; c < 3; ++c) {
+                total += a.sum.channel(p, c);
+                differing += a.sum.channel(p, c) != b.sum.channel(p, c);
+            }
+        EXPECT_GT(total, 0.0) << algorithm;
+        EXPECT_EQ(differing, 0) << algorithm;
+    }
+}
+
 // The same small scene in both formats (floor, a gold and a glass sphere, a coated disk, a point
 // light and a constant environment; a 32 x 24 film with fov on the shorter axis; pbrt's
 // `Scale -1 1 1` before LookAt, which gives Mitsuba's image orientation) builds the same
