@@ -51,6 +51,10 @@ struct FrameData {
     void record_error(const ErrorPoint& point);
 };
 
+// The end of an adaptive job's round `round` (FramePlan::round_end: no iteration at or past it
+// is leased until the next round's mask is taken); 0 for a job that is not adaptive.
+uint64_t adaptive_round_end(const RenderSettings& settings, uint64_t round);
+
 // Points of a frame's error history kept (halved when full).
 inline constexpr size_t kMaxHistory = 512;
 
@@ -92,12 +96,13 @@ class FrameFiles {
     // A dirty frame's checkpoint is due at `now` (frame.mu held).
     bool checkpoint_due(const FrameData& frame, TimePoint now) const;
     // At restart or takeover: loads the frame's checkpoint, if any, into `frame` (its sums,
-    // error and non-finite count) and `plan` (the ranges it holds, and its render time if
-    // longer), provided it has the job's film size and layer count. With frame.hold_epoch E > 0
-    // (a new hold on a shared store) the checkpoint is the newest of an epoch before E. Returns
-    // false without one, or when it cannot be read (logged): the frame then starts afresh.
+    // error and non-finite count) and `plan` (the ranges it holds, its render time if longer,
+    // and an adaptive job's round: plan.round_end), provided it has the job's film size, layer
+    // count and adaptive rounds (`settings`, the job's). With frame.hold_epoch E > 0 (a new
+    // hold on a shared store) the checkpoint is the newest of an epoch before E. Returns false
+    // without one, or when it cannot be read (logged): the frame then starts afresh (round 0).
     bool load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
-                         size_t layers, FrameData& frame, FramePlan& plan) const;
+                         const RenderSettings& settings, FrameData& frame, FramePlan& plan) const;
 
   private:
     // The newest checkpoint of the frame written before `epoch` (0: `N.ckpt` alone), or empty.
