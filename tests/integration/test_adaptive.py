@@ -193,8 +193,10 @@ class Adaptive(cluster.ClusterTestCase):
 
     def test_server_restarted_in_a_later_round(self):
         P = cluster.pb()
+        # Short leases: a round is merged range by range, so checkpoints fall inside rounds.
         c = self.new_cluster(lease_timeout=3, heartbeat=0.5,
-                             server_args=["--checkpoint-seconds", "0.2"])
+                             server_args=["--checkpoint-seconds", "0.2", "--lease-seconds",
+                                          "0.05", "--max-lease-seconds", "0.1"])
         port = c.start_server()
         c.start_workers(2, threads=1)
         c.wait_workers_registered(2)
@@ -206,7 +208,7 @@ class Adaptive(cluster.ClusterTestCase):
 
         def checkpointed_in_a_later_round():
             # A checkpoint of a round after the first: preferably in the middle of the round
-            # (part of its ranges merged), else, after 60 s, at its start.
+            # (part of its ranges merged), else, after 20 s, at its start.
             if c.api.get_job(job.id).state == P.JOB_STATE_DONE:
                 return True
             text = c.server.log_text()
@@ -216,15 +218,19 @@ class Adaptive(cluster.ClusterTestCase):
             counts = [int(n) for n in
                       re.findall(r"event=checkpoint .*?iterations=(\d+)", text[at:])]
             mid = [n for n in counts if n > first_round_end and (n - first_round_end) % length]
-            return bool(mid) or (counts and time.monotonic() - started > 60)
+            return bool(mid) or bool(counts and time.monotonic() - started > 20)
+        cluster.wait_until(checkpointed_in_a_later_round, timeout=180, poll=0.05,
+                           what="a checkpoint after the first round")
         before = c.api.get_job(job.id)
         self.assertNotEqual(before.state, P.JOB_STATE_DONE,
                             "the job finished before the server could be killed")
         c.kill_server()
         time.sleep(0.2)
         c.restart_server(port, workers=2)
-        restored = re.findall(r"event=adaptive_round_restored .*round=(\d+)",
+        restored = re.findall(r"event=adaptive_round_restored .*?round=(\d+)",
                               c.server.log_text())
+        restored_at = re.findall(r"event=adaptive_round_restored .*?iterations=(\d+)",
+                                 c.server.log_text())
         self.assertTrue(restored and int(restored[0]) >= 1,
                         f"the checkpoint did not bring back a round after the first: {restored}")
         done = c.api.wait_job(job.id, timeout=300, procs=[c.server])
@@ -233,7 +239,8 @@ class Adaptive(cluster.ClusterTestCase):
         ref = c.path("render.exr")
         self.render(c, scene, ref, LONG_ITERATIONS, LONG_RES, LONG_OPTIONS)
         print(f"server killed at {before.frames[0].iterations_done} iterations, restored in "
-              f"round {restored[0]}:", self.assertSameExr(out, ref, c))
+              f"round {restored[0]} with {restored_at[0]} iterations:",
+              self.assertSameExr(out, ref, c))
 
     def test_refused_where_render_refuses_it(self):
         c = self.new_cluster()
