@@ -23,6 +23,13 @@ void FrameData::record_error(const ErrorPoint& point) {
     history.push_back(point);
 }
 
+void FrameData::set_lease_round_from_sums() {
+    const bool adaptive = acc && acc->adaptive();
+    lease_round = adaptive ? acc->round() : 0;
+    lease_mask_sha256 = adaptive ? acc->mask_sha256() : std::string();
+    lease_active_pixels = adaptive ? acc->active_pixels() : 0;
+}
+
 std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
                                                   const RenderSettings& settings,
                                                   const std::string& job_id, uint32_t index,
@@ -154,6 +161,7 @@ bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int 
         frame.relative_error = acc->relative_error();
         frame.non_finite = acc->result().stats.non_finite;
         frame.acc = std::move(acc);
+        frame.set_lease_round_from_sums();
         return true;
     } catch (const std::exception& e) {
         Log("error", "checkpoint_unreadable")

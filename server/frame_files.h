@@ -46,9 +46,19 @@ struct FrameData {
     // On a shared store, the epoch of the job's hold these sums belong to (under mu): a report
     // accepted in another epoch is not added (job_manager_holds.cpp). 0 on a store of one.
     int64_t hold_epoch = 0;
+    // An adaptive frame's current round as its leases name it, with its mask's SHA-256 and
+    // active pixels (under the job manager's mu_, so that leasing never waits for frame.mu
+    // while a report merges): set when a round opens and when the sums are restored or taken
+    // over. The mask itself is the sums' (acc, under mu).
+    uint64_t lease_round = 0;
+    std::string lease_mask_sha256;
+    uint64_t lease_active_pixels = 0;
 
     // Appends a point to the error history (mu held), thinning it when full.
     void record_error(const ErrorPoint& point);
+    // The lease_* fields from the sums' current round (acc set; mu held, and the manager's mu_
+    // when the frame is in use).
+    void set_lease_round_from_sums();
 };
 
 // The end of an adaptive job's round `round` (FramePlan::round_end: no iteration at or past it

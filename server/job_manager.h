@@ -269,8 +269,8 @@ class JobManager {
     // merged exact sums, then its iterations are leased; or, when no pixel is left active,
     // the frame is closed (it completes, as `render` stops). Outside mu_.
     void advance_rounds();
-    // The mask fields of a lease of an adaptive job's frame (mu_ held; takes frame.mu): false
-    // when the frame's sums are not at the lease's round (a bug: the lease is not granted).
+    // The mask fields of a lease of an adaptive job's frame (mu_ held; FrameData::lease_*):
+    // false when the frame is not at the lease's round (a bug: the lease is not granted).
     bool fill_lease_mask(const JobData& job, const LeaseGrant& grant, v1::Lease* lease);
 
     // --- housekeeping (job_manager_housekeeping.cpp) ---

@@ -273,6 +273,7 @@ void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::
         FrameData& frame = *job->frames[i];
         std::lock_guard frame_lock(frame.mu);
         frame.acc = std::move(loaded[i]->acc);
+        frame.set_lease_round_from_sums();
         frame.hold_epoch = epoch;
         frame.relative_error = loaded[i]->relative_error.load();
         frame.non_finite = loaded[i]->non_finite.load();
@@ -310,6 +311,7 @@ void JobManager::give_up(JobData& job, const char* why) {
         FrameData& frame = *job.frames[i];
         std::lock_guard frame_lock(frame.mu);
         frame.acc.reset();
+        frame.set_lease_round_from_sums();
         frame.dirty = false;
         frame.hold_epoch = -1;  // a report of the lost hold still merging is not added
     }
