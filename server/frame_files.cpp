@@ -23,6 +23,13 @@ void FrameData::record_error(const ErrorPoint& point) {
     history.push_back(point);
 }
 
+void FrameData::set_lease_round_from_sums() {
+    const bool adaptive = acc && acc->adaptive();
+    lease_round = adaptive ? acc->round() : 0;
+    lease_mask_sha256 = adaptive ? acc->mask_sha256() : std::string();
+    lease_active_pixels = adaptive ? acc->active_pixels() : 0;
+}
+
 std::map<std::string, std::string> frame_metadata(const v1::SubmitJobRequest& request,
                                                   const RenderSettings& settings,
                                                   const std::string& job_id, uint32_t index,
@@ -117,8 +124,15 @@ bool FrameFiles::checkpoint_due(const FrameData& frame, TimePoint now) const {
                checkpoint_interval(frame);
 }
 
+uint64_t adaptive_round_end(const RenderSettings& settings, uint64_t round) {
+    return settings.adaptive > 0 ? AdaptiveRounds(settings).end(round) : 0;
+}
+
 bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
-                                 size_t layers, FrameData& frame, FramePlan& plan) const {
+                                 const RenderSettings& settings, FrameData& frame,
+                                 FramePlan& plan) const {
+    const size_t layers = TechniqueLayers::names(settings.layers).size();
+    plan.round_end = adaptive_round_end(settings, 0);
     const fs::path ckpt = latest_checkpoint(job_id, index, frame.hold_epoch);
     if (ckpt.empty()) return false;
     try {
@@ -128,11 +142,26 @@ bool FrameFiles::load_checkpoint(const std::string& job_id, uint32_t index, int 
             throw std::runtime_error("checkpoint size differs from the job's");
         if (acc->layer_count() != layers)
             throw std::runtime_error("checkpoint layers differ from the job's");
+        const AdaptiveRounds job_rounds(settings);
+        if (acc->adaptive() != (settings.adaptive > 0) ||
+            (acc->adaptive() && (acc->rounds().first(1) != job_rounds.first(1) ||
+                                 acc->rounds().end(1) != job_rounds.end(1))))
+            throw std::runtime_error("checkpoint adaptive rounds differ from the job's");
         plan.merged = acc->ranges();
+        if (acc->adaptive()) {
+            plan.round_end = acc->rounds().end(acc->round());
+            Log("info", "adaptive_round_restored")
+                .kv("job", job_id)
+                .kv("frame", index)
+                .kv("round", acc->round())
+                .kv("active_pixels", acc->active_pixels())
+                .kv("iterations", acc->count());
+        }
         plan.elapsed_seconds = std::max(plan.elapsed_seconds, elapsed);
         frame.relative_error = acc->relative_error();
         frame.non_finite = acc->result().stats.non_finite;
         frame.acc = std::move(acc);
+        frame.set_lease_round_from_sums();
         return true;
     } catch (const std::exception& e) {
         Log("error", "checkpoint_unreadable")

@@ -46,10 +46,24 @@ struct FrameData {
     // On a shared store, the epoch of the job's hold these sums belong to (under mu): a report
     // accepted in another epoch is not added (job_manager_holds.cpp). 0 on a store of one.
     int64_t hold_epoch = 0;
+    // An adaptive frame's current round as its leases name it, with its mask's SHA-256 and
+    // active pixels (under the job manager's mu_, so that leasing never waits for frame.mu
+    // while a report merges): set when a round opens and when the sums are restored or taken
+    // over. The mask itself is the sums' (acc, under mu).
+    uint64_t lease_round = 0;
+    std::string lease_mask_sha256;
+    uint64_t lease_active_pixels = 0;
 
     // Appends a point to the error history (mu held), thinning it when full.
     void record_error(const ErrorPoint& point);
+    // The lease_* fields from the sums' current round (acc set; mu held, and the manager's mu_
+    // when the frame is in use).
+    void set_lease_round_from_sums();
 };
+
+// The end of an adaptive job's round `round` (FramePlan::round_end: no iteration at or past it
+// is leased until the next round's mask is taken); 0 for a job that is not adaptive.
+uint64_t adaptive_round_end(const RenderSettings& settings, uint64_t round);
 
 // Points of a frame's error history kept (halved when full).
 inline constexpr size_t kMaxHistory = 512;
@@ -92,12 +106,13 @@ class FrameFiles {
     // A dirty frame's checkpoint is due at `now` (frame.mu held).
     bool checkpoint_due(const FrameData& frame, TimePoint now) const;
     // At restart or takeover: loads the frame's checkpoint, if any, into `frame` (its sums,
-    // error and non-finite count) and `plan` (the ranges it holds, and its render time if
-    // longer), provided it has the job's film size and layer count. With frame.hold_epoch E > 0
-    // (a new hold on a shared store) the checkpoint is the newest of an epoch before E. Returns
-    // false without one, or when it cannot be read (logged): the frame then starts afresh.
+    // error and non-finite count) and `plan` (the ranges it holds, its render time if longer,
+    // and an adaptive job's round: plan.round_end), provided it has the job's film size, layer
+    // count and adaptive rounds (`settings`, the job's). With frame.hold_epoch E > 0 (a new
+    // hold on a shared store) the checkpoint is the newest of an epoch before E. Returns false
+    // without one, or when it cannot be read (logged): the frame then starts afresh (round 0).
     bool load_checkpoint(const std::string& job_id, uint32_t index, int width, int height,
-                         size_t layers, FrameData& frame, FramePlan& plan) const;
+                         const RenderSettings& settings, FrameData& frame, FramePlan& plan) const;
 
   private:
     // The newest checkpoint of the frame written before `epoch` (0: `N.ckpt` alone), or empty.

@@ -130,8 +130,7 @@ void JobManager::restore() {
             } else {
                 // What the last checkpoint holds is merged; what merged after it is leased again.
                 frame_files_.load_checkpoint(id, fr.index, job->row.width, job->row.height,
-                                             TechniqueLayers::names(job->settings.layers).size(),
-                                             *data, plan);
+                                             job->settings, *data, plan);
                 store_.set_merged_ranges(id, fr.index, plan.merged.ranges());
             }
             plans.push_back(std::move(plan));
@@ -262,6 +261,7 @@ Status JobManager::submit(const v1::SubmitJobRequest& in, v1::Job* out) {
     for (FramePlan& p : plans) {
         p.target = request.settings().iterations();
         p.budget_seconds = request.settings().time_budget_seconds();
+        p.round_end = adaptive_round_end(job->settings, 0);
         job->frames.push_back(std::make_unique<FrameData>());
     }
     scheduler_.add_job(id, job->row.priority, uint64_t(sequence), JobState::Queued,

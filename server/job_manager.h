@@ -147,12 +147,18 @@ class JobManager {
     void register_worker(const v1::RegisterWorkerRequest& request, v1::RegisterWorkerReply* reply);
     grpc::Status lease(const v1::LeaseRequest& request, v1::LeaseReply* reply);
     grpc::Status heartbeat(const v1::HeartbeatRequest& request, v1::HeartbeatReply* reply);
+    // The packed mask (service/mask_bits.h) of the adaptive round of the worker's lease
+    // `lease_id` (FetchMask): NOT_FOUND for a lease unknown or not the worker's,
+    // FAILED_PRECONDITION for one of round 0 or of a round that is over.
+    grpc::Status fetch_mask(const v1::FetchMaskRequest& request, std::string* packed);
     // Checks a report's header before its values are read: `values` receives the number of
     // float64 values each of sum, odd_sum (unless the header omits it) and the job's technique
     // layers must have, `layers` how many layers follow the sums. `drop` is set (and OK returned)
     // for a late or duplicate report, which is answered merged=false.
+    // `exact_words` receives the int64 words of an adaptive job's exact sums that follow the
+    // layers (0 for another job; proto/render.proto, ReportHeader.exact_sums).
     grpc::Status check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
-                              bool* drop);
+                              size_t* exact_words, bool* drop);
     // Merges a report's sums exactly once; `merged` false when dropped. `values`: sum, odd_sum
     // unless the header omits it, then the layers' sums (ReportValues), complete; they are
     // released once added, before a frame the report completes is written (memory).
@@ -251,11 +257,21 @@ class JobManager {
     void fail_memory_blocked();
 
     // --- frames (job_manager_frames.cpp) ---
-    // Expires leases and finishes complete frames (tick() without the checkpoints).
+    // Starts the adaptive rounds that are due, expires leases and finishes complete frames
+    // (tick() without the checkpoints).
     void advance();
     // Writes the checkpoints that are due (all dirty ones with `all`).
     void flush_checkpoints(bool all);
     void finish_frame(const std::string& job_id, uint32_t frame);
+
+    // --- adaptive sampling (job_manager_rounds.cpp; docs/reference/adaptive-sampling.md) ---
+    // For each adaptive frame whose round is wholly merged: the next round's mask from the
+    // merged exact sums, then its iterations are leased; or, when no pixel is left active,
+    // the frame is closed (it completes, as `render` stops). Outside mu_.
+    void advance_rounds();
+    // The mask fields of a lease of an adaptive job's frame (mu_ held; FrameData::lease_*):
+    // false when the frame is not at the lease's round (a bug: the lease is not granted).
+    bool fill_lease_mask(const JobData& job, const LeaseGrant& grant, v1::Lease* lease);
 
     // --- housekeeping (job_manager_housekeeping.cpp) ---
     // Deletes the jobs past the retention time (retain_finished_seconds).

@@ -19,6 +19,8 @@ using grpc::StatusCode;
 using namespace detail;
 
 void JobManager::advance() {
+    // First: a frame whose last round left no pixel active completes in this same call.
+    advance_rounds();
     std::vector<std::pair<std::string, uint32_t>> complete;
     std::vector<std::string> expired;
     {

@@ -236,7 +236,6 @@ void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::
             std::find_if(rows.begin(), rows.end(), [&](const JobRow& r) { return r.id == job_id; });
         if (!job || it == rows.end()) throw std::runtime_error("the job is gone");
         row = *it;
-        const size_t layers = TechniqueLayers::names(job->settings.layers).size();
         for (const FrameRow& fr : store_.load_frames(job_id)) {
             FramePlan plan;
             plan.target = job->request.settings().iterations();
@@ -250,8 +249,8 @@ void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::
             } else {
                 // What the last checkpoint holds is merged; what merged after it (on the
                 // predecessor) is leased again.
-                frame_files_.load_checkpoint(job_id, fr.index, row.width, row.height, layers, *data,
-                                             plan);
+                frame_files_.load_checkpoint(job_id, fr.index, row.width, row.height, job->settings,
+                                             *data, plan);
                 store_.set_merged_ranges(job_id, fr.index, plan.merged.ranges());
             }
             plans.push_back(std::move(plan));
@@ -274,6 +273,7 @@ void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::
         FrameData& frame = *job->frames[i];
         std::lock_guard frame_lock(frame.mu);
         frame.acc = std::move(loaded[i]->acc);
+        frame.set_lease_round_from_sums();
         frame.hold_epoch = epoch;
         frame.relative_error = loaded[i]->relative_error.load();
         frame.non_finite = loaded[i]->non_finite.load();
@@ -311,6 +311,7 @@ void JobManager::give_up(JobData& job, const char* why) {
         FrameData& frame = *job.frames[i];
         std::lock_guard frame_lock(frame.mu);
         frame.acc.reset();
+        frame.set_lease_round_from_sums();
         frame.dirty = false;
         frame.hold_epoch = -1;  // a report of the lost hold still merging is not added
     }
@@ -361,8 +362,10 @@ std::string JobManager::report_holder(const std::string& lease_id, size_t* max_v
         if (!job || job->held || !job->row.owner.live || job->row.owner.server == server_id_)
             return {};
         const size_t layers = TechniqueLayers::names(job->settings.layers).size();
-        *max_value_bytes =
-            size_t(job->row.width) * size_t(job->row.height) * 3 * sizeof(double) * (2 + layers);
+        const size_t pixels = size_t(job->row.width) * size_t(job->row.height);
+        // The sums and layers, and an adaptive job's two exact sums (int64 per pixel).
+        *max_value_bytes = pixels * 3 * sizeof(double) * (2 + layers) +
+                           (job->settings.adaptive > 0 ? pixels * 2 * sizeof(int64_t) : 0);
         return job->row.owner.address;
     };
     // The hold as the last sync read it, else as the store has it now (a job taken since).

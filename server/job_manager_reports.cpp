@@ -16,8 +16,9 @@ using grpc::Status;
 using namespace detail;
 
 Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, size_t* layers,
-                                bool* drop) {
+                                size_t* exact_words, bool* drop) {
     *drop = false;
+    *exact_words = 0;
     std::lock_guard lock(mu_);
     std::optional<LeaseGrant> grant = scheduler_.find_lease(header.lease_id());
     if (!grant) {
@@ -52,6 +53,13 @@ Status JobManager::check_report(const v1::ReportHeader& header, size_t* values, 
         return invalid("report has " + std::to_string(header.layer_count()) +
                        " technique layers, the job's layers option gives " +
                        std::to_string(*layers));
+    const bool adaptive = job->settings.adaptive > 0;
+    if (header.exact_sums() != adaptive)
+        return invalid(adaptive ? "report of an adaptive job without its exact sums"
+                                : "report has exact sums, but the job is not adaptive");
+    if (adaptive)
+        *exact_words =
+            size_t(job->row.width) * size_t(job->row.height) * (header.odd_sum_omitted() ? 1 : 2);
     return Status::OK;
 }
 
@@ -99,7 +107,7 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
             // that sizes the job's leases.
             if (!frame.acc)
                 frame.acc = std::make_unique<FrameAccumulator>(job->row.width, job->row.height,
-                                                               job->settings.layers);
+                                                               job->settings);
             const clock::time_point add_start = clock::now();
             RenderStats stats;
             stats.samples = header.samples();

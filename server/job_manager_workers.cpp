@@ -66,6 +66,17 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
             for (const auto& [k, v] : frame_defines(job->request, grant->frame))
                 (*l->mutable_settings()->mutable_defines())[k] = v;
             *l->mutable_bundle() = job->request.bundle();
+            if (!fill_lease_mask(*job, *grant, l)) {
+                // The scheduler leases a round only once its mask is taken: never expected.
+                scheduler_.release(grant->worker_id, grant->lease_id);
+                Log("error", "lease_without_mask")
+                    .kv("job", grant->job_id)
+                    .kv("frame", grant->frame)
+                    .kv("first", grant->range.first);
+                reply->Clear();
+                reply->set_granted(false);
+                return Status::OK;
+            }
         }
     }
     // The lease's row and log line are written after mu_ is released: every other call of

@@ -40,18 +40,20 @@ int open_unlinked(const std::filesystem::path& dir) {
 
 }  // namespace
 
-ReportValues ReportValues::in_memory(size_t count) {
+ReportValues ReportValues::in_memory(size_t count, Words words) {
     ReportValues v;
     v.count_ = count;
+    v.words_ = words;
     // Not zeroed (a pass over up to a whole frame's sums): every value is written by the
     // stream before it is read, which complete() checks.
     v.memory_.reset(new double[count]);
     return v;
 }
 
-ReportValues ReportValues::spooled(const std::filesystem::path& dir, size_t count) {
+ReportValues ReportValues::spooled(const std::filesystem::path& dir, size_t count, Words words) {
     ReportValues v;
     v.count_ = count;
+    v.words_ = words;
     v.dir_ = dir;
     v.fd_ = open_unlinked(dir);
     return v;
@@ -65,6 +67,7 @@ ReportValues& ReportValues::operator=(ReportValues&& other) noexcept {
     if (this == &other) return *this;
     release();
     count_ = std::exchange(other.count_, 0);
+    words_ = other.words_;
     received_ = std::exchange(other.received_, 0);
     memory_ = std::move(other.memory_);
     fd_ = std::exchange(other.fd_, -1);
@@ -85,19 +88,33 @@ void ReportValues::release() {
     received_ = 0;
 }
 
+std::string ReportValues::check(size_t index, const char* bytes) const {
+    if (index < words_.from) {
+        double value;
+        std::memcpy(&value, bytes, sizeof value);
+        if (!std::isfinite(value))
+            return "report value " + std::to_string(index) + " is not finite";
+        return "";
+    }
+    int64_t word;
+    std::memcpy(&word, bytes, sizeof word);
+    if (word < 0 || word > words_.max)
+        return "report exact sum " + std::to_string(index - words_.from) + " is " +
+               std::to_string(word) + ", outside [0, " + std::to_string(words_.max) + "]";
+    return "";
+}
+
 std::string ReportValues::append(std::string_view bytes, bool* spool_failed) {
     const size_t expected = count_ * sizeof(double);
     if (bytes.size() > expected - received_)
         return "report has more than the expected " + std::to_string(expected) + " bytes of values";
     const size_t begin = received_;
-    auto not_finite = [](size_t index) {
-        return "report value " + std::to_string(index) + " is not finite";
-    };
     if (memory_) {
         std::memcpy(reinterpret_cast<char*>(memory_.get()) + begin, bytes.data(), bytes.size());
         received_ += bytes.size();
+        const char* base = reinterpret_cast<const char*>(memory_.get());
         for (size_t i = begin / sizeof(double); i < received_ / sizeof(double); ++i)
-            if (!std::isfinite(memory_[i])) return not_finite(i);
+            if (std::string e = check(i, base + i * sizeof(double)); !e.empty()) return e;
         return "";
     }
     if (!write_all(fd_, bytes.data(), bytes.size())) {
@@ -111,20 +128,16 @@ std::string ReportValues::append(std::string_view bytes, bool* spool_failed) {
     const char* data = bytes.data();
     const char* const data_end = data + bytes.size();
     size_t index = begin / sizeof(double);
-    double value;
     if (const size_t have = begin % sizeof(double); have > 0) {
         const size_t take = std::min(sizeof(double) - have, bytes.size());
         std::memcpy(partial_ + have, data, take);
         data += take;
         if (have + take < sizeof(double)) return "";
-        std::memcpy(&value, partial_, sizeof value);
-        if (!std::isfinite(value)) return not_finite(index);
+        if (std::string e = check(index, partial_); !e.empty()) return e;
         ++index;
     }
-    for (; data_end - data >= ptrdiff_t(sizeof(double)); data += sizeof(double), ++index) {
-        std::memcpy(&value, data, sizeof value);
-        if (!std::isfinite(value)) return not_finite(index);
-    }
+    for (; data_end - data >= ptrdiff_t(sizeof(double)); data += sizeof(double), ++index)
+        if (std::string e = check(index, data); !e.empty()) return e;
     std::memcpy(partial_, data, size_t(data_end - data));
     return "";
 }

@@ -23,13 +23,23 @@
 
 namespace render::server {
 
+// The values from index `from` on are not float64 but little-endian int64 words (an
+// adaptive job's exact sums, proto/render.proto), each checked to lie in [0, max] instead
+// of being finite. block() returns them as 8-byte values: copy them out with memcpy.
+struct ReportWords {
+    size_t from = SIZE_MAX;
+    int64_t max = 0;
+};
+
 class ReportValues {
   public:
+    using Words = ReportWords;
+
     // `count` values to receive, held in memory.
-    static ReportValues in_memory(size_t count);
+    static ReportValues in_memory(size_t count, Words words = {});
     // `count` values to receive, spooled to an unlinked file in `dir` (made if missing). Throws
     // std::runtime_error naming the folder when no such file can be made.
-    static ReportValues spooled(const std::filesystem::path& dir, size_t count);
+    static ReportValues spooled(const std::filesystem::path& dir, size_t count, Words words = {});
 
     ReportValues(ReportValues&& other) noexcept;
     ReportValues& operator=(ReportValues&& other) noexcept;
@@ -44,7 +54,8 @@ class ReportValues {
 
     // Appends the stream's next bytes (a value may be split between two calls). Returns what is
     // wrong, or "" when nothing is: more bytes than count() values, a value that is not finite
-    // (checked as soon as its last byte arrives, named by its index), or a write to the spool
+    // or a word out of its range (checked as soon as its last byte arrives, named by its
+    // index), or a write to the spool
     // file that failed, which sets `*spool_failed` (the server's fault, not the report's).
     std::string append(std::string_view bytes, bool* spool_failed = nullptr);
 
@@ -58,8 +69,11 @@ class ReportValues {
 
   private:
     ReportValues() = default;
+    // What is wrong with value `index` (its 8 bytes at `bytes`), or "".
+    std::string check(size_t index, const char* bytes) const;
 
     size_t count_ = 0;
+    Words words_;
     size_t received_ = 0;
     std::unique_ptr<double[]> memory_;   // in memory
     int fd_ = -1;                        // spooled

@@ -237,9 +237,12 @@ std::optional<LeaseGrant> Scheduler::lease(const std::string& worker_id,
             if (auto p = f.pending.first()) {
                 r = {p->first, std::min(p->end, p->first + size)};
                 f.pending.subtract(r);
-            } else if (!f.closed && (f.plan.target == 0 || f.frontier <= f.plan.target)) {
+            } else if (!f.closed && (f.plan.target == 0 || f.frontier <= f.plan.target) &&
+                       (f.plan.round_end == 0 || f.frontier < f.plan.round_end)) {
                 uint64_t n = size;
                 if (f.plan.target > 0) n = std::min(n, f.plan.target + 1 - f.frontier);
+                // A lease lies within the current round: its mask is the only one known.
+                if (f.plan.round_end > 0) n = std::min(n, f.plan.round_end - f.frontier);
                 if (f.plan.budget_seconds > 0) {
                     auto rate = rates_.find({worker_id, job->id});
                     if (rate != rates_.end()) {
@@ -375,6 +378,30 @@ void Scheduler::close_frame(const std::string& job_id, uint32_t frame) {
     auto it = jobs_.find(job_id);
     if (it == jobs_.end() || frame >= it->second.frames.size()) return;
     it->second.frames[frame].closed = true;
+}
+
+std::vector<std::pair<std::string, uint32_t>> Scheduler::round_boundaries() const {
+    std::vector<std::pair<std::string, uint32_t>> out;
+    for (const auto& [id, job] : jobs_) {
+        if (is_terminal(job.state)) continue;
+        for (uint32_t i = 0; i < job.frames.size(); ++i) {
+            const Frame& f = job.frames[i];
+            const uint64_t end = f.plan.round_end;
+            if (end == 0 || f.closed || f.plan.done || f.complete_reported || f.frontier != end ||
+                (f.plan.target > 0 && end > f.plan.target) || !f.pending.empty() ||
+                !f.leased.empty() || !f.merging.empty() || !f.plan.merged.contains({1, end}))
+                continue;
+            out.emplace_back(id, i);
+        }
+    }
+    return out;
+}
+
+void Scheduler::open_round(const std::string& job_id, uint32_t frame, uint64_t round_end) {
+    auto it = jobs_.find(job_id);
+    if (it == jobs_.end() || frame >= it->second.frames.size()) return;
+    Frame& f = it->second.frames[frame];
+    if (round_end > f.plan.round_end) f.plan.round_end = round_end;
 }
 
 bool Scheduler::finish_frame(const std::string& job_id, uint32_t frame) {

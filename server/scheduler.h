@@ -30,6 +30,9 @@ struct FramePlan {
     double elapsed_seconds = 0;  // render time spent in earlier runs of the server
     IntervalSet merged;          // ranges already merged (from a checkpoint)
     bool done = false;
+    // Adaptive sampling (docs/reference/adaptive-sampling.md): no iteration at or past this is
+    // handed out (the end of the current round) until open_round moves it; 0 = no limit.
+    uint64_t round_end = 0;
 };
 
 struct LeaseGrant {
@@ -133,6 +136,12 @@ class Scheduler {
     // No iterations past those handed out: the frame completes once they are merged (as when
     // its time budget runs out). For a target error reached.
     void close_frame(const std::string& job_id, uint32_t frame);
+    // Adaptive frames whose current round is wholly merged (every iteration before
+    // plan.round_end), not closed and below their target: the next round's mask is due. Each
+    // such frame at every call, until open_round or close_frame.
+    std::vector<std::pair<std::string, uint32_t>> round_boundaries() const;
+    // The next round's iterations may be handed out: those before `round_end`.
+    void open_round(const std::string& job_id, uint32_t frame, uint64_t round_end);
     // Marks a frame finished (after its EXR is written); returns true when the whole job is.
     bool finish_frame(const std::string& job_id, uint32_t frame);
 

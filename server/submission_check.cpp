@@ -106,13 +106,13 @@ SubmissionCheck check_submission(const v1::SubmitJobRequest& in, const fs::path&
             resolve_render_settings(job_algorithm(s->algorithm(), scene->settings.integrator),
                                     service::request_options(*s), scene->settings);
         check_algorithm_supports_scene(settings, *scene);
-        // Adaptive sampling needs each round's mask in the leases and the exact sums in the
-        // reports, which the service does not carry yet (docs/reference/adaptive-sampling.md):
-        // refused rather than rendered without masks.
-        if (settings.adaptive > 0)
+        // Adaptive sampling is read by the pixel algorithms alone (the options table refuses it
+        // for the others, as `render` does); its samples layer takes the place of --layers,
+        // which IterationRenderer refuses beside it (docs/reference/adaptive-sampling.md).
+        if (settings.adaptive > 0 && settings.layers != LayerMode::None)
             throw std::invalid_argument(
-                "adaptive sampling (adaptive > 0) is supported by `render` only, not yet by the "
-                "service");
+                "adaptive sampling (--adaptive) writes its own layer (samples); --layers is not "
+                "supported with it");
         s->set_algorithm(settings.algorithm);
         service::set_request_options(*s, render_settings_options(settings));
         if (s->iterations() == 0 && s->time_budget_seconds() == 0)

@@ -5,10 +5,12 @@
 #include <optional>
 #include <thread>
 
+#include "core/image/fixed_point_sums.h"
 #include "core/util/log.h"
 #include "core/util/sha256.h"
 #include "server/job_service.h"
 #include "server/report_values.h"
+#include "service/rpc.h"
 
 namespace render::server {
 
@@ -56,6 +58,23 @@ Status WorkerServiceImpl::FetchAsset(grpc::ServerContext* context,
                            });
     if (!s.ok() && guard->timed_out()) s = guard->idle_status();
     return s;
+}
+
+Status WorkerServiceImpl::FetchMask(grpc::ServerContext* context,
+                                    const v1::FetchMaskRequest* request,
+                                    grpc::ServerWriter<v1::MaskChunk>* writer) {
+    if (Status s = auth_.check(context); !s.ok()) return s;
+    std::string packed;
+    if (Status s = manager_.fetch_mask(*request, &packed); !s.ok()) return s;
+    // At most 8 MiB (an 8192 x 8192 film): in chunks of at most 1 MiB, as every bulk stream.
+    for (size_t at = 0; at < packed.size() || at == 0; at += service::kMaxChunkBytes) {
+        v1::MaskChunk chunk;
+        chunk.set_data(packed.substr(at, service::kMaxChunkBytes));
+        chunk.set_total_size(packed.size());
+        if (!writer->Write(chunk)) return Status(StatusCode::CANCELLED, "FetchMask cancelled");
+        if (packed.empty()) break;
+    }
+    return Status::OK;
 }
 
 Status WorkerServiceImpl::Heartbeat(grpc::ServerContext* context,
@@ -123,9 +142,9 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     }
     guard->progress();
     const v1::ReportHeader header = chunk.header();
-    size_t n = 0, layers = 0;
+    size_t n = 0, layers = 0, exact_words = 0;
     bool drop = false;
-    if (Status s = manager_.check_report(header, &n, &layers, &drop); !s.ok()) {
+    if (Status s = manager_.check_report(header, &n, &layers, &exact_words, &drop); !s.ok()) {
         Log("warn", "report_rejected")
             .kv("lease", header.lease_id())
             .kv("error", s.error_message());
@@ -167,19 +186,24 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     // that the frame's sums and a whole report are not in memory at once. Each value is
     // checked to be finite as soon as its last byte arrives, not in a pass of its own.
     const size_t sums = header.odd_sum_omitted() ? 1 : 2;
-    const size_t count = n * (sums + layers);
+    // An adaptive job's exact sums follow as int64 words, each at most the largest quantized
+    // value times the range's iterations (core/image/fixed_point_sums.h).
+    const size_t count = n * (sums + layers) + exact_words;
+    const ReportValues::Words words{
+        exact_words > 0 ? n * (sums + layers) : SIZE_MAX,
+        FixedPointSums::kMaxQuantized * int64_t(std::min<uint64_t>(header.count(), 1u << 22))};
     const size_t expected = count * sizeof(double);
     std::optional<ReportValues> values;
     if (expected >= manager_.options().spool_reports_above) {
         try {
-            values.emplace(ReportValues::spooled(manager_.report_spool_folder(), count));
+            values.emplace(ReportValues::spooled(manager_.report_spool_folder(), count, words));
         } catch (const std::exception& e) {
             // Received in memory, as a smaller report would be: the server's memory, not the
             // report, pays for a spool folder it cannot write.
             Log("warn", "report_spool_failed").kv("lease", header.lease_id()).kv("error", e.what());
         }
     }
-    if (!values) values.emplace(ReportValues::in_memory(count));
+    if (!values) values.emplace(ReportValues::in_memory(count, words));
     while (reader->Read(&chunk)) {
         guard->progress();
         if (chunk.has_header())
@@ -210,11 +234,15 @@ Status WorkerServiceImpl::Report(grpc::ServerContext* context,
     }
     const size_t received = values->received_bytes();
     if (received != expected)
-        return Status(StatusCode::INVALID_ARGUMENT,
-                      "report has " + std::to_string(received) + " bytes of values, expected " +
-                          std::to_string(expected) + " (sum, " +
-                          (sums == 2 ? "odd_sum and " : "no odd_sum, ") + std::to_string(layers) +
-                          " layers, " + std::to_string(n) + " float64 each)");
+        return Status(
+            StatusCode::INVALID_ARGUMENT,
+            "report has " + std::to_string(received) + " bytes of values, expected " +
+                std::to_string(expected) + " (sum, " +
+                (sums == 2 ? "odd_sum and " : "no odd_sum, ") + std::to_string(layers) +
+                " layers, " + std::to_string(n) + " float64 each" +
+                (exact_words > 0 ? ", then " + std::to_string(exact_words) + " int64 exact sums"
+                                 : std::string()) +
+                ")");
     const auto received_at = std::chrono::steady_clock::now();
     manager_.metrics().report_received(header.ByteSizeLong() + received);
     bool merged = false;

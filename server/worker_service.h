@@ -24,6 +24,8 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
                        v1::LeaseReply* reply) override;
     grpc::Status FetchAsset(grpc::ServerContext* context, const v1::FetchAssetRequest* request,
                             grpc::ServerWriter<v1::AssetChunk>* writer) override;
+    grpc::Status FetchMask(grpc::ServerContext* context, const v1::FetchMaskRequest* request,
+                           grpc::ServerWriter<v1::MaskChunk>* writer) override;
     grpc::Status Heartbeat(grpc::ServerContext* context, const v1::HeartbeatRequest* request,
                            v1::HeartbeatReply* reply) override;
     grpc::Status Report(grpc::ServerContext* context, grpc::ServerReader<v1::ReportChunk>* reader,

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -20,8 +21,10 @@
 #include "core/render/render_iterations.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/util/log.h"
+#include "core/util/sha256.h"
 #include "service/bundle_paths.h"
 #include "service/idle_poll.h"
+#include "service/mask_bits.h"
 #include "service/request_options.h"
 #include "service/rpc.h"
 
@@ -90,6 +93,8 @@ bool is_transient(grpc::StatusCode code) {
 struct RangeResult {
     std::vector<double> sum, odd_sum;
     std::vector<std::vector<double>> layers;  // the technique layers' sums, in their order
+    // An adaptive job's exact sums, one per pixel (empty otherwise).
+    std::vector<int64_t> exact_sum, exact_odd;
     uint64_t count = 0, odd_count = 0;
     RenderStats stats;
     double seconds = 0;
@@ -371,6 +376,12 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 film_memory_bytes(uint64_t(scene->camera().width()),
                                   uint64_t(scene->camera().height()), layer_count),
                 "the " + std::to_string(layer_count) + " technique layers of the report in flight");
+        if (settings.adaptive > 0)
+            // The renderer's exact sums and counts (32 B per pixel), the report's exact sums
+            // (16 B) and the round's mask (1 B).
+            budget.charge(
+                uint64_t(scene->camera().width()) * uint64_t(scene->camera().height()) * 49,
+                "adaptive sampling's exact sums, counts and mask");
     } catch (const std::exception& e) {
         // Files named as in the client's bundle (as the server's submit errors do), not by
         // this worker's cache folder, which the job's owner cannot see.
@@ -378,6 +389,31 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         return fail(
             job_folder.empty() ? std::string(e.what()) : with_bundle_paths(e.what(), job_folder),
             memory ? memory->needed() : 0, memory ? memory->limit() : 0);
+    }
+
+    // An adaptive round's mask (docs/reference/adaptive-sampling.md): kept for the round's
+    // later leases, fetched once per round. Round 0 renders every pixel.
+    const std::vector<uint8_t>* mask = nullptr;
+    if (settings.adaptive > 0) {
+        const AdaptiveRounds rounds(settings);
+        const uint64_t round = lease.adaptive_round();
+        if (rounds.round_of(first) != round || rounds.round_of(end - 1) != round)
+            return fail("the lease [" + std::to_string(first) + ", " + std::to_string(end) +
+                        ") is not within its adaptive round " + std::to_string(round));
+        if (round > 0) {
+            std::string error;
+            mask =
+                mask_for(lease, size_t(scene->camera().width()) * scene->camera().height(), &error);
+            if (!mask) {
+                // The lease is void (its round is over) or the server is away: nothing to
+                // render; an undelivered mask is told to the server so the range goes back.
+                log_warn("mask_unavailable").kv("lease", lease.lease_id()).kv("error", error);
+                report_failure(*link_, lease.lease_id(),
+                               "the worker could not get the lease's mask: " + error, 0, 0,
+                               /*report_undelivered=*/true);
+                return Outcome::Dropped;
+            }
+        }
     }
 
     // Render in a thread, one iteration per call (the sum equals one call over the range, and
@@ -406,8 +442,10 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
                 options_.test_render_fault.raise(lease.bundle().scene_path());
             IterationRenderer iterations(*scene, settings, lease.frame());
             IterationResult sums = iterations.empty_result();
+            const std::span<const uint8_t> active =
+                mask ? std::span<const uint8_t>(*mask) : std::span<const uint8_t>();
             for (uint64_t i = first; i < end && !abandon.load(); ++i) {
-                iterations.add({i, i + 1}, sums);
+                iterations.add({i, i + 1}, sums, active);
                 done_samples = sums.stats.samples;
                 done_rays = sums.stats.rays;
                 done_iterations = sums.count;
@@ -424,6 +462,10 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
             result.layers.resize(layer_count);
             for (size_t l = 0; l < layer_count; ++l)
                 result.layers[l] = std::move(sums.layers.buffer(l).values());
+            if (!sums.adaptive.empty()) {
+                result.exact_sum = sums.adaptive.exact.sums();
+                result.exact_odd = sums.adaptive.exact.odd_sums();
+            }
             result.count = sums.count;
             result.odd_count = sums.odd_count;
             result.stats = sums.stats;
@@ -514,6 +556,60 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     return Outcome::Reported;
 }
 
+const std::vector<uint8_t>* Worker::mask_for(const v1::Lease& lease, size_t pixels,
+                                             std::string* error) {
+    const std::string key = lease.job_id() + "\n" + std::to_string(lease.frame()) + "\n" +
+                            std::to_string(lease.adaptive_round()) + "\n" +
+                            lease.adaptive_mask_sha256();
+    if (key == mask_key_ && mask_.size() == pixels) return &mask_;
+    mask_key_.clear();
+    grpc::ClientContext context;
+    prepare_context(context, options_.token, 60.0);
+    v1::FetchMaskRequest request;
+    request.set_worker_id(link_->worker_id);
+    request.set_lease_id(lease.lease_id());
+    std::unique_ptr<grpc::ClientReader<v1::MaskChunk>> reader =
+        link_->stub->FetchMask(&context, request);
+    std::string packed;
+    v1::MaskChunk chunk;
+    while (reader->Read(&chunk)) {
+        if (packed.size() + chunk.data().size() > (pixels + 7) / 8) {
+            context.TryCancel();
+            break;
+        }
+        packed += chunk.data();
+    }
+    if (grpc::Status status = reader->Finish(); !status.ok()) {
+        *error = describe(status);
+        return nullptr;
+    }
+    // The mask is the server's of that round: its hash and active count say it arrived whole.
+    if (sha256_hex(packed) != lease.adaptive_mask_sha256()) {
+        *error = "the mask's SHA-256 differs from the lease's";
+        return nullptr;
+    }
+    try {
+        mask_ = unpack_mask(packed, pixels);
+    } catch (const std::exception& e) {
+        *error = e.what();
+        return nullptr;
+    }
+    uint64_t active = 0;
+    for (uint8_t m : mask_) active += m;
+    if (active != lease.adaptive_active_pixels()) {
+        *error = "the mask has " + std::to_string(active) + " active pixels, the lease says " +
+                 std::to_string(lease.adaptive_active_pixels());
+        return nullptr;
+    }
+    mask_key_ = key;
+    log_info("mask_fetched")
+        .kv("lease", lease.lease_id())
+        .kv("round", lease.adaptive_round())
+        .kv("active_pixels", active)
+        .kv("bytes", packed.size());
+    return &mask_;
+}
+
 Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
                                const RangeResult& result) {
     // Retry while the lease may still be alive (the server may be restarting).
@@ -543,6 +639,7 @@ Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
         // One iteration: odd_sum is sum or zero, which the server derives exactly.
         const bool omit_odd = result.count == 1;
         header->set_odd_sum_omitted(omit_odd);
+        header->set_exact_sums(!result.exact_sum.empty());
         bool ok = writer->Write(chunk);
         // sum, odd_sum (unless omitted), then the layers, as one little-endian float64
         // sequence cut into <= 1 MiB chunks.
@@ -550,12 +647,23 @@ Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
         std::vector<const std::vector<double>*> buffers = {&result.sum};
         if (!omit_odd) buffers.push_back(&result.odd_sum);
         for (const std::vector<double>& layer : result.layers) buffers.push_back(&layer);
-        for (const std::vector<double>* buffer : buffers) {
-            for (size_t at = 0; ok && at < buffer->size(); at += per_chunk) {
-                size_t n = std::min(per_chunk, buffer->size() - at);
+        // Then an adaptive job's exact sums, int64 words (the odd one omitted with odd_sum).
+        std::vector<std::span<const char>> parts;
+        for (const std::vector<double>* buffer : buffers)
+            parts.emplace_back(reinterpret_cast<const char*>(buffer->data()),
+                               buffer->size() * sizeof(double));
+        if (!result.exact_sum.empty()) {
+            parts.emplace_back(reinterpret_cast<const char*>(result.exact_sum.data()),
+                               result.exact_sum.size() * sizeof(int64_t));
+            if (!omit_odd)
+                parts.emplace_back(reinterpret_cast<const char*>(result.exact_odd.data()),
+                                   result.exact_odd.size() * sizeof(int64_t));
+        }
+        for (const std::span<const char> part : parts) {
+            for (size_t at = 0; ok && at < part.size(); at += per_chunk * sizeof(double)) {
+                const size_t n = std::min(per_chunk * sizeof(double), part.size() - at);
                 v1::ReportChunk values;
-                values.mutable_values()->assign(reinterpret_cast<const char*>(buffer->data() + at),
-                                                n * sizeof(double));
+                values.mutable_values()->assign(part.data() + at, n);
                 ok = writer->Write(values);
             }
         }

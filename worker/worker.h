@@ -75,6 +75,10 @@ class Worker {
     const Scene& scene_for(const v1::Lease& lease, const std::filesystem::path& scene_file);
     grpc::Status fetch_asset(const std::string& sha256,
                              const std::function<void(const std::string&)>& sink);
+    // The mask of the lease's adaptive round (one entry per pixel), the one kept if it is the
+    // same round's, else fetched (FetchMask) and checked against the lease's hash and active
+    // count; null (and `error` set) when it cannot be had.
+    const std::vector<uint8_t>* mask_for(const v1::Lease& lease, size_t pixels, std::string* error);
     // false: the lease was cancelled. `rates`: the lease's render rates so far, if measured.
     bool heartbeat(const std::string& lease_id, const v1::WorkerRates* rates);
     // Tells the server that this worker cannot render the lease (best effort: if the server
@@ -105,6 +109,10 @@ class Worker {
     // What the scene and film were estimated to need when scene_ was loaded (the memory
     // budget's charges), to which each lease adds its algorithm's working memory.
     uint64_t scene_memory_ = 0;
+
+    // The last adaptive round's mask and its key (job, frame, round, hash).
+    std::string mask_key_;
+    std::vector<uint8_t> mask_;
 
     // Last: destroyed first, waiting for the report in flight while the stub is alive.
     BackgroundReport report_in_flight_;

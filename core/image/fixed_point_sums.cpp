@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace render {
 
@@ -26,6 +27,14 @@ void FixedPointSums::add(const FixedPointSums& other) {
         sum_[p] += other.sum_[p];
         odd_[p] += other.odd_[p];
     }
+}
+
+void FixedPointSums::add(size_t first, std::span<const int64_t> sum, std::span<const int64_t> odd) {
+    if (first > sum_.size() || sum.size() > sum_.size() - first ||
+        (!odd.empty() && odd.size() != sum.size()))
+        throw std::invalid_argument("FixedPointSums::add: arrays past the frame's pixels");
+    for (size_t i = 0; i < sum.size(); ++i) sum_[first + i] += sum[i];
+    for (size_t i = 0; i < odd.size(); ++i) odd_[first + i] += odd[i];
 }
 
 }  // namespace render

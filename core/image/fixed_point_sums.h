@@ -9,6 +9,7 @@
 // iterations merged.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "core/image/image.h"
@@ -34,6 +35,15 @@ class FixedPointSums {
     void add_iteration(const std::vector<double>& rgb, uint64_t iteration);
     // Adds another range's sums (exact).
     void add(const FixedPointSums& other);
+    // The same from arrays, as a report or a checkpoint carries them: `sum` and `odd` (or
+    // nothing, when `odd` is empty) added to pixels [first, first + sum.size()).
+    void add(size_t first, std::span<const int64_t> sum, std::span<const int64_t> odd);
+    // The largest sum one iteration adds to a pixel (kMaxValue on the grid).
+    static constexpr int64_t kMaxQuantized = (int64_t(1) << (2 * kFractionBits)) - 1;
+
+    // Every pixel's sum and odd sum, for reports and checkpoints.
+    const std::vector<int64_t>& sums() const { return sum_; }
+    const std::vector<int64_t>& odd_sums() const { return odd_; }
 
     int64_t sum(size_t pixel) const { return sum_[pixel]; }
     int64_t odd_sum(size_t pixel) const { return odd_[pixel]; }

@@ -29,6 +29,17 @@ void AdaptiveSums::add(const AdaptiveSums& other) {
     }
 }
 
+void AdaptiveSums::add_counts(uint64_t first, uint64_t end, std::span<const uint8_t> active) {
+    if (end < first || (!active.empty() && active.size() != count.size()))
+        throw std::invalid_argument("AdaptiveSums::add_counts: bad range or mask");
+    const uint64_t n = end - first, odd = end / 2 - first / 2;  // odd indices in [first, end)
+    for (size_t p = 0; p < count.size(); ++p)
+        if (active.empty() || active[p]) {
+            count[p] += n;
+            odd_count[p] += odd;
+        }
+}
+
 std::vector<uint8_t> adaptive_round_mask(const AdaptiveSums& sums, int width, int height,
                                          const RenderSettings& settings) {
     AdaptiveMaskSettings mask;

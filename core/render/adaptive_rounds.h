@@ -50,6 +50,10 @@ struct AdaptiveSums {
     void add_iteration(const std::vector<double>& rgb, uint64_t iteration,
                        std::span<const uint8_t> active);
     void add(const AdaptiveSums& other);
+    // The counts of iterations [first, end), rendered within one round with the mask `active`
+    // (all pixels when empty), without their sums: what a range adds to each pixel's counts
+    // follows from its round's mask, so the server derives it rather than receiving it.
+    void add_counts(uint64_t first, uint64_t end, std::span<const uint8_t> active);
 };
 
 // The mask (1 = active) of a round >= 1 from the sums of every iteration before it.

@@ -119,8 +119,9 @@ class RenderOptionsThroughTheService(cluster.ClusterTestCase):
         c.wait_workers_registered(2)
 
         cases = []
-        # Adaptive sampling is rendered by `render` only: the service refuses it until leases
-        # carry the rounds' masks (docs/reference/adaptive-sampling.md, "The service").
+        # Adaptive sampling's options change an image only after more rounds than this test's
+        # few iterations: tests/integration/test_adaptive.py compares them, render against the
+        # service (docs/reference/adaptive-sampling.md, "The service").
         render_only = {o["name"] for o in tables["options"] if o["name"].startswith("adaptive")}
         for option in tables["options"]:
             if option["name"] in render_only:

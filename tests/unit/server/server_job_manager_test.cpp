@@ -95,9 +95,10 @@ struct ManagerTest : ::testing::Test {
         h.set_width(8);
         h.set_height(6);
         h.set_render_seconds(render_seconds);
-        size_t n = 0, layers = 0;
+        size_t n = 0, layers = 0, exact = 0;
         bool drop = false;
-        EXPECT_TRUE(m.check_report(h, &n, &layers, &drop).ok());
+        EXPECT_TRUE(m.check_report(h, &n, &layers, &exact, &drop).ok());
+        EXPECT_EQ(exact, 0u) << "not an adaptive job: no exact sums";
         if (drop) return false;
         EXPECT_EQ(n, 8u * 6u * 3u);
         EXPECT_EQ(layers, 0u);

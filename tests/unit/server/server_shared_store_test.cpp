@@ -113,9 +113,10 @@ class SharedStoreTest : public ::testing::Test {
         h.set_width(8);
         h.set_height(6);
         h.set_render_seconds(render_seconds);
-        size_t n = 0, layers = 0;
+        size_t n = 0, layers = 0, exact = 0;
         bool drop = false;
-        EXPECT_TRUE(m.check_report(h, &n, &layers, &drop).ok());
+        EXPECT_TRUE(m.check_report(h, &n, &layers, &exact, &drop).ok());
+        EXPECT_EQ(exact, 0u) << "not an adaptive job: no exact sums";
         if (drop) return false;
         ReportValues values = ReportValues::in_memory(2 * n);
         for (const auto* part : {&r.sum.values(), &r.odd_sum.values()})
@@ -353,7 +354,7 @@ TEST_F(SharedStoreTest, ALapsedHoldersCheckpointNeverReplacesTheNewHolders) {
     FrameData b;
     b.hold_epoch = *eb;
     FramePlan plan;
-    ASSERT_TRUE(files_b.load_checkpoint(job.id(), 0, 8, 6, 0, b, plan));
+    ASSERT_TRUE(files_b.load_checkpoint(job.id(), 0, 8, 6, RenderSettings{}, b, plan));
     EXPECT_EQ(plan.merged.ranges(), (std::vector<Range>{{1, 3}}));
     add(b, {3, 5}, 2.0);
     ASSERT_TRUE(files_b.save_checkpoint(job.id(), 0, b, 2, "test"));
@@ -372,7 +373,7 @@ TEST_F(SharedStoreTest, ALapsedHoldersCheckpointNeverReplacesTheNewHolders) {
     FrameData c;
     c.hold_epoch = *ec;
     FramePlan plan_c;
-    ASSERT_TRUE(files_a.load_checkpoint(job.id(), 0, 8, 6, 0, c, plan_c));
+    ASSERT_TRUE(files_a.load_checkpoint(job.id(), 0, 8, 6, RenderSettings{}, c, plan_c));
     EXPECT_EQ(plan_c.merged.ranges(), (std::vector<Range>{{1, 5}}));
     ASSERT_TRUE(c.acc);
     EXPECT_EQ(c.acc->count(), 4u);
