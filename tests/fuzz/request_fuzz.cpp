@@ -92,7 +92,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const uint8_t kind = data[0];
     ++data, --size;
     grpc::ServerContext context;
-    switch (kind % 11) {
+    switch (kind % 12) {
         case 0: {
             v1::SubmitJobRequest r;
             if (!parse(r, data, size)) return 0;
@@ -159,9 +159,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         case 8: {
             v1::ReportHeader r;
             if (!parse(r, data, size)) return 0;
-            size_t values = 0, layers = 0;
+            size_t values = 0, layers = 0, exact_words = 0;
             bool drop = false;
-            note("check_report", s.manager.check_report(r, &values, &layers, &drop));
+            note("check_report", s.manager.check_report(r, &values, &layers, &exact_words, &drop));
             break;
         }
         case 10: {
@@ -169,6 +169,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             if (!parse(r, data, size)) return 0;
             v1::DeleteJobReply reply;
             note("DeleteJob", s.jobs.DeleteJob(&context, &r, &reply));
+            break;
+        }
+        case 11: {
+            v1::FetchMaskRequest r;
+            if (!parse(r, data, size)) return 0;
+            std::string packed;
+            note("fetch_mask", s.manager.fetch_mask(r, &packed));
             break;
         }
         default: {
