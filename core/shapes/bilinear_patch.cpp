@@ -289,7 +289,8 @@ void BilinearPatches::fill_interaction(const Ray& ray, float t, unsigned prim_id
     }
     si.geometric_normal = ng;
     si.shading = Frame::from_normal(ns);
-    if (uv_wanted(*this, detail)) {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) {
         si.uv = uv_of(i, u, v);
         // dp/d(uv) = dp/d(u, v) J^-1 with J the Jacobian of the uv map.
         double j[2][2];  // j[r][c]: d uv_r / d (u, v)_c
@@ -314,13 +315,8 @@ void BilinearPatches::fill_interaction(const Ray& ray, float t, unsigned prim_id
             if (is_finite(a)) si.dpdu = a;
             if (is_finite(b)) si.dpdv = b;
         }
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
     }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 Aabb BilinearPatches::patch_bounds(size_t i) const {
@@ -353,7 +349,7 @@ ShapeSample BilinearPatches::sample_area(Vec2 u) const {
     return s;
 }
 
-bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
+bool BilinearPatches::locate(const Vec3& p, unsigned& patch, Vec2& uv) const {
     const D3 target = d3(p);
     double best = kInfinity;
     for (size_t i = 0; i < patch_count(); ++i) {
@@ -388,7 +384,7 @@ bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
                 v <= 1 + edge) {
                 if (residual < best) {
                     best = residual;
-                    patch = i;
+                    patch = unsigned(i);
                     uv = Vec2(float(std::clamp(u, 0.0, 1.0)), float(std::clamp(v, 0.0, 1.0)));
                 }
                 break;
@@ -398,10 +394,9 @@ bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
     return best < kInfinity;
 }
 
-float BilinearPatches::pdf_area_at(const Vec3& p) const {
-    size_t i;
-    Vec2 uv;
-    if (!(area_ > 0) || !locate(p, i, uv)) return 0.0f;
+float BilinearPatches::pdf_area(unsigned prim_id, Vec2 uv) const {
+    const size_t i = prim_id;
+    if (!(area_ > 0) || i >= patch_count()) return 0.0f;
     const double jacobian = area_element(i, uv.x, uv.y);
     if (!(jacobian > 0)) return 0.0f;
     const float pdf = float(patch_distribution_.discrete_probability(i) *
@@ -410,7 +405,7 @@ float BilinearPatches::pdf_area_at(const Vec3& p) const {
 }
 
 Vec2 BilinearPatches::uv_at(const Vec3& p) const {
-    size_t i;
+    unsigned i;
     Vec2 uv;
     if (!locate(p, i, uv)) return Vec2();
     return uv_of(i, uv.x, uv.y);

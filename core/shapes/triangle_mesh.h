@@ -43,6 +43,10 @@ class TriangleMesh final : public Shape {
     // By a search over the triangles: only for small meshes (rectangle, cube).
     bool has_uv_lookup() const override { return triangle_count() <= kMaxUvLookupTriangles; }
     Vec2 uv_at(const Vec3& p) const override;
+    // By the hit's barycentrics, on a mesh of any size.
+    Vec2 uv_at_hit(unsigned prim_id, Vec2 prim_uv, const Vec3&) const override {
+        return uv_of(prim_id, prim_uv.x, prim_uv.y);
+    }
     static constexpr size_t kMaxUvLookupTriangles = 64;
 
     size_t triangle_count() const { return indices_.size() / 3; }

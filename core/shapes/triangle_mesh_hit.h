@@ -26,15 +26,10 @@ inline void TriangleMesh::fill_hit(const Ray& ray, float t, unsigned prim_id, fl
         si.geometric_normal = face_normals_[prim_id];
         si.shading = flat_frames_[prim_id];
     }
-    if (uv_wanted(*this, detail)) [[unlikely]] {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) [[unlikely]]
         fill_uv(prim_id, u, v, si);
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
-    }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 }  // namespace render
