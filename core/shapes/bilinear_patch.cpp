@@ -108,7 +108,7 @@ void patch_bounds_callback(const RTCBoundsFunctionArguments* args) {
     *args->bounds_o = RTCBounds{b.lo.x, b.lo.y, b.lo.z, 0.0f, b.hi.x, b.hi.y, b.hi.z, 0.0f};
 }
 
-// The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
+// Closest hits are single rays (rtcIntersect1), so N is always 1 here.
 void patch_intersect(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[0]) return;
     const auto* shape = static_cast<const BilinearPatches*>(args->geometryUserPtr);
@@ -128,14 +128,22 @@ void patch_intersect(const RTCIntersectFunctionNArguments* args) {
     h.instID[0] = args->context->instID[0];
 }
 
+// Shadow rays come one at a time (rtcOccluded1, N = 1) or in packets of N from the stream
+// query of Scene's batched occluded(): lane by lane.
 void patch_occluded(const RTCOccludedFunctionNArguments* args) {
-    if (!args->valid[0]) return;
     const auto* shape = static_cast<const BilinearPatches*>(args->geometryUserPtr);
-    auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const double org[3] = {ray->org_x, ray->org_y, ray->org_z};
-    const double dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-    if (shape->intersect_patch(args->primID, org, dir, ray->tnear, ray->tfar))
-        ray->tfar = -std::numeric_limits<float>::infinity();
+    RTCRayN* ray = args->ray;
+    const unsigned n = args->N;
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        const double org[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i),
+                               RTCRayN_org_z(ray, n, i)};
+        const double dir[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i),
+                               RTCRayN_dir_z(ray, n, i)};
+        if (shape->intersect_patch(args->primID, org, dir, RTCRayN_tnear(ray, n, i),
+                                   RTCRayN_tfar(ray, n, i)))
+            RTCRayN_tfar(ray, n, i) = -std::numeric_limits<float>::infinity();
+    }
 }
 
 }  // namespace
