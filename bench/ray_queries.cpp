@@ -119,6 +119,42 @@ void occluded_embree_stream(benchmark::State& state, const std::string& name, in
     state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
 }
 
+// Scene::occluded for batches of `batch` rays (its own shadow BVH through rtcOccluded1M, the
+// direct occluders per ray) against occluded_ours, one ray at a time on the same BVH: whether a
+// path's few next-event rays (4) or a connection pass's many (16, 64) pay batched. Out of line
+// under a name of its own, so that callgrind can count this loop alone.
+[[gnu::noinline]] int trace_occluded_ours_batch(const Scene& s, std::span<const Ray> rays,
+                                                int batch) {
+    int blocked = 0;
+    bool answers[256];
+    for (size_t start = 0; start < rays.size(); start += size_t(batch)) {
+        const size_t n = std::min(size_t(batch), rays.size() - start);
+        s.occluded(rays.data() + start, n, answers);
+        for (size_t i = 0; i < n; ++i) blocked += answers[i] ? 1 : 0;
+    }
+    return blocked;
+}
+
+[[gnu::noinline]] int trace_occluded_ours_single(const Scene& s, std::span<const Ray> rays) {
+    int blocked = 0;
+    for (const Ray& ray : rays) blocked += s.occluded(ray) ? 1 : 0;
+    return blocked;
+}
+
+void occluded_ours_batch(benchmark::State& state, const std::string& name, int batch) {
+    const Scene& s = scene(name);
+    const std::span<const Ray> rays = thread_share(state, bench::rays(name).shadow);
+    for (auto _ : state) benchmark::DoNotOptimize(trace_occluded_ours_batch(s, rays, batch));
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
+void occluded_ours_single(benchmark::State& state, const std::string& name) {
+    const Scene& s = scene(name);
+    const std::span<const Ray> rays = thread_share(state, bench::rays(name).shadow);
+    for (auto _ : state) benchmark::DoNotOptimize(trace_occluded_ours_single(s, rays));
+    state.SetItemsProcessed(int64_t(state.iterations()) * int64_t(rays.size()));
+}
+
 [[maybe_unused]] const bool registered = [] {
     for (const std::string& name : ray_scene_names()) {
         benchmark::RegisterBenchmark(("rays/closest/ours/" + name).c_str(), closest_ours, name);
@@ -130,6 +166,13 @@ void occluded_embree_stream(benchmark::State& state, const std::string& name, in
             benchmark::RegisterBenchmark(
                 ("rays/occluded/embree-stream" + std::to_string(batch) + "/" + name).c_str(),
                 occluded_embree_stream, name, batch);
+        // Scene::occluded one by one (out of line, for callgrind) and in batches.
+        benchmark::RegisterBenchmark(("rays/occluded/ours-single/" + name).c_str(),
+                                     occluded_ours_single, name);
+        for (int batch : {4, 16, 64})
+            benchmark::RegisterBenchmark(
+                ("rays/occluded/ours-batch" + std::to_string(batch) + "/" + name).c_str(),
+                occluded_ours_batch, name, batch);
         // Both cores at once, each thread on its half of the rays; rates per wall-clock second
         // of the pair (UseRealTime), so the 2-thread rate over the 1-thread one is the speed-up
         // and the stream's lead on two cores shows whether batching still pays when the cores

@@ -32,6 +32,11 @@ struct SurfaceInteraction {
     Vec3 dpdu;
     Vec3 dpdv;
     float t = 0;  // ray distance
+    // The shape's primitive that was hit and the ray tracer's parameters on it (a triangle's
+    // barycentrics b1, b2; a bilinear patch's (u, v)): what Shape::pdf_area and
+    // Shape::uv_at_hit read, so an emitter hit needs no search for its point.
+    unsigned prim_id = 0;
+    Vec2 prim_uv;
     const Shape* shape = nullptr;
     const Bsdf* bsdf = nullptr;      // never null for a hit (absorbing black if the file had none)
     const Light* emitter = nullptr;  // area light attached to the shape, if any

@@ -39,7 +39,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
         }
 
         if (si.emitter) {
-            LightRadiance le = si.emitter->radiance(si.p, si.geometric_normal, ray.direction);
+            LightRadiance le = si.emitter->radiance_at(si, ray.direction);
             if (!le.radiance.is_black()) {
                 float w = 1.0f;
                 if (!prev_delta) {

@@ -471,7 +471,7 @@ Rgb VolumetricPathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng
         null_crossings = 0;
 
         if (si.emitter) {
-            const LightRadiance le = si.emitter->radiance(si.p, si.geometric_normal, ray.direction);
+            const LightRadiance le = si.emitter->radiance_at(si, ray.direction);
             if (!le.radiance.is_black()) {
                 const float cos_light = abs_dot(si.geometric_normal, ray.direction);
                 const Rgb c = beta * le.radiance *

@@ -34,7 +34,6 @@ AreaLight::AreaLight(const Shape* shape, const Rgb& radiance)
     inv_area_ = area_ > 0 ? 1.0f / area_ : 0.0f;
     // A denormal area would make 1 / area overflow.
     if (!std::isfinite(inv_area_)) area_ = inv_area_ = 0;
-    patches_ = dynamic_cast<const BilinearPatches*>(shape);
 }
 
 bool AreaLight::illuminate(const Vec3& ref, Vec2 u, LightIlluminateSample& out) const {
@@ -86,24 +85,34 @@ bool AreaLight::emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) co
 
 LightRadiance AreaLight::radiance(const Vec3& hit_point, const Vec3& hit_normal,
                                   const Vec3& ray_direction) const {
-    float cos_light = dot(hit_normal, -ray_direction);
+    const float cos_light = dot(hit_normal, -ray_direction);
     if (!(cos_light > 0) || inv_area_ == 0) return {};
+    // Only the point is known: find the primitive and its parameters (a search where the
+    // density or the texture's uv depends on them; nothing for uniform untextured shapes).
+    unsigned prim_id = 0;
+    Vec2 prim_uv;
+    const bool on_shape = mesh_emission_ ? mesh_emission_->locate(hit_point, prim_id, prim_uv)
+                                         : shape_->locate(hit_point, prim_id, prim_uv);
+    if (!on_shape) return {};
+    return radiance_of_hit(prim_id, prim_uv, hit_point, cos_light);
+}
+
+LightRadiance AreaLight::radiance_at(const SurfaceInteraction& hit,
+                                     const Vec3& ray_direction) const {
+    const float cos_light = dot(hit.geometric_normal, -ray_direction);
+    if (!(cos_light > 0) || inv_area_ == 0) return {};
+    return radiance_of_hit(hit.prim_id, hit.prim_uv, hit.p, cos_light);
+}
+
+LightRadiance AreaLight::radiance_of_hit(unsigned prim_id, Vec2 prim_uv, const Vec3& p,
+                                         float cos_light) const {
+    const float pdf_area = !mesh_emission_ ? shape_->pdf_area(prim_id, prim_uv)
+                           : uniform_mesh_ ? inv_area_
+                                           : mesh_emission_->pdf_at(prim_id, prim_uv);
+    if (!(pdf_area > 0) || !std::isfinite(pdf_area)) return {};  // off the shape
     LightRadiance r;
-    float pdf_area = inv_area_;
-    if (mesh_emission_) {
-        Vec2 uv;
-        float pdf;
-        if (!mesh_emission_->find(hit_point, uv, pdf)) return {};  // not on the mesh
-        r.radiance = radiance_param_.texture->eval(uv);
-        if (!uniform_mesh_) pdf_area = pdf;
-    } else {
-        r.radiance =
-            textured_ ? radiance_param_.texture->eval(shape_->uv_at(hit_point)) : radiance_;
-        if (patches_) {
-            pdf_area = patches_->pdf_area_at(hit_point);
-            if (!(pdf_area > 0)) return {};  // not on the patches
-        }
-    }
+    r.radiance = textured_ ? radiance_param_.texture->eval(shape_->uv_at_hit(prim_id, prim_uv, p))
+                           : radiance_;
     r.pdf_direct_a = pdf_area;
     r.pdf_emission_w = pdf_area * cos_light * kInvPi;
     return r;

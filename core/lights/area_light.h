@@ -12,6 +12,9 @@
 //                 pdf_direct_a = pdf_area.
 //   radiance():   Le if dot(hit_normal, -ray_direction) > 0 (else black, pdfs 0), with
 //                 pdf_direct_a = pdf_area and pdf_emission_w = pdf_area * cos / pi.
+//                 radiance_at() gives the same for a hit, from its primitive and parameters
+//                 (SurfaceInteraction::prim_id, prim_uv); radiance() from the point alone
+//                 first finds them (Shape::locate, or the textured mesh's locator).
 //   power():      pi * area * Le.
 // A zero-area shape emits nothing (every sampling routine fails, pdfs are 0).
 //
@@ -22,13 +25,13 @@
 // density, in every routine alike. On a sphere or disk they are sampled uniformly by area and
 // uv comes from the shape's uv_at. power() uses the texture's mean.
 //
-// Bilinear patches (core/shapes/bilinear_patch.h) are sampled by their bilinear warp, which is
-// not uniform by area: pdf_area is then the patches' density at the point, sampled or hit.
+// Shapes that do not sample uniformly by area (bilinear patches, core/shapes/bilinear_patch.h)
+// say so through Shape::pdf_area: pdf_area above is then their density at the point, sampled
+// or hit.
 
 #include "core/base/shape.h"
 #include "core/lights/light.h"
 #include "core/lights/textured_mesh_emission.h"
-#include "core/shapes/bilinear_patch.h"
 #include "core/textures/texture_param.h"
 
 namespace render {
@@ -47,6 +50,8 @@ class AreaLight final : public Light {
     bool emit(Vec2 u_position, Vec2 u_direction, LightEmitSample& out) const override;
     LightRadiance radiance(const Vec3& hit_point, const Vec3& hit_normal,
                            const Vec3& ray_direction) const override;
+    LightRadiance radiance_at(const SurfaceInteraction& hit,
+                              const Vec3& ray_direction) const override;
     Rgb power() const override;
 
     bool is_delta() const override { return false; }
@@ -70,14 +75,16 @@ class AreaLight final : public Light {
     Rgb radiance_at(Vec2 uv) const {
         return textured_ ? radiance_param_.texture->eval(uv) : radiance_;
     }
+    // radiance() at the hit (prim_id, prim_uv) at point p, cos_light > 0.
+    LightRadiance radiance_of_hit(unsigned prim_id, Vec2 prim_uv, const Vec3& p,
+                                  float cos_light) const;
 
     const Shape* shape_;
     Rgb radiance_;  // the constant, or the texture's mean
     RgbParam radiance_param_;
     bool textured_ = false;
     std::unique_ptr<TexturedMeshEmission> mesh_emission_;  // textured meshes: the point lookup
-    bool uniform_mesh_ = false;                 // ... but sampled uniformly by area all the same
-    const BilinearPatches* patches_ = nullptr;  // a shape whose density varies over it
+    bool uniform_mesh_ = false;  // ... but sampled uniformly by area all the same
     float area_;
     float inv_area_;  // 0 for a zero-area shape
 };

@@ -16,6 +16,7 @@
 #include <memory>
 #include <string>
 
+#include "core/base/interaction.h"
 #include "core/math/vec.h"
 
 namespace render {
@@ -79,6 +80,12 @@ class Light {
     // (infinite lights; hit_point and hit_normal are ignored).
     virtual LightRadiance radiance(const Vec3& hit_point, const Vec3& hit_normal,
                                    const Vec3& ray_direction) const = 0;
+    // radiance() for a ray that hit this light's shape, as Scene::intersect reported the hit:
+    // area lights read the hit's primitive and parameters instead of searching for the point.
+    virtual LightRadiance radiance_at(const SurfaceInteraction& hit,
+                                      const Vec3& ray_direction) const {
+        return radiance(hit.p, hit.geometric_normal, ray_direction);
+    }
 
     // Total emitted power (approximate for envmaps): drives light selection.
     virtual Rgb power() const = 0;

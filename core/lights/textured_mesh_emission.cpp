@@ -206,6 +206,17 @@ bool TexturedMeshEmission::barycentrics(size_t tri, const Vec3& p, float& b1, fl
 
 bool TexturedMeshEmission::find(const Vec3& p, Vec2& uv, float& pdf_area,
                                 size_t* cell_index) const {
+    unsigned tri;
+    Vec2 b;
+    if (!locate(p, tri, b)) return false;
+    uv = mesh_.uv_of(tri, b.x, b.y);
+    const size_t in_triangle = cell_of(b.x, b.y);
+    pdf_area = pdf_of(tri, in_triangle);
+    if (cell_index) *cell_index = size_t(tri) * 2 * size_t(k_) * size_t(k_) + in_triangle;
+    return true;
+}
+
+bool TexturedMeshEmission::locate(const Vec3& p, unsigned& tri_found, Vec2& b) const {
     int c[3];
     for (int a = 0; a < 3; ++a) {
         const float x = cell_size_[a] > 0 ? (p[a] - lo_[a]) / cell_size_[a] : 0.0f;
@@ -226,10 +237,8 @@ bool TexturedMeshEmission::find(const Vec3& p, Vec2& uv, float& pdf_area,
         best_b2 = b2;
     }
     if (best == kInfinity) return false;
-    uv = mesh_.uv_of(best_tri, best_b1, best_b2);
-    const size_t in_triangle = cell_of(best_b1, best_b2);
-    pdf_area = pdf_of(best_tri, in_triangle);
-    if (cell_index) *cell_index = best_tri * 2 * size_t(k_) * size_t(k_) + in_triangle;
+    tri_found = unsigned(best_tri);
+    b = Vec2(best_b1, best_b2);
     return true;
 }
 

@@ -42,6 +42,13 @@ class TexturedMeshEmission {
     // its triangles); `cell`, when given, gets the point's cell: triangle t's cells are
     // 2 K^2 t + 2 (i K + j) + d for the barycentric grid cell (i, j), upside down when d = 1.
     bool find(const Vec3& p, Vec2& uv, float& pdf_area, size_t* cell = nullptr) const;
+    // The triangle of the mesh and barycentrics (b1, b2) of point p, as find() picks them.
+    bool locate(const Vec3& p, unsigned& tri, Vec2& barycentrics) const;
+    // The pdf_area sample() gives the point of triangle `tri` at barycentrics (b1, b2): an
+    // emitter hit's density without a point lookup.
+    float pdf_at(unsigned tri, Vec2 barycentrics) const {
+        return pdf_of(tri, cell_of(barycentrics.x, barycentrics.y));
+    }
 
     int subdivision() const { return k_; }  // K
     // Entries of the locator's lists (at most 16 a triangle, + 4096).

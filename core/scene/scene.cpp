@@ -1,5 +1,6 @@
 #include "core/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -228,6 +229,46 @@ bool Scene::occluded(const Ray& ray) const {
     RTCRay r = to_rtc_ray(ray);
     rtcOccluded1(shadow_bvh_ ? occlusion_scene_ : rtc_scene_, &context, &r);
     return r.tfar < 0;
+}
+
+void Scene::occluded(const Ray* rays, size_t count, bool* blocked) const {
+    // Embree's stream query takes at most this many rays a call here (a buffer on the stack).
+    constexpr size_t kChunk = 64;
+    RTCRay batch[kChunk];
+    size_t slot_of[kChunk];
+    for (size_t begin = 0; begin < count; begin += kChunk) {
+        const size_t end = std::min(count, begin + kChunk);
+        size_t n = 0;
+        for (size_t i = begin; i < end; ++i) {
+            const Ray& ray = rays[i];
+            blocked[i] = false;
+            if (!embree_accepts(ray)) [[unlikely]] {
+                count_invalid_ray();
+                continue;
+            }
+            const float origin[3] = {ray.origin.x, ray.origin.y, ray.origin.z};
+            const float direction[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
+            bool hit = false;
+            for (const AnalyticShape* shape : direct_occluders_)
+                if (shape->nearest_hit(origin, direction, ray.t_min, ray.t_max)) {
+                    hit = true;
+                    break;
+                }
+            if (hit) {
+                blocked[i] = true;
+                continue;
+            }
+            batch[n] = to_rtc_ray(ray);
+            slot_of[n++] = i;
+        }
+        if (n == 0) continue;
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+        rtcOccluded1M(shadow_bvh_ ? occlusion_scene_ : rtc_scene_, &context, batch, unsigned(n),
+                      sizeof(RTCRay));
+        for (size_t k = 0; k < n; ++k) blocked[slot_of[k]] = batch[k].tfar < 0;
+    }
 }
 
 Ray Scene::spawn_ray(const Vec3& p, const Vec3& n, const Vec3& d) const {

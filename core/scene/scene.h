@@ -97,6 +97,12 @@ class Scene {
     float closest_hit_distance(const Ray& ray) const;
     // True if anything blocks the open segment (ray.t_min, ray.t_max).
     bool occluded(const Ray& ray) const;
+    // occluded() for `count` rays at once: blocked[i] = occluded(rays[i]), the shadow BVH
+    // queried through Embree's stream query (rtcOccluded1M, incoherent), the direct occluders
+    // per ray. The answers may differ from occluded()'s only where the two traversals round
+    // differently (a ray through an edge). For measuring whether batches pay
+    // (docs/results/performance-notes.md, "Shadow rays in batches").
+    void occluded(const Ray* rays, size_t count, bool* blocked) const;
     // The three queries above hand Embree only rays it accepts (embree_accepts,
     // core/scene/embree_ray.h): any other ray is a miss (unoccluded), counted here over the
     // scene's life (every render of it), and in the tally of the render the thread works for

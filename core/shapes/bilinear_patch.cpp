@@ -108,7 +108,7 @@ void patch_bounds_callback(const RTCBoundsFunctionArguments* args) {
     *args->bounds_o = RTCBounds{b.lo.x, b.lo.y, b.lo.z, 0.0f, b.hi.x, b.hi.y, b.hi.z, 0.0f};
 }
 
-// The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
+// Closest hits are single rays (rtcIntersect1), so N is always 1 here.
 void patch_intersect(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[0]) return;
     const auto* shape = static_cast<const BilinearPatches*>(args->geometryUserPtr);
@@ -128,14 +128,22 @@ void patch_intersect(const RTCIntersectFunctionNArguments* args) {
     h.instID[0] = args->context->instID[0];
 }
 
+// Shadow rays come one at a time (rtcOccluded1, N = 1) or in packets of N from the stream
+// query of Scene's batched occluded(): lane by lane.
 void patch_occluded(const RTCOccludedFunctionNArguments* args) {
-    if (!args->valid[0]) return;
     const auto* shape = static_cast<const BilinearPatches*>(args->geometryUserPtr);
-    auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const double org[3] = {ray->org_x, ray->org_y, ray->org_z};
-    const double dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-    if (shape->intersect_patch(args->primID, org, dir, ray->tnear, ray->tfar))
-        ray->tfar = -std::numeric_limits<float>::infinity();
+    RTCRayN* ray = args->ray;
+    const unsigned n = args->N;
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        const double org[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i),
+                               RTCRayN_org_z(ray, n, i)};
+        const double dir[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i),
+                               RTCRayN_dir_z(ray, n, i)};
+        if (shape->intersect_patch(args->primID, org, dir, RTCRayN_tnear(ray, n, i),
+                                   RTCRayN_tfar(ray, n, i)))
+            RTCRayN_tfar(ray, n, i) = -std::numeric_limits<float>::infinity();
+    }
 }
 
 }  // namespace
@@ -289,7 +297,8 @@ void BilinearPatches::fill_interaction(const Ray& ray, float t, unsigned prim_id
     }
     si.geometric_normal = ng;
     si.shading = Frame::from_normal(ns);
-    if (uv_wanted(*this, detail)) {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) {
         si.uv = uv_of(i, u, v);
         // dp/d(uv) = dp/d(u, v) J^-1 with J the Jacobian of the uv map.
         double j[2][2];  // j[r][c]: d uv_r / d (u, v)_c
@@ -314,13 +323,8 @@ void BilinearPatches::fill_interaction(const Ray& ray, float t, unsigned prim_id
             if (is_finite(a)) si.dpdu = a;
             if (is_finite(b)) si.dpdv = b;
         }
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
     }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 Aabb BilinearPatches::patch_bounds(size_t i) const {
@@ -353,7 +357,7 @@ ShapeSample BilinearPatches::sample_area(Vec2 u) const {
     return s;
 }
 
-bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
+bool BilinearPatches::locate(const Vec3& p, unsigned& patch, Vec2& uv) const {
     const D3 target = d3(p);
     double best = kInfinity;
     for (size_t i = 0; i < patch_count(); ++i) {
@@ -388,7 +392,7 @@ bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
                 v <= 1 + edge) {
                 if (residual < best) {
                     best = residual;
-                    patch = i;
+                    patch = unsigned(i);
                     uv = Vec2(float(std::clamp(u, 0.0, 1.0)), float(std::clamp(v, 0.0, 1.0)));
                 }
                 break;
@@ -398,10 +402,9 @@ bool BilinearPatches::locate(const Vec3& p, size_t& patch, Vec2& uv) const {
     return best < kInfinity;
 }
 
-float BilinearPatches::pdf_area_at(const Vec3& p) const {
-    size_t i;
-    Vec2 uv;
-    if (!(area_ > 0) || !locate(p, i, uv)) return 0.0f;
+float BilinearPatches::pdf_area(unsigned prim_id, Vec2 uv) const {
+    const size_t i = prim_id;
+    if (!(area_ > 0) || i >= patch_count()) return 0.0f;
     const double jacobian = area_element(i, uv.x, uv.y);
     if (!(jacobian > 0)) return 0.0f;
     const float pdf = float(patch_distribution_.discrete_probability(i) *
@@ -410,7 +413,7 @@ float BilinearPatches::pdf_area_at(const Vec3& p) const {
 }
 
 Vec2 BilinearPatches::uv_at(const Vec3& p) const {
-    size_t i;
+    unsigned i;
     Vec2 uv;
     if (!locate(p, i, uv)) return Vec2();
     return uv_of(i, uv.x, uv.y);

@@ -17,8 +17,8 @@
 // Area sampling (for area lights), as pbrt-v4: a patch by its area, then (u, v) by the bilinear
 // density through the area element |dp/du x dp/dv| at the four corners, so
 //   pdf_area(p) = P(patch) * bilinear_pdf(u, v) / |dp/du x dp/dv|(u, v),
-// which is not uniform. AreaLight (core/lights/area_light.h) finds the same density back from a
-// hit point with pdf_area_at(). docs/reference/scene-format.md, "Bilinear patches".
+// which is not uniform. pdf_area() gives the same density for a hit's patch and (u, v), and
+// locate() finds them for a point alone. docs/reference/scene-format.md, "Bilinear patches".
 
 #include <array>
 #include <optional>
@@ -54,13 +54,18 @@ class BilinearPatches final : public Shape {
     float surface_area() const override { return area_; }
     // Not uniform: see the header comment; pdf_area is the density at the sampled point.
     ShapeSample sample_area(Vec2 u) const override;
+    // The density sample_area() has at patch `prim_id`'s point (u, v) = prim_uv (0 off it).
+    float pdf_area(unsigned prim_id, Vec2 prim_uv) const override;
+    // The patch and its (u, v) whose point is p (nearest within a small tolerance): a search
+    // over every patch, for callers that have only the point.
+    bool locate(const Vec3& p, unsigned& prim_id, Vec2& prim_uv) const override;
     std::string to_string() const override;
 
     bool has_uv_lookup() const override { return true; }
     Vec2 uv_at(const Vec3& p) const override;
-
-    // The density sample_area() has at surface point p (0 if p is on no patch).
-    float pdf_area_at(const Vec3& p) const;
+    Vec2 uv_at_hit(unsigned prim_id, Vec2 prim_uv, const Vec3&) const override {
+        return uv_of(prim_id, prim_uv.x, prim_uv.y);
+    }
 
     struct PatchHit {
         double t, u, v;
@@ -73,8 +78,6 @@ class BilinearPatches final : public Shape {
     // |dp/du x dp/dv| of patch i at (u, v).
     double area_element(size_t i, double u, double v) const;
     double patch_area(size_t i) const { return patch_areas_[i]; }
-    // The patch and its (u, v) whose point is p (nearest within a small tolerance).
-    bool locate(const Vec3& p, size_t& patch, Vec2& uv) const;
 
   private:
     const Vec3& corner(size_t i, int k) const { return positions_[indices_[4 * i + k]]; }

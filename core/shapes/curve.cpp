@@ -214,23 +214,19 @@ void Curves::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u
         h = r > 0 ? std::clamp(dot(p - c, frame.t) / r, -1.0f, 1.0f) : 0.0f;
     else
         h = offset_h(frame, -ray.direction, p - c, r);
-    (void)v;  // Embree's v is not the across-width offset for every curve type; h is
+    // Embree's v is not the across-width offset for every curve type; h is
     si.p = p;
     si.t = t;
     si.geometric_normal = n;
     si.shading = frame;
-    if (uv_wanted(*this, detail)) {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) {
         const float du = s.u1 - s.u0;
         si.uv = Vec2(s.u0 + du * u, 0.5f * (1 + h));
         si.dpdu = du > 0 ? dpdu_segment / du : dpdu_segment;
         si.dpdv = frame.t * (2 * r);
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
     }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 Aabb Curves::bounds() const {

@@ -50,28 +50,24 @@ std::optional<double> Disk::nearest_hit(const float org[3], const float dir[3], 
     return t;
 }
 
-void Disk::fill_interaction(const Ray& ray, float t, unsigned, float, float, HitDetail detail,
-                            SurfaceInteraction& si) const {
+void Disk::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
+                            HitDetail detail, SurfaceInteraction& si) const {
     Vec3 local = to_object_.apply_point(ray.at(t));
     local.z = 0;  // project onto the disk plane
     si.p = to_world_.apply_point(local);
     si.t = t;
     si.geometric_normal = normal_;
     si.shading = Frame::from_normal(normal_);
-    if (uv_wanted(*this, detail)) {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) {
         si.uv = uv_of_local(local.x, local.y);
         // u = r: dp/du is the radial direction (zero at the centre).
         const float r = std::sqrt(local.x * local.x + local.y * local.y);
         si.dpdu = r > 0 ? to_world_.apply_vector(Vec3(local.x / r, local.y / r, 0)) : Vec3(0.0f);
         // v = phi / 2 pi: dp/dv = 2 pi (-y, x, 0), zero at the centre.
         si.dpdv = to_world_.apply_vector(Vec3(-local.y, local.x, 0) * (2 * kPi));
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
     }
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 Vec2 Disk::uv_of_local(float x, float y) {

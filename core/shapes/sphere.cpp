@@ -49,8 +49,8 @@ std::optional<double> Sphere::nearest_hit(const float org[3], const float dir[3]
     return t;
 }
 
-void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float, HitDetail detail,
-                              SurfaceInteraction& si) const {
+void Sphere::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
+                              HitDetail detail, SurfaceInteraction& si) const {
     Vec3 p = ray.at(t);
     Vec3 n = p - center_;
     float len = length(n);
@@ -58,7 +58,8 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float, H
     // Re-project onto the surface: removes the error of origin + t * direction.
     si.p = center_ + n * radius_;
     si.t = t;
-    if (uv_wanted(*this, detail)) {
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) {
         si.uv = uv_of_direction(n);
         // u = phi / 2pi turns about the object's z axis (the other way in a mirrored frame):
         // dp/du = 2 pi z x (p - c); zero at the poles.
@@ -70,16 +71,11 @@ void Sphere::fill_interaction(const Ray& ray, float t, unsigned, float, float, H
         const float sin_theta = std::sqrt(std::max(0.0f, 1 - cos_theta * cos_theta));
         si.dpdv =
             sin_theta > 0 ? (n * cos_theta - axes_.n) * (kPi * radius_ / sin_theta) : Vec3(0.0f);
-    } else {
-        si.uv = Vec2();
-        si.dpdu = si.dpdv = Vec3(0.0f);
     }
     if (flip_normals_) n = -n;
     si.geometric_normal = n;
     si.shading = Frame::from_normal(n);
-    si.shape = this;
-    si.bsdf = bsdf;
-    si.emitter = emitter;
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 Vec2 Sphere::uv_of_direction(const Vec3& d) const {

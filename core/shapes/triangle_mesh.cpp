@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "core/base/error.h"
+#include "core/base/memory_budget.h"
 #include "core/sampling/warp.h"
 #include "core/shapes/alpha_cutout.h"
 #include "core/shapes/triangle_mesh_hit.h"
@@ -88,7 +89,22 @@ TriangleMesh::TriangleMesh(MeshData data, const Transform& to_world, bool flip_n
     area_ = float(total);
     triangle_distribution_ = Distribution1D(std::move(areas));
     keep_flat_frames();
-    frames_per_triangle_ = !flat_frames_.empty() && !has_degenerate_;
+    frames_per_triangle_ =
+        !flat_frames_.empty() && !has_degenerate_ && triangle_count() <= kMaxHitRecordTriangles;
+    if (frames_per_triangle_) {
+        // The worker's memory budget (docs/guide/reliability.md, "The memory budget").
+        charge_scene_memory(triangle_count() * sizeof(HitRecord), name_ + ": hit records");
+        hit_records_.resize(triangle_count());
+        for (size_t i = 0; i < triangle_count(); ++i) {
+            HitRecord& r = hit_records_[i];
+            for (int k = 0; k < 3; ++k) {
+                const Vec3& p = positions_[indices_[3 * i + size_t(k)]];
+                r.p[k][0] = p.x, r.p[k][1] = p.y, r.p[k][2] = p.z, r.p[k][3] = 0;
+            }
+            r.normal = face_normals_[i];
+            r.frame = flat_frames_[i];
+        }
+    }
 }
 
 void TriangleMesh::keep_flat_frames() {

@@ -43,6 +43,10 @@ class TriangleMesh final : public Shape {
     // By a search over the triangles: only for small meshes (rectangle, cube).
     bool has_uv_lookup() const override { return triangle_count() <= kMaxUvLookupTriangles; }
     Vec2 uv_at(const Vec3& p) const override;
+    // By the hit's barycentrics, on a mesh of any size.
+    Vec2 uv_at_hit(unsigned prim_id, Vec2 prim_uv, const Vec3&) const override {
+        return uv_of(prim_id, prim_uv.x, prim_uv.y);
+    }
     static constexpr size_t kMaxUvLookupTriangles = 64;
 
     size_t triangle_count() const { return indices_.size() / 3; }
@@ -90,8 +94,21 @@ class TriangleMesh final : public Shape {
     // Empty otherwise.
     std::vector<Frame> flat_frames_;
     // flat_frames_ holds every triangle's frame and no triangle is degenerate: a hit copies
-    // its frame and face normal (fill_hit's inline path).
+    // its frame and face normal (fill_hit's inline path) from hit_records_.
     bool frames_per_triangle_ = false;
+    // What fill_hit's inline path reads of a triangle, in one place: its three vertices, each
+    // padded to 16 bytes so that the hit point is interpolated with one SIMD load per vertex
+    // and no index lookup (the same products and sums, in the same order, as the scalar
+    // p0 b0 + p1 u + p2 v), then the face normal and frame in SurfaceInteraction's order (one
+    // 48-byte copy). 96 bytes a triangle, kept up to kMaxHitRecordTriangles (6 MiB);
+    // docs/results/performance-notes.md, "Closest hits through Scene::intersect".
+    struct alignas(16) HitRecord {
+        float p[3][4];
+        Vec3 normal;
+        Frame frame;
+    };
+    static constexpr size_t kMaxHitRecordTriangles = size_t(1) << 16;
+    std::vector<HitRecord> hit_records_;
     std::vector<Vec2> uvs_;
     std::vector<uint32_t> indices_;
     bool flip_normals_;

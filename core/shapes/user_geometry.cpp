@@ -28,7 +28,7 @@ std::optional<double> nearest_kept_hit(const AnalyticShape& shape, const float o
     return std::nullopt;
 }
 
-// The scene only issues single rays (rtcIntersect1/rtcOccluded1), so N is always 1.
+// Closest hits are single rays (rtcIntersect1), so N is always 1 here.
 void analytic_intersect(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[0]) return;
     const auto* shape = static_cast<const AnalyticShape*>(args->geometryUserPtr);
@@ -47,14 +47,21 @@ void analytic_intersect(const RTCIntersectFunctionNArguments* args) {
     hit.instID[0] = args->context->instID[0];
 }
 
+// Shadow rays come one at a time (rtcOccluded1, N = 1) or in packets of N from the stream
+// query of Scene's batched occluded(): lane by lane.
 void analytic_occluded(const RTCOccludedFunctionNArguments* args) {
-    if (!args->valid[0]) return;
     const auto* shape = static_cast<const AnalyticShape*>(args->geometryUserPtr);
-    auto* ray = reinterpret_cast<RTCRay*>(args->ray);
-    const float org[3] = {ray->org_x, ray->org_y, ray->org_z};
-    const float dir[3] = {ray->dir_x, ray->dir_y, ray->dir_z};
-    if (nearest_kept_hit(*shape, org, dir, ray->tnear, ray->tfar))
-        ray->tfar = -std::numeric_limits<float>::infinity();
+    RTCRayN* ray = args->ray;
+    const unsigned n = args->N;
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        const float org[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i),
+                              RTCRayN_org_z(ray, n, i)};
+        const float dir[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i),
+                              RTCRayN_dir_z(ray, n, i)};
+        if (nearest_kept_hit(*shape, org, dir, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i)))
+            RTCRayN_tfar(ray, n, i) = -std::numeric_limits<float>::infinity();
+    }
 }
 
 }  // namespace

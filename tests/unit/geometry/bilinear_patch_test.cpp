@@ -10,6 +10,8 @@
 #include <memory>
 
 #include "core/base/error.h"
+#include "core/lights/area_light.h"
+#include "core/sampling/rng.h"
 #include "core/scene/scene.h"
 #include "core/shapes/alpha_cutout.h"
 #include "core/shapes/bilinear_patch.h"
@@ -88,7 +90,7 @@ CHI_SQUARE_TEST(family, BilinearPatches, AreaSamplingMatchesItsDensity, 1) {
         family,
         [&](Rng& rng) -> std::optional<Vec2> {
             const ShapeSample s = shape->sample_area(rng.next_2d());
-            size_t i;
+            unsigned i;
             Vec2 uv;
             if (!(s.pdf_area > 0) || !shape->locate(s.p, i, uv)) {
                 ++unlocated;
@@ -99,7 +101,8 @@ CHI_SQUARE_TEST(family, BilinearPatches, AreaSamplingMatchesItsDensity, 1) {
         [&](Vec2 p) {
             const size_t i = std::min<size_t>(size_t(p.x), 1);
             const double u = p.x - double(i), v = p.y;
-            return double(shape->pdf_area_at(shape->point(i, u, v))) * shape->area_element(i, u, v);
+            return double(shape->pdf_area(unsigned(i), Vec2(float(u), float(v)))) *
+                   shape->area_element(i, u, v);
         },
         {0, 2, 0, 1}, options);
     EXPECT_TRUE(r.passed) << r.message;
@@ -107,8 +110,9 @@ CHI_SQUARE_TEST(family, BilinearPatches, AreaSamplingMatchesItsDensity, 1) {
     EXPECT_EQ(unlocated, 0);
 }
 
-// The density a sample reports is the one found back from its point (what AreaLight uses for a
-// hit), and it is not uniform (the patches are not parallelograms).
+// The density a sample reports is the one found back from its point (locate, then pdf_area:
+// what AreaLight uses when it has only the point), and it is not uniform (the patches are not
+// parallelograms).
 TEST(BilinearPatches, SampledDensityIsFoundBackFromThePoint) {
     const auto shape = patches();
     Rng rng(StreamKey{7, 0, 1, 0});
@@ -116,12 +120,51 @@ TEST(BilinearPatches, SampledDensityIsFoundBackFromThePoint) {
     for (int k = 0; k < 2000; ++k) {
         const ShapeSample s = shape->sample_area(rng.next_2d());
         ASSERT_GT(s.pdf_area, 0);
-        EXPECT_NEAR(shape->pdf_area_at(s.p), s.pdf_area, 1e-4f * s.pdf_area);
+        unsigned i;
+        Vec2 uv;
+        ASSERT_TRUE(shape->locate(s.p, i, uv));
+        EXPECT_NEAR(shape->pdf_area(i, uv), s.pdf_area, 1e-4f * s.pdf_area);
         lo = std::min(lo, s.pdf_area), hi = std::max(hi, s.pdf_area);
         EXPECT_NEAR(length(s.n), 1.0f, 1e-5f);
     }
     EXPECT_GT(hi / lo, 1.05f);
-    EXPECT_EQ(shape->pdf_area_at(Vec3(0.5f, 0.5f, 5)), 0.0f);  // off the surface
+    unsigned i;
+    Vec2 uv;
+    EXPECT_FALSE(shape->locate(Vec3(0.5f, 0.5f, 5), i, uv));  // off the surface
+    EXPECT_EQ(shape->pdf_area(7, Vec2(0.5f, 0.5f)), 0.0f);    // no such patch
+}
+
+// A hit reports the density of the sample it lands on through its own patch and (u, v)
+// (SurfaceInteraction::prim_id, prim_uv; no point search), and an area light on the patches
+// gives a hit (radiance_at) the densities it gives the hit point alone (radiance). Rays from
+// above each sampled point straight down onto it; tolerance 1e-4 relative: the hit's (u, v)
+// and the sample's differ by the float rounding of the ray's t.
+TEST(BilinearPatches, AHitReportsItsDensityWithoutASearch) {
+    auto owned = patches();
+    const BilinearPatches* shape = owned.get();
+    const auto scene = scene_with(std::move(owned));
+    const AreaLight light(shape, Rgb(2.0f));
+    Rng rng(StreamKey{8, 0, 1, 0});
+    int hits = 0;
+    for (int k = 0; k < 2000; ++k) {
+        const ShapeSample s = shape->sample_area(rng.next_2d());
+        ASSERT_GT(s.pdf_area, 0);
+        const Vec3 origin = s.p + s.n * 0.05f;
+        SurfaceInteraction si;
+        if (!scene->intersect(Ray(origin, -s.n, 0, 1), si)) continue;
+        if (length(si.p - s.p) > 1e-4f) continue;  // the other side of a fold
+        ++hits;
+        EXPECT_EQ(si.shape, shape);
+        EXPECT_NEAR(shape->pdf_area(si.prim_id, si.prim_uv), s.pdf_area, 1e-4f * s.pdf_area);
+        const LightRadiance at_hit = light.radiance_at(si, -si.geometric_normal);
+        const LightRadiance at_point =
+            light.radiance(si.p, si.geometric_normal, -si.geometric_normal);
+        EXPECT_EQ(at_hit.radiance, Rgb(2.0f));
+        EXPECT_NEAR(at_hit.pdf_direct_a, at_point.pdf_direct_a, 1e-4f * at_point.pdf_direct_a);
+        EXPECT_NEAR(at_hit.pdf_emission_w, at_point.pdf_emission_w,
+                    1e-4f * at_point.pdf_emission_w);
+    }
+    EXPECT_GT(hits, 1900);
 }
 
 // Area against the tessellation (its error is O(1 / n^2) of the curvature).

@@ -31,6 +31,7 @@
 #include "core/sampling/rng.h"
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
+#include "core/scene/scene.h"
 #include "core/shapes/triangle_mesh.h"
 #include "tests/support/block_estimate.h"
 #include "tests/support/chi_square.h"
@@ -204,6 +205,42 @@ TEST(TexturedMeshEmission, AreaLightPdfsMatchItsSamples) {
         EXPECT_NEAR(es.pdf_emission_w, at_origin.pdf_emission_w, 1e-5f * es.pdf_emission_w);
     }
     std::cout << mismatched << " of " << checked << " at cell edges\n";
+    EXPECT_LT(mismatched, checked / 1000);
+}
+
+// A hit on the textured light finds its density and uv from its own triangle and barycentrics
+// (radiance_at: SurfaceInteraction::prim_id, prim_uv), as radiance() finds them through the
+// locator from the point: the same cell's density (but at cell edges, where the two may round
+// to neighbours: fewer than 1 in 1000) and the same radiance to float rounding of uv (1e-4).
+TEST(TexturedMeshEmission, AHitFindsItsDensityWithoutTheLocator) {
+    auto owned = std::make_unique<TriangleMesh>(grid_mesh(10));
+    const TriangleMesh* mesh = owned.get();
+    Scene scene;
+    scene.set_camera(PerspectiveCamera(Transform(), 45, 'x', 4, 4));
+    scene.add_shape(std::move(owned), nullptr);
+    scene.commit();
+    const AreaLight light(mesh, RgbParam{Rgb(), std::make_shared<SpotTexture>()});
+    ASSERT_NE(light.textured_mesh(), nullptr);
+    Rng rng(StreamKey{23, 0, 1, 0});
+    int checked = 0, mismatched = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const Vec2 u = rng.next_2d();
+        const Vec3 target(-1 + 2 * u.x, -1 + 2 * u.y, 0);
+        const Vec3 origin(0.2f, -0.1f, 1.5f);
+        SurfaceInteraction si;
+        ASSERT_TRUE(scene.intersect(Ray(origin, normalize(target - origin)), si));
+        const Vec3 d = normalize(target - origin);
+        const LightRadiance at_hit = light.radiance_at(si, d);
+        const LightRadiance at_point = light.radiance(si.p, si.geometric_normal, d);
+        ASSERT_GT(at_point.pdf_direct_a, 0);
+        ++checked;
+        if (at_hit.pdf_direct_a != at_point.pdf_direct_a) {
+            ++mismatched;
+            continue;
+        }
+        EXPECT_EQ(at_hit.pdf_emission_w, at_point.pdf_emission_w);
+        EXPECT_NEAR(at_hit.radiance.r, at_point.radiance.r, 1e-4f * at_point.radiance.r);
+    }
     EXPECT_LT(mismatched, checked / 1000);
 }
 
