@@ -144,7 +144,7 @@ TEST(PointsAlongRay, BoundsHoldEveryPointFoundAndItsProjection) {
         const Aabb box = lookup.bounds();
         ASSERT_FALSE(box.empty());
         int found = 0;
-        for (int k = 0; k < 300; ++k) {
+        for (int k = 0; k < 1000; ++k) {
             const Vec3 o = Vec3(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 4.0f - Vec3(2.0f);
             const Ray ray(o, warp::square_to_uniform_sphere(rng.next_2d()), 0.0f, 4.0f);
             lookup.for_each_near(ray, [&](uint32_t i, float t, float) {
