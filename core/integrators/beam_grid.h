@@ -36,6 +36,8 @@ class UniformBeamGrid {
     }
     void query(const Ray& ray, BeamsAlongRay::VisitFunction visit, void* user) const;
 
+    // The grid's box (empty when it holds no beam): no query outside it finds a beam.
+    Aabb bounds() const { return beam_ids_.empty() ? Aabb{} : Aabb{lo_, hi_}; }
     size_t references() const { return beam_ids_.size(); }
     int resolution(int axis) const { return res_[axis]; }
 

@@ -77,6 +77,12 @@ BeamsAlongRay::~BeamsAlongRay() {
 void BeamsAlongRay::build(const std::vector<BeamLine>& beams, float radius) {
     beams_ = &beams;
     radius_ = radius;
+    bounds_ = Aabb{};
+    for (const BeamLine& b : beams) {
+        bounds_.expand(b.origin);
+        bounds_.expand(b.origin + b.direction * b.length);
+    }
+    if (!bounds_.empty()) bounds_ = {bounds_.lo - Vec3(radius), bounds_.hi + Vec3(radius)};
     if (scene_) rtcReleaseScene(scene_);
     scene_ = rtcNewScene(device_);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_LOW);

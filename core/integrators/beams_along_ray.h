@@ -14,6 +14,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "core/base/shape.h"
 #include "core/math/ray.h"
 #include "core/math/vec.h"
 
@@ -65,6 +66,8 @@ class BeamsAlongRay {
     void query(const Ray& ray, VisitFunction visit, void* user) const;
 
     float radius() const { return radius_; }
+    // The box of the indexed capsules (empty when none): no query outside it finds a beam.
+    const Aabb& bounds() const { return bounds_; }
 
   private:
     static void capsule_bounds(const RTCBoundsFunctionArguments* args);
@@ -73,6 +76,7 @@ class BeamsAlongRay {
     RTCScene scene_ = nullptr;
     const std::vector<BeamLine>* beams_ = nullptr;
     float radius_ = 0;
+    Aabb bounds_;
 };
 
 }  // namespace render

@@ -61,6 +61,9 @@ void PointsAlongRay::build(const std::vector<Vec3>& positions, float radius, siz
     positions_ = &positions;
     count_ = std::min(count, positions.size());
     radius_ = radius;
+    bounds_ = Aabb{};
+    for (size_t i = 0; i < count_; ++i) bounds_.expand(positions[i]);
+    if (!bounds_.empty()) bounds_ = {bounds_.lo - Vec3(radius), bounds_.hi + Vec3(radius)};
     if (scene_) rtcReleaseScene(scene_);
     scene_ = rtcNewScene(device_);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_LOW);

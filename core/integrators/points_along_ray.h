@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/base/shape.h"
 #include "core/math/ray.h"
 #include "core/math/vec.h"
 
@@ -45,6 +46,8 @@ class PointsAlongRay {
     void query(const Ray& ray, VisitFunction visit, void* user) const;
 
     float radius() const { return radius_; }
+    // The box of the indexed balls (empty when none): no query outside it finds a point.
+    const Aabb& bounds() const { return bounds_; }
 
   private:
     static void ball_bounds(const RTCBoundsFunctionArguments* args);
@@ -54,6 +57,7 @@ class PointsAlongRay {
     const std::vector<Vec3>* positions_ = nullptr;
     size_t count_ = 0;  // the indexed prefix of *positions_
     float radius_ = 0;
+    Aabb bounds_;
 };
 
 }  // namespace render

@@ -54,13 +54,12 @@ from resultslib import data as datafile, pages  # scripts/ is on sys.path (scrip
 SCENES = common.REPO_ROOT / "scenes"
 CLAMP = ["--vpl-clamp", "0.01", "--vpl-clamp-schedule", "fixed"]
 # The UPBP claims use the density sweep's arms (docs/results/upbp.md), radius included, with
-# the photon beams drawn from a fraction of the light paths (--photon-beam-paths; the fraction
-# measured most efficient on upbp-mirror-balls and isosph, docs/design/media.md "Photon beams")
-# and the query beams gathering the photon points of the same fraction (--query-beam-paths;
-# measured on upbp-lantern, where gathering every path's photons gave the query beams the wall
-# pixels that light tracing samples better: docs/design/media.md "Query beams from a fraction").
-UPBP_BEAM_PATHS = ["--photon-beam-paths", "0.03"]
-UPBP_QUERY_PATHS = ["--query-beam-paths", "0.03"]
+# the photon beams drawn from a fraction of the light paths (--photon-beam-paths) and the query
+# beams gathering the photon points of the same fraction (--query-beam-paths): the fraction
+# `scripts/bench --only upbp-defaults` chose (docs/data/upbp/defaults.json: the lowest worst
+# equal-time RMSE over the scenes swept; docs/design/media.md "Choosing the fractions").
+UPBP_BEAM_PATHS = ["--photon-beam-paths", "0.01"]
+UPBP_QUERY_PATHS = ["--query-beam-paths", "0.01"]
 
 
 def _upbp_arm(algorithm, args):
@@ -629,7 +628,7 @@ NOTES = {
         "the merge densities count every light path as an independent sample, but all of them "
         "share the one eye subpath, so on the walls (eye path: wall, glass, the wax) the query "
         "beams took 80-90 % of the weight from light tracing and made rare large values; with "
-        "the photons of 3 % of the paths they take less of those paths and cost less "
+        "the photons of 1 % of the paths (the fraction the sweep of `scripts/bench --only upbp-defaults` chose) they take less of those paths and cost less "
         "(docs/design/media.md, \"Query beams from a fraction of the light paths\").",
 }
 

@@ -2,7 +2,10 @@
 
 #include "core/integrators/bidirectional/iteration.h"
 
+#include <algorithm>
+#include <cmath>
 #include <numeric>
+#include <optional>
 
 namespace render::bidirectional {
 
@@ -23,11 +26,61 @@ float Iteration::light_photon_beam_term(const Vertex& v, const Vec3& wo, const V
     return mis_.photon_beam_light_term(length(cross(wo, d)), pdf, v.arrival_distance, v.sigma_t);
 }
 
+namespace {
+
+// Whether walking an eye segment's pieces can change anything but the ray count: it draws random
+// numbers only for a grid medium's transmittance (ratio tracking); homogeneous ones draw none.
+bool walk_draws_numbers(const Scene& scene) {
+    for (const auto& medium : scene.media())
+        if (!medium->is_homogeneous()) return true;
+    return false;
+}
+
+// Whether the line of `ray` (from t_min on) passes through `box`.
+bool line_reaches(const Ray& ray, const Aabb& box) {
+    if (box.empty()) return false;
+    float t0 = ray.t_min, t1 = kInfinity;
+    for (int a = 0; a < 3; ++a) {
+        const float lo = box.lo[a], hi = box.hi[a];
+        if (ray.direction[a] == 0.0f) {
+            if (ray.origin[a] < lo || ray.origin[a] > hi) return false;
+            continue;
+        }
+        float n = (lo - ray.origin[a]) / ray.direction[a];
+        float f = (hi - ray.origin[a]) / ray.direction[a];
+        if (n > f) std::swap(n, f);
+        t0 = std::max(t0, n);
+        t1 = std::min(t1, f);
+    }
+    return t0 <= t1;
+}
+
+}  // namespace
+
+std::optional<Aabb> Iteration::gather_reach(bool points, bool beams) const {
+    if (walk_draws_numbers(scene_)) return std::nullopt;  // the walk's draws are in the image
+    Aabb box;
+    if (points) box.expand(storage_.beam_lookup->bounds());
+    if (beams)
+        box.expand(storage_.photon_beams_in_grid ? storage_.photon_beam_grid.bounds()
+                                                 : storage_.photon_beam_lookup->bounds());
+    if (box.empty()) return box;
+    // The crossings' ray offsets (Scene::spawn_ray: 1e-5 R + 1e-6 |p| each), over every
+    // crossing the walk may make, with a factor 2 to spare.
+    const Aabb& scene_box = scene_.bounds();
+    const float extent =
+        std::max({std::abs(scene_box.lo.x), std::abs(scene_box.lo.y), std::abs(scene_box.lo.z),
+                  std::abs(scene_box.hi.x), std::abs(scene_box.hi.y), std::abs(scene_box.hi.z)});
+    const Vec3 margin(2.0f * float(kMaxNullCrossings + 1) *
+                      (1e-5f * scene_.bounding_sphere().radius + 1e-6f * extent));
+    return Aabb{box.lo - margin, box.hi + margin};
+}
+
 Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                            RenderStats& stats) const {
     Rgb sum(0.0f);
     if (medium_positions_.empty()) return sum;
-    for_each_eye_medium_piece(ray, state, rng, stats,
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(true, false),
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   query_beams_in_piece(ray, state, medium, piece, t_end, before,
@@ -85,12 +138,15 @@ void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
 
 template <typename Visit>
 void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
-                                          RenderStats& stats, Visit&& visit) const {
+                                          RenderStats& stats, const std::optional<Aabb>& reach,
+                                          Visit&& visit) const {
     SegmentDensityBuilder before(state.in_medium);
     Rgb transmittance(1.0f);
     const Medium* medium = state.medium;
     Ray piece = ray;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
+        // The rest of the walk can find nothing and changes nothing: not walked.
+        if (reach && !line_reaches(piece, *reach)) break;
         SurfaceInteraction si;
         ++stats.rays;
         const bool hit = scene_.intersect(piece, si);
@@ -307,7 +363,7 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
                             RenderStats& stats) const {
     Rgb sum(0.0f);
     if (storage_.photon_beams.empty()) return sum;
-    for_each_eye_medium_piece(ray, state, rng, stats,
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(false, true),
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   photon_beams_in_piece(ray, state, medium, piece, t_end, before,
@@ -321,7 +377,7 @@ void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, 
     query_sum = photon_sum = Rgb(0.0f);
     const bool points = !medium_positions_.empty(), beams = !storage_.photon_beams.empty();
     if (!points && !beams) return;
-    for_each_eye_medium_piece(ray, state, rng, stats,
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(points, beams),
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   if (points)

@@ -293,7 +293,8 @@ class Iteration {
     // transmittance of the pieces before it. The walk of query_beams and photon_beams.
     template <typename Visit>
     void for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
-                                   RenderStats& stats, Visit&& visit) const;
+                                   RenderStats& stats, const std::optional<Aabb>& reach,
+                                   Visit&& visit) const;
     // Photon beams (B-B1D). Light subpaths: the beams of the segment just sampled along `ray`
     // from the subpath `from` (its state before the segment), appended to the thread's staging
     // buffer; `piece` counts the path's pieces so far.
@@ -311,6 +312,12 @@ class Iteration {
     // of two. The sums are those of query_beams and photon_beams, in the same order.
     void both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
                     Rgb& query_sum, Rgb& photon_sum) const;
+    // Where the walk of an eye segment can gather a photon point (points) or a photon beam
+    // (beams): the lookups' boxes, grown by the drift of the pieces' origins over the walk's
+    // null-boundary crossings. The walk stops at a piece whose line misses it (saving the closest
+    // hits of eye segments that never come near a medium, and of the pieces after the last one
+    // in a medium). Empty (walk everything) when a grid medium makes the walk draw numbers.
+    std::optional<Aabb> gather_reach(bool points, bool beams) const;
     // One piece's part of each gather (unnormalised), added to sum.
     void query_beams_in_piece(const Ray& ray, const SubpathState& state, const Medium* medium,
                               const Ray& piece, float t_end, const SegmentDensityBuilder& before,

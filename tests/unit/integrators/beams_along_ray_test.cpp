@@ -206,5 +206,51 @@ TEST(BeamsAlongRay, ParallelZeroLengthAndHugeBeams) {
     EXPECT_EQ(visits, 0);
 }
 
+// bounds() lets upbp skip an eye segment's walk whose line misses it (Iteration::gather_reach):
+// so every point where a query finds a beam (the query's closest approach) must lie inside it.
+// Random beams and lines; planted, a box not grown by the radius leaves approaches outside.
+template <typename Lookup>
+void expect_approaches_inside_bounds(const Lookup& lookup, const std::vector<BeamLine>& beams,
+                                     float r, Rng& rng) {
+    const Aabb box = lookup.bounds();
+    ASSERT_FALSE(box.empty());
+    int found = 0;
+    for (int k = 0; k < 400; ++k) {
+        const Ray ray(random_point(rng) * 1.5f, warp::square_to_uniform_sphere(rng.next_2d()),
+                      0.0f, 10.0f);
+        lookup.for_each_near(ray, [&](uint32_t, const BeamApproach& a) {
+            const Vec3 x = ray.at(a.t_ray);
+            for (int axis = 0; axis < 3; ++axis) {
+                EXPECT_GE(x[axis], box.lo[axis]);
+                EXPECT_LE(x[axis], box.hi[axis]);
+            }
+            ++found;
+        });
+    }
+    EXPECT_GE(found, 50);
+}
+
+TEST(BeamsAlongRay, BoundsHoldEveryApproachFound) {
+    Rng rng(StreamKey{24, 0, 0, 0});
+    std::vector<BeamLine> beams(300);
+    for (BeamLine& b : beams)
+        b = BeamLine{random_point(rng) * 0.5f, warp::square_to_uniform_sphere(rng.next_2d()),
+                     rng.next_1d()};
+    for (float r : {0.05f, 0.3f}) {
+        BeamsAlongRay lookup;
+        lookup.build(beams, r);
+        expect_approaches_inside_bounds(lookup, beams, r, rng);
+        Aabb bounds;
+        bounds.expand(Vec3(-6.0f));
+        bounds.expand(Vec3(6.0f));
+        UniformBeamGrid grid;
+        grid.build(beams, r, bounds);
+        expect_approaches_inside_bounds(grid, beams, r, rng);
+    }
+    BeamsAlongRay empty;
+    empty.build({}, 0.1f);
+    EXPECT_TRUE(empty.bounds().empty());
+}
+
 }  // namespace
 }  // namespace render

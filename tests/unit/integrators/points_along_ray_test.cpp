@@ -130,5 +130,39 @@ TEST(PointsAlongRay, EmptyAndRebuilt) {
     EXPECT_EQ(visits, 1);
 }
 
+// bounds() lets upbp skip an eye segment's walk whose line misses it (Iteration::gather_reach):
+// every point a query finds, and its projection on the query, lie inside it. Planted, a box
+// not grown by the radius leaves projections outside.
+TEST(PointsAlongRay, BoundsHoldEveryPointFoundAndItsProjection) {
+    Rng rng(StreamKey{13, 0, 0, 0});
+    std::vector<Vec3> points(2000);
+    for (Vec3& p : points)
+        p = Vec3(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 2.0f - Vec3(1.0f);
+    for (float r : {0.05f, 0.3f}) {
+        PointsAlongRay lookup;
+        lookup.build(points, r, 500);  // a prefix, as query beams index one
+        const Aabb box = lookup.bounds();
+        ASSERT_FALSE(box.empty());
+        int found = 0;
+        for (int k = 0; k < 1000; ++k) {
+            const Vec3 o = Vec3(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 4.0f - Vec3(2.0f);
+            const Ray ray(o, warp::square_to_uniform_sphere(rng.next_2d()), 0.0f, 4.0f);
+            lookup.for_each_near(ray, [&](uint32_t i, float t, float) {
+                EXPECT_LT(i, 500u);
+                for (const Vec3& x : {points[i], ray.at(t)})
+                    for (int axis = 0; axis < 3; ++axis) {
+                        EXPECT_GE(x[axis], box.lo[axis]);
+                        EXPECT_LE(x[axis], box.hi[axis]);
+                    }
+                ++found;
+            });
+        }
+        EXPECT_GE(found, 50) << r;
+    }
+    PointsAlongRay empty;
+    empty.build(points, 0.1f, 0);
+    EXPECT_TRUE(empty.bounds().empty());
+}
+
 }  // namespace
 }  // namespace render
