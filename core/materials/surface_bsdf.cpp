@@ -33,11 +33,15 @@ BsdfPdf SurfaceBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return bsdf_->pdf_w(wo_local, wi_local);
 }
 
-BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
-    const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
-    if (!consistent(wo, wi, wo_local, wi_local)) return {};
-    return {bsdf_->f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
-            bsdf_->pdf_w(wo_local, wi_local)};
+BsdfEvaluation SurfaceBsdf::evaluate(const Outgoing& o, const Vec3& wi) const {
+    const Vec3 wi_local = shading_.to_local(wi);
+    // consistent(), with wo's products computed once.
+    const float geometric = o.geometric * dot(wi, ng_);
+    const float shading = o.local.z * wi_local.z;
+    if (geometric == 0 || shading == 0 || (geometric > 0) != (shading > 0)) return {};
+    BsdfEvaluation e = bsdf_->evaluate(o.local, wi_local, mode_);
+    if (mode_ == TransportMode::Importance) e.f = e.f * shading_correction(o.wo, wi);
+    return e;
 }
 
 std::optional<BsdfSample> SurfaceBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u) const {
