@@ -33,14 +33,11 @@ BsdfPdf SurfaceBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return bsdf_->pdf_w(wo_local, wi_local);
 }
 
-BsdfEvaluation SurfaceBsdf::evaluate(const Outgoing& o, const Vec3& wi) const {
-    const Vec3 wi_local = shading_.to_local(wi);
-    // consistent(), with wo's products computed once.
-    const float geometric = o.geometric * dot(wi, ng_);
-    const float shading = o.local.z * wi_local.z;
-    if (geometric == 0 || shading == 0 || (geometric > 0) != (shading > 0)) return {};
-    BsdfEvaluation e = bsdf_->evaluate(o.local, wi_local, mode_);
-    if (mode_ == TransportMode::Importance) e.f = e.f * shading_correction(o.wo, wi);
+BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
+    const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
+    if (!consistent(wo, wi, wo_local, wi_local)) return {};
+    BsdfEvaluation e = bsdf_->evaluate(wo_local, wi_local, mode_);
+    if (mode_ == TransportMode::Importance) e.f = e.f * shading_correction(wo, wi);
     return e;
 }
 

@@ -29,20 +29,9 @@ class SurfaceBsdf {
     // f(wo, wi) for world directions, corrected for shading normals (Importance mode).
     Rgb f(const Vec3& wo, const Vec3& wi) const;
     BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const;
-    // f and pdf_w together, from one frame conversion and one call of the model: connections
-    // and merges need both for the same pair.
-    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const {
-        return evaluate(outgoing(wo), wi);
-    }
-    // What evaluate() computes of wo alone, for many evaluations with one wo (a merge's
-    // candidates): evaluate(outgoing(wo), wi) is evaluate(wo, wi).
-    struct Outgoing {
-        Vec3 wo;
-        Vec3 local;       // in the shading frame
-        float geometric;  // dot(wo, geometric normal)
-    };
-    Outgoing outgoing(const Vec3& wo) const { return {wo, shading_.to_local(wo), dot(wo, ng_)}; }
-    BsdfEvaluation evaluate(const Outgoing& o, const Vec3& wi) const;
+    // f and pdf_w together, from one frame conversion and one call of the model (which
+    // returns exactly what its f and pdf_w do): connections and merges need both.
+    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const;
     // Sampled world direction; the weight includes |cos| w.r.t. the shading normal and the
     // shading-normal correction.
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u) const;
