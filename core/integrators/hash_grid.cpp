@@ -31,20 +31,27 @@ constexpr size_t kGroupBuckets = 4096;
 // number of threads.
 void HashGrid::build(const std::vector<Vec3>& positions, double radius,
                      std::span<const uint32_t> ids) {
-    if (!ids.empty() && ids.size() != positions.size())
+    build(
+        positions.size(), [&](size_t i) { return positions[i]; }, radius, ids);
+}
+
+void HashGrid::build(size_t n, FunctionRef<Vec3(size_t)> position, double radius,
+                     std::span<const uint32_t> ids) {
+    if (!ids.empty() && ids.size() != n)
         throw std::invalid_argument("HashGrid::build: " + std::to_string(ids.size()) + " ids for " +
-                                    std::to_string(positions.size()) + " points");
+                                    std::to_string(n) + " points");
     radius2_ = float(radius * radius);
     inv_cell_size_ = 1.0 / (2.0 * radius);
-    const size_t n = positions.size();
     using Corner = std::array<double, 3>;
     constexpr double inf = std::numeric_limits<double>::infinity();
     // The minimum is exact whatever the order of the comparisons.
     const Corner lo = tbb::parallel_reduce(
         Range(0, n, kBlockPoints), Corner{inf, inf, inf},
         [&](const Range& r, Corner m) {
-            for (size_t i = r.begin(); i < r.end(); ++i)
-                for (int a = 0; a < 3; ++a) m[a] = std::min(m[a], double(positions[i][a]));
+            for (size_t i = r.begin(); i < r.end(); ++i) {
+                const Vec3 p = position(i);
+                for (int a = 0; a < 3; ++a) m[a] = std::min(m[a], double(p[a]));
+            }
             return m;
         },
         [](Corner a, const Corner& b) {
@@ -65,7 +72,7 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius,
     auto bucket_at = [&](const Vec3& p) {
         return hash(cell_coordinate(p.x, 0), cell_coordinate(p.y, 1), cell_coordinate(p.z, 2));
     };
-    auto bucket_of = [&](size_t i) { return bucket_at(positions[i]); };
+    auto bucket_of = [&](size_t i) { return bucket_at(position(i)); };
     const size_t groups = (table_size_ + kGroupBuckets - 1) / kGroupBuckets;
     const size_t blocks = (n + kBlockPoints - 1) / kBlockPoints;
     // slots_[block * groups + group]: the block's count in the group, then its first slot.
@@ -90,9 +97,11 @@ void HashGrid::build(const std::vector<Vec3>& positions, double radius,
     // order.
     tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
         uint32_t* next = slots_.data() + b * groups;
-        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i)
-            entries_[next[bucket_of(i) / kGroupBuckets]++] = {positions[i],
+        for (size_t i = b * kBlockPoints; i < std::min(n, (b + 1) * kBlockPoints); ++i) {
+            const Vec3 p = position(i);
+            entries_[next[bucket_at(p) / kGroupBuckets]++] = {p,
                                                               ids.empty() ? uint32_t(i) : ids[i]};
+        }
     });
     // Each group sorted by bucket in place, through a copy of its entries (the bucket is
     // recomputed from the same position, so it is the one counted above).

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/math/vec.h"
+#include "core/util/function_ref.h"
 
 namespace render {
 
@@ -24,6 +25,11 @@ class HashGrid {
     // query goes from a point straight to its record without a lookup of its own. Runs in the
     // calling TBB arena; the buffers are kept for the next build.
     void build(const std::vector<Vec3>& positions, double radius,
+               std::span<const uint32_t> ids = {});
+    // The same over n points whose positions position(i) gives (read three times, never
+    // kept beyond the grid's own copies): a caller whose records hold the positions does not
+    // need an array of them beside the grid.
+    void build(size_t n, FunctionRef<Vec3(size_t)> position, double radius,
                std::span<const uint32_t> ids = {});
 
     // Calls visit(id) for every point with |positions[i] - p| <= radius, in increasing i

@@ -50,6 +50,12 @@ struct BsdfPdf {
     float reverse = 0;
 };
 
+// f and both directional densities of one direction pair (BsdfPdf's conventions).
+struct BsdfEvaluation {
+    Rgb f;
+    BsdfPdf pdf_w;
+};
+
 struct BsdfSample {
     Vec3 wi;
     // f(wo, wi) * |cos(wi)| / pdf_w.forward, including the lobe selection probability. For a
@@ -91,6 +97,13 @@ class Bsdf : public std::enable_shared_from_this<Bsdf> {
 
     // Solid-angle densities of sample() for the non-delta lobes. Zero for delta lobes.
     virtual BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const = 0;
+
+    // f and pdf_w of one pair in one call: connections and merges need both. A model whose two
+    // share work (Phong's power of the lobe cosine) overrides it; an override returns exactly
+    // what the two calls return, bit for bit (the images do not depend on which is called).
+    virtual BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+        return {f(wo, wi, mode), pdf_w(wo, wi)};
+    }
 
     // Samples wi given wo. `u_lobe` picks a lobe, `u` samples within it. Returns nothing when
     // the sample is invalid (below the surface, total internal reflection with zero weight...).

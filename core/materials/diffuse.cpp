@@ -27,6 +27,11 @@ BsdfPdf DiffuseBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {wi.z * kInvPi, wo.z * kInvPi};
 }
 
+BsdfEvaluation DiffuseBsdf::evaluate(const Vec3& wo, const Vec3& wi, TransportMode) const {
+    if (wo.z <= 0 || wi.z <= 0) return {};
+    return {reflectance_ * kInvPi, {wi.z * kInvPi, wo.z * kInvPi}};
+}
+
 std::optional<BsdfSample> DiffuseBsdf::sample(const Vec3& wo, float, Vec2 u, TransportMode) const {
     if (wo.z <= 0) return std::nullopt;
     const Vec3 wi = warp::square_to_cosine_hemisphere(u);

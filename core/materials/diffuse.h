@@ -17,6 +17,7 @@ class DiffuseBsdf final : public Bsdf {
 
     Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const override;
+    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
                                      TransportMode mode) const override;
     uint32_t lobes() const override { return kLobeDiffuseReflection; }

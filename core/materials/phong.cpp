@@ -55,6 +55,25 @@ BsdfPdf PhongBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
             (1.0f - specular_sampling_weight_) * (wo.z * kInvPi)};
 }
 
+BsdfEvaluation PhongBsdf::evaluate(const Vec3& wo, const Vec3& wi, TransportMode) const {
+    if (wo.z <= 0 || wi.z <= 0) return {};
+    // f's and pdf_w's expressions, term for term, sharing the power (see pdf_w: the lobe's
+    // cosine is the same for both directions, and min(c, 1) > 0 exactly when c > 0).
+    const float cos_alpha = dot(reflect_z(wo), wi);
+    const float power = cos_alpha > 0 ? std::pow(std::min(cos_alpha, 1.0f), exponent_) : 0.0f;
+    Rgb f = diffuse_reflectance_ * kInvPi;
+    float specular = 0.0f;
+    if (cos_alpha > 0) {
+        f += specular_reflectance_ * ((exponent_ + 2.0f) * kInv2Pi * power);
+        specular = (exponent_ + 1.0f) * kInv2Pi * power;
+    }
+    return {f,
+            {specular_sampling_weight_ * specular +
+                 (1.0f - specular_sampling_weight_) * (wi.z * kInvPi),
+             specular_sampling_weight_ * specular +
+                 (1.0f - specular_sampling_weight_) * (wo.z * kInvPi)}};
+}
+
 std::optional<BsdfSample> PhongBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u,
                                             TransportMode mode) const {
     if (wo.z <= 0 || !is_finite(wo)) return std::nullopt;
@@ -69,9 +88,10 @@ std::optional<BsdfSample> PhongBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u
         s.lobe = kLobeDiffuseReflection;
     }
     if (s.wi.z <= 0) return std::nullopt;  // the specular lobe dipped below the surface
-    s.pdf_w = pdf_w(wo, s.wi);
+    const BsdfEvaluation e = evaluate(wo, s.wi, mode);
+    s.pdf_w = e.pdf_w;
     if (!(s.pdf_w.forward > 0)) return std::nullopt;
-    s.weight = f(wo, s.wi, mode) * (s.wi.z / s.pdf_w.forward);
+    s.weight = e.f * (s.wi.z / s.pdf_w.forward);
     if (!s.weight.is_finite()) return std::nullopt;
     return s;
 }

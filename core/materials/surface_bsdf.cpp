@@ -36,8 +36,9 @@ BsdfPdf SurfaceBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
 BsdfEvaluation SurfaceBsdf::evaluate(const Vec3& wo, const Vec3& wi) const {
     const Vec3 wo_local = shading_.to_local(wo), wi_local = shading_.to_local(wi);
     if (!consistent(wo, wi, wo_local, wi_local)) return {};
-    return {bsdf_->f(wo_local, wi_local, mode_) * shading_correction(wo, wi),
-            bsdf_->pdf_w(wo_local, wi_local)};
+    BsdfEvaluation e = bsdf_->evaluate(wo_local, wi_local, mode_);
+    if (mode_ == TransportMode::Importance) e.f = e.f * shading_correction(wo, wi);
+    return e;
 }
 
 std::optional<BsdfSample> SurfaceBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u) const {

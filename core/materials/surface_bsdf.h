@@ -14,13 +14,6 @@
 
 namespace render {
 
-// f and both directional (solid-angle) densities of one direction pair, from one frame
-// conversion.
-struct BsdfEvaluation {
-    Rgb f;
-    BsdfPdf pdf_w;
-};
-
 class SurfaceBsdf {
   public:
     SurfaceBsdf(const Bsdf& bsdf, const Frame& shading, const Vec3& geometric_normal,
@@ -36,7 +29,8 @@ class SurfaceBsdf {
     // f(wo, wi) for world directions, corrected for shading normals (Importance mode).
     Rgb f(const Vec3& wo, const Vec3& wi) const;
     BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const;
-    // f and pdf_w together: connections and merges need both for the same pair.
+    // f and pdf_w together, from one frame conversion and one call of the model (which
+    // returns exactly what its f and pdf_w do): connections and merges need both.
     BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const;
     // Sampled world direction; the weight includes |cos| w.r.t. the shading normal and the
     // shading-normal correction.

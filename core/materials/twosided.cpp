@@ -51,6 +51,12 @@ BsdfPdf TwoSidedBsdf::pdf_w(const Vec3& wo, const Vec3& wi) const {
     return {};
 }
 
+BsdfEvaluation TwoSidedBsdf::evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+    if (wo.z > 0) return front_->evaluate(wo, wi, mode);
+    if (wo.z < 0) return back_->evaluate(flip_z(wo), flip_z(wi), mode);
+    return {};
+}
+
 std::optional<BsdfSample> TwoSidedBsdf::sample(const Vec3& wo, float u_lobe, Vec2 u,
                                                TransportMode mode) const {
     if (wo.z > 0) return front_->sample(wo, u_lobe, u, mode);

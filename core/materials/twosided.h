@@ -18,6 +18,7 @@ class TwoSidedBsdf final : public Bsdf {
 
     Rgb f(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     BsdfPdf pdf_w(const Vec3& wo, const Vec3& wi) const override;
+    BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi, TransportMode mode) const override;
     std::optional<BsdfSample> sample(const Vec3& wo, float u_lobe, Vec2 u,
                                      TransportMode mode) const override;
     uint32_t lobes() const override { return front_->lobes() | back_->lobes(); }

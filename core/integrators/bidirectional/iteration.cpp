@@ -19,13 +19,12 @@ Iteration::Iteration(const IterationPlan& plan, const Scene& scene, const Iterat
       light_rays_(storage.light_rays),
       ray_ends_(storage.ray_ends),
       joint2_vertices_(storage.joint2_vertices),
-      surface_positions_(storage.surface_positions),
       medium_positions_(storage.medium_positions),
       surface_index_(storage.surface_index),
       medium_index_(storage.medium_index),
       surface_grid_(storage.surface_grid),
       medium_grid_(storage.medium_grid) {
-    for (auto* v : {&surface_positions_, &medium_positions_}) v->clear();
+    medium_positions_.clear();
     for (auto* v : {&path_ends_, &surface_index_, &medium_index_}) v->clear();
     light_rays_.clear();
     ray_ends_.clear();

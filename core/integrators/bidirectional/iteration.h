@@ -398,8 +398,10 @@ class Iteration {
     IcWeighting ic_weighting_;
     IcLookupSettings ic_lookup_;
     // Merging: surface and medium light vertices in separate grids (photons merge only with
-    // eye vertices of their own kind); *_index_ maps a grid point to its light vertex.
-    std::vector<Vec3>&surface_positions_, &medium_positions_;
+    // eye vertices of their own kind); *_index_ maps a grid point to its light vertex. The
+    // surface grid reads its points' positions from the light vertices; the medium points'
+    // positions are kept for the query beams' lookup too.
+    std::vector<Vec3>& medium_positions_;
     std::vector<uint32_t>&surface_index_, &medium_index_;
     HashGrid &surface_grid_, &medium_grid_;
 };

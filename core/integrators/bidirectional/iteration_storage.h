@@ -115,7 +115,7 @@ struct IterationStorage {
     std::vector<std::unique_ptr<LightChunk>> light_chunks;
     std::vector<LightChunk*> free_light_chunks;
     std::mutex light_chunks_mutex;
-    std::vector<Vec3> surface_positions, medium_positions;
+    std::vector<Vec3> medium_positions;
     std::vector<uint32_t> surface_index, medium_index;
     HashGrid surface_grid, medium_grid;
     // Query beams: the medium light vertices as balls of the beam radius (made on first use:

@@ -192,7 +192,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         for (LightVertex& v : chunk->vertices) {
             if (plan_.merging) {
                 const bool medium = v.vertex.in_medium();
-                (medium ? medium_positions_ : surface_positions_).push_back(v.vertex.p);
+                if (medium) medium_positions_.push_back(v.vertex.p);
                 (medium ? medium_index_ : surface_index_)
                     .push_back(uint32_t(light_vertices_.size()));
             }
@@ -215,7 +215,10 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
     if (plan_.merging) {
         // Each grid point carries its light vertex's index: a merge goes from the point straight
         // to the vertex (the index arrays are increasing, so the visiting order is unchanged).
-        surface_grid_.build(surface_positions_, plan_.radius, surface_index_);
+        surface_grid_.build(
+            surface_index_.size(),
+            [&](size_t i) { return light_vertices_[surface_index_[i]].vertex.p; }, plan_.radius,
+            surface_index_);
         medium_grid_.build(medium_positions_, plan_.volume_radius, medium_index_);
     }
     if (plan_.query_beams) {

@@ -239,6 +239,40 @@ TEST(HashGrid, VisitsTheIdsGivenToTheBuildInPointOrder) {
     }
 }
 
+// A grid built from a position callback (as the light pass builds it from its light vertices,
+// through their ids) visits what one built from the same positions in an array does, in order.
+TEST(HashGrid, PositionCallbackBuildsTheSameGrid) {
+    const double radius = 0.1;
+    const std::vector<Vec3> points = point_set(radius, 41);
+    // The records hold the points in another order; ids map grid point i to its record.
+    std::vector<Vec3> records(points.size());
+    std::vector<uint32_t> ids(points.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+        ids[i] = uint32_t(points.size() - 1 - i);
+        records[ids[i]] = points[i];
+    }
+    HashGrid from_array, from_callback;
+    from_array.build(points, radius, ids);
+    size_t reads = 0;
+    from_callback.build(
+        points.size(),
+        [&](size_t i) {
+            ++reads;
+            return records[ids[i]];
+        },
+        radius, ids);
+    EXPECT_GE(reads, points.size());
+    size_t non_trivial = 0;
+    for (const Vec3& q : query_set(points, radius, 42)) {
+        std::vector<uint32_t> expected, visited;
+        from_array.for_each_within_radius(q, [&](uint32_t id) { expected.push_back(id); });
+        from_callback.for_each_within_radius(q, [&](uint32_t id) { visited.push_back(id); });
+        ASSERT_EQ(visited, expected) << "query " << q;
+        non_trivial += expected.size() > 1;
+    }
+    EXPECT_GT(non_trivial, 100u);
+}
+
 // The two-step visit (prefetch every point found, then visit them) visits what the one-step
 // visit does, in the same order, and prefetches each point once before its visit, also when a
 // query finds more points than its buffer holds (radius 8: every query finds thousands).

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <string>
@@ -213,6 +214,40 @@ TEST(Bsdf, EvalAndPdfAreFiniteAndReverseIsSwappedForward) {
         if (bsdf.is_delta()) {
             EXPECT_TRUE(bsdf.f(dirs[0], reflect_z(dirs[0]), kRadiance).is_black());
             EXPECT_EQ(bsdf.pdf_w(dirs[0], reflect_z(dirs[0])).forward, 0.0f);
+        }
+    }
+}
+
+// evaluate() is f() and pdf_w() in one call: an override (Phong's shares one power of the lobe
+// cosine) must return exactly their values, bit for bit, or images would change with the caller.
+TEST(Bsdf, EvaluateIsFAndPdfBitForBit) {
+    auto same_bits = [](float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; };
+    for (const NamedBsdf& entry : all_bsdfs()) {
+        SCOPED_TRACE(entry.name);
+        const Bsdf& bsdf = *entry.bsdf;
+        Rng rng(StreamKey{9, 0, 1, 0});
+        std::vector<Vec3> dirs = test_directions(rng, 120);
+        // Pairs near the Phong lobe's peak, where its power matters most.
+        for (int i = 0; i < 40; ++i) {
+            const Vec3 wo = warp::square_to_cosine_hemisphere(rng.next_2d());
+            dirs.push_back(normalize(reflect_z(wo) + warp::square_to_uniform_sphere(rng.next_2d()) *
+                                                         (0.01f * rng.next_1d())));
+        }
+        int nonzero = 0;
+        for (const Vec3& wo : dirs)
+            for (const Vec3& wi : dirs)
+                for (TransportMode mode : {kRadiance, kImportance}) {
+                    const BsdfEvaluation e = bsdf.evaluate(wo, wi, mode);
+                    const Rgb f = bsdf.f(wo, wi, mode);
+                    const BsdfPdf pdf_w = bsdf.pdf_w(wo, wi);
+                    for (int c = 0; c < 3; ++c)
+                        ASSERT_TRUE(same_bits(e.f[c], f[c])) << wo << wi << " " << e.f << f;
+                    ASSERT_TRUE(same_bits(e.pdf_w.forward, pdf_w.forward)) << wo << wi;
+                    ASSERT_TRUE(same_bits(e.pdf_w.reverse, pdf_w.reverse)) << wo << wi;
+                    nonzero += !f.is_black();
+                }
+        if (bsdf.has_non_delta()) {
+            EXPECT_GT(nonzero, 1000);
         }
     }
 }
