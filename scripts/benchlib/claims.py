@@ -122,7 +122,7 @@ def div_claim(cid, scene, defines, kind, target, width, paper_paths):
             "importance, equal VPL count": ("vpl", [*importance, "--vpl-paths",
                                                     str(paper_paths)])}
     common_fields = dict(id=cid, scene=scene, defines=defines, arms=arms, target=target,
-                         width=width, run_paths=2 * paper_paths, min_runs=24, max_runs=200,
+                         width=width, run_paths=2 * paper_paths, min_runs=12, max_runs=200,
                          variance_layers=True, paired_arms=("uniform", "importance"))
     if kind == "gain":
         return dict(**common_fields, method="importance-driven VPLs",
