@@ -1,7 +1,7 @@
 #pragma once
 
 // Which importance records a shading point uses (section 2.3): the R nearest by
-//     d(x, r) = |x - r| + lambda * sqrt(max(0, 1 - n_x . n_r)),   lambda = 0.5 * D,
+//     d(x, r) = |x - r| + lambda * sqrt(max(0, 1 - |n_x . n_r|)),   lambda = 0.5 * D,
 // D the scene's diameter, R = 3. Ties in d are broken by the lower record index, so the choice
 // is a deterministic function of the inputs (the iteration contract).
 //
@@ -16,6 +16,12 @@
 // point otherwise takes the wall's records, which see a VPL on the wall edge-on; only the
 // uniform table C then draws it, the heavy tail of ic's variance on scenes/claims/ic-rooms.xml,
 // docs/results/claims.md).
+//
+// |n_x . n_r|, not the signed cosine: a record's normal faces the side it was seen from, but the
+// shading point's is its surface's geometric normal, which faces away from the viewer on half
+// the surfaces of a scene (a room's walls modelled with outward normals); with the signed
+// cosine every record on x's own surface would then be lambda * sqrt(2) away and a record on a
+// perpendicular surface nearer. Which side x is on is the behind test's job (below).
 //
 // A record is usable when d(x, r) <= max_distance (default: any) and x is not behind the
 // record's surface: (x - r) . n_r >= -behind_slack * |x - r|, with n_r facing the side the record
