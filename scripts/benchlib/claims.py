@@ -812,7 +812,10 @@ def div_paths_line(definition, row) -> str:
         text += (f" Shown beside it, not judged: at an equal VPL count ({equal_paths} light "
                  f"paths) the importance arm's variance per iteration is "
                  f"{e['v'] / u['v']:.3g}× uniform's at {e['t'] / u['t']:.3g}× the CPU time, an "
-                 f"equal-time ratio uniform / equal count of {u['cost'] / e['cost']:.3g}.")
+                 f"equal-time ratio uniform / equal count of {u['cost'] / e['cost']:.3g} ± "
+                 f"{u['cost'] / e['cost'] * math.hypot(u['cost_rel_se'], e['cost_rel_se']):.2g} "
+                 f"(unpaired: the two arms' light paths differ, so uniform's heavy tail enters "
+                 f"in full).")
     return text + div_pooled_check(row) + div_verdict_reason(row, kept)
 
 
