@@ -635,15 +635,23 @@ NOTES = {
         "of all of them).",
     "IC-resampled bpt connections":
         "Both arms are unbiased with the same expectation; the cached arm pays for its records "
-        "and tables every iteration, so it wins only where bpt's own light path is a poor "
-        "choice for most eye vertices (lights mostly in places the camera does not see). The "
-        "caches replace only the connections between a light vertex and an eye vertex; "
-        "next-event estimation, light tracing and emission keep their variance. In callgrind "
-        "instruction counts (CHANGELOG.md, importance caching, 2026-11-29) the records' tables "
-        "(one weighted connection and one shadow ray per record and cached vertex) are the "
-        "largest part of the extra cost, then the record look-up and the four pmfs per draw; "
-        "CPU time per iteration on a loaded machine moves more between runs than the "
-        "instruction counts do, so the cost column carries that noise.",
+        "and tables every iteration. The measured reason it does not win on this scene, of the "
+        "kind the caches are for (CHANGELOG.md, importance caching, for the commands and "
+        "numbers): the caches replace only the connections between a light vertex and an eye "
+        "vertex (docs/design/algorithms-next.md 2.6). In this scene's dark camera room the "
+        "variance of plain bpt is mostly next-event estimation (shadow rays to lamps in other "
+        "rooms, rarely unoccluded) and light tracing, which the caches leave alone (`render "
+        "--layers st`); even noise-free connections would lower bpt's variance per iteration "
+        "only a few times, and the caches already reach most of that (the variance ratio "
+        "above). Their price per iteration, in callgrind instructions, is about another bpt "
+        "iteration (the records' tables, one MIS-weighted connection and shadow ray per record "
+        "and cached vertex, then the record look-up and the four pmfs per draw), as large as "
+        "the variance they can still save; in CPU time it is larger still (the cost column: "
+        "the tables' memory traffic and shadow rays run slower per instruction than bpt's "
+        "own). A more occluded variant of the scene (5 x 5 rooms) gave the same variance gain. "
+        "What would change it is drawing next-event estimation from the caches as well "
+        "(pg2015 connects its s = 1 technique to cached emission vertices; ours keeps fresh "
+        "light samples, as the spec says), not more occlusion.",
     "joint path sampling":
         "The metric is the equal-time mean absolute error of the double-scattering layer in a "
         "disc around the light's image; per pixel the absolute error of a mean of independent "
