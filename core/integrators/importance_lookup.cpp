@@ -11,7 +11,10 @@ double ic_record_distance(const Vec3& x, const Vec3& n_x, const IcRecordPoint& r
                  dz = double(x.z) - r.position.z;
     const double cosine =
         double(n_x.x) * r.normal.x + double(n_x.y) * r.normal.y + double(n_x.z) * r.normal.z;
-    return std::sqrt(dx * dx + dy * dy + dz * dz) + lambda * std::sqrt(std::max(0.0, 1 - cosine));
+    // |cos|: the records' normals face their viewers but a shading point's is the surface's
+    // own, which may face either way (importance_lookup.h).
+    return std::sqrt(dx * dx + dy * dy + dz * dz) +
+           lambda * std::sqrt(std::max(0.0, 1 - std::abs(cosine)));
 }
 
 bool ic_record_faces(const IcRecordPoint& r, const Vec3& x, double behind_slack) {

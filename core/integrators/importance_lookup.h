@@ -1,14 +1,27 @@
 #pragma once
 
 // Which importance records a shading point uses (section 2.3): the R nearest by
-//     d(x, r) = |x - r| + lambda * sqrt(max(0, 1 - n_x . n_r)),   lambda = 0.5 / D,
-// D the scene's bounding-box diagonal, R = 3. Ties in d are broken by the lower record index,
-// so the choice is a deterministic function of the inputs (the iteration contract).
+//     d(x, r) = |x - r| + lambda * sqrt(max(0, 1 - |n_x . n_r|)),   lambda = 0.5 * D,
+// D the scene's diameter, R = 3. Ties in d are broken by the lower record index, so the choice
+// is a deterministic function of the inputs (the iteration contract).
 //
-// [unverified] As restated in the spec, lambda = 0.5 / D has units 1/length while |x - r| is a
-// length, so the normal term is at most 0.71 / D: in a scene of diagonal ~10 it only breaks
-// near-ties. If the thesis meant the position term divided by D, the equivalent is lambda =
-// 0.5 * D. lambda is therefore a parameter; ic_default_lambda() is the spec's value.
+// The spec restates the thesis' weight as lambda = 0.5 / D, which has units 1/length while
+// |x - r| is a length: the choice would then change with the scene's unit (a scene in
+// millimetres would rank by position alone, the same scene in kilometres by normal alone).
+// The reading that keeps d a length is the thesis' distance with the position divided by D,
+// |x - r| / D + 0.5 sqrt(1 - n_x . n_r), which ranks records exactly as lambda = 0.5 * D does
+// here. With it the choice is invariant under scaling the scene (tested), and a record whose
+// normal differs by 90 degrees is as far as one half a diameter away: a shading point prefers
+// records on its own surface, whose tables see the VPLs it sees (a concave corner's ceiling
+// point otherwise takes the wall's records, which see a VPL on the wall edge-on; only the
+// uniform table C then draws it, the heavy tail of ic's variance on scenes/claims/ic-rooms.xml,
+// docs/results/claims.md).
+//
+// |n_x . n_r|, not the signed cosine: a record's normal faces the side it was seen from, but the
+// shading point's is its surface's geometric normal, which faces away from the viewer on half
+// the surfaces of a scene (a room's walls modelled with outward normals); with the signed
+// cosine every record on x's own surface would then be lambda * sqrt(2) away and a record on a
+// perpendicular surface nearer. Which side x is on is the behind test's job (below).
 //
 // A record is usable when d(x, r) <= max_distance (default: any) and x is not behind the
 // record's surface: (x - r) . n_r >= -behind_slack * |x - r|, with n_r facing the side the record
@@ -52,8 +65,8 @@ struct IcLookupSettings {
 // Whether x is in front of the record's surface in the sense above.
 bool ic_record_faces(const IcRecordPoint& r, const Vec3& x, double behind_slack);
 
-inline double ic_default_lambda(double scene_diagonal) {
-    return scene_diagonal > 0 ? 0.5 / scene_diagonal : 0.0;
+inline double ic_default_lambda(double scene_diameter) {
+    return scene_diameter > 0 ? 0.5 * scene_diameter : 0.0;
 }
 
 // d(x, r) above, in double.

@@ -7,17 +7,32 @@
 
 namespace render::bidirectional {
 
+namespace {
+
+// A vertex's f alone: a VPL connection has no MIS weight, so unlike connection_geometry it
+// needs no densities (the same f, without the two pdf evaluations per vertex).
+Rgb vertex_f(const Vertex& v, const Vec3& wo, const Vec3& wi) {
+    return v.phase ? Rgb(v.phase->p(wo, wi)) : v.bsdf->f(wo, wi);
+}
+
+}  // namespace
+
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
                               Rng& rng, RenderStats& stats) const {
-    const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
-    if (!g) return Rgb(0.0f);
     const Vertex& w = lv.vertex;
-    const Vec3& d = g->d;
+    Vec3 d = w.p - v.p;
+    const float dist2 = length_squared(d);
+    if (!(dist2 > 0)) return Rgb(0.0f);
+    d = d / std::sqrt(dist2);
+    const Rgb eye_f = vertex_f(v, wo, d);
+    if (eye_f.is_black()) return Rgb(0.0f);
+    const Rgb light_f = vertex_f(w, lv.wo, -d);
+    if (light_f.is_black()) return Rgb(0.0f);
     // A VPL connection is the only technique for its paths: weight 1, and the estimator
     // averages over the N_L light paths of the iteration.
     const float geometry =
-        v.shading_cos(d) * w.shading_cos(d) / std::max(g->dist2, clamp2) * plan_.vpl_scale;
-    const Rgb contribution = g->eye.f * g->light.f * geometry;
+        v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, clamp2) * plan_.vpl_scale;
+    const Rgb contribution = eye_f * light_f * geometry;
     if (contribution.is_black()) return Rgb(0.0f);
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
     const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);

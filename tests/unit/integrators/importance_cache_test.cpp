@@ -666,11 +666,38 @@ TEST(importance_cache_lookup, DistanceFollowsTheFormula) {
     const IcRecordPoint r{{1, 2, 2}, {0, 0, 1}};
     EXPECT_NEAR(ic_record_distance({0, 0, 0}, {0, 0, 1}, r, 0.25), 3.0, 1e-12);
     EXPECT_NEAR(ic_record_distance({0, 0, 0}, {1, 0, 0}, r, 0.25), 3.25, 1e-12);
-    EXPECT_NEAR(ic_record_distance({0, 0, 0}, {0, 0, -1}, r, 0.25), 3 + 0.25 * std::sqrt(2.0),
-                1e-12);
+    // A normal facing the other way is the same surface orientation (importance_lookup.h).
+    EXPECT_NEAR(ic_record_distance({0, 0, 0}, {0, 0, -1}, r, 0.25), 3.0, 1e-12);
+    EXPECT_NEAR(ic_record_distance({0, 0, 0}, {0, 0.6f, -0.8f}, r, 0.25), 3 + 0.25 * std::sqrt(0.2),
+                1e-6);
     // Rounding that pushes n . n above 1 does not give NaN.
     EXPECT_NEAR(ic_record_distance({1, 2, 2}, {0, 0, 1.0000001f}, r, 0.25), 0.0, 1e-12);
-    EXPECT_DOUBLE_EQ(ic_default_lambda(4.0), 0.125);
+    EXPECT_DOUBLE_EQ(ic_default_lambda(4.0), 2.0);
+}
+
+// The default weight scales with the scene (lambda = 0.5 D, importance_lookup.h): the same
+// scene in other units chooses the same records, and a record on another surface (normal at 90
+// degrees) is as far as one half a diameter away. With lambda = 0.5 / D the choice below flips
+// between the scales; with the signed cosine, for the floor normal facing down.
+TEST(importance_cache_lookup, DefaultWeightChoosesTheSameRecordsAtEveryScale) {
+    // x on a floor (normal +z) at a wall's foot; record 0 on the wall, near; record 1 on the
+    // floor, farther.
+    const std::vector<IcRecordPoint> unit_points = {{{0, 0.1f, 0.05f}, {0, -1, 0}},
+                                                    {{0, -0.3f, 0}, {0, 0, 1}}};
+    const Vec3 x(0, 0, 0);
+    const double diameter = 2.0;
+    // The floor's own normal may face away from the record's viewer: the same choice.
+    for (const Vec3 n_x : {Vec3(0, 0, 1), Vec3(0, 0, -1)})
+        for (const double scale : {0.001, 1.0, 1000.0}) {
+            std::vector<IcRecordPoint> points = unit_points;
+            for (IcRecordPoint& p : points) p.position = p.position * float(scale);
+            const IcLookupSettings settings{.count = 1,
+                                            .lambda = ic_default_lambda(diameter * scale)};
+            const IcNeighbours near = ic_nearest_records_brute_force(points, x, n_x, settings);
+            ASSERT_EQ(near.count, 1) << scale;
+            EXPECT_EQ(near.index[0], 1u) << scale;  // the floor's record
+            EXPECT_NEAR(near.distance[0], 0.3 * scale, 1e-6 * scale);
+        }
 }
 
 TEST(importance_cache_lookup, NormalTermAndTiesDecide) {
