@@ -25,8 +25,14 @@ int64_t hold_ms(const ServerOptions& options) {
     return std::max<int64_t>(200, int64_t(options.hold_seconds * 1000));
 }
 
-// A server records its workers every sync (a quarter of its hold): rows older than a hold
-// are a dead server's, not shown; after a minute (or ten holds) they are removed.
+// A server records its workers every sync (a quarter of its hold): rows older than half a
+// hold are a dead server's, neither shown nor counted when the jobs are spread (so a dead
+// server's workers never hold a take-over back past its hold); after a minute (or ten holds)
+// they are removed.
+int64_t live_workers_ms(const ServerOptions& options) {
+    return hold_ms(options) / 2;
+}
+
 int64_t forget_workers_ms(const ServerOptions& options) {
     return std::max<int64_t>(60000, 10 * hold_ms(options));
 }
@@ -251,7 +257,7 @@ void JobManager::sync_farm_workers() {
     }
     try {
         store_.record_workers(server_id_, mine, forget_workers_ms(options_));
-        std::vector<FarmWorkerRow> farm = store_.load_workers(hold_ms(options_));
+        std::vector<FarmWorkerRow> farm = store_.load_workers(live_workers_ms(options_));
         std::lock_guard lock(mu_);
         farm_workers_ = std::move(farm);
     } catch (const std::exception& e) {

@@ -386,7 +386,7 @@ TEST_F(SharedStoreTest, ALapsedHoldersCheckpointNeverReplacesTheNewHolders) {
 // then takes the other. Every server's /api/farm lists both servers' workers.
 TEST_F(SharedStoreTest, JobsSpreadOverServersWithWorkersAndEachListsTheFarmsWorkers) {
     ServerOptions oa = options(dir_ / "data", 0), ob = oa;
-    oa.hold_seconds = ob.hold_seconds = 4;  // synced every second; a worker row lives 4 s
+    oa.hold_seconds = ob.hold_seconds = 8;  // synced every 2 s; a worker row counts for 4 s
     oa.advertise_address = "a.example:1";
     ob.advertise_address = "b.example:2";
     JobManager a(oa);
@@ -396,7 +396,7 @@ TEST_F(SharedStoreTest, JobsSpreadOverServersWithWorkersAndEachListsTheFarmsWork
     v1::Job first, second;
     ASSERT_TRUE(a.submit(request(a, 4), &first).ok());
     ASSERT_TRUE(a.submit(request(a, 4), &second).ok());
-    const auto sync_interval = std::chrono::milliseconds(1100);
+    const auto sync_interval = std::chrono::milliseconds(2100);
     a.tick();
     std::this_thread::sleep_for(sync_interval);
     a.tick();
