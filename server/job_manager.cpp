@@ -50,7 +50,7 @@ JobManager::JobManager(ServerOptions options, Scheduler::ClockFn clock)
                     options.database.empty()
                         ? std::unique_ptr<JobStore>(
                               std::make_unique<SqliteJobStore>(options.store / "render.db"))
-                        : open_job_store(options.database))),
+                        : open_job_store(options.database, options.store_connections))),
       store_(*owned_store_),
       frame_files_(options.store, store_, clock, options.checkpoint_seconds),
       assets_(options.store, options.max_store_size),

@@ -97,6 +97,8 @@ struct ServerOptions {
     // hold_seconds / 4) before another server takes the job over from its last checkpoint.
     std::string advertise_address = {};
     double hold_seconds = 10;
+    // The PostgreSQL store's connections (docs/design/job-store.md, "Connections").
+    size_t store_connections = kDefaultStoreConnections;
 };
 
 class JobManager {
@@ -287,10 +289,14 @@ class JobManager {
     // Whether this server may lease, merge and write the job (always on an unshared store;
     // mu_ held).
     bool holds(const JobData& job) const { return !shared_ || job.held; }
-    // Renews the holds, takes over a job nobody holds (one per call, when this server has
-    // live workers and holds no more jobs than the others), and refreshes the jobs other
-    // servers hold from the store. tick()'s thread, every hold_seconds / 4.
+    // Renews the holds, records this server's workers and reads the farm's, takes over a job
+    // nobody holds (one per call, when this server has live workers and no other server with
+    // workers holds fewer jobs), and refreshes the jobs other servers hold from the store.
+    // tick()'s thread, every hold_seconds / 4.
     void sync_shared(bool force);
+    // This server's live workers recorded in the store, every server's read back into
+    // farm_workers_ (outside mu_).
+    void sync_farm_workers();
     // What the store records of a job's frames (the ranges of their last checkpoints).
     std::vector<FramePlan> stored_plans(const JobRow& row);
     // A job this server does not hold, as the store records it: added, or its state and
@@ -342,6 +348,9 @@ class JobManager {
     bool shared_ = false;
     std::string server_id_;
     std::optional<TimePoint> last_sync_;  // tick()'s thread only
+    // Every server's workers as the store recorded them at the last sync (under mu_): the
+    // dashboard of any server lists the whole farm (docs/design/job-store.md).
+    std::vector<FarmWorkerRow> farm_workers_;
 };
 
 }  // namespace render::server

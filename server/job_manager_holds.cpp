@@ -25,6 +25,18 @@ int64_t hold_ms(const ServerOptions& options) {
     return std::max<int64_t>(200, int64_t(options.hold_seconds * 1000));
 }
 
+// A server records its workers every sync (a quarter of its hold): rows older than half a
+// hold are a dead server's, neither shown nor counted when the jobs are spread (so a dead
+// server's workers never hold a take-over back past its hold); after a minute (or ten holds)
+// they are removed.
+int64_t live_workers_ms(const ServerOptions& options) {
+    return hold_ms(options) / 2;
+}
+
+int64_t forget_workers_ms(const ServerOptions& options) {
+    return std::max<int64_t>(60000, 10 * hold_ms(options));
+}
+
 }  // namespace
 
 std::vector<std::string> JobManager::held_jobs() {
@@ -126,6 +138,8 @@ void JobManager::sync_shared(bool force) {
         }
     }
 
+    sync_farm_workers();
+
     std::vector<JobRow> rows;
     try {
         rows = store_.load_jobs();
@@ -185,14 +199,17 @@ void JobManager::sync_shared(bool force) {
         }
     }
 
-    // 3. Take over one job nobody holds, if this server has workers to render it and holds
-    // no more jobs than any other server that holds some (the jobs spread over the servers).
+    // 3. Take over one job nobody holds, if this server has workers to render it and no
+    // other server with workers holds fewer jobs: the jobs spread over the servers that have
+    // workers, a server holding none included (docs/design/job-store.md, "Spreading the
+    // jobs": a server's workers lease only the jobs it holds).
+    std::map<std::string, int> holding;
     {
         std::lock_guard lock(mu_);
         if (workers_.live(unix_ms(), int64_t(options_.lease_timeout_seconds * 1000)).empty())
             return;
+        for (const FarmWorkerRow& w : farm_workers_) holding[w.server];  // has workers: 0 held
     }
-    std::map<std::string, int> holding;
     const JobRow* candidate = nullptr;
     for (const JobRow& row : rows) {
         if (is_terminal(JobState(row.state))) continue;
@@ -215,6 +232,37 @@ void JobManager::sync_shared(bool force) {
         return;
     }
     if (epoch) take_over(candidate->id, *epoch, candidate->owner.server);
+}
+
+void JobManager::sync_farm_workers() {
+    std::vector<FarmWorkerRow> mine;
+    {
+        std::lock_guard lock(mu_);
+        const int64_t now = unix_ms();
+        const auto live_ms = int64_t(options_.lease_timeout_seconds * 1000);
+        for (const auto& [id, w] : workers_.all()) {
+            if (now - w.last_seen_unix_ms > live_ms) continue;
+            FarmWorkerRow row;
+            row.worker_id = id;
+            row.server_address = options_.advertise_address;
+            row.host = w.host;
+            row.threads = w.threads;
+            row.version = w.version;
+            row.seen_unix_ms = w.last_seen_unix_ms;
+            row.iterations_per_second = w.rates.iterations_per_second();
+            row.samples_per_second = w.rates.samples_per_second();
+            row.rays_per_second = w.rates.rays_per_second();
+            mine.push_back(std::move(row));
+        }
+    }
+    try {
+        store_.record_workers(server_id_, mine, forget_workers_ms(options_));
+        std::vector<FarmWorkerRow> farm = store_.load_workers(live_workers_ms(options_));
+        std::lock_guard lock(mu_);
+        farm_workers_ = std::move(farm);
+    } catch (const std::exception& e) {
+        Log("error", "store_failed").kv("what", "farm_workers").kv("error", e.what());
+    }
 }
 
 void JobManager::take_over(const std::string& job_id, int64_t epoch, const std::string& previous) {

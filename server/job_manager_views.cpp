@@ -4,6 +4,7 @@
 #include "server/job_manager.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <sstream>
 
@@ -80,11 +81,22 @@ void JobManager::cluster_status(v1::ClusterStatusReply* reply) {
     }
 }
 
+namespace {
+
+// A number JSON can carry (NaN and Inf cannot).
+double finite_or_zero(double v) {
+    return std::isfinite(v) ? v : 0;
+}
+
+}  // namespace
+
 std::string JobManager::farm_json() {
     std::map<std::string, uint64_t> held;
     uint64_t unheld = 0;
+    std::vector<FarmWorkerRow> workers;
     {
         std::lock_guard lock(mu_);
+        workers = farm_workers_;
         if (shared_) held[options_.advertise_address];  // this server, even holding nothing
         for (const auto& [id, job] : jobs_) {
             if (!shared_ || is_terminal(scheduler_.state(id))) continue;
@@ -115,7 +127,21 @@ std::string JobManager::farm_json() {
             << ",\"self\":" << (address == options_.advertise_address ? "true" : "false") << "}";
         first = false;
     }
-    out << "],\"jobs_unheld\":" << unheld << "}";
+    // Every server's workers as the store has them from the last sync (this server's too).
+    out << "],\"jobs_unheld\":" << unheld << ",\"workers\":[";
+    first = true;
+    for (const FarmWorkerRow& w : workers) {
+        out << (first ? "" : ",") << "{\"worker_id\":" << quoted(w.worker_id)
+            << ",\"server\":" << quoted(w.server_address)
+            << ",\"self\":" << (w.server == server_id_ ? "true" : "false")
+            << ",\"host\":" << quoted(w.host) << ",\"threads\":" << w.threads
+            << ",\"last_seen_unix_ms\":" << w.seen_unix_ms
+            << ",\"iterations_per_second\":" << finite_or_zero(w.iterations_per_second)
+            << ",\"samples_per_second\":" << finite_or_zero(w.samples_per_second)
+            << ",\"rays_per_second\":" << finite_or_zero(w.rays_per_second) << "}";
+        first = false;
+    }
+    out << "]}";
     return out.str();
 }
 
@@ -137,6 +163,8 @@ std::string JobManager::metrics_text() {
             ws.active_leases = uint32_t(scheduler_.worker_leases(id).size());
             s.workers.push_back(std::move(ws));
         }
+        if (shared_)
+            for (const FarmWorkerRow& w : farm_workers_) ++s.farm_workers[w.server_address];
         for (const auto& [id, job] : jobs_) {
             const JobState state = scheduler_.state(id);
             const size_t shown = size_t(shown_state(*job));
@@ -169,6 +197,7 @@ std::string JobManager::metrics_text() {
         s.active_leases = scheduler_.active_lease_count();
         s.leases = scheduler_.lease_counters();
     }
+    s.store_connections = store_.connection_stats();  // the pool's own lock, not mu_
     return metrics_.exposition(s);
 }
 

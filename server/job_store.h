@@ -7,6 +7,7 @@
 // Every implementation is thread-safe and throws std::runtime_error with the database's message
 // on failure; each brings its schema to kJobStoreSchemaVersion when opened.
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -18,7 +19,11 @@ namespace render::server {
 
 // The schema's version; both backends apply the same numbered migrations (docs/design/
 // job-store.md, "Migrations"). A store of a newer version is refused.
-inline constexpr int kJobStoreSchemaVersion = 4;
+inline constexpr int kJobStoreSchemaVersion = 5;
+
+// The PostgreSQL store's connections per server unless server --store-connections says
+// otherwise (docs/design/job-store.md, "Connections").
+inline constexpr size_t kDefaultStoreConnections = 8;
 
 // Which server holds a job's sums while it renders (docs/design/job-store.md, "Several
 // servers, one farm"): a hold with an expiry on the database's clock and an epoch that every
@@ -65,6 +70,31 @@ struct LeaseRow {
     std::string job_id;
     uint32_t frame = 0;
     Range range;
+};
+
+// One worker as a server of a shared store last saw it (docs/design/job-store.md, "The farm's
+// workers"): every server's dashboard lists the whole farm from these rows.
+struct FarmWorkerRow {
+    std::string worker_id;
+    std::string server;          // the id of the server it calls
+    std::string server_address;  // that server's --advertise
+    std::string host;
+    uint32_t threads = 0;
+    std::string version;
+    int64_t seen_unix_ms = 0;  // when that server last heard from it (its clock)
+    double iterations_per_second = 0;
+    double samples_per_second = 0;
+    double rays_per_second = 0;
+};
+
+// A pooled store's connections, for metrics (where the Lease and Report paths wait).
+struct StoreConnectionStats {
+    size_t size = 0;
+    size_t in_use = 0;
+    uint64_t connections_made = 0;
+    uint64_t borrowed = 0;
+    uint64_t waited = 0;
+    double wait_seconds = 0;
 };
 
 class JobStore {
@@ -143,6 +173,19 @@ class JobStore {
     // Whether several servers may share this store (PostgreSQL): the server then holds jobs
     // before it merges them and leases through claim_lease.
     virtual bool shared() const = 0;
+
+    // --- the farm's workers (several servers on one database) ---
+    // `server`'s workers become `workers` (its earlier rows not among them go), stamped with
+    // the database's time; rows of any server recorded more than `forget_ms` ago are removed
+    // (a server that died). One statement on PostgreSQL.
+    virtual void record_workers(const std::string& server,
+                                const std::vector<FarmWorkerRow>& workers, int64_t forget_ms) = 0;
+    // The rows of every server recorded within `max_age_ms` (on the database's clock),
+    // ordered by server and worker.
+    virtual std::vector<FarmWorkerRow> load_workers(int64_t max_age_ms) = 0;
+
+    // The connection pool's figures; nothing for a store without one (SQLite).
+    virtual std::optional<StoreConnectionStats> connection_stats() const { return std::nullopt; }
 };
 
 }  // namespace render::server

@@ -9,7 +9,7 @@
 //          [--max-transfer-streams N]
 //          [--metrics HOST:PORT] [--http HOST:PORT] [--tls-cert FILE --tls-key FILE | --insecure]
 //          [--health-listen HOST:PORT] [--advertise HOST:PORT] [--hold-seconds SECONDS]
-//          [--peer-tls-ca FILE]
+//          [--peer-tls-ca FILE] [--store-connections N]
 //
 // The token may also come from the environment variable RENDER_TOKEN, the TLS files from
 // RENDER_TLS_CERT and RENDER_TLS_KEY. A token without TLS needs --insecure on a loopback
@@ -280,6 +280,15 @@ ArgumentParser make_parser(Options& o) {
         "job's sums lasts without renewal (renewed every quarter of it); a server that "
         "dies is taken over this long after its last renewal (default 10)",
         [&](const std::string& v) { o.server.hold_seconds = parse_seconds("--hold-seconds", v); });
+    p.value({"--store-connections"}, "N",
+            "with a PostgreSQL store: the connections this server keeps to it, one per "
+            "operation at a time (default " +
+                std::to_string(kDefaultStoreConnections) + ")",
+            [&](const std::string& v) {
+                const int n = parse_number<int>("--store-connections", v);
+                if (n < 1 || n > 256) throw UsageError("--store-connections takes 1 to 256");
+                o.server.store_connections = size_t(n);
+            });
     p.flag({"--help", "-h"}, "this text", [&] { o.help = true; });
     return p;
 }

@@ -163,6 +163,43 @@ ServerMetrics::ServerMetrics() : registry_(std::make_shared<prometheus::Registry
                                  "holds (waiting for a server with workers to take them)")
                              .Register(r)
                              .Add({});
+    farm_workers_ = &BuildGauge()
+                         .Name("render_farm_workers")
+                         .Help(
+                             "Several servers on one store: the live workers of each server, by "
+                             "its advertised address (the store at the last sync)")
+                         .Register(r);
+    store_connections_ = &BuildGauge()
+                              .Name("render_store_connections")
+                              .Help("The PostgreSQL store's connection pool: its size")
+                              .Register(r)
+                              .Add({});
+    store_connections_in_use_ = &BuildGauge()
+                                     .Name("render_store_connections_in_use")
+                                     .Help("The PostgreSQL store's connections lent now")
+                                     .Register(r)
+                                     .Add({});
+    store_connections_made_ = &BuildCounter()
+                                   .Name("render_store_connections_made_total")
+                                   .Help(
+                                       "PostgreSQL connections made: the pool's first ones and "
+                                       "those replacing a broken or failed one")
+                                   .Register(r)
+                                   .Add({});
+    store_connection_waits_ = &BuildCounter()
+                                   .Name("render_store_connection_waits_total")
+                                   .Help(
+                                       "Store operations that found every PostgreSQL connection "
+                                       "lent and waited for one (server --store-connections)")
+                                   .Register(r)
+                                   .Add({});
+    store_connection_wait_seconds_ = &BuildCounter()
+                                          .Name("render_store_connection_wait_seconds_total")
+                                          .Help(
+                                              "Time store operations waited for a PostgreSQL "
+                                              "connection, summed")
+                                          .Register(r)
+                                          .Add({});
     reports_forwarded_ = &BuildCounter()
                               .Name("render_reports_forwarded_total")
                               .Help(
@@ -333,6 +370,31 @@ std::string ServerMetrics::exposition(const MetricsSnapshot& s) {
         }
         farm_jobs_held_->Remove(it->second);
         it = farm_held_children_.erase(it);
+    }
+    for (const auto& [server, count] : s.farm_workers) {
+        auto& child = farm_workers_children_[server];
+        if (!child) child = &farm_workers_->Add({{"server", server}});
+        child->Set(double(count));
+    }
+    for (auto it = farm_workers_children_.begin(); it != farm_workers_children_.end();) {
+        if (s.farm_workers.count(it->first)) {
+            ++it;
+            continue;
+        }
+        farm_workers_->Remove(it->second);
+        it = farm_workers_children_.erase(it);
+    }
+    if (s.store_connections) {
+        const StoreConnectionStats& c = *s.store_connections;
+        store_connections_->Set(double(c.size));
+        store_connections_in_use_->Set(double(c.in_use));
+        // The pool counts from its start: the counters follow it.
+        auto follow = [](prometheus::Counter* counter, double total) {
+            if (total > counter->Value()) counter->Increment(total - counter->Value());
+        };
+        follow(store_connections_made_, double(c.connections_made));
+        follow(store_connection_waits_, double(c.waited));
+        follow(store_connection_wait_seconds_, c.wait_seconds);
     }
     std::ostringstream out;
     prometheus::TextSerializer().Serialize(out, registry_->Collect());

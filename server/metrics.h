@@ -15,10 +15,12 @@
 #include <cstdint>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "server/job_store.h"
 #include "server/scheduler.h"
 
 namespace render::server {
@@ -52,6 +54,11 @@ struct MetricsSnapshot {
     // them from the store (empty and 0 on a store of one server).
     std::map<std::string, uint64_t> farm_jobs_held;
     uint64_t farm_jobs_unheld = 0;
+    // The live workers of each server, by its advertised address (the farm's workers as the
+    // store had them at the last sync; empty on a store of one server).
+    std::map<std::string, uint64_t> farm_workers;
+    // The store's connection pool (PostgreSQL; docs/design/job-store.md, "Connections").
+    std::optional<StoreConnectionStats> store_connections;
 };
 
 class ServerMetrics {
@@ -131,6 +138,13 @@ class ServerMetrics {
     prometheus::Family<prometheus::Gauge>* farm_jobs_held_;
     prometheus::Gauge* farm_jobs_unheld_;
     std::map<std::string, prometheus::Gauge*> farm_held_children_;
+    prometheus::Family<prometheus::Gauge>* farm_workers_;
+    std::map<std::string, prometheus::Gauge*> farm_workers_children_;
+    prometheus::Gauge* store_connections_;
+    prometheus::Gauge* store_connections_in_use_;
+    prometheus::Counter* store_connections_made_;
+    prometheus::Counter* store_connection_waits_;
+    prometheus::Counter* store_connection_wait_seconds_;
 };
 
 }  // namespace render::server

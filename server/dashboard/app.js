@@ -143,10 +143,13 @@ function drawJobs(jobs) {
   }
 }
 
-function drawWorkers(cluster) {
+// This server's workers (/api/cluster, with their leases) and, with several servers on one
+// queue, the other servers' (/api/farm, as the store has them from their last sync).
+function drawWorkers(cluster, farm) {
   const body = document.querySelector("#workers tbody");
   body.replaceChildren();
   const now = Date.now();
+  const others = farm && farm.shared ? (farm.workers || []).filter((w) => !w.self) : [];
   for (const w of cluster.workers || []) {
     const tr = document.createElement("tr");
     tr.dataset.worker = w.worker_id;
@@ -159,10 +162,22 @@ function drawWorkers(cluster) {
               cell(fmtSeconds((now - Number(w.last_seen_unix_ms)) / 1000) + " ago"));
     body.append(tr);
   }
+  for (const w of others) {
+    const tr = document.createElement("tr");
+    tr.dataset.worker = w.worker_id;
+    tr.dataset.server = w.server;
+    tr.append(cell(w.worker_id), cell(w.host), cell(String(w.threads), "num"),
+              cell(fmt(Number(w.iterations_per_second || 0)), "num"),
+              cell(fmt(Number(w.samples_per_second || 0)), "num"),
+              cell(fmt(Number(w.rays_per_second || 0)), "num"),
+              cell(`on ${w.server}`),
+              cell(fmtSeconds((now - Number(w.last_seen_unix_ms)) / 1000) + " ago"));
+    body.append(tr);
+  }
   document.getElementById("summary").textContent =
     `${cluster.queued_jobs} queued, ${cluster.running_jobs} running, ` +
     `${cluster.waiting_jobs || 0} waiting for memory, ` +
-    `${(cluster.workers || []).length} workers`;
+    `${(cluster.workers || []).length + others.length} workers`;
 }
 
 // Several servers on one queue (/api/farm): each server and the jobs it holds.
@@ -281,7 +296,7 @@ async function refresh() {
     const list = jobs.jobs || [];
     if (!selected && list.length) selected = list[0].id;
     drawJobs(list);
-    drawWorkers(cluster);
+    drawWorkers(cluster, farm);
     drawFarm(farm);
     await drawDetail(list);
     document.body.dataset.refreshed = String(Date.now());

@@ -31,8 +31,8 @@ std::string sqlite_url_path(const std::string& location) {
     return path;
 }
 
-std::unique_ptr<JobStore> open_job_store(const std::string& url) {
-    if (is_postgres_url(url)) return std::make_unique<PostgresJobStore>(url);
+std::unique_ptr<JobStore> open_job_store(const std::string& url, size_t connections) {
+    if (is_postgres_url(url)) return std::make_unique<PostgresJobStore>(url, connections);
     if (starts_with(url, "sqlite:")) {
         const std::string path = sqlite_url_path(url);
         if (path.empty()) throw std::invalid_argument("sqlite: names no database file");

@@ -19,8 +19,10 @@ bool is_store_url(const std::string& location);
 std::string sqlite_url_path(const std::string& location);
 
 // The store `url` names, opened and migrated; std::invalid_argument for a location that is not
-// a store URL, std::runtime_error when the database cannot be opened.
-std::unique_ptr<JobStore> open_job_store(const std::string& url);
+// a store URL, std::runtime_error when the database cannot be opened. `connections`: the
+// PostgreSQL store's pool size (SQLite has one connection).
+std::unique_ptr<JobStore> open_job_store(const std::string& url,
+                                         size_t connections = kDefaultStoreConnections);
 
 // `url` fit for logs and messages: a password (user:PASSWORD@ or password=...) replaced by ***.
 std::string redact_store_url(const std::string& url);

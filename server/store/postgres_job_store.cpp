@@ -41,6 +41,31 @@ const char* const kMigrations[] = {
     "ADD COLUMN IF NOT EXISTS owner_address TEXT, "
     "ADD COLUMN IF NOT EXISTS owner_epoch BIGINT NOT NULL DEFAULT 0, "
     "ADD COLUMN IF NOT EXISTS owner_until_ms BIGINT",
+    // 5: claim_lease in one round trip, and the farm's workers as each server last saw them.
+    // In a VOLATILE PL/pgSQL function under READ COMMITTED each statement takes a new
+    // snapshot: the overlap check, after waiting for the frame's row lock, sees every lease
+    // committed meanwhile, as the separate statements of a client-side transaction did.
+    R"(CREATE OR REPLACE FUNCTION render_claim_lease(p_lease TEXT, p_worker TEXT, p_job TEXT,
+        p_frame BIGINT, p_first BIGINT, p_end BIGINT) RETURNS BOOLEAN VOLATILE
+    LANGUAGE plpgsql AS $$
+    BEGIN
+        PERFORM 1 FROM frames WHERE job_id = p_job AND idx = p_frame FOR UPDATE;
+        IF NOT FOUND THEN RETURN FALSE; END IF;
+        IF EXISTS (SELECT 1 FROM leases WHERE job_id = p_job AND frame = p_frame
+                   AND first < p_end AND end_ > p_first)
+           OR EXISTS (SELECT 1 FROM merged_ranges WHERE job_id = p_job AND frame = p_frame
+                      AND first < p_end AND end_ > p_first) THEN
+            RETURN FALSE;
+        END IF;
+        INSERT INTO leases (lease_id, worker_id, job_id, frame, first, end_)
+            VALUES (p_lease, p_worker, p_job, p_frame, p_first, p_end);
+        RETURN TRUE;
+    END $$;
+    CREATE TABLE IF NOT EXISTS farm_workers (
+        worker_id TEXT NOT NULL, server TEXT NOT NULL, server_address TEXT, host TEXT,
+        threads BIGINT, version TEXT, seen_ms BIGINT, iterations_per_second DOUBLE PRECISION,
+        samples_per_second DOUBLE PRECISION, rays_per_second DOUBLE PRECISION,
+        recorded_ms BIGINT, PRIMARY KEY (server, worker_id)))",
 };
 static_assert(std::size(kMigrations) == size_t(kJobStoreSchemaVersion));
 
@@ -52,68 +77,93 @@ int64_t i64(uint64_t v) {
 }
 
 // The frame's merged ranges replaced by `ranges`, inside `w`.
-void replace_ranges(pqxx::work& w, const std::string& job_id, uint32_t frame,
+// A PostgreSQL array literal of integers ("{1,2,3}"), for one statement over many rows.
+template <class Get>
+std::string int_array(const std::vector<Range>& ranges, Get get) {
+    std::string out = "{";
+    for (size_t i = 0; i < ranges.size(); ++i) {
+        if (i) out += ',';
+        out += std::to_string(get(ranges[i]));
+    }
+    return out + "}";
+}
+
+// The frame's merged ranges replaced by `ranges`, inside `w`: two statements however many
+// ranges (docs/design/job-store.md, "Connections").
+void replace_ranges(pqxx::transaction_base& w, const std::string& job_id, uint32_t frame,
                     const std::vector<Range>& ranges) {
     w.exec_params("DELETE FROM merged_ranges WHERE job_id = $1 AND frame = $2", job_id,
                   int64_t(frame));
-    for (const Range& r : ranges)
-        w.exec_params(
-            "INSERT INTO merged_ranges (job_id, frame, first, end_) VALUES ($1, $2, $3, $4) "
-            "ON CONFLICT (job_id, frame, first) DO UPDATE SET end_ = EXCLUDED.end_",
-            job_id, int64_t(frame), i64(r.first), i64(r.end));
+    if (ranges.empty()) return;
+    w.exec_params(
+        "INSERT INTO merged_ranges (job_id, frame, first, end_) "
+        "SELECT $1, $2, f, e FROM unnest($3::BIGINT[], $4::BIGINT[]) AS r(f, e) "
+        "ON CONFLICT (job_id, frame, first) DO UPDATE SET end_ = EXCLUDED.end_",
+        job_id, int64_t(frame), int_array(ranges, [](const Range& r) { return i64(r.first); }),
+        int_array(ranges, [](const Range& r) { return i64(r.end); }));
 }
 
-void delete_asset_rows(pqxx::work& w, const std::vector<std::string>& assets) {
+// A PostgreSQL array literal of texts, every element double-quoted, " and \ escaped.
+std::string text_array(const std::vector<std::string>& values) {
+    std::string out = "{";
+    for (size_t i = 0; i < values.size(); ++i) {
+        if (i) out += ',';
+        out += '"';
+        for (char ch : values[i]) {
+            if (ch == '"' || ch == '\\') out += '\\';
+            out += ch;
+        }
+        out += '"';
+    }
+    return out + "}";
+}
+
+template <class T, class Get>
+std::string number_array(const std::vector<T>& rows, Get get) {
+    std::string out = "{";
+    for (size_t i = 0; i < rows.size(); ++i) {
+        if (i) out += ',';
+        out += pqxx::to_string(get(rows[i]));
+    }
+    return out + "}";
+}
+
+template <class Get>
+std::string text_column(const std::vector<FarmWorkerRow>& rows, Get get) {
+    std::vector<std::string> values;
+    for (const FarmWorkerRow& r : rows) values.push_back(get(r));
+    return text_array(values);
+}
+
+void delete_asset_rows(pqxx::transaction_base& w, const std::vector<std::string>& assets) {
     for (const std::string& sha : assets)
         w.exec_params("DELETE FROM assets WHERE sha256 = $1", sha);
 }
 
 }  // namespace
 
-struct PostgresJobStore::Connection {
-    explicit Connection(const std::string& url) : c(url) {}
-    pqxx::connection c;
-};
-
-PostgresJobStore::PostgresJobStore(const std::string& url) : url_(url) {
-    connect();
+PostgresJobStore::PostgresJobStore(const std::string& url, size_t connections)
+    : pool_(url, connections, [](pqxx::connection& c) {
+          pqxx::nontransaction n(c);
+          // CREATE ... IF NOT EXISTS would print a NOTICE for every table that exists.
+          n.exec("SET client_min_messages = warning");
+          c.prepare("insert_lease",
+                    "INSERT INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
+                    "VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (lease_id) DO UPDATE SET "
+                    "worker_id = EXCLUDED.worker_id, job_id = EXCLUDED.job_id, "
+                    "frame = EXCLUDED.frame, first = EXCLUDED.first, end_ = EXCLUDED.end_, "
+                    "issued_ms = EXCLUDED.issued_ms");
+          c.prepare("delete_lease", "DELETE FROM leases WHERE lease_id = $1");
+      }) {
     migrate();
-}
-
-void PostgresJobStore::connect() {
-    connection_.reset();
-    try {
-        connection_ = std::make_unique<Connection>(url_);
-    } catch (const std::exception& e) {
-        // libpq's message may quote the URI, password included: not repeated here.
-        throw std::runtime_error(std::string("cannot connect to PostgreSQL: ") + e.what());
-    }
-    {
-        pqxx::nontransaction n(connection_->c);
-        // CREATE ... IF NOT EXISTS would print a NOTICE for every table that exists.
-        n.exec("SET client_min_messages = warning");
-    }
-    connection_->c.prepare("insert_lease",
-                           "INSERT INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
-                           "VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (lease_id) DO UPDATE SET "
-                           "worker_id = EXCLUDED.worker_id, job_id = EXCLUDED.job_id, "
-                           "frame = EXCLUDED.frame, first = EXCLUDED.first, end_ = EXCLUDED.end_, "
-                           "issued_ms = EXCLUDED.issued_ms");
-    connection_->c.prepare("delete_lease", "DELETE FROM leases WHERE lease_id = $1");
-}
-
-PostgresJobStore::Connection& PostgresJobStore::live() {
-    // The operation that found the connection broken (the database restarted, a failover)
-    // failed; the next one connects again rather than relying on libpqxx's deprecated
-    // implicit reactivation.
-    if (!connection_ || !connection_->c.is_open()) connect();
-    return *connection_;
+    pool_.fill();
 }
 
 PostgresJobStore::~PostgresJobStore() = default;
 
 void PostgresJobStore::migrate() {
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     w.exec_params("SELECT pg_advisory_xact_lock($1)", kMigrationLockKey);
     w.exec("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)");
     const int version =
@@ -132,14 +182,14 @@ void PostgresJobStore::migrate() {
 }
 
 int PostgresJobStore::schema_version() {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     return w.exec1("SELECT COALESCE(MAX(version), 0) FROM schema_version")[0].as<int>();
 }
 
 void PostgresJobStore::insert_job(const JobRow& job, uint32_t frame_count) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     w.exec_params(
         "INSERT INTO jobs (id, seq, name, state, priority, request, width, height, error, "
         "submitted_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
@@ -151,16 +201,16 @@ void PostgresJobStore::insert_job(const JobRow& job, uint32_t frame_count) {
 }
 
 void PostgresJobStore::update_job_priority(const std::string& job_id, int priority) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params("UPDATE jobs SET priority = $2 WHERE id = $1", job_id, priority);
     w.commit();
 }
 
 void PostgresJobStore::update_job_state(const std::string& job_id, int state,
                                         const std::string& error, int64_t finished_ms) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params(
         "UPDATE jobs SET state = $2, error = $3, "
         "finished_ms = CASE WHEN $4::BIGINT > 0 THEN $4::BIGINT ELSE finished_ms END "
@@ -171,16 +221,16 @@ void PostgresJobStore::update_job_state(const std::string& job_id, int state,
 
 void PostgresJobStore::update_frame(const std::string& job_id, uint32_t frame, bool done,
                                     double elapsed) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params("UPDATE frames SET done = $3, elapsed = $4 WHERE job_id = $1 AND idx = $2",
                   job_id, int64_t(frame), done ? 1 : 0, elapsed);
     w.commit();
 }
 
 std::vector<JobRow> PostgresJobStore::load_jobs() {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result rows = w.exec(
         "SELECT id, seq, COALESCE(name, ''), state, priority, request, COALESCE(width, 0), "
         "COALESCE(height, 0), COALESCE(error, ''), COALESCE(submitted_ms, 0), "
@@ -211,8 +261,8 @@ std::vector<JobRow> PostgresJobStore::load_jobs() {
 }
 
 std::vector<FrameRow> PostgresJobStore::load_frames(const std::string& job_id) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result rows = w.exec_params(
         "SELECT idx, done, elapsed FROM frames WHERE job_id = $1 ORDER BY idx", job_id);
     std::vector<FrameRow> out;
@@ -222,14 +272,14 @@ std::vector<FrameRow> PostgresJobStore::load_frames(const std::string& job_id) {
 }
 
 int64_t PostgresJobStore::max_sequence() {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     return w.exec1("SELECT COALESCE(MAX(seq), 0) FROM jobs")[0].as<int64_t>();
 }
 
 void PostgresJobStore::add_merged_range(const std::string& job_id, uint32_t frame, Range range) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params(
         "INSERT INTO merged_ranges (job_id, frame, first, end_) VALUES ($1, $2, $3, $4) "
         "ON CONFLICT (job_id, frame, first) DO UPDATE SET end_ = EXCLUDED.end_",
@@ -239,15 +289,15 @@ void PostgresJobStore::add_merged_range(const std::string& job_id, uint32_t fram
 
 void PostgresJobStore::set_merged_ranges(const std::string& job_id, uint32_t frame,
                                          const std::vector<Range>& ranges) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     replace_ranges(w, job_id, frame, ranges);
     w.commit();
 }
 
 std::vector<Range> PostgresJobStore::merged_ranges(const std::string& job_id, uint32_t frame) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result rows = w.exec_params(
         "SELECT first, end_ FROM merged_ranges WHERE job_id = $1 AND frame = $2 ORDER BY first",
         job_id, int64_t(frame));
@@ -260,8 +310,8 @@ std::vector<Range> PostgresJobStore::merged_ranges(const std::string& job_id, ui
 void PostgresJobStore::save_frame(const std::string& job_id, uint32_t frame,
                                   const std::vector<Range>& ranges, bool done, double elapsed,
                                   int64_t hold_epoch) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     // The fence: FOR SHARE holds a take_job (an UPDATE of the row) back until this commits.
     if (hold_epoch != 0 &&
         w.exec_params("SELECT 1 FROM jobs WHERE id = $1 AND owner IS NOT NULL AND "
@@ -277,8 +327,8 @@ void PostgresJobStore::save_frame(const std::string& job_id, uint32_t frame,
 }
 
 void PostgresJobStore::add_asset(const std::string& sha256, uint64_t size) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params(
         "INSERT INTO assets (sha256, size, added_ms) "
         "VALUES ($1, $2, (EXTRACT(EPOCH FROM now()) * 1000)::BIGINT) "
@@ -288,16 +338,16 @@ void PostgresJobStore::add_asset(const std::string& sha256, uint64_t size) {
 }
 
 void PostgresJobStore::delete_assets(const std::vector<std::string>& assets) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     delete_asset_rows(w, assets);
     w.commit();
 }
 
 void PostgresJobStore::delete_job(const std::string& job_id,
                                   const std::vector<std::string>& assets) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::work w(*c);
     for (const char* sql :
          {"DELETE FROM jobs WHERE id = $1", "DELETE FROM frames WHERE job_id = $1",
           "DELETE FROM merged_ranges WHERE job_id = $1", "DELETE FROM leases WHERE job_id = $1"})
@@ -308,48 +358,36 @@ void PostgresJobStore::delete_job(const std::string& job_id,
 
 void PostgresJobStore::insert_lease(const std::string& lease_id, const std::string& worker_id,
                                     const std::string& job_id, uint32_t frame, Range range) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_prepared("insert_lease", lease_id, worker_id, job_id, int64_t(frame), i64(range.first),
                     i64(range.end));
     w.commit();
 }
 
 bool PostgresJobStore::claim_lease(const LeaseRow& lease) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
-    // The frame's row lock: a claim on the same frame from any connection waits here until
-    // this transaction ends, then (READ COMMITTED: each statement sees what committed before
-    // it) finds this lease in its overlap check.
-    pqxx::result frame =
-        w.exec_params("SELECT 1 FROM frames WHERE job_id = $1 AND idx = $2 FOR UPDATE",
-                      lease.job_id, int64_t(lease.frame));
-    if (frame.empty()) return false;  // no such frame; the transaction rolls back
-    pqxx::result overlap = w.exec_params(
-        "SELECT 1 FROM leases WHERE job_id = $1 AND frame = $2 AND first < $4 AND end_ > $3 "
-        "UNION ALL SELECT 1 FROM merged_ranges WHERE job_id = $1 AND frame = $2 AND first < $4 "
-        "AND end_ > $3 LIMIT 1",
-        lease.job_id, int64_t(lease.frame), i64(lease.range.first), i64(lease.range.end));
-    if (!overlap.empty()) return false;
-    w.exec_params(
-        "INSERT INTO leases (lease_id, worker_id, job_id, frame, first, end_) "
-        "VALUES ($1, $2, $3, $4, $5, $6)",
-        lease.lease_id, lease.worker_id, lease.job_id, int64_t(lease.frame), i64(lease.range.first),
-        i64(lease.range.end));
-    w.commit();
-    return true;
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);
+    // One round trip: render_claim_lease (migration 5) locks the frame's row (SELECT ... FOR
+    // UPDATE), so a claim on the same frame from any connection waits until this statement's
+    // transaction ends and then, its overlap check taking a new snapshot, finds this lease.
+    return w
+        .exec_params1("SELECT render_claim_lease($1, $2, $3, $4, $5, $6)", lease.lease_id,
+                      lease.worker_id, lease.job_id, int64_t(lease.frame), i64(lease.range.first),
+                      i64(lease.range.end))[0]
+        .as<bool>();
 }
 
 void PostgresJobStore::delete_lease(const std::string& lease_id) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_prepared("delete_lease", lease_id);
     w.commit();
 }
 
 std::vector<LeaseRow> PostgresJobStore::load_leases() {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result rows = w.exec(
         "SELECT lease_id, COALESCE(worker_id, ''), job_id, frame, first, end_ FROM leases "
         "ORDER BY job_id, frame, first");
@@ -362,8 +400,8 @@ std::vector<LeaseRow> PostgresJobStore::load_leases() {
 }
 
 std::optional<LeaseRow> PostgresJobStore::find_lease(const std::string& lease_id) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result rows = w.exec_params(
         "SELECT lease_id, COALESCE(worker_id, ''), job_id, frame, first, end_ FROM leases "
         "WHERE lease_id = $1",
@@ -376,16 +414,16 @@ std::optional<LeaseRow> PostgresJobStore::find_lease(const std::string& lease_id
 }
 
 int PostgresJobStore::clear_leases() {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result r = w.exec("DELETE FROM leases");
     w.commit();
     return int(r.affected_rows());
 }
 
 int PostgresJobStore::clear_job_leases(const std::string& job_id) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result r = w.exec_params("DELETE FROM leases WHERE job_id = $1", job_id);
     w.commit();
     return int(r.affected_rows());
@@ -394,8 +432,8 @@ int PostgresJobStore::clear_job_leases(const std::string& job_id) {
 std::optional<int64_t> PostgresJobStore::take_job(const std::string& job_id,
                                                   const std::string& server,
                                                   const std::string& address, int64_t hold_ms) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     // One UPDATE: of two servers taking the job at once, the second waits for the first's row
     // lock and then finds the condition false (READ COMMITTED re-checks the updated row).
     pqxx::result r = w.exec_params(
@@ -411,8 +449,8 @@ std::optional<int64_t> PostgresJobStore::take_job(const std::string& job_id,
 
 bool PostgresJobStore::renew_job(const std::string& job_id, const std::string& server,
                                  int64_t epoch, int64_t hold_ms) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     pqxx::result r = w.exec_params("UPDATE jobs SET owner_until_ms = " RENDER_PG_NOW_MS
                                    " + $4 WHERE id = $1 AND owner = $2 AND owner_epoch = $3",
                                    job_id, server, epoch, hold_ms);
@@ -422,13 +460,80 @@ bool PostgresJobStore::renew_job(const std::string& job_id, const std::string& s
 
 void PostgresJobStore::release_job(const std::string& job_id, const std::string& server,
                                    int64_t epoch) {
-    std::lock_guard lock(mu_);
-    pqxx::work w(live().c);
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
     w.exec_params(
         "UPDATE jobs SET owner = NULL, owner_until_ms = NULL WHERE id = $1 AND owner = $2 AND "
         "owner_epoch = $3",
         job_id, server, epoch);
     w.commit();
+}
+
+void PostgresJobStore::record_workers(const std::string& server,
+                                      const std::vector<FarmWorkerRow>& workers,
+                                      int64_t forget_ms) {
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);
+    // One statement: the upsert and the deletion of this server's departed workers and of
+    // every long-silent server's rows (both parts see the rows as they were before it).
+    w.exec_params(
+        "WITH up AS (INSERT INTO farm_workers (worker_id, server, server_address, host, threads, "
+        "version, seen_ms, iterations_per_second, samples_per_second, rays_per_second, "
+        "recorded_ms) SELECT w, $1, a, h, t, v, s, i, sp, r, " RENDER_PG_NOW_MS
+        " FROM unnest($2::TEXT[], $3::TEXT[], $4::TEXT[], $5::BIGINT[], $6::TEXT[], $7::BIGINT[], "
+        "$8::DOUBLE PRECISION[], $9::DOUBLE PRECISION[], $10::DOUBLE PRECISION[]) "
+        "AS x(w, a, h, t, v, s, i, sp, r) "
+        "ON CONFLICT (server, worker_id) DO UPDATE SET server_address = EXCLUDED.server_address, "
+        "host = EXCLUDED.host, threads = EXCLUDED.threads, version = EXCLUDED.version, "
+        "seen_ms = EXCLUDED.seen_ms, iterations_per_second = EXCLUDED.iterations_per_second, "
+        "samples_per_second = EXCLUDED.samples_per_second, "
+        "rays_per_second = EXCLUDED.rays_per_second, recorded_ms = EXCLUDED.recorded_ms) "
+        "DELETE FROM farm_workers WHERE (server = $1 AND NOT (worker_id = ANY($2::TEXT[]))) OR "
+        "recorded_ms < " RENDER_PG_NOW_MS " - $11",
+        server, text_column(workers, [](const FarmWorkerRow& r) { return r.worker_id; }),
+        text_column(workers, [](const FarmWorkerRow& r) { return r.server_address; }),
+        text_column(workers, [](const FarmWorkerRow& r) { return r.host; }),
+        number_array(workers, [](const FarmWorkerRow& r) { return int64_t(r.threads); }),
+        text_column(workers, [](const FarmWorkerRow& r) { return r.version; }),
+        number_array(workers, [](const FarmWorkerRow& r) { return r.seen_unix_ms; }),
+        number_array(workers, [](const FarmWorkerRow& r) { return r.iterations_per_second; }),
+        number_array(workers, [](const FarmWorkerRow& r) { return r.samples_per_second; }),
+        number_array(workers, [](const FarmWorkerRow& r) { return r.rays_per_second; }), forget_ms);
+    w.commit();
+}
+
+std::vector<FarmWorkerRow> PostgresJobStore::load_workers(int64_t max_age_ms) {
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);
+    pqxx::result rows = w.exec_params(
+        "SELECT worker_id, server, COALESCE(server_address, ''), COALESCE(host, ''), "
+        "COALESCE(threads, 0), COALESCE(version, ''), COALESCE(seen_ms, 0), "
+        "COALESCE(iterations_per_second, 0), COALESCE(samples_per_second, 0), "
+        "COALESCE(rays_per_second, 0) FROM farm_workers WHERE recorded_ms >= " RENDER_PG_NOW_MS
+        " - $1 ORDER BY server, worker_id",
+        max_age_ms);
+    std::vector<FarmWorkerRow> out;
+    for (const pqxx::row& row : rows) {
+        FarmWorkerRow r;
+        r.worker_id = row[0].as<std::string>();
+        r.server = row[1].as<std::string>();
+        r.server_address = row[2].as<std::string>();
+        r.host = row[3].as<std::string>();
+        r.threads = uint32_t(row[4].as<int64_t>());
+        r.version = row[5].as<std::string>();
+        r.seen_unix_ms = row[6].as<int64_t>();
+        r.iterations_per_second = row[7].as<double>();
+        r.samples_per_second = row[8].as<double>();
+        r.rays_per_second = row[9].as<double>();
+        out.push_back(std::move(r));
+    }
+    return out;
+}
+
+std::optional<StoreConnectionStats> PostgresJobStore::connection_stats() const {
+    const PgConnectionPool::Stats s = pool_.stats();
+    return StoreConnectionStats{s.size,     s.in_use, s.connections_made,
+                                s.borrowed, s.waited, s.wait_seconds};
 }
 
 }  // namespace render::server

@@ -1,15 +1,16 @@
 #pragma once
 
 // The job store in a PostgreSQL database (libpqxx), for a farm whose queue outlives one machine
-// and, later, is shared by several servers (docs/design/job-store.md). One connection behind a
-// mutex; claim_lease locks the frame's row (SELECT ... FOR UPDATE), so connections from other
-// servers see one consistent set of leases.
+// and is shared by several servers (docs/design/job-store.md). A pool of connections
+// (server/store/pg_connection_pool.h), one per operation at a time; claim_lease locks the
+// frame's row (SELECT ... FOR UPDATE), so every connection, of this server or another, sees
+// one consistent set of leases.
 
 #include <memory>
-#include <mutex>
 #include <string>
 
 #include "server/job_store.h"
+#include "server/store/pg_connection_pool.h"
 
 namespace render::server {
 
@@ -17,8 +18,10 @@ class PostgresJobStore final : public JobStore {
   public:
     // `url`: a libpq connection URI (postgresql://user@host:port/database?...). Connects and
     // migrates the schema to kJobStoreSchemaVersion (several servers starting at once migrate
-    // one after the other: an advisory lock serialises them).
-    explicit PostgresJobStore(const std::string& url);
+    // one after the other: an advisory lock serialises them). `connections`: the pool's size
+    // (server --store-connections).
+    explicit PostgresJobStore(const std::string& url,
+                              size_t connections = kDefaultStoreConnections);
     ~PostgresJobStore() override;
     PostgresJobStore(const PostgresJobStore&) = delete;
     PostgresJobStore& operator=(const PostgresJobStore&) = delete;
@@ -62,17 +65,16 @@ class PostgresJobStore final : public JobStore {
     void release_job(const std::string& job_id, const std::string& server, int64_t epoch) override;
     bool shared() const override { return true; }
 
+    void record_workers(const std::string& server, const std::vector<FarmWorkerRow>& workers,
+                        int64_t forget_ms) override;
+    std::vector<FarmWorkerRow> load_workers(int64_t max_age_ms) override;
+
+    // The pool's figures (metrics: where the Lease and Report paths wait).
+    std::optional<StoreConnectionStats> connection_stats() const override;
+
   private:
-    // libpqxx's connection, kept out of this header.
-    struct Connection;
-    // (Re)connects to url_ and prepares the Lease path's statements.
-    void connect();
-    // The connection, made again first if the last one broke.
-    Connection& live();
     void migrate();
-    std::unique_ptr<Connection> connection_;
-    std::string url_;
-    std::mutex mu_;
+    PgConnectionPool pool_;
 };
 
 }  // namespace render::server

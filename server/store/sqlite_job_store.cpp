@@ -173,6 +173,15 @@ void SqliteJobStore::apply_migration(int version) {
                 exec("ALTER TABLE jobs ADD COLUMN owner_until_ms INTEGER");
             }
             break;
+        case 5:
+            // The farm's workers as each server saw them (PostgreSQL also gets its claim
+            // function; one server per SQLite file claims in BEGIN IMMEDIATE).
+            exec(R"(CREATE TABLE IF NOT EXISTS farm_workers (
+            worker_id TEXT NOT NULL, server TEXT NOT NULL, server_address TEXT, host TEXT,
+            threads INTEGER, version TEXT, seen_ms INTEGER, iterations_per_second REAL,
+            samples_per_second REAL, rays_per_second REAL, recorded_ms INTEGER,
+            PRIMARY KEY (server, worker_id)))");
+            break;
         default:
             throw std::logic_error("no migration to version " + std::to_string(version));
     }
@@ -560,6 +569,69 @@ void SqliteJobStore::release_job(const std::string& job_id, const std::string& s
                 "AND owner_epoch = ?3");
     s.text(1, job_id).text(2, server).bind(3, epoch);
     s.run();
+}
+
+void SqliteJobStore::record_workers(const std::string& server,
+                                    const std::vector<FarmWorkerRow>& workers, int64_t forget_ms) {
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        Statement d(
+            db_, "DELETE FROM farm_workers WHERE server = ?1 OR recorded_ms < " RENDER_SQLITE_NOW_MS
+                 " - ?2");
+        d.text(1, server).bind(2, forget_ms);
+        d.run();
+        for (const FarmWorkerRow& w : workers) {
+            Statement s(db_,
+                        "INSERT INTO farm_workers (worker_id, server, server_address, host, "
+                        "threads, version, seen_ms, iterations_per_second, samples_per_second, "
+                        "rays_per_second, recorded_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, "
+                        "?9, ?10, " RENDER_SQLITE_NOW_MS ")");
+            s.text(1, w.worker_id)
+                .text(2, server)
+                .text(3, w.server_address)
+                .text(4, w.host)
+                .bind(5, int64_t(w.threads))
+                .text(6, w.version)
+                .bind(7, w.seen_unix_ms)
+                .bind(8, w.iterations_per_second)
+                .bind(9, w.samples_per_second)
+                .bind(10, w.rays_per_second);
+            s.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
+std::vector<FarmWorkerRow> SqliteJobStore::load_workers(int64_t max_age_ms) {
+    std::lock_guard lock(mu_);
+    Statement s(
+        db_,
+        "SELECT worker_id, server, COALESCE(server_address, ''), COALESCE(host, ''), "
+        "COALESCE(threads, 0), COALESCE(version, ''), COALESCE(seen_ms, 0), "
+        "COALESCE(iterations_per_second, 0), COALESCE(samples_per_second, 0), "
+        "COALESCE(rays_per_second, 0) FROM farm_workers WHERE recorded_ms >= " RENDER_SQLITE_NOW_MS
+        " - ?1 ORDER BY server, worker_id");
+    s.bind(1, max_age_ms);
+    std::vector<FarmWorkerRow> out;
+    while (s.step()) {
+        FarmWorkerRow r;
+        r.worker_id = s.str(0);
+        r.server = s.str(1);
+        r.server_address = s.str(2);
+        r.host = s.str(3);
+        r.threads = uint32_t(s.i64(4));
+        r.version = s.str(5);
+        r.seen_unix_ms = s.i64(6);
+        r.iterations_per_second = s.f64(7);
+        r.samples_per_second = s.f64(8);
+        r.rays_per_second = s.f64(9);
+        out.push_back(std::move(r));
+    }
+    return out;
 }
 
 }  // namespace render::server

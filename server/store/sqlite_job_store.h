@@ -59,6 +59,9 @@ class SqliteJobStore final : public JobStore {
                    int64_t hold_ms) override;
     void release_job(const std::string& job_id, const std::string& server, int64_t epoch) override;
     bool shared() const override { return false; }
+    void record_workers(const std::string& server, const std::vector<FarmWorkerRow>& workers,
+                        int64_t forget_ms) override;
+    std::vector<FarmWorkerRow> load_workers(int64_t max_age_ms) override;
 
   private:
     void exec(const char* sql);

@@ -48,7 +48,8 @@ class PostgresInstance:
             os.chown(self.dir, pw.pw_uid, pw.pw_gid)
 
     @classmethod
-    def start(cls):
+    def start(cls, options=""):
+        """`options`: more server settings ("-c name=value ..."), e.g. for measurements."""
         bin_dir = _bin_dir()
         if not bin_dir or not os.path.exists(os.path.join(bin_dir, "pg_ctl")):
             return None, ("PostgreSQL's initdb and pg_ctl not found (RENDER_PG_BIN, "
@@ -66,7 +67,8 @@ class PostgresInstance:
                      "render", "-E", "UTF8", "--no-sync"])
             for attempt in range(5):  # a port found free may be taken before the server binds
                 port = _free_port()
-                options = (f"-p {port} -k {pg.dir} -c listen_addresses=127.0.0.1 -c fsync=off")
+                options = (f"-p {port} -k {pg.dir} -c listen_addresses=127.0.0.1 -c fsync=off "
+                           f"{options}")
                 try:
                     pg._run([os.path.join(bin_dir, "pg_ctl"), "-D", pg.data, "-l", pg.log, "-o",
                              options, "-w", "-t", "60", "start"])

@@ -90,7 +90,8 @@ def log_seconds(line):
 def lost_lease_gaps(log_paths, killed_at):
     """How long each lease that was lost stayed lost: for every lease granted and never merged
     (by any server), from when it was lost (its server killed: `killed_at[log_path]`; or its
-    expiry, event=lease_lost) to the next grant of an overlapping range of its frame by any
+    expiry, event=lease_lost; an expiry followed by its server's kill before the next grant
+    counts from the kill) to the next grant of an overlapping range of its frame by any
     server. Returns [(lease, lost_at, gap seconds or None when never leased again, how)] and
     the leases unmerged for another reason (neither killed nor expired)."""
     grants, merged, lost = [], set(), {}
@@ -108,15 +109,21 @@ def lost_lease_gaps(log_paths, killed_at):
     for t, path, lease, job, frame, first, end in grants:
         if lease in merged:
             continue
+        again = [g[0] for g in grants if g[0] > t and g[3] == job and g[4] == frame
+                 and g[5] < end and first < g[6]]
         if lease in lost:
             lost_at, how = lost[lease], "expired"
+            # Expired, queued again on its server, and that server killed before anyone leased
+            # the range again: from then on the range waits for the take-over, as a killed
+            # server's lease does.
+            kill = killed_at.get(path)
+            if kill is not None and lost_at <= kill and (not again or kill < min(again)):
+                lost_at, how = kill, "server killed"
         elif path in killed_at and killed_at[path] >= t:
             lost_at, how = killed_at[path], "server killed"
         else:
             other.append(lease)
             continue
-        again = [g[0] for g in grants if g[0] > t and g[3] == job and g[4] == frame
-                 and g[5] < end and first < g[6]]
         gaps.append((lease, lost_at, (min(again) - lost_at) if again else None, how))
     return gaps, other
 
@@ -326,6 +333,20 @@ class TwoServers(PostgresClusterTestCase):
         self.assertEqual({s["address"]: s["jobs_held"] for s in farm["servers"]},
                          {a.address: 1, b.address: 0})
         self.assertEqual(farm["jobs_unheld"], 0)
+        # The farm's workers, from B: A's worker as A recorded it in the store at its sync
+        # (B reads the store at its own; a few syncs at most, each a quarter of the hold).
+        def a_workers_seen_by_b():
+            farm = json.loads(cluster.http_get(b.http_addresses["http"], "/api/farm")[2])
+            return [w for w in farm["workers"]
+                    if w["worker_id"] == fake.worker_id and w["server"] == a.address]
+        seen = []
+        for _ in range(40):
+            seen = a_workers_seen_by_b()
+            if seen:
+                break
+            time.sleep(0.25)
+        self.assertEqual(len(seen), 1, "B's /api/farm does not list A's worker")
+        self.assertFalse(seen[0]["self"])
         merged_at_a = [m for m in MERGED.findall(read(a.server.log_path, "rb"))
                        if int(m[2]) == first and int(m[3]) == end]
         self.assertEqual(len(merged_at_a), 1, "the forwarded report was not merged at A once")

@@ -431,6 +431,37 @@ TEST_P(JobStoreTest, ReconnectsAfterTheDatabaseRestarts) {
     EXPECT_EQ(leases[0].lease_id, "after");
 }
 
+// The farm's workers (docs/design/job-store.md, "The farm's workers"): a server that stops
+// syncing (dead) is no longer listed once its rows are older than the
+// reader's limit, and a live server's departed worker leaves the farm at its next sync.
+TEST_P(JobStoreTest, TheFarmsWorkersForgetDeadServers) {
+    auto store = open();
+    FarmWorkerRow w;
+    w.worker_id = "w-1";
+    w.host = "render-07";
+    w.threads = 16;
+    w.server_address = "a:1";
+    store->record_workers("s-a", {w}, 60000);
+    w.worker_id = "w-2";
+    w.server_address = "b:2";
+    store->record_workers("s-b", {w}, 60000);
+    std::vector<FarmWorkerRow> all = store->load_workers(60000);
+    ASSERT_EQ(all.size(), 2u);
+    EXPECT_EQ(all[0].server, "s-a");
+    EXPECT_EQ(all[0].host, "render-07");
+    EXPECT_EQ(all[0].threads, 16u);
+    EXPECT_EQ(all[1].worker_id, "w-2");
+    store->record_workers("s-a", {}, 60000);  // A's worker left
+    all = store->load_workers(60000);
+    ASSERT_EQ(all.size(), 1u);
+    EXPECT_EQ(all[0].server, "s-b");
+    raw("UPDATE farm_workers SET recorded_ms = recorded_ms - 5000");
+    EXPECT_TRUE(store->load_workers(4000).empty());  // B silent for longer than that
+    EXPECT_EQ(store->load_workers(60000).size(), 1u);
+    store->record_workers("s-a", {}, 1000);  // anyone's rows older than 1 s are removed
+    EXPECT_TRUE(store->load_workers(60000).empty());
+}
+
 TEST(JobStoreLocation, UrlsPickTheBackendAndHidePasswords) {
     EXPECT_TRUE(is_store_url("postgresql://u@h/db"));
     EXPECT_TRUE(is_store_url("postgres://h/db"));

@@ -380,3 +380,52 @@ TEST_F(SharedStoreTest, ALapsedHoldersCheckpointNeverReplacesTheNewHolders) {
     // Sum over [1, 5): 2 iterations of 1.0 (A's, before it lapsed) and 2 of 2.0 (B's).
     EXPECT_DOUBLE_EQ(c.acc->average().data()[0], (2 * 1.0 + 2 * 2.0) / 4);
 }
+
+// The jobs spread over the servers that have workers, a server holding none included
+// (docs/design/job-store.md, "Spreading the jobs"): A syncs twice before B takes anything,
+// yet takes only one of two jobs, because B has recorded a live worker and holds fewer; B
+// then takes the other. Every server's /api/farm lists both servers' workers.
+TEST_F(SharedStoreTest, JobsSpreadOverServersWithWorkersAndEachListsTheFarmsWorkers) {
+    ServerOptions oa = options(dir_ / "data", 0), ob = oa;
+    oa.hold_seconds = ob.hold_seconds = 8;  // synced every 2 s; a worker row counts for 4 s
+    oa.advertise_address = "a.example:1";
+    ob.advertise_address = "b.example:2";
+    JobManager a(oa);
+    JobManager b(ob);
+    const std::string wa = register_worker(a), wb = register_worker(b);
+    b.tick();  // B records its worker; there is no job to take yet
+    v1::Job first, second;
+    ASSERT_TRUE(a.submit(request(a, 4), &first).ok());
+    ASSERT_TRUE(a.submit(request(a, 4), &second).ok());
+    const auto sync_interval = std::chrono::milliseconds(2100);
+    a.tick();
+    std::this_thread::sleep_for(sync_interval);
+    a.tick();
+    EXPECT_EQ(a.held_jobs().size(), 1u)
+        << "A took a second job while B, with a worker, held none: " << a.farm_json();
+    std::this_thread::sleep_for(sync_interval);
+    b.tick();
+    ASSERT_EQ(b.held_jobs().size(), 1u);
+    ASSERT_EQ(a.held_jobs().size(), 1u);
+    EXPECT_NE(a.held_jobs()[0], b.held_jobs()[0]);
+
+    std::this_thread::sleep_for(sync_interval);
+    a.tick();
+    b.tick();
+    for (JobManager* m : {&a, &b}) {
+        const std::string farm = m->farm_json();
+        for (const auto& [worker, server] :
+             {std::pair{wa, oa.advertise_address}, std::pair{wb, ob.advertise_address}})
+            EXPECT_NE(farm.find("{\"worker_id\":\"" + worker + "\",\"server\":\"" + server + "\""),
+                      std::string::npos)
+                << worker << " on " << server << " missing from " << farm;
+    }
+    EXPECT_NE(a.farm_json().find("\"worker_id\":\"" + wa +
+                                 "\",\"server\":\"a.example:1\","
+                                 "\"self\":true"),
+              std::string::npos);
+    EXPECT_NE(a.farm_json().find("\"worker_id\":\"" + wb +
+                                 "\",\"server\":\"b.example:2\","
+                                 "\"self\":false"),
+              std::string::npos);
+}
