@@ -216,8 +216,8 @@ void expect_approaches_inside_bounds(const Lookup& lookup, const std::vector<Bea
     ASSERT_FALSE(box.empty());
     int found = 0;
     for (int k = 0; k < 400; ++k) {
-        const Ray ray(random_point(rng) * 1.5f, warp::square_to_uniform_sphere(rng.next_2d()),
-                      0.0f, 10.0f);
+        const Ray ray(random_point(rng) * 1.5f, warp::square_to_uniform_sphere(rng.next_2d()), 0.0f,
+                      10.0f);
         lookup.for_each_near(ray, [&](uint32_t, const BeamApproach& a) {
             const Vec3 x = ray.at(a.t_ray);
             for (int axis = 0; axis < 3; ++axis) {
