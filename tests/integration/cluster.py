@@ -808,6 +808,22 @@ def read_exr(path):
         inp.close()
 
 
+def read_exr_channels(path):
+    """Every channel of an EXR as float32 (height, width, channels), the channel names, and the
+    header's extra attributes as strings."""
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise AssertionError(f"cannot open {path}: {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, "float"), dtype=np.float32)
+        header = {a.name: str(a.value) for a in spec.extra_attribs}
+        return (pixels.reshape(spec.height, spec.width, spec.nchannels),
+                list(spec.channelnames), header)
+    finally:
+        inp.close()
+
 def compare_images(a, b, rel=1e-5, abs_=1e-7):
     """Returns (ok, message): ok when |a-b| <= rel*max(|a|,|b|) + abs_ for every value."""
     if a.shape != b.shape:

@@ -30,29 +30,13 @@ import cluster  # noqa: E402
 SEED = 7
 RES = (32, 32)
 # A threshold that stops part of the Cornell box after a few rounds and leaves the rest to the
-# iteration cap (render: 123 of 160 iterations per pixel on average)...
+# iteration cap (render: about 18 of 160 iterations per pixel on average)...
 OPTIONS = {"adaptive": "0.08", "adaptive_min_iterations": "8", "adaptive_round": "4"}
 ITERATIONS = 160
-# ...and one that stops every pixel long before the cap (render: after 80 of 400 iterations),
+# ...and one that stops every pixel long before the cap (render: after 60 of 400 iterations),
 # so that the job ends because no pixel is left.
 CONVERGING = {"adaptive": "0.5", "adaptive_min_iterations": "8", "adaptive_round": "4"}
 CONVERGING_ITERATIONS = 400
-
-
-def read_exr(path):
-    """All channels as float32 (height, width, channels), the channel names, the header."""
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise AssertionError(f"cannot open {path}: {oiio.geterror()}")
-    try:
-        spec = inp.spec()
-        pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, "float"), dtype=np.float32)
-        header = {a.name: str(a.value) for a in spec.extra_attribs}
-        return (pixels.reshape(spec.height, spec.width, spec.nchannels),
-                list(spec.channelnames), header)
-    finally:
-        inp.close()
 
 
 def option_flags(options):
@@ -73,8 +57,8 @@ class Adaptive(cluster.ClusterTestCase):
         return r.stderr
 
     def assertSameExr(self, service, local, c):
-        a, a_channels, a_header = read_exr(local)
-        b, b_channels, b_header = read_exr(service)
+        a, a_channels, a_header = cluster.read_exr_channels(local)
+        b, b_channels, b_header = cluster.read_exr_channels(service)
         self.assertIn("samples.R", a_channels)
         self.assertEqual(a_channels, b_channels, "the same channels")
         self.assertTrue(np.all(np.isfinite(a)), "render wrote a non-finite value")
@@ -132,7 +116,7 @@ class Adaptive(cluster.ClusterTestCase):
         self.render(c, scene, ref, iterations, RES, options)
         print(f"{workers} worker(s) (reports {reports}, masks fetched {masks}):",
               self.assertSameExr(out, ref, c))
-        return read_exr(out)[2]
+        return cluster.read_exr_channels(out)[2]
 
     def test_one_worker_through_the_api(self):
         self.run_workers(1, through_client=False)
@@ -260,10 +244,11 @@ class Adaptive(cluster.ClusterTestCase):
                 self.assertIn(expected, e.exception.details())
 
 
-# The long jobs: 128 x 128 pixels, rounds of 8 iterations (a lease of a later round takes a
-# second or so of one thread), a threshold that leaves pixels active for many rounds.
+# The long jobs: 128 x 128 pixels, rounds of 8 iterations (a lease of a later round takes a tenth
+# of a second or more of one thread), a threshold that leaves pixels active for many rounds
+# (render: about 100 of 160 iterations per pixel on average).
 LONG_RES = (128, 128)
-LONG_OPTIONS = {"adaptive": "0.1", "adaptive_min_iterations": "8", "adaptive_round": "8"}
+LONG_OPTIONS = {"adaptive": "0.005", "adaptive_min_iterations": "8", "adaptive_round": "8"}
 LONG_ITERATIONS = 160
 
 

@@ -26,20 +26,6 @@ RES = (32, 32)
 LAYERS = ["variance", "odd_half", "even_half"]
 
 
-def read_exr(path):
-    """All channels as float32 (height, width, channels) and the channel names."""
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise AssertionError(f"cannot open {path}: {oiio.geterror()}")
-    try:
-        spec = inp.spec()
-        pixels = np.asarray(inp.read_image(0, 0, 0, spec.nchannels, "float"), dtype=np.float32)
-        return pixels.reshape(spec.height, spec.width, spec.nchannels), list(spec.channelnames)
-    finally:
-        inp.close()
-
-
 class VarianceLayers(cluster.ClusterTestCase):
     def render(self, c, scene, algorithm, iterations, out):
         args = [cluster.binary("render"), scene, "--algo", algorithm, "--iterations",
@@ -50,8 +36,8 @@ class VarianceLayers(cluster.ClusterTestCase):
         self.assertEqual(r.returncode, 0, f"{' '.join(args)}:\n{r.stderr}")
 
     def assertLayersEqual(self, service, local):
-        a, a_channels = read_exr(local)
-        b, b_channels = read_exr(service)
+        a, a_channels, _ = cluster.read_exr_channels(local)
+        b, b_channels, _ = cluster.read_exr_channels(service)
         for name in LAYERS:
             for ch in "RGB":
                 self.assertIn(f"{name}.{ch}", a_channels)
@@ -113,7 +99,8 @@ class VarianceLayers(cluster.ClusterTestCase):
         c.start_workers(2, threads=1)
         c.wait_workers_registered(2)
         scene = cluster.cornell_box()
-        iterations = 1500
+        # Long enough that a checkpoint (every second) comes before the end on a fast machine.
+        iterations = 4000
         job = c.api.submit(scene, algorithm="pt", iterations=iterations, resolution=RES,
                            seed=SEED, name="variance-restart", options={"layers": "variance"})
 
