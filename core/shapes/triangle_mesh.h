@@ -58,6 +58,9 @@ class TriangleMesh final : public Shape {
     // uv at barycentrics (b1, b2) of triangle `tri`, as a hit reports it.
     Vec2 uv_of(size_t tri, float b1, float b2) const;
 
+    // Memory a flat-shaded mesh charges per triangle for its hit records (below).
+    static constexpr size_t kHitRecordBytesPerTriangle = 96;
+
   private:
     // fill_hit's p, t, geometric normal and shading frame where the mesh has no frame per
     // triangle (interpolated vertex normals) or has degenerate triangles.
@@ -107,6 +110,7 @@ class TriangleMesh final : public Shape {
         Vec3 normal;
         Frame frame;
     };
+    static_assert(sizeof(HitRecord) == kHitRecordBytesPerTriangle);
     static constexpr size_t kMaxHitRecordTriangles = size_t(1) << 16;
     std::vector<HitRecord> hit_records_;
     std::vector<Vec2> uvs_;

@@ -91,6 +91,11 @@ class FakeServer:
             context.abort(grpc.StatusCode.NOT_FOUND, "no such asset")
         yield cluster.pb().AssetChunk(sha256=SHA, size=len(SCENE), data=SCENE)
 
+    def FetchMask(self, request, context):
+        # The fake job is not adaptive: its leases carry no mask to fetch.
+        context.abort(grpc.StatusCode.NOT_FOUND, "the fake job has no adaptive mask")
+        yield cluster.pb().MaskChunk()
+
     def Heartbeat(self, request, context):
         for f in request.failed_leases:
             with self.lock:

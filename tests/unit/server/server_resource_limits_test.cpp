@@ -24,6 +24,7 @@
 #include "core/scene/loader/scene_loader.h"
 #include "core/scene/pbrt/scene_loader.h"
 #include "core/scene/scene.h"
+#include "core/shapes/triangle_mesh.h"
 #include "core/util/sha256.h"
 #include "server/asset_store.h"
 #include "server/validation.h"
@@ -568,8 +569,11 @@ TEST(MemoryBudget, PbrtInlineMeshIsCharged) {
         "AttributeEnd\n";
     const uint64_t mesh = mesh_vertex_bytes(3, true, true) + mesh_triangle_bytes(1);
     {
-        // The mesh, and the shadow rays' BVH over its triangle (charged by Scene::commit).
-        SceneMemoryBudget budget(mesh + Scene::kShadowBvhBytesPerTriangle, "test");
+        // The mesh, its triangle's hit record, and the shadow rays' BVH over its triangle
+        // (charged by Scene::commit).
+        SceneMemoryBudget budget(
+            mesh + TriangleMesh::kHitRecordBytesPerTriangle + Scene::kShadowBvhBytesPerTriangle,
+            "test");
         EXPECT_NO_THROW(pbrt::load_scene_from_string(scene, dir.path()));
     }
     SceneMemoryBudget budget(mesh - 1, "test");
