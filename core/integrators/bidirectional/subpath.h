@@ -95,6 +95,10 @@ struct Vertex {
     // |cos| with the geometric normal (densities) and with the shading normal (throughput).
     float cos(const Vec3& w) const { return phase ? 1.0f : abs_dot(n, w); }
     float shading_cos(const Vec3& w) const { return phase ? 1.0f : bsdf->abs_cos_shading(w); }
+    // f alone, for a technique that needs no densities (a VPL connection has no MIS weight).
+    Rgb f(const Vec3& wo, const Vec3& wi) const {
+        return phase ? Rgb(phase->p(wo, wi)) : bsdf->f(wo, wi);
+    }
     BsdfEvaluation evaluate(const Vec3& wo, const Vec3& wi) const {
         if (!phase) return bsdf->evaluate(wo, wi);
         const float p = phase->p(wo, wi);  // reciprocal and exactly sampled: both densities

@@ -7,16 +7,6 @@
 
 namespace render::bidirectional {
 
-namespace {
-
-// A vertex's f alone: a VPL connection has no MIS weight, so unlike connection_geometry it
-// needs no densities (the same f, without the two pdf evaluations per vertex).
-Rgb vertex_f(const Vertex& v, const Vec3& wo, const Vec3& wi) {
-    return v.phase ? Rgb(v.phase->p(wo, wi)) : v.bsdf->f(wo, wi);
-}
-
-}  // namespace
-
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
                               Rng& rng, RenderStats& stats) const {
     const Vertex& w = lv.vertex;
@@ -24,9 +14,9 @@ Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
     d = d / std::sqrt(dist2);
-    const Rgb eye_f = vertex_f(v, wo, d);
+    const Rgb eye_f = v.f(wo, d);
     if (eye_f.is_black()) return Rgb(0.0f);
-    const Rgb light_f = vertex_f(w, lv.wo, -d);
+    const Rgb light_f = w.f(lv.wo, -d);
     if (light_f.is_black()) return Rgb(0.0f);
     // A VPL connection is the only technique for its paths: weight 1, and the estimator
     // averages over the N_L light paths of the iteration.
