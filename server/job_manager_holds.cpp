@@ -238,10 +238,8 @@ void JobManager::sync_farm_workers() {
     std::vector<FarmWorkerRow> mine;
     {
         std::lock_guard lock(mu_);
-        const int64_t now = unix_ms();
         const auto live_ms = int64_t(options_.lease_timeout_seconds * 1000);
-        for (const auto& [id, w] : workers_.all()) {
-            if (now - w.last_seen_unix_ms > live_ms) continue;
+        workers_.for_each_live(unix_ms(), live_ms, [&](const std::string& id, const WorkerInfo& w) {
             FarmWorkerRow row;
             row.worker_id = id;
             row.server_address = options_.advertise_address;
@@ -253,7 +251,7 @@ void JobManager::sync_farm_workers() {
             row.samples_per_second = w.rates.samples_per_second();
             row.rays_per_second = w.rates.rays_per_second();
             mine.push_back(std::move(row));
-        }
+        });
     }
     try {
         store_.record_workers(server_id_, mine, forget_workers_ms(options_));

@@ -149,20 +149,19 @@ std::string JobManager::metrics_text() {
     MetricsSnapshot s;
     {
         std::lock_guard lock(mu_);
-        const int64_t now = unix_ms();
         const auto connected_ms = int64_t(options_.lease_timeout_seconds * 1000);
-        for (const auto& [id, w] : workers_.all()) {
-            if (now - w.last_seen_unix_ms > connected_ms) continue;
-            WorkerSnapshot ws;
-            ws.id = id;
-            ws.host = w.host;
-            ws.threads = w.threads;
-            ws.iterations_per_second = w.rates.iterations_per_second();
-            ws.samples_per_second = w.rates.samples_per_second();
-            ws.rays_per_second = w.rates.rays_per_second();
-            ws.active_leases = uint32_t(scheduler_.worker_leases(id).size());
-            s.workers.push_back(std::move(ws));
-        }
+        workers_.for_each_live(unix_ms(), connected_ms,
+                               [&](const std::string& id, const WorkerInfo& w) {
+                                   WorkerSnapshot ws;
+                                   ws.id = id;
+                                   ws.host = w.host;
+                                   ws.threads = w.threads;
+                                   ws.iterations_per_second = w.rates.iterations_per_second();
+                                   ws.samples_per_second = w.rates.samples_per_second();
+                                   ws.rays_per_second = w.rates.rays_per_second();
+                                   ws.active_leases = uint32_t(scheduler_.worker_leases(id).size());
+                                   s.workers.push_back(std::move(ws));
+                               });
         if (shared_)
             for (const FarmWorkerRow& w : farm_workers_) ++s.farm_workers[w.server_address];
         for (const auto& [id, job] : jobs_) {

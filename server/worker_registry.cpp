@@ -30,8 +30,9 @@ uint64_t WorkerRegistry::memory_limit(const std::string& id) const {
 
 std::vector<WorkerMemory> WorkerRegistry::live(int64_t now_unix_ms, int64_t live_ms) const {
     std::vector<WorkerMemory> out;
-    for (const auto& [id, w] : workers_)
-        if (now_unix_ms - w.last_seen_unix_ms <= live_ms) out.push_back({id, w.memory_limit});
+    for_each_live(now_unix_ms, live_ms, [&](const std::string& id, const WorkerInfo& w) {
+        out.push_back({id, w.memory_limit});
+    });
     return out;
 }
 

@@ -38,6 +38,12 @@ class WorkerRegistry {
     uint64_t memory_limit(const std::string& id) const;
     // The workers heard from within `live_ms`, with their memory limits.
     std::vector<WorkerMemory> live(int64_t now_unix_ms, int64_t live_ms) const;
+    // Calls fn(id, info) for every worker heard from within `live_ms`, in id order.
+    template <class Fn>
+    void for_each_live(int64_t now_unix_ms, int64_t live_ms, Fn&& fn) const {
+        for (const auto& [id, w] : workers_)
+            if (now_unix_ms - w.last_seen_unix_ms <= live_ms) fn(id, w);
+    }
     size_t size() const { return workers_.size(); }
     const std::map<std::string, WorkerInfo>& all() const { return workers_; }
 
