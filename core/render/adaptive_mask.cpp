@@ -31,12 +31,6 @@ double halves_relative_error(double sum, double odd_sum, uint64_t count, uint64_
     return standard_error / std::max(mean, dark);
 }
 
-double pixel_relative_error(int64_t sum, int64_t odd_sum, uint64_t count, uint64_t odd_count,
-                            double dark) {
-    return halves_relative_error(FixedPointSums::to_value(sum), FixedPointSums::to_value(odd_sum),
-                                 count, odd_count, dark);
-}
-
 double pixel_deviation(int64_t sum, int64_t odd_sum, uint64_t count, uint64_t odd_count) {
     double mean = 0;
     return pixel_standard_error(FixedPointSums::to_value(sum), FixedPointSums::to_value(odd_sum),

@@ -32,14 +32,13 @@ struct AdaptiveMaskSettings {
     int error_window = 0;
 };
 
-// The estimated relative error of one pixel's mean brightness from its exact sums: with n
+// The estimated relative error of one pixel's mean brightness from its sums: with n
 // iterations of which n_o odd (n_e = n - n_o even), the odd and even means m_o, m_e differ with
 // variance sigma^2 (1/n_o + 1/n_e), so the mean's standard error is estimated by
 // |m_o - m_e| sqrt(n_o n_e) / n (half the difference for equal halves), divided by
-// max(mean, dark). Infinity when either half is empty (the error is unknown).
-double pixel_relative_error(int64_t sum, int64_t odd_sum, uint64_t count, uint64_t odd_count,
-                            double dark);
-// The same from sums as values (the image's double sums: --target-error per pixel).
+// max(mean, dark). Infinity when either half is empty (the error is unknown). The sums are
+// values (FixedPointSums::to_value of exact sums, or the image's double sums: --target-error
+// per pixel).
 double halves_relative_error(double sum, double odd_sum, uint64_t count, uint64_t odd_count,
                              double dark);
 

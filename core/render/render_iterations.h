@@ -135,7 +135,7 @@ double estimate_relative_error(const IterationResult& result);
 // Each pixel's estimated relative error (--target-error per pixel,
 // docs/reference/adaptive-sampling.md): the root mean square, over the pixel's 3 x 3
 // neighbourhood clipped at the frame's edge, of the pixels' relative errors of their mean
-// brightness R + G + B (pixel_relative_error: the odd/even halves' standard error over
+// brightness R + G + B (halves_relative_error: the odd/even halves' standard error over
 // max(mean, 1e-3)), each with its own counts for an adaptive job. One pixel's own estimate has
 // one degree of freedom, the window's nine. Infinity where a pixel in the window has an empty
 // half (the error is unknown); empty before any iteration.
