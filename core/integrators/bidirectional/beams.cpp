@@ -20,10 +20,10 @@ void Iteration::set_photon_beam_quantities(Vertex& v, const SampledSegment& seg,
         v.photon_beam = mis_.photon_beam_light_factor(v.arrival_distance, v.sigma_t);
 }
 
-float Iteration::light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d,
-                                        float pdf) const {
-    if (!(v.photon_beam > 0)) return 0.0f;
-    return mis_.photon_beam_light_term(length(cross(wo, d)), pdf, v.arrival_distance, v.sigma_t);
+float Iteration::light_photon_beam_term(float photon_beam, float arrival_distance, float sigma_t,
+                                        const Vec3& wo, const Vec3& d, float pdf) const {
+    if (!(photon_beam > 0)) return 0.0f;
+    return mis_.photon_beam_light_term(length(cross(wo, d)), pdf, arrival_distance, sigma_t);
 }
 
 namespace {
@@ -101,10 +101,10 @@ void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
     query.t_max = t_end;
     lookup.for_each_near(query, [&](uint32_t i, float t, float) {
         const LightVertex& lv = light_vertices_[medium_index_[i]];
-        if (lv.vertex.medium != medium) return;  // a photon of another medium
+        if (lv.medium() != medium) return;  // a photon of another medium
         if (lv.path_length + state.path_length > plan_.max_length) return;
         const Vec3 x = piece.at(t);
-        const float p = lv.vertex.phase->p(-ray.direction, lv.wo);
+        const float p = lv.phase()->p(-ray.direction, lv.wo);
         if (!(p > 0)) return;
         // The eye subpath as if it had scattered at x (the query's distance density
         // goes to the weight: vcm_mis.h, weight_query_beam).
@@ -120,13 +120,13 @@ void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
             {.eye_forward_w = p,
              .eye_reverse_w = p,
              .medium = true,
-             .photon_beam = light_photon_beam_term(lv.vertex, lv.wo, ray.direction, 1.0f)});
+             .photon_beam = light_photon_beam_term(lv, lv.wo, ray.direction, 1.0f)});
         // sigma_s at x scatters the eye's light; the photon's throughput carries its
         // own vertex's sigma_s (its distance sampling), divided out.
         Rgb photon = lv.throughput;
         if (!homogeneous) {
             const Rgb sigma_query = medium->sigma_s(x);
-            const Rgb sigma_photon = medium->sigma_s(lv.vertex.p);
+            const Rgb sigma_photon = medium->sigma_s(lv.p);
             for (int c = 0; c < 3; ++c)
                 photon[c] =
                     sigma_photon[c] > 0 ? photon[c] * sigma_query[c] / sigma_photon[c] : 0.0f;

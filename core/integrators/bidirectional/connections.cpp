@@ -109,7 +109,7 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVe
 
 std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVertex& lv,
                                                                  const Vertex& v, const Vec3& wo) {
-    const Vertex& w = lv.vertex;
+    const LightVertex& w = lv;
     Vec3 d = w.p - v.p;
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return std::nullopt;
@@ -126,12 +126,12 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const MisQuantities& eye_mis, Rng& rng, RenderStats& stats, JointKind joint) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
-    const Vertex& w = lv.vertex;
+    const LightVertex& w = lv;
     const Vec3& d = g->d;
     const float dist2 = g->dist2;
     const auto& [f_eye, eye_pdf_w] = g->eye;
     const auto& [f_light, light_pdf_w] = g->light;
-    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n());
     const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return std::nullopt;
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
@@ -146,16 +146,16 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
             joint_ratio = joint_pdf_l(v.previous, v.p, w.p) / v.joint_distance_pdf;
         if (w.in_medium() && joint_light_side(lv.path_length, lv.finite_light) && l.one_piece &&
             l.densities.toward_end > 0)
-            light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous) / l.densities.toward_end;
+            light_joint_ratio = joint_pdf_l(v.p, w.p, w.previous()) / l.densities.toward_end;
     }
     // J2 of this junction (the light vertex resampled on the light ray that reached it) and of
     // the one before it (the light vertex's predecessor resampled there, the light vertex by J1).
     float joint2_ratio = 0, light_joint2 = 0;
     if (joint_ratio > 0)
-        joint2_ratio = light_joint2_ratio(w.previous, w.p, w2.light_ray_pdf, v.previous, v.p);
+        joint2_ratio = light_joint2_ratio(w.previous(), w.p, w2.light_ray_pdf, v.previous, v.p);
     if (light_joint_ratio > 0)
         light_joint2 =
-            light_joint2_ratio(w2.previous2, w.previous, w2.previous_light_ray_pdf, v.p, w.p);
+            light_joint2_ratio(w2.previous2, w.previous(), w2.previous_light_ray_pdf, v.p, w.p);
     // J2 of the junction toward the camera: v resampled on the connection segment from w.
     const float eye_joint2 = eye_joint2_toward(eye_mis, v, w.p, l);
     // Eqs. (40) and (41).

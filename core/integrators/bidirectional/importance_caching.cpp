@@ -31,13 +31,13 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
             unoccluded[k] = y;
             bounded[k] =
                 power * bounded_geometry_factor(std::sqrt(double(t->geometry.dist2)), radius,
-                                                lv.vertex.shading_cos(d), r.vertex.shading_cos(d));
+                                                lv.shading_cos(d), r.vertex.shading_cos(d));
             full[k] = y * double(visibility(t->link, t->ray, stats).luminance());
             continue;
         }
         const std::optional<ConnectionGeometry> g = connection_geometry(lv, r.vertex, r.wo);
         if (!g) continue;
-        const double cos_record = r.vertex.shading_cos(g->d), cos_vpl = lv.vertex.shading_cos(g->d);
+        const double cos_record = r.vertex.shading_cos(g->d), cos_vpl = lv.shading_cos(g->d);
         const double power = (lv.throughput * g->eye.f * g->light.f).luminance();
         if (!(power > 0) || !std::isfinite(power)) continue;
         // The records' own clamp (at least 1 % of the scene radius): a VPL lying on the record
@@ -45,7 +45,7 @@ IcRecordTables Iteration::record_tables(const Record& r, float radius,
         unoccluded[k] = power * cos_record * cos_vpl / std::max(double(g->dist2), double(clamp2));
         bounded[k] = power * bounded_geometry_factor(std::sqrt(double(g->dist2)), radius, cos_vpl,
                                                      cos_record);
-        const Ray ray = scene_.spawn_ray_to(r.vertex.p, r.vertex.n, lv.vertex.p, lv.vertex.n);
+        const Ray ray = scene_.spawn_ray_to(r.vertex.p, r.vertex.n, lv.p, lv.n());
         const Link l = link(ray, r.vertex.medium_toward(g->d), false, false, rng, stats);
         full[k] = unoccluded[k] * double(visibility(l, ray, stats).luminance());
     }

@@ -327,7 +327,17 @@ class Iteration {
                                const Rgb& transmittance, Rng& rng, Rgb& sum) const;
     // B-B1D terms of a light vertex v (reached from wo) sampled from the camera side along
     // direction d with density pdf (without its distance density); 0 without the technique.
-    float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const;
+    float light_photon_beam_term(const Vertex& v, const Vec3& wo, const Vec3& d, float pdf) const {
+        return light_photon_beam_term(v.photon_beam, v.arrival_distance, v.sigma_t, wo, d, pdf);
+    }
+    float light_photon_beam_term(const LightVertex& v, const Vec3& wo, const Vec3& d,
+                                 float pdf) const {
+        return light_photon_beam_term(v.photon_beam(), v.arrival_distance(), v.sigma_t(), wo, d,
+                                      pdf);
+    }
+    // The same of a vertex's photon-beam quantities (Vertex).
+    float light_photon_beam_term(float photon_beam, float arrival_distance, float sigma_t,
+                                 const Vec3& wo, const Vec3& d, float pdf) const;
     // Sets v's photon-beam quantities on arrival (a medium vertex reached by `seg`).
     void set_photon_beam_quantities(Vertex& v, const SampledSegment& seg, TransportMode mode) const;
     // Where photon beams live (docs/design/media.md, "Photon beams in grid media"): long beams in

@@ -112,7 +112,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
         Joint2Vertex b_joint2;
         if (const std::optional<LightVertex> b =
                 resample_on_light_ray(light_ray, state.origin, ray.direction, b_joint2, rng)) {
-            if (const std::optional<JointVertex> j = sample_vertex(b->vertex.p)) {
+            if (const std::optional<JointVertex> j = sample_vertex(b->p)) {
                 if (const std::optional<ConnectionTerms> c =
                         connection_terms(*b, b_joint2, j->v, wo, j->mis, rng, stats, JointKind::J2))
                     add(b->path_length + 1, j->eye_weight * b->throughput * c->unoccluded *
@@ -123,7 +123,7 @@ void Iteration::joint_connections(const Ray& ray, const SubpathState& state, uin
     for (uint32_t i = first; i < end; ++i) {
         const LightVertex& lv = light_vertices_[i];
         if (lv.path_length + 1 + state.path_length > plan_.max_length) break;
-        const std::optional<JointVertex> j = sample_vertex(lv.vertex.p);
+        const std::optional<JointVertex> j = sample_vertex(lv.p);
         if (!j) continue;
         const std::optional<ConnectionTerms> c =
             connection_terms(lv, joint2_of(i), j->v, wo, j->mis, rng, stats, JointKind::J1);
@@ -154,22 +154,19 @@ std::optional<LightVertex> Iteration::resample_on_light_ray(const LightRay& e,
     SegmentDensityBuilder builder(e.origin_in_medium);
     builder.add_piece(medium, ray, t);
     const SegmentDensities densities = builder.finish(true);
-    LightVertex lv{};
-    lv.vertex.p = b;
-    lv.vertex.medium = medium;
-    lv.vertex.phase = &medium->phase();
-    lv.vertex.previous = e.origin;
-    lv.vertex.joint_distance_pdf = densities.toward_end;
+    Vertex v;
+    v.p = b;
+    v.medium = medium;
+    v.phase = &medium->phase();
+    v.previous = e.origin;
     joint2 = Joint2Vertex{};
     joint2.previous2 = e.origin_previous;
     joint2.light_ray_pdf = densities.toward_end;
     joint2.previous_light_ray_pdf = e.origin_light_ray_pdf;
-    lv.wo = -e.direction;
-    lv.throughput = e.throughput * medium->transmittance(ray, t, rng) * sigma_s * (1.0f / pdf);
-    if (!lv.throughput.is_finite() || lv.throughput.is_black()) return std::nullopt;
-    lv.path_length = e.path_length;
-    lv.finite_light = e.finite_light;
-    lv.mis = e.mis;
+    const Rgb throughput =
+        e.throughput * medium->transmittance(ray, t, rng) * sigma_s * (1.0f / pdf);
+    if (!throughput.is_finite() || throughput.is_black()) return std::nullopt;
+    LightVertex lv(v, -e.direction, throughput, e.path_length, e.mis, e.finite_light);
     mis_.arrive(lv.mis, t * t, e.path_length > 1 || e.finite_light, 1.0f, densities.toward_end,
                 densities.toward_start);
     // J1's deferred term of the junction whose eye-side vertex is the ray's origin (next_vertex).

@@ -85,12 +85,8 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
         // Delta BSDFs can neither be connected to nor merged at (the report's specular vertices).
         if (v->has_non_delta()) {
             if (plan_.vertex_connections || plan_.merging || plan_.many_lights()) {
-                vertices.push_back(LightVertex{.wo = wo,
-                                               .throughput = state.throughput,
-                                               .path_length = state.path_length,
-                                               .mis = state.mis,
-                                               .vertex = *v,
-                                               .finite_light = state.is_finite_light});
+                vertices.emplace_back(*v, wo, state.throughput, state.path_length, state.mis,
+                                      state.is_finite_light);
                 if (joint2) joint2->push_back(v->joint2);
             }
             if ((plan_.vertex_connections || plan_.light_tracing_only) &&
@@ -191,8 +187,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         for (const Joint2Vertex& j : chunk->joint2_vertices) joint2_vertices_.push_back(j);
         for (LightVertex& v : chunk->vertices) {
             if (plan_.merging) {
-                const bool medium = v.vertex.in_medium();
-                if (medium) medium_positions_.push_back(v.vertex.p);
+                const bool medium = v.in_medium();
+                if (medium) medium_positions_.push_back(v.p);
                 (medium ? medium_index_ : surface_index_)
                     .push_back(uint32_t(light_vertices_.size()));
             }
@@ -216,9 +212,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         // Each grid point carries its light vertex's index: a merge goes from the point straight
         // to the vertex (the index arrays are increasing, so the visiting order is unchanged).
         surface_grid_.build(
-            surface_index_.size(),
-            [&](size_t i) { return light_vertices_[surface_index_[i]].vertex.p; }, plan_.radius,
-            surface_index_);
+            surface_index_.size(), [&](size_t i) { return light_vertices_[surface_index_[i]].p; },
+            plan_.radius, surface_index_);
         medium_grid_.build(medium_positions_, plan_.volume_radius, medium_index_);
     }
     if (plan_.query_beams) {

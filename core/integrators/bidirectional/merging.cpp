@@ -8,20 +8,20 @@ float Iteration::merge_joint_ratio(const LightVertex& lv, const Vertex& v) const
     if (!plan_.joint || !(v.joint_distance_pdf > 0) ||
         !joint_light_side(lv.path_length, lv.finite_light))
         return 0.0f;
-    return joint_pdf_l(v.previous, v.p, lv.vertex.previous) / v.joint_distance_pdf;
+    return joint_pdf_l(v.previous, v.p, lv.previous()) / v.joint_distance_pdf;
 }
 
 Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state) const {
     const bool medium = v.in_medium();
     const HashGrid& grid = medium ? medium_grid_ : surface_grid_;
     Rgb sum(0.0f);
-    // What a merge reads of a light vertex is its first cache line (LightVertex), and its last
-    // where J1 (vertex.previous) or photon beams (vertex.photon_beam) take part in the weight.
+    // What a merge reads of a light vertex is its first cache line (LightVertex), and its second
+    // where J1 (previous) or photon beams (photon_beam) take part in the weight.
     const bool last_line = (plan_.joint && v.joint_distance_pdf > 0) || v.photon_beam > 0;
     auto prefetch = [&](uint32_t i) {
         const LightVertex& lv = light_vertices_[i];
         __builtin_prefetch(&lv);
-        if (last_line) __builtin_prefetch(&lv.finite_light);
+        if (last_line) __builtin_prefetch(reinterpret_cast<const char*>(&lv) + 64);
     };
     grid.for_each_within_radius(v.p, prefetch, [&](uint32_t i) {
         const LightVertex& lv = light_vertices_[i];
@@ -38,9 +38,9 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
                  .eye_reverse_w = pdf_w.reverse,
                  .medium = medium,
                  .query_beam = v.query_beam,
-                 .photon_beam = v.photon_beam > 0 && lv.vertex.photon_beam > 0
+                 .photon_beam = v.photon_beam > 0 && lv.photon_beam() > 0
                                     ? mis_.photon_beam_merge_term(length(cross(wo, lv.wo)),
-                                                                  lv.vertex.arrival_distance,
+                                                                  lv.arrival_distance(),
                                                                   v.arrival_distance, v.sigma_t)
                                     : 0.0f,
                  .light_joint_ratio = merge_joint_ratio(lv, v)});
@@ -49,7 +49,7 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         if (medium) {
             // Both subpaths' throughputs carry sigma_s at their medium vertex (the distance
             // sampling weight); the merged path scatters once, so one of them is divided out.
-            const Rgb sigma_s = lv.vertex.medium->sigma_s(lv.vertex.p);
+            const Rgb sigma_s = lv.medium()->sigma_s(lv.p);
             for (int c = 0; c < 3; ++c) photon[c] = sigma_s[c] > 0 ? photon[c] / sigma_s[c] : 0.0f;
         }
         sum += f * photon * weight;

@@ -8,7 +8,7 @@
 
 namespace render::bidirectional {
 
-inline constexpr size_t kLightVertexBytesBound = 192;  // a stored light vertex (LightVertex)
+inline constexpr size_t kLightVertexBytesBound = 128;  // a stored light vertex (LightVertex)
 inline constexpr size_t kJoint2VertexBytesBound = 20;  // J2's state of one (Joint2Vertex)
 inline constexpr size_t kPhotonBeamBytesBound = 128;   // a photon beam (PhotonBeam)
 inline constexpr size_t kBeamReplayBytesBound = 24;    // its replay state, where it has one

@@ -5,7 +5,9 @@
 // connections pass around. Shared by every pass of the iteration (iteration.h).
 
 #include <cstddef>
+#include <new>
 #include <optional>
+#include <utility>
 
 #include "core/integrators/bidirectional/record_bounds.h"
 #include "core/integrators/bidirectional/vcm_mis.h"
@@ -142,27 +144,127 @@ struct SubpathVertex : Vertex {
     float camera_joint_ratio = 0;
 };
 
-// A stored light-subpath vertex with a non-delta BSDF or in a medium. A merge (Iteration::merge)
-// tests path_length, evaluates the eye vertex's BSDF toward wo, weighs with mis and adds
-// throughput, and in a medium reads vertex.medium and vertex.p: all in the first 40 + 20 bytes,
-// which alignas(64) keeps in one cache line, so that a candidate costs one line (it cost two,
-// with these fields behind the vertex). Only J1 (vertex.previous, finite_light) and photon beams
-// (vertex.photon_beam, vertex.arrival_distance) read the third line. Still 192 bytes: three lines.
+// What only a medium light vertex stores; a surface vertex has its BSDF in its place
+// (LightVertex). previous, arrival_distance, sigma_t and photon_beam are Vertex's: only J1
+// (previous) and photon beams (the others) read them, and only at medium vertices.
+struct MediumLightVertex {
+    const Medium* medium = nullptr;
+    const PhaseFunction* phase = nullptr;
+    Vec3 previous;
+    float arrival_distance = 0;
+    float sigma_t = 0;
+    float photon_beam = 0;
+};
+
+// A stored light-subpath vertex with a non-delta BSDF or in a medium: 128 bytes, two cache lines
+// (SmallVCM's is 120; a whole Vertex inside made it 192, three lines). What a merge reads
+// (path_length, wo, mis, throughput; in a medium the medium and p) lies in the first line; a
+// connection reads the BSDF, which ends the second. A surface vertex's BSDF and a medium
+// vertex's MediumLightVertex share their bytes, as the two never both exist; the geometric
+// normal is the BSDF's, the phase function and medium the medium part's. Nothing reads a surface
+// light vertex's arrival medium or shape, nor a light vertex's joint_distance_pdf or query_beam
+// (eye-vertex quantities), so they are not stored. Built from the Vertex a light subpath reached.
 struct alignas(64) LightVertex {
+    Vec3 p;
     Vec3 wo;  // toward the previous vertex of the light subpath
     Rgb throughput;
-    int path_length;
     MisQuantities mis;
-    [[no_unique_address]] Vertex vertex;  // the next member fills its tail padding
-    bool finite_light = true;             // the subpath starts at a point (J1 at s = 1 needs one)
+    int path_length = 0;
+    bool finite_light = true;  // the subpath starts at a point (J1 at s = 1 needs one)
+
+    LightVertex() : bsdf_() {}
+    LightVertex(const Vertex& v, const Vec3& wo_, const Rgb& throughput_, int path_length_,
+                const MisQuantities& mis_, bool finite_light_)
+        : p(v.p),
+          wo(wo_),
+          throughput(throughput_),
+          mis(mis_),
+          path_length(path_length_),
+          finite_light(finite_light_),
+          in_medium_(v.in_medium()) {
+        if (in_medium_)
+            new (&medium_) MediumLightVertex{.medium = v.medium,
+                                             .phase = v.phase,
+                                             .previous = v.previous,
+                                             .arrival_distance = v.arrival_distance,
+                                             .sigma_t = v.sigma_t,
+                                             .photon_beam = v.photon_beam};
+        else
+            new (&bsdf_) OptionalSurfaceBsdf(v.bsdf);
+    }
+    LightVertex(const LightVertex& o) : LightVertex() { assign(o); }
+    LightVertex(LightVertex&& o) noexcept : LightVertex() { assign(std::move(o)); }
+    LightVertex& operator=(const LightVertex& o) {
+        if (this != &o) assign(o);
+        return *this;
+    }
+    LightVertex& operator=(LightVertex&& o) noexcept {
+        if (this != &o) assign(std::move(o));
+        return *this;
+    }
+    ~LightVertex() { destroy_part(); }
+
+    bool in_medium() const { return in_medium_; }
+    // A medium vertex's medium (null at a surface).
+    const Medium* medium() const { return in_medium_ ? medium_.medium : nullptr; }
+    const PhaseFunction* phase() const { return in_medium_ ? medium_.phase : nullptr; }
+    // J1's and photon beams' quantities of a medium vertex (Vertex); a surface vertex's are 0,
+    // which no technique reads but as "none".
+    Vec3 previous() const { return in_medium_ ? medium_.previous : Vec3(); }
+    float arrival_distance() const { return in_medium_ ? medium_.arrival_distance : 0.0f; }
+    float sigma_t() const { return in_medium_ ? medium_.sigma_t : 0.0f; }
+    float photon_beam() const { return in_medium_ ? medium_.photon_beam : 0.0f; }
+    // A surface vertex's BSDF (empty in a medium).
+    std::optional<SurfaceBsdf> bsdf() const {
+        return in_medium_ ? std::nullopt : std::optional<SurfaceBsdf>(*bsdf_);
+    }
+    // As Vertex's: the geometric normal (zero in a medium), the cosines, f and the densities.
+    Vec3 n() const { return in_medium_ ? Vec3() : bsdf_->geometric_normal(); }
+    float cos(const Vec3& w) const {
+        return in_medium_ ? 1.0f : abs_dot(bsdf_->geometric_normal(), w);
+    }
+    float shading_cos(const Vec3& w) const { return in_medium_ ? 1.0f : bsdf_->abs_cos_shading(w); }
+    Rgb f(const Vec3& wo_, const Vec3& wi) const {
+        return in_medium_ ? Rgb(medium_.phase->p(wo_, wi)) : bsdf_->f(wo_, wi);
+    }
+    BsdfEvaluation evaluate(const Vec3& wo_, const Vec3& wi) const {
+        if (!in_medium_) return bsdf_->evaluate(wo_, wi);
+        const float pdf = medium_.phase->p(wo_, wi);  // as Vertex::evaluate
+        return BsdfEvaluation{Rgb(pdf), BsdfPdf{pdf, pdf}};
+    }
+
+  private:
+    void destroy_part() {
+        if (!in_medium_) bsdf_.~OptionalSurfaceBsdf();
+    }
+    // The other's fields and part (its BSDF moved where it is an rvalue: no reference count).
+    template <class Other>
+    void assign(Other&& o) {
+        destroy_part();
+        p = o.p;
+        wo = o.wo;
+        throughput = o.throughput;
+        mis = o.mis;
+        path_length = o.path_length;
+        finite_light = o.finite_light;
+        in_medium_ = o.in_medium_;
+        if (in_medium_)
+            new (&medium_) MediumLightVertex(o.medium_);
+        else
+            new (&bsdf_) OptionalSurfaceBsdf(std::forward<Other>(o).bsdf_);
+    }
+
+    bool in_medium_ = false;
+    union {
+        OptionalSurfaceBsdf bsdf_;
+        MediumLightVertex medium_;
+    };
 };
 static_assert(sizeof(Joint2Vertex) <= kJoint2VertexBytesBound,
               "Joint2Vertex grew: raise kJoint2VertexBytesBound (the memory estimate uses it)");
 static_assert(sizeof(LightVertex) <= kLightVertexBytesBound,
               "LightVertex grew: raise kLightVertexBytesBound (the memory estimate uses it)");
-static_assert(sizeof(LightVertex) % 64 == 0 &&
-                  offsetof(LightVertex, vertex) + offsetof(Vertex, p) + sizeof(Vec3) <= 64,
-              "a merge's fields of LightVertex (wo to vertex.p) no longer fit its first line");
+static_assert(sizeof(LightVertex) == 128, "a stored light vertex is two cache lines");
 
 // Which technique produced a connection: the plain one, J1 (the eye vertex sampled toward the
 // light vertex) or J2 (the light vertex resampled on its light ray as well).

@@ -9,7 +9,7 @@ namespace render::bidirectional {
 
 Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3& wo, float clamp2,
                               Rng& rng, RenderStats& stats) const {
-    const Vertex& w = lv.vertex;
+    const LightVertex& w = lv;
     Vec3 d = w.p - v.p;
     const float dist2 = length_squared(d);
     if (!(dist2 > 0)) return Rgb(0.0f);
@@ -24,7 +24,7 @@ Rgb Iteration::vpl_connection(const LightVertex& lv, const Vertex& v, const Vec3
         v.shading_cos(d) * w.shading_cos(d) / std::max(dist2, clamp2) * plan_.vpl_scale;
     const Rgb contribution = eye_f * light_f * geometry;
     if (contribution.is_black()) return Rgb(0.0f);
-    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n);
+    const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n());
     const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);
     return contribution * visibility(l, ray, stats);
 }
@@ -112,9 +112,9 @@ void Iteration::select_vpls(RenderStats& stats, VplSelection* inspection) {
         const bool accepted = p >= 1.0 || double(rng.next_1d()) < p;
         if (inspection) {
             const LightVertex& lv = light_vertices_[k];
-            inspection->candidates.push_back(VplCandidate{lv.vertex.p, lv.vertex.n, lv.wo,
-                                                          lv.vertex.bsdf, lv.throughput,
-                                                          lv.path_length, phi[k], p, accepted});
+            inspection->candidates.push_back(VplCandidate{lv.p, lv.n(), lv.wo, lv.bsdf(),
+                                                          lv.throughput, lv.path_length, phi[k], p,
+                                                          accepted});
         }
         if (!accepted) continue;
         LightVertex v = light_vertices_[k];
