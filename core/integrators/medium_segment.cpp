@@ -87,6 +87,8 @@ SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
             out.distance = length(si.p - start);
             return out;
         }
+        if (arrives_against_declaration(*si.shape, si.geometric_normal, ray.direction, medium))
+            out.against_declaration = true;
         medium = medium_after_surface(si, ray.direction, medium);
         ray = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
     }
@@ -110,6 +112,7 @@ SegmentConnection connect_segment(const Scene& scene, const Ray& connection, con
         if (!scene.intersect(ray, si)) {
             if (medium) tr *= medium->transmittance(ray, ray.t_max, rng);
             densities.add_piece(medium, ray, ray.t_max);
+            out.end_medium = medium;
             out.transmittance = tr;
             out.densities = densities.finish(end_in_medium);
             out.one_piece = densities.pieces() == 1;
@@ -119,10 +122,13 @@ SegmentConnection connect_segment(const Scene& scene, const Ray& connection, con
         if (medium) tr *= medium->transmittance(ray, si.t, rng);
         densities.add_piece(medium, ray, si.t);
         if (tr.is_black()) return out;
+        if (arrives_against_declaration(*si.shape, si.geometric_normal, ray.direction, medium))
+            out.against_declaration = true;
         medium = medium_after_surface(si, ray.direction, medium);
         const Ray next = scene.spawn_ray(si.p, si.geometric_normal, ray.direction);
         const float remaining = to_infinity ? kInfinity : dot(end - next.origin, ray.direction);
         if (!(remaining > 0)) {
+            out.end_medium = medium;
             out.transmittance = tr;
             out.densities = densities.finish(end_in_medium);
             out.one_piece = densities.pieces() == 1;

@@ -78,6 +78,8 @@ struct SampledSegment {
     SegmentDensities densities;
     float distance = 0;      // from the ray's origin to the vertex
     bool one_piece = false;  // no boundary crossed on the way (joint connections need it)
+    // A null boundary on the way was reached against its declaration (medium_interface.h).
+    bool against_declaration = false;
     // The first piece in a medium whose pass weight is neither one nor in closed form (a
     // chromatic grid): the random state its walk started with and its end, so that a short
     // photon beam along it can replay the walk (Medium::replay_pass_weight).
@@ -95,6 +97,9 @@ struct SegmentConnection {
     Rgb transmittance{0.0f};  // zero when a non-null surface blocks the segment
     SegmentDensities densities;
     bool one_piece = false;  // no null boundary crossed
+    // A null boundary on the way was reached against its declaration (medium_interface.h).
+    bool against_declaration = false;
+    const Medium* end_medium = nullptr;  // the medium the segment ends in
 };
 
 // The deterministic segment between two vertices: `ray` as Scene::spawn_ray_to builds it

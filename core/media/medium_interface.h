@@ -37,4 +37,16 @@ inline const Medium* medium_after_surface(const SurfaceInteraction& si, const Ve
     return medium_after_surface(*si.shape, si.geometric_normal, d, current);
 }
 
+// Whether a path reaching `shape` (geometric normal `n`) in direction `d` while in `current`
+// arrives against the shape's declaration: the shape names another medium, or none, on the side
+// the path comes from. Read the other way, the rule puts that side's declared medium in the
+// region the path has just crossed, so the region is in one medium for paths crossing it one
+// way and in another for paths crossing it the other way; the two readings agree everywhere
+// else. The predicate is the same in both directions: a path crossing the region the other way
+// arrives against the declaration at its other end.
+inline bool arrives_against_declaration(const Shape& shape, const Vec3& n, const Vec3& d,
+                                        const Medium* current) {
+    return is_medium_transition(shape) && medium_after_surface(shape, n, -d, current) != current;
+}
+
 }  // namespace render

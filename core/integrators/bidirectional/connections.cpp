@@ -6,9 +6,8 @@ namespace render::bidirectional {
 
 // --- eye subpaths -----------------------------------------------------------------------------
 
-Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
-                        const Vec3& hit_normal, const Vec3& ray_direction) const {
-    const LightRadiance le = light->radiance(hit_point, hit_normal, ray_direction);
+Rgb Iteration::emission(const Light* light, const SubpathState& state, const LightRadiance& le,
+                        const Vec3& hit_point, const Medium* arrival_medium) const {
     if (le.radiance.is_black()) return Rgb(0.0f);
     // Directly visible emitters: no other technique samples paths of length 1.
     if (state.path_length == 1) return le.radiance;
@@ -17,6 +16,11 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
     // subpaths (connections to the camera, or merging).
     if (!plan_.vertex_connections) return state.specular_path ? le.radiance : Rgb(0.0f);
     const float pick_probability = scene_.emitter_pick_probability(light);
+    // Light subpaths from this light start in light_start_medium: where the eye arrives in
+    // another, the light subpaths that reach here (s > 1) crossed a region in a medium camera
+    // paths do not give it, and cannot sample this path (docs/design/media.md).
+    const bool light_subpaths_sample =
+        !plan_.camera_medium_rule || arrival_medium == light_start_medium(*light);
     // J1 at s = 1 of the eye vertex before the hit point (sampled toward it): it multiplies
     // next-event estimation's term.
     float joint_ratio = 0;
@@ -25,8 +29,10 @@ Rgb Iteration::emission(const Light* light, const SubpathState& state, const Vec
             joint_pdf_l(state.origin_previous, state.origin, hit_point) / state.origin_joint_pdf;
     // (J2 of the vertex before the hit point, resampled on the light's ray, is in dVC:
     // next_vertex added it on arriving here.)
-    return le.radiance * mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
-                                              le.pdf_emission_w * pick_probability, joint_ratio);
+    return le.radiance *
+           mis_.weight_emission(state.mis, le.pdf_direct_a * pick_probability,
+                                light_subpaths_sample ? le.pdf_emission_w * pick_probability : 0.0f,
+                                joint_ratio);
 }
 
 Rgb Iteration::medium_emission(const SubpathState& state, const Vertex& v) const {
@@ -84,21 +90,31 @@ Rgb Iteration::direct_contribution(const MisQuantities& eye_mis, const SubpathVe
                                  ? eye_joint2_toward(eye_mis, v, v.p + ls.wi * ls.distance, l)
                                  : 0.0f;
     // Eqs. (44) and (45); VPL rendering has no other technique for these paths.
-    const DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
-                                    .bsdf_reverse_w = pdf_w.reverse,
-                                    .light_pdf_w = dl.pdf_w(),
-                                    .emission_pdf_w = ls.pdf_emission_w,
-                                    .direct_pdf_w = ls.pdf_direct_w,
-                                    .cos_here = v.cos(ls.wi),
-                                    .cos_light = ls.cos_at_light,
-                                    .delta_light = dl.light->is_delta(),
-                                    .eye_medium = v.in_medium(),
-                                    .eye_query_beam = v.query_beam,
-                                    .pass_to_light_probability = l.densities.toward_end,
-                                    .distance_from_light = l.densities.toward_start,
-                                    .eye_photon_beam = eye_photon_beam,
-                                    .joint_ratio = joint_ratio,
-                                    .eye_joint2 = eye_joint2};
+    DirectTechnique technique{.bsdf_forward_w = pdf_w.forward,
+                              .bsdf_reverse_w = pdf_w.reverse,
+                              .light_pdf_w = dl.pdf_w(),
+                              .emission_pdf_w = ls.pdf_emission_w,
+                              .direct_pdf_w = ls.pdf_direct_w,
+                              .cos_here = v.cos(ls.wi),
+                              .cos_light = ls.cos_at_light,
+                              .delta_light = dl.light->is_delta(),
+                              .eye_medium = v.in_medium(),
+                              .eye_query_beam = v.query_beam,
+                              .pass_to_light_probability = l.densities.toward_end,
+                              .distance_from_light = l.densities.toward_start,
+                              .eye_photon_beam = eye_photon_beam,
+                              .joint_ratio = joint_ratio,
+                              .eye_joint2 = eye_joint2};
+    // The techniques whose light subpath covers v (the eye's share, w_camera) cross this shadow
+    // ray: they cannot sample the path where it reaches a boundary against its declaration or
+    // arrives in another medium than light subpaths start in (docs/design/media.md). A volume
+    // light's point emits only where the ray arrives in its medium (source_seen_from).
+    if (plan_.camera_medium_rule &&
+        (l.against_declaration ||
+         (!dl.light->as_volume() && l.end_medium != light_start_medium(*dl.light)))) {
+        technique.emission_pdf_w = 0;
+        technique.eye_photon_beam = 0;
+    }
     const float weight = plan_.many_lights() ? 1.0f
                          : joint             ? mis_.weight_joint_direct(eye_mis, technique)
                                              : mis_.weight_direct(eye_mis, technique);
@@ -134,6 +150,10 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const Ray ray = scene_.spawn_ray_to(v.p, v.n, w.p, w.n());
     const Link l = link(ray, v.medium_toward(d), v.in_medium(), w.in_medium(), rng, stats);
     if (l.traced && l.transmittance.is_black()) return std::nullopt;
+    // Where the light subpath's last region goes on through w, the eye must reach w in the
+    // medium the light subpath gave it; else no full path has these media (docs/design/media.md).
+    if (plan_.camera_medium_rule && w.keeps_medium() && l.end_medium != w.medium)
+        return std::nullopt;
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).
     const float eye_pdf_a = eye_pdf_w.forward * w.cos(d) * l.densities.toward_end / dist2;
@@ -159,7 +179,7 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     // J2 of the junction toward the camera: v resampled on the connection segment from w.
     const float eye_joint2 = eye_joint2_toward(eye_mis, v, w.p, l);
     // Eqs. (40) and (41).
-    const ConnectionTechnique technique{
+    ConnectionTechnique technique{
         .eye_pdf_a = eye_pdf_a,
         .light_pdf_a = light_pdf_a,
         .light_reverse_w = light_pdf_w.reverse,
@@ -185,6 +205,14 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
                                             light_pdf_a, light_pdf_w.forward * v.cos(d) / dist2,
                                             beam_segment(l.densities))
                 : 0.0f};
+    // The techniques whose light subpath covers v (w_camera) cross the connection: none
+    // samples the path where it reaches a boundary against its declaration, on the way or at w.
+    if (plan_.camera_medium_rule &&
+        (l.against_declaration || (!w.keeps_medium() && render::arrives_against_declaration(
+                                                            *w.shape, w.n, d, l.end_medium)))) {
+        technique.light_pdf_a = 0;
+        technique.eye_photon_beam = 0;
+    }
     const float weight =
         joint == JointKind::J2   ? mis_.weight_joint2_connection(lv.mis, eye_mis, technique)
         : joint == JointKind::J1 ? mis_.weight_joint_connection(lv.mis, eye_mis, technique)

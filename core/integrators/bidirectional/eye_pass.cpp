@@ -53,7 +53,9 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
         const Vec3 wo = -ray.direction;
         if (!v->in_medium() && seg.si.emitter)
             add(Technique::Connection, 0,
-                state.throughput * emission(seg.si.emitter, state, v->p, v->n, ray.direction));
+                state.throughput * emission(seg.si.emitter, state,
+                                            seg.si.emitter->radiance_at(seg.si, ray.direction),
+                                            v->p, seg.medium));
         if (v->in_medium() && v->medium->is_emissive() && !scene_.volume_lights().empty()) {
             add(Technique::Connection, 0, medium_emission(state, *v));
             if (state.throughput.is_black()) break;  // nothing scatters here (albedo 0)

@@ -57,7 +57,9 @@ void Iteration::escaped_emission(SubpathState& state, const Ray& ray, const Samp
     mis_.add_photon_beam_term(state.mis, state.carried_photon_beam, 1.0f, seg.densities.toward_end,
                               seg.densities.toward_start, true, beam_segment(seg.densities));
     for (const Light* light : scene_.background_lights())
-        add(state.throughput * emission(light, state, Vec3(), Vec3(), ray.direction));
+        add(state.throughput * emission(light, state,
+                                        light->radiance(Vec3(), Vec3(), ray.direction), Vec3(),
+                                        seg.medium));
 }
 
 SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats) {

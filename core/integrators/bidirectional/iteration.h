@@ -142,8 +142,12 @@ class Iteration {
                                              SampledSegment& segment) const;
     bool sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
                            Ray& ray) const;
-    Rgb emission(const Light* light, const SubpathState& state, const Vec3& hit_point,
-                 const Vec3& hit_normal, const Vec3& ray_direction) const;
+    // The emission `le` the eye subpath found on `light` (at `hit_point` for a finite light),
+    // MIS-weighted (s = 0). Callers look it up with Light::radiance_at for a surface hit, so
+    // emitters whose density or texture depends on the primitive read the hit's own.
+    // `arrival_medium`: the medium the eye subpath reached the light in.
+    Rgb emission(const Light* light, const SubpathState& state, const LightRadiance& le,
+                 const Vec3& hit_point, const Medium* arrival_medium) const;
     // The eye subpath's collision estimate of the emission at v, a vertex in an emitting medium
     // just reached (s = 0 with the medium as the light), MIS-weighted, without the throughput
     // before the segment (state.source_throughput holds it).
@@ -193,6 +197,14 @@ class Iteration {
                           std::vector<Joint2Vertex>* joint2 = nullptr) const;
     Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
               Rng& rng, RenderStats& stats) const;
+    // The segment just traced reached a boundary against its declaration, on the way or at its
+    // end (medium_interface.h).
+    static bool arrives_against_declaration(const SampledSegment& seg, const Ray& ray);
+    // The medium a light subpath from `light` starts in: an area light's side, a nested
+    // reference, vacuum for infinite lights.
+    static const Medium* light_start_medium(const Light& light) {
+        return light.is_finite() ? light.medium : nullptr;
+    }
     Rgb visibility(const Link& link, const Ray& ray, RenderStats& stats) const;
     void connect_to_camera(const SubpathState& state, const SubpathVertex& v, const Vec3& wo,
                            Rng& rng, std::vector<Splat>& splats, RenderStats& stats) const;

@@ -108,6 +108,8 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
                          : p.light_path_count;
     p.ic_connection_scale = float(1.0 / double(p.ic_light_path_count));
     p.cache = config.cache;
+    p.camera_medium_rule =
+        scene.has_media() && !p.query_beams && !p.photon_beams && !p.joint && !p.ic_connections;
     return p;
 }
 

@@ -31,6 +31,13 @@ struct IterationPlan {
     bool ic_connections = false;  // bpt whose connections draw light vertices from caches
     // Many-light estimators over the iteration's VPLs (weight 1, none of the VCM MIS).
     bool vpl = false, ic = false;
+    // Light-subpath techniques count only where they read the medium rule as camera paths do
+    // (docs/design/media.md, "Which medium a path is in"): light subpaths stop at a boundary
+    // they reach against its declaration, connections and merges check the medium where the two
+    // subpaths meet, and eye subpaths drop the techniques whose light subpath would cross such
+    // a boundary. Not yet beside upbp's beams, joint connections and the many-light estimators,
+    // whose terms do not know it.
+    bool camera_medium_rule = false;
 
     int max_length = 0;  // path segments (max_depth; unbounded: INT_MAX / 4)
     int rr_depth = 5;

@@ -43,7 +43,12 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
                                              Rng& rng, SubpathState& state, Ray& ray) const {
     const VolumeLightSample y = sample_volume_light_start(emitter, pick_probability, rng);
     if (!y.valid) return false;
-    state.throughput = y.source / y.emission_pdf_w;
+    // Where light subpaths read the rule as camera paths do, y_0 emits as a point of the medium
+    // it starts in, whatever its first direction meets: a first region that camera paths give
+    // another medium stops the subpath at its far boundary (next_vertex), wherever the first
+    // segment scatters (docs/design/media.md).
+    const Rgb source = plan_.camera_medium_rule ? emitter.source_in_medium(y.p) : y.source;
+    state.throughput = source / y.emission_pdf_w;
     state.initial_luminance = std::max(state.throughput.max(), 1e-30f);
     state.path_length = 1;
     state.is_finite_light = true;
@@ -246,18 +251,30 @@ void Iteration::connect_to_camera(const SubpathState& state, const SubpathVertex
     const Vec3 d = to_camera / std::sqrt(dist2);
     const auto [f, pdf_w] = v.evaluate(wo, d);
     if (f.is_black()) return;
-    const Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_point, Vec3());
-    const Link l = link(ray, v.medium_toward(d), v.in_medium(), false, rng, stats);
+    Ray ray = scene_.spawn_ray_to(v.p, v.n, camera_point, Vec3());
+    Link l = link(ray, v.medium_toward(d), v.in_medium(), false, rng, stats);
+    // The camera's distance density of this vertex through the media on the way.
+    float camera_distance = l.densities.toward_start;
+    if (plan_.camera_medium_rule &&
+        (l.against_declaration || l.end_medium != scene_.camera_medium())) {
+        // This link reads the medium rule differently from the camera: read it from the camera
+        // (docs/design/media.md, "Which medium a path is in"). Where the light subpath's last
+        // region goes on through v, the camera must reach v in the medium the subpath gave it.
+        ray = scene_.spawn_ray_to(camera_point, Vec3(), v.p, v.n);
+        l = link(ray, scene_.camera_medium(), false, v.in_medium(), rng, stats);
+        if (v.keeps_medium() && l.end_medium != v.medium) return;
+        camera_distance = l.densities.toward_end;
+    }
     if (l.traced && l.transmittance.is_black()) return;
     const float camera_pdf_w = camera_pixel_pdf_w(camera_point, -d);
     // The camera's density of this vertex (eq. 46), through the media on the way.
-    const float camera_pdf_a = camera_pdf_w * v.cos(d) * l.densities.toward_start / dist2;
+    const float camera_pdf_a = camera_pdf_w * v.cos(d) * camera_distance / dist2;
     // J1 of the junction whose eye-side vertex is this one, sampled along the camera ray.
     float light_joint_ratio = 0;
     if (plan_.joint && v.in_medium() &&
         joint_light_side(state.path_length, state.is_finite_light) && l.one_piece &&
-        l.densities.toward_start > 0)
-        light_joint_ratio = joint_pdf_l(camera_point, v.p, v.previous) / l.densities.toward_start;
+        camera_distance > 0)
+        light_joint_ratio = joint_pdf_l(camera_point, v.p, v.previous) / camera_distance;
     const float camera_light_joint2 =
         light_joint_ratio > 0
             ? light_joint2_ratio(v.joint2.previous2, v.previous, v.joint2.previous_light_ray_pdf,

@@ -19,6 +19,16 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
         seg.distance = seg.si.t;
     } else {
         seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+        if (plan_.camera_medium_rule && arrives_against_declaration(seg, ray)) {
+            // The region just crossed is in another medium for camera paths than this subpath
+            // gave it (docs/design/media.md, "Which medium a path is in"). A light subpath's
+            // sample of it counts for no path: it stops. An eye subpath drops the techniques
+            // whose light subpath would have crossed it (those before this vertex); the
+            // technique whose light subpath starts at this vertex keeps its term (dVCM).
+            if (mode == TransportMode::Importance) return std::nullopt;
+            state.mis.dVC = 0;
+            state.mis.dVM = 0;
+        }
         // The eye collects emission at vertices of emitting media even where nothing scatters
         // (albedo 0); trace_eye_path ends the path after it.
         const bool collects_emission = mode == TransportMode::Radiance &&
@@ -88,12 +98,20 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
     return v;
 }
 
+bool Iteration::arrives_against_declaration(const SampledSegment& seg, const Ray& ray) {
+    return seg.against_declaration ||
+           (seg.end == SegmentEnd::Surface &&
+            render::arrives_against_declaration(*seg.si.shape, seg.si.geometric_normal,
+                                                ray.direction, seg.medium));
+}
+
 Link Iteration::link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
                      Rng& rng, RenderStats& stats) const {
     if (!scene_.has_media()) return Link{};
     const SegmentConnection c =
         connect_segment(scene_, ray, medium, start_in_medium, end_in_medium, rng, stats);
-    return Link{c.densities, c.transmittance, true, c.one_piece};
+    return Link{c.densities, c.transmittance,       true,
+                c.one_piece, c.against_declaration, c.end_medium};
 }
 
 Rgb Iteration::visibility(const Link& l, const Ray& ray, RenderStats& stats) const {

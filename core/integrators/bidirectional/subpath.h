@@ -116,6 +116,9 @@ struct Vertex {
         bs.pdf_w = BsdfPdf{ps.pdf_w, ps.pdf_w};
         return bs;
     }
+    // A medium vertex, or a surface that declares no medium: a path has the same medium on
+    // both sides of it, whichever way it goes through.
+    bool keeps_medium() const { return phase || !is_medium_transition(*shape); }
     // The medium toward direction d of a path that arrived in `medium` (medium_interface.h).
     const Medium* medium_toward(const Vec3& d) const {
         if (phase) return medium;
@@ -277,6 +280,10 @@ struct Link {
     Rgb transmittance{1.0f};
     bool traced = false;
     bool one_piece = false;  // traced, and no boundary crossed
+    // Traced: a null boundary on the way was reached against its declaration, and the medium
+    // the link ends in (medium_interface.h).
+    bool against_declaration = false;
+    const Medium* end_medium = nullptr;
 };
 
 // J1's density of the medium vertex x sampled on the half-line from `from` through it, toward

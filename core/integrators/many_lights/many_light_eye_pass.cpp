@@ -32,7 +32,9 @@ Rgb trace_many_light_eye_path(const bidirectional::Iteration& iteration, uint64_
         const Vec3 wo = -ray.direction;
         if (!v->in_medium() && seg.si.emitter)
             add(0, state.throughput *
-                       iteration.emission(seg.si.emitter, state, v->p, v->n, ray.direction));
+                       iteration.emission(seg.si.emitter, state,
+                                          seg.si.emitter->radiance_at(seg.si, ray.direction), v->p,
+                                          seg.medium));
         if (state.path_length >= plan.max_length) break;
         if (v->has_non_delta()) {
             add(1, state.throughput * iteration.direct_illumination(state, *v, wo, rng, stats));

@@ -81,7 +81,9 @@ void Loader::read_shape(const XmlElement& e) {
                          "an emitter inside a shapegroup is not supported (instances cannot "
                          "emit, as in Mitsuba)");
     if (emitter && (props.type() == "bsplinecurve" || props.type() == "linearcurve"))
-        throw SceneError(emitter->where(), "an area emitter on a curve is not supported");
+        throw SceneError(emitter->where(),
+                         "an area emitter on a curve is not supported (a curve has no area "
+                         "sampling whose density a hit can find again)");
     std::unique_ptr<Shape> shape = build(props, [&] { return make_shape(props, e.file().dir()); });
     check_shape_extent(*shape, e);
     std::unique_ptr<Light> light;

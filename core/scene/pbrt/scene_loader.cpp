@@ -508,10 +508,16 @@ class Loader {
                                           "supported (nor are they in pbrt-v4)");
         check_ray_transform(d);
         if (type == "curve" && state_.area_light)
-            throw SceneError(d.where, "Shape \"curve\": an area light on a curve is not supported");
+            throw SceneError(d.where,
+                             "Shape \"curve\": an area light on a curve is not supported "
+                             "(a flat curve faces each ray, so it has no surface to "
+                             "sample by area; pbrt-v4 implements no Curve::Sample "
+                             "either)");
         std::shared_ptr<const AlphaCutout> alpha = read_alpha(p);
         if (alpha && state_.area_light)
-            throw p.error("alpha", "an area light with an alpha cut-out is not supported yet");
+            throw p.error("alpha",
+                          "an area light with an alpha cut-out is not supported yet (the "
+                          "light's sampling does not know the cut-out)");
         std::vector<std::unique_ptr<Shape>> shapes =
             make_shapes(type, p, state_.ctm, state_.reverse_orientation, resolver());
         if (!state_.material) {
