@@ -21,8 +21,10 @@ constexpr uint64_t kLightVertexBytes = kLightVertexBytesBound;
 // smoke, docs/design/media.md), with the grid's per-cell arrays (about one cell per beam).
 constexpr uint64_t kPhotonBeamBytes = kPhotonBeamBytesBound + 32 + 64 * 4 + 12;
 // Merging modes, per stored vertex: its position and index (16 B) in vectors that grow by
-// doubling (x 2), and the hash grid's entry (position and index, 16 B) and cell start.
-constexpr uint64_t kMergeIndexBytes = 52;
+// doubling (x 2), and the hash grid's entry (position and index, 16 B) and cell start; in a
+// scene with media, the medium the vertex arrived in (8 B, IterationStorage::light_vertex_media;
+// the estimate does not see the scene's media, so it charges it wherever merges are on).
+constexpr uint64_t kMergeIndexBytes = 60;
 // upbp, per stored vertex (any of them may lie in a medium): a photon beam, and the query
 // beams' Embree BVH over the medium vertices as balls (~128 B per primitive).
 constexpr uint64_t kVolumeEstimatorBytes = kPhotonBeamBytes + 128;

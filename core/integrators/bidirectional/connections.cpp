@@ -139,7 +139,8 @@ std::optional<ConnectionGeometry> Iteration::connection_geometry(const LightVert
 
 std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     const LightVertex& lv, const Joint2Vertex& w2, const SubpathVertex& v, const Vec3& wo,
-    const MisQuantities& eye_mis, Rng& rng, RenderStats& stats, JointKind joint) const {
+    const MisQuantities& eye_mis, Rng& rng, RenderStats& stats, JointKind joint,
+    const LightVertexMedia& light_media) const {
     const std::optional<ConnectionGeometry> g = connection_geometry(lv, v, wo);
     if (!g) return std::nullopt;
     const LightVertex& w = lv;
@@ -152,7 +153,10 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     if (l.traced && l.transmittance.is_black()) return std::nullopt;
     // Where the light subpath's last region goes on through w, the eye must reach w in the
     // medium the light subpath gave it; else no full path has these media (docs/design/media.md).
-    if (plan_.camera_medium_rule && w.keeps_medium() && l.end_medium != w.medium)
+    // (The rule is on only where the caller passes the light vertex's media: eye_pass.cpp.)
+    const bool w_keeps_medium =
+        w.in_medium() || (light_media.shape && !is_medium_transition(*light_media.shape));
+    if (plan_.camera_medium_rule && w_keeps_medium && l.end_medium != light_media.arrival)
         return std::nullopt;
     // Densities of extending either subpath to the other's endpoint (area, or volume in a
     // medium, with the distance sampling through media).
@@ -208,8 +212,9 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
     // The techniques whose light subpath covers v (w_camera) cross the connection: none
     // samples the path where it reaches a boundary against its declaration, on the way or at w.
     if (plan_.camera_medium_rule &&
-        (l.against_declaration || (!w.keeps_medium() && render::arrives_against_declaration(
-                                                            *w.shape, w.n, d, l.end_medium)))) {
+        (l.against_declaration ||
+         (!w_keeps_medium &&
+          render::arrives_against_declaration(*light_media.shape, w.n(), d, l.end_medium)))) {
         technique.light_pdf_a = 0;
         technique.eye_photon_beam = 0;
     }
@@ -225,9 +230,10 @@ std::optional<Iteration::ConnectionTerms> Iteration::connection_terms(
 
 Rgb Iteration::connect_vertices(const LightVertex& lv, const Joint2Vertex& light_joint2,
                                 const SubpathVertex& v, const Vec3& wo,
-                                const MisQuantities& eye_mis, Rng& rng, RenderStats& stats) const {
-    const std::optional<ConnectionTerms> t =
-        connection_terms(lv, light_joint2, v, wo, eye_mis, rng, stats);
+                                const MisQuantities& eye_mis, Rng& rng, RenderStats& stats,
+                                const LightVertexMedia& light_media) const {
+    const std::optional<ConnectionTerms> t = connection_terms(lv, light_joint2, v, wo, eye_mis, rng,
+                                                              stats, JointKind::None, light_media);
     if (!t) return Rgb(0.0f);
     return t->unoccluded * visibility(t->link, t->ray, stats);
 }

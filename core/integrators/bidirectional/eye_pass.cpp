@@ -93,7 +93,8 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
                     if (lv.path_length + 1 + state.path_length > plan_.max_length) break;
                     add(Technique::Connection, lv.path_length + 1,
                         state.throughput * lv.throughput *
-                            connect_vertices(lv, joint2_of(i), *v, wo, state.mis, rng, stats));
+                            connect_vertices(lv, joint2_of(i), *v, wo, state.mis, rng, stats,
+                                             media_of(i)));
                 }
             }
             if (v->in_medium() ? plan_.merge_points : plan_.merge_surfaces) {

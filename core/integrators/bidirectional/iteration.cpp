@@ -19,6 +19,7 @@ Iteration::Iteration(const IterationPlan& plan, const Scene& scene, const Iterat
       light_rays_(storage.light_rays),
       ray_ends_(storage.ray_ends),
       joint2_vertices_(storage.joint2_vertices),
+      light_vertex_media_(storage.light_vertex_media),
       medium_positions_(storage.medium_positions),
       surface_index_(storage.surface_index),
       medium_index_(storage.medium_index),
@@ -29,6 +30,7 @@ Iteration::Iteration(const IterationPlan& plan, const Scene& scene, const Iterat
     light_rays_.clear();
     ray_ends_.clear();
     joint2_vertices_.clear();
+    light_vertex_media_.clear();
     // Destroying the last iteration's vertices reads all of them (hundreds of MB): in parallel
     // over the blocks.
     tbb::parallel_for(size_t(0), light_vertices_.block_count(),

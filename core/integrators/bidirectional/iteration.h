@@ -194,7 +194,12 @@ class Iteration {
     void trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                           std::vector<Splat>& splats, RenderStats& stats,
                           std::vector<LightRay>* rays = nullptr,
-                          std::vector<Joint2Vertex>* joint2 = nullptr) const;
+                          std::vector<Joint2Vertex>* joint2 = nullptr,
+                          std::vector<LightVertexMedia>* arrival_media = nullptr) const;
+    // Light vertex i's media (empty without the camera's medium rule, which never reads them).
+    LightVertexMedia media_of(uint32_t i) const {
+        return plan_.camera_medium_rule ? light_vertex_media_[i] : LightVertexMedia{};
+    }
     Link link(const Ray& ray, const Medium* medium, bool start_in_medium, bool end_in_medium,
               Rng& rng, RenderStats& stats) const;
     // The segment just traced reached a boundary against its declaration, on the way or at its
@@ -214,10 +219,12 @@ class Iteration {
     Rgb direct_contribution(const MisQuantities& eye_mis, const SubpathVertex& v, const Vec3& wo,
                             const DirectLightSample& dl, Rng& rng, RenderStats& stats,
                             bool joint = false) const;
-    // light_joint2: the light vertex's J2 state (joint2_of).
+    // light_joint2: the light vertex's J2 state (joint2_of); light_media: its media (media_of),
+    // which the camera's medium rule needs.
     Rgb connect_vertices(const LightVertex& light_vertex, const Joint2Vertex& light_joint2,
                          const SubpathVertex& v, const Vec3& wo, const MisQuantities& eye_mis,
-                         Rng& rng, RenderStats& stats) const;
+                         Rng& rng, RenderStats& stats,
+                         const LightVertexMedia& light_media = {}) const;
     // The J2 state of stored light vertex i (none without J2: the side array is empty then).
     const Joint2Vertex& joint2_of(uint32_t i) const {
         static const Joint2Vertex none;
@@ -256,12 +263,10 @@ class Iteration {
     };
     // joint: v was sampled by the J1 technique, or both vertices by J2 (the weight is that
     // technique's).
-    std::optional<ConnectionTerms> connection_terms(const LightVertex& light_vertex,
-                                                    const Joint2Vertex& light_joint2,
-                                                    const SubpathVertex& v, const Vec3& wo,
-                                                    const MisQuantities& eye_mis, Rng& rng,
-                                                    RenderStats& stats,
-                                                    JointKind joint = JointKind::None) const;
+    std::optional<ConnectionTerms> connection_terms(
+        const LightVertex& light_vertex, const Joint2Vertex& light_joint2, const SubpathVertex& v,
+        const Vec3& wo, const MisQuantities& eye_mis, Rng& rng, RenderStats& stats,
+        JointKind joint = JointKind::None, const LightVertexMedia& light_media = {}) const;
     // J2: q = p_B2 / p_distance of the light-side vertex `x` of a junction, resampled on the
     // light ray from `light_point` (a light's point or a scattering vertex; x's density from there:
     // light_ray_pdf, 0 where J2 cannot resample it), the eye ray from `eye_origin` through
@@ -410,6 +415,7 @@ class Iteration {
     std::vector<LightRay>& light_rays_;           // with J2 (else empty)
     std::vector<uint32_t>& ray_ends_;             // light_rays_ of path p end here (with J2)
     BlockVector<Joint2Vertex>& joint2_vertices_;  // of light vertex i, with J2 (else empty)
+    BlockVector<LightVertexMedia>& light_vertex_media_;  // of light vertex i, under the rule
     // Importance caching: one table set per record, the records' lookup tree (same order), the
     // conservative fallback over every cached vertex, the sample counts, the weighting and the
     // lookup.

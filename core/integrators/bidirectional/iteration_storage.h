@@ -55,6 +55,14 @@ struct BeamReplay {
 static_assert(sizeof(BeamReplay) <= kBeamReplayBytesBound,
               "BeamReplay grew: raise kBeamReplayBytesBound (the memory estimate uses it)");
 
+// What the camera's medium rule reads of a stored light vertex, kept beside it (a LightVertex is
+// two cache lines and has no room): the medium the subpath arrived in and, at a surface, the
+// surface's shape, whose declaration decides whether the medium goes on through it.
+struct LightVertexMedia {
+    const Medium* arrival = nullptr;
+    const Shape* shape = nullptr;  // null in a medium
+};
+
 // One thread's photon beams while the light paths are traced (IterationStorage).
 struct PhotonBeamStaging {
     std::vector<PhotonBeam> beams;
@@ -91,10 +99,11 @@ static_assert(sizeof(LightRay) <= kLightRayBytesBound,
 struct LightChunk {
     uint64_t index = 0;
     std::vector<LightVertex> vertices;
-    std::vector<uint32_t> path_sizes;           // vertices kept per path
-    std::vector<LightRay> light_rays;           // with J2, else none
-    std::vector<uint32_t> ray_counts;           // light rays per path, with J2
-    std::vector<Joint2Vertex> joint2_vertices;  // one per vertex with J2, else none
+    std::vector<uint32_t> path_sizes;             // vertices kept per path
+    std::vector<LightRay> light_rays;             // with J2, else none
+    std::vector<uint32_t> ray_counts;             // light rays per path, with J2
+    std::vector<Joint2Vertex> joint2_vertices;    // one per vertex with J2, else none
+    std::vector<LightVertexMedia> arrival_media;  // one per vertex under the rule, else none
     std::vector<Splat> splats;
     RenderStats stats;
 };
@@ -111,6 +120,9 @@ struct IterationStorage {
     std::vector<uint32_t> ray_ends;
     // J2's state of each light vertex, indexed like light_vertices (with J2; else empty).
     BlockVector<Joint2Vertex> joint2_vertices;
+    // Each light vertex's media, indexed like light_vertices, under the camera's medium rule
+    // (IterationPlan::camera_medium_rule); else empty.
+    BlockVector<LightVertexMedia> light_vertex_media;
     // The light pass's chunk buffers (a few per thread), reused from one iteration to the next.
     std::vector<std::unique_ptr<LightChunk>> light_chunks;
     std::vector<LightChunk*> free_light_chunks;

@@ -64,8 +64,8 @@ bool Iteration::generate_volume_light_sample(const VolumeEmitter& emitter, float
 
 void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& vertices,
                                  std::vector<Splat>& splats, RenderStats& stats,
-                                 std::vector<LightRay>* rays,
-                                 std::vector<Joint2Vertex>* joint2) const {
+                                 std::vector<LightRay>* rays, std::vector<Joint2Vertex>* joint2,
+                                 std::vector<LightVertexMedia>* arrival_media) const {
     Rng rng(StreamKey{key_.seed, key_.frame, key_.iteration, kLightStreamBase + path_index});
     SubpathState state;
     Ray ray;
@@ -93,6 +93,9 @@ void Iteration::trace_light_path(uint64_t path_index, std::vector<LightVertex>& 
                 vertices.emplace_back(*v, wo, state.throughput, state.path_length, state.mis,
                                       state.is_finite_light);
                 if (joint2) joint2->push_back(v->joint2);
+                if (arrival_media)
+                    arrival_media->push_back(
+                        LightVertexMedia{v->medium, v->in_medium() ? nullptr : v->shape});
             }
             if ((plan_.vertex_connections || plan_.light_tracing_only) &&
                 state.path_length + 1 <= plan_.max_length)
@@ -168,6 +171,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         chunk->light_rays.clear();
         chunk->ray_counts.clear();
         chunk->joint2_vertices.clear();
+        chunk->arrival_media.clear();
         chunk->splats.clear();
         chunk->stats = RenderStats{};
         const uint64_t first = chunk->index * kLightPathChunk;
@@ -176,7 +180,8 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
             const size_t before = chunk->vertices.size(), rays_before = chunk->light_rays.size();
             trace_light_path(p, chunk->vertices, chunk->splats, chunk->stats,
                              plan_.joint2 ? &chunk->light_rays : nullptr,
-                             plan_.joint2 ? &chunk->joint2_vertices : nullptr);
+                             plan_.joint2 ? &chunk->joint2_vertices : nullptr,
+                             plan_.camera_medium_rule ? &chunk->arrival_media : nullptr);
             chunk->path_sizes.push_back(uint32_t(chunk->vertices.size() - before));
             if (plan_.joint2)
                 chunk->ray_counts.push_back(uint32_t(chunk->light_rays.size() - rays_before));
@@ -190,6 +195,7 @@ void Iteration::trace_light_paths(RenderStats& stats, const SplatSink& add_splat
         for (uint32_t count : chunk->ray_counts) ray_ends_.push_back(ray_end += count);
         light_rays_.insert(light_rays_.end(), chunk->light_rays.begin(), chunk->light_rays.end());
         for (const Joint2Vertex& j : chunk->joint2_vertices) joint2_vertices_.push_back(j);
+        for (const LightVertexMedia& m : chunk->arrival_media) light_vertex_media_.push_back(m);
         for (LightVertex& v : chunk->vertices) {
             if (plan_.merging) {
                 const bool medium = v.in_medium();

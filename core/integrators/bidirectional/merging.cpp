@@ -28,7 +28,9 @@ Rgb Iteration::merge(const Vertex& v, const Vec3& wo, const SubpathState& state)
         if (lv.path_length + state.path_length > plan_.max_length) return;
         // The light subpath's last region goes on through the eye vertex unless its surface
         // declares media: both must be in the same medium there (docs/design/media.md).
-        if (plan_.camera_medium_rule && v.keeps_medium() && lv.vertex.medium != v.medium) return;
+        if (plan_.camera_medium_rule && v.keeps_medium() &&
+            light_vertex_media_[i].arrival != v.medium)
+            return;
         // The photon arrived from lv.wo; the eye vertex scatters it toward wo.
         const auto [f, pdf_w] = v.evaluate(wo, lv.wo);
         if (f.is_black()) return;

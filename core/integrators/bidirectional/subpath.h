@@ -164,9 +164,11 @@ struct MediumLightVertex {
 // (path_length, wo, mis, throughput; in a medium the medium and p) lies in the first line; a
 // connection reads the BSDF, which ends the second. A surface vertex's BSDF and a medium
 // vertex's MediumLightVertex share their bytes, as the two never both exist; the geometric
-// normal is the BSDF's, the phase function and medium the medium part's. Nothing reads a surface
-// light vertex's arrival medium or shape, nor a light vertex's joint_distance_pdf or query_beam
-// (eye-vertex quantities), so they are not stored. Built from the Vertex a light subpath reached.
+// normal is the BSDF's, the phase function and medium the medium part's. A surface light
+// vertex's arrival medium is kept beside it only where merges compare it with the eye's
+// (IterationStorage::light_vertex_media); nothing reads its shape, nor a light vertex's
+// joint_distance_pdf or query_beam (eye-vertex quantities), so they are not stored. Built from
+// the Vertex a light subpath reached.
 struct alignas(64) LightVertex {
     Vec3 p;
     Vec3 wo;  // toward the previous vertex of the light subpath
