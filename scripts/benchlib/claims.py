@@ -194,7 +194,7 @@ CLAIMS = [
     div_claim("div-corner", "claims/div-corner.xml", [], "gain", 5.0, 96, 915),
     div_claim("div-two-rooms", "tests/two-rooms.xml", [], "gain", 5.0, 64, 217),
     # The control's iterations are short (0.05-0.08 s of CPU at 64x64): runs of 1.5 s of CPU
-    # (20-30 iterations) so that the scene loading subtracted from each run's CPU time is a
+    # (about 20 iterations) so that the scene loading subtracted from each run's CPU time is a
     # small part of it and the pooled variance holds many iterations per run.
     div_claim("div-cornell-control", "bitterli/cornell-box/scene_v3.xml", [], "control", 1.15,
               64, 108, run_seconds=1.5),
@@ -670,7 +670,7 @@ NOTES = {
         "few percent of it; the CPU-time ratio in the table agrees. What it loses is variance "
         "(the variance ratio above): where the share kept is 60 %, the work saved is at most "
         "40 %, and a VPL dropped by the roulette returns, when kept, with its power times 1 / "
-        "P_k, up to 1 / P_min. Runs of 1.5 s of CPU each (20-30 iterations), so that each "
+        "P_k, up to 1 / P_min. Runs of 1.5 s of CPU each (the iterations column), so that each "
         "run's CPU time less the scene loading measures t well.",
     "importance caching":
         "Compared at equal sample count (16 VPLs per shading point in both arms), the paper's "
@@ -920,8 +920,10 @@ def div_verdict_reason(row, kept) -> str:
     if row["direction"] != ">=" or row["held"]:
         return ""
     if kept and 100.0 / kept < row["target"]:
-        return (f" From the same light paths the variance stays about the same and the cost "
-                f"falls at most to the share of VPLs kept ({kept:.1f} %), so the ratio cannot "
+        u, i = row["arms"]["uniform"], row["arms"]["importance"]
+        return (f" From the same light paths the roulette cannot lower an iteration's variance "
+                f"(here it is {i['v'] / u['v']:.3g}× uniform's) and the cost falls at most to "
+                f"the share of VPLs kept ({kept:.1f} %), so the ratio cannot "
                 f"pass about {100.0 / kept:.3g}, below the target {row['target']:g}: the scene "
                 f"keeps too large a share of its candidates. The paper's order of magnitude is "
                 f"that of its teaser, which keeps 7 %; its interiors keep 23-33 % (Sponza, "
