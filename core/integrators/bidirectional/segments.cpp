@@ -8,7 +8,8 @@ namespace render::bidirectional {
 
 std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
                                                     SubpathState& state, RenderStats& stats,
-                                                    SampledSegment& seg) const {
+                                                    SampledSegment& seg,
+                                                    const TracedPieces* traced) const {
     if (!state.medium && !scene_.has_media()) {
         // Surface-only scenes: one closest hit, every distance density 1 (as sample_segment
         // would return, without its bookkeeping).
@@ -18,7 +19,7 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
         seg.position = seg.si.p;
         seg.distance = seg.si.t;
     } else {
-        seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+        seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats, traced);
         // The eye collects emission at vertices of emitting media even where nothing scatters
         // (albedo 0); trace_eye_path ends the path after it.
         const bool collects_emission = mode == TransportMode::Radiance &&
