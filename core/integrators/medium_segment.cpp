@@ -39,14 +39,21 @@ SegmentDensities SegmentDensityBuilder::finish(bool end_in_medium) const {
 }
 
 SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
-                              bool start_in_medium, Rng& rng, RenderStats& stats) {
+                              bool start_in_medium, Rng& rng, RenderStats& stats,
+                              const TracedPieces* traced) {
     SampledSegment out;
     SegmentDensityBuilder densities(start_in_medium);
     const Vec3 start = ray.origin;
     for (int crossing = 0; crossing <= kMaxNullCrossings; ++crossing) {
         SurfaceInteraction si;
-        ++stats.rays;
-        const bool hit = scene.intersect(ray, si);
+        bool hit;
+        if (traced && crossing < traced->count) {
+            hit = traced->hit[crossing];
+            if (hit) si = traced->si[crossing];
+        } else {
+            ++stats.rays;
+            hit = scene.intersect(ray, si);
+        }
         const float t_end = hit ? si.t : kInfinity;
         if (medium) {
             if (crossing == 0 && !medium->is_homogeneous() && !medium->pass_weight_is_one()) {

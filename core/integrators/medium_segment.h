@@ -87,11 +87,34 @@ struct SampledSegment {
     float first_piece_t_max = 0;
 };
 
+// The closest hits of the first pieces of a segment, traced already by a walk along the same
+// ray through the same null boundaries (the eye pass's gathers of query and photon beams walk
+// the whole segment just before it is sampled): sample_segment reads them instead of tracing
+// the same rays again. Hit k is the closest hit of the ray after k crossings.
+struct TracedPieces {
+    static constexpr int kCapacity = 4;
+    int count = 0;
+    bool hit[kCapacity] = {};
+    SurfaceInteraction si[kCapacity];
+
+    // Records the closest hit of the walk's piece after `crossing` crossings (pieces past the
+    // capacity, or after a gap, are traced again).
+    void record(int crossing, bool was_hit, const SurfaceInteraction& interaction) {
+        if (crossing != count || count >= kCapacity) return;
+        hit[count] = was_hit;
+        if (was_hit) si[count] = interaction;
+        ++count;
+    }
+};
+
 // Traces `ray` from a vertex (in a medium when `start_in_medium`) through null boundaries and
 // media, sampling distances, to the next scattering vertex: a non-null surface, a scattering
-// event in a medium, or nothing. Counts traced rays in `stats`.
+// event in a medium, or nothing. Counts traced rays in `stats`. `traced`: the closest hits of
+// the first pieces along this very ray, when a walk found them already (the same hits this
+// function would trace: the result is the same).
 SampledSegment sample_segment(const Scene& scene, Ray ray, const Medium* medium,
-                              bool start_in_medium, Rng& rng, RenderStats& stats);
+                              bool start_in_medium, Rng& rng, RenderStats& stats,
+                              const TracedPieces* traced = nullptr);
 
 struct SegmentConnection {
     Rgb transmittance{0.0f};  // zero when a non-null surface blocks the segment

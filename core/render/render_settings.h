@@ -62,10 +62,12 @@ struct RenderSettings {
     bool short_photon_beams = true;
     double photon_beam_eta = 0.5;
     // upbp: the fraction of each iteration's light paths (the first ones) whose segments in media
-    // become photon beams (1: all).
-    double photon_beam_paths = 1.0;
-    // upbp: the same fraction for the photon points that query beams gather (1: all).
-    double query_beam_paths = 1.0;
+    // become photon beams (1: all). 0.01: the fraction `scripts/bench --only upbp-defaults`
+    // chose by equal-time RMSE (docs/data/upbp/defaults.json, docs/design/media.md).
+    double photon_beam_paths = 0.01;
+    // upbp: the same fraction for the photon points that query beams gather (1: all; 0.01 as
+    // above).
+    double query_beam_paths = 0.01;
     // vpl: light paths per iteration whose non-delta vertices are the virtual point lights, and
     // the optional distance clamp of their geometry term (a fraction of the scene's
     // bounding-sphere radius; 0 = unclamped) with its schedule (shrinking: consistent).

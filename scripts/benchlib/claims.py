@@ -729,13 +729,20 @@ NOTES = {
         "beams come from a fraction of each iteration's light paths (`--photon-beam-paths` in "
         "the commands below), as in the reference implementation. What remains is the gathers: "
         "photon points (query beams) and photon beams are gathered along every camera segment "
-        "in a medium, at a cost of the camera segments times the points or beams near them. "
+        "in a medium, at a cost of the camera segments times the points or beams near them (one "
+        "walk of the segment's pieces serves both gathers, and the segment's distance sampling "
+        "reuses that walk's closest hits). "
         "That is largest in a small dense medium (upbp-lantern: every light path scatters many "
         "times inside the glass ball, and every camera ray through the ball gathers them), "
         "where the reference implementation can also keep beams out of media whose mean free "
         "path is short against the beam radius (its beam storage factor), which ours cannot "
         "yet. Where bpt is the best arm (thin media), `upbp: all` pays for every estimator at "
-        "once for little less variance, and ties with the other upbp arms for the worst place. "
+        "once for little less variance (the line on extra costs above gives the figures). "
+        "Where every arm has about bpt's variance, the arms' CPU times decide the worst place, "
+        "and they differ by less than the spread that a loaded machine puts between arms "
+        "measured minutes apart (an arm that adds an estimator to bpt can read cheaper than "
+        "bpt above): the place is then the timing's, and callgrind instruction counts "
+        "(CHANGELOG.md, 2026-11-29, upbp's eye pass) are the repeatable comparison. "
         "Query beams likewise gather the photon points of a fraction of the light paths "
         "(`--query-beam-paths`). In upbp-lantern, gathering every path's photons raised the "
         "relative variance per iteration above bpt's although the absolute variance fell 4x: "
@@ -760,6 +767,34 @@ def anchor(heading: str) -> str:
 
 def verdict_text(row) -> str:
     return "held" if row["held"] else "not held"
+
+
+def upbp_cost_line(definition, row) -> str:
+    """What each upbp arm and vcm add to bpt's CPU time per iteration, and whether `upbp: all`
+    costs more than bpt plus its parts' extras: where bpt is the best arm and every arm has
+    about its variance, the extra cost is what decides the verdict."""
+    arms = row["arms"]
+    if "bpt" not in arms:
+        return ""
+    base = arms["bpt"]["t"]
+    extra = {name: arms[name]["t"] / base - 1 for name in arms if name != "bpt"}
+    subject = definition.get("subject")
+    parts = [f"{name} {100 * e:+.0f} %" for name, e in extra.items() if name != subject]
+    variance = ", ".join(f"{name} {arms[name]['v'] / arms['bpt']['v']:.3g}×"
+                         for name in arms if name != "bpt")
+    text = ("CPU time per iteration over bpt's: " + ", ".join(parts)
+            + (f"; {subject} {100 * extra[subject]:+.0f} %" if subject in extra else "")
+            + f". Variance per iteration over bpt's: {variance}.")
+    if not row["held"]:
+        reasons = []
+        if row["worst"] == subject:
+            reasons.append(f"{subject} is the worst arm")
+        if row["ratio"] + 2 * row["se"] > row["target"]:
+            reasons.append(f"its ratio + 2 SE, {row['ratio'] + 2 * row['se']:.3g}, is above "
+                           f"{row['target']:g}")
+        if reasons:
+            text += " Not held because " + " and ".join(reasons) + "."
+    return text
 
 
 def write_page(path: Path, data: dict) -> None:
@@ -833,6 +868,8 @@ def write_page(path: Path, data: dict) -> None:
                           f"{b['v_reference_se']:.2g}, which bounds that ratio by "
                           f"{(b['v_reference'] + a['v']) / b['v_reference']:.3g} however "
                           f"good the sampling.", ""]
+        if row["method"] == "UPBP" and "best" in row:
+            lines += [upbp_cost_line(definition, row), ""]
         if definition.get("run_paths") and "uniform" in row["arms"]:
             lines += [div_paths_line(definition, row), ""]
         lines += [NOTES.get(row["method"], ""), ""]

@@ -33,7 +33,18 @@ inline std::vector<std::string> physically_based_algorithms() {
     return names;
 }
 
-// The default settings of an entry of physically_based_algorithms() (name and options).
+// upbp's photon beams and query beams from every light path (--photon-beam-paths 1
+// --query-beam-paths 1) where `options` name no fraction. render's defaults keep 1 % of the
+// paths' beams and photons (the fraction the measured sweep chose, docs/design/media.md); the
+// tests calibrated with every path (furnaces on a few hundred paths, block tests against a
+// reference, estimators isolated) ask for all of them explicitly.
+inline void beams_from_every_path(RenderSettings& s, const OptionMap& options = {}) {
+    if (!options.count("photon_beam_paths")) s.photon_beam_paths = 1;
+    if (!options.count("query_beam_paths")) s.query_beam_paths = 1;
+}
+
+// The default settings of an entry of physically_based_algorithms() (name and options), upbp's
+// beams from every light path unless the entry names a fraction (beams_from_every_path).
 inline RenderSettings algorithm_settings(const std::string& entry) {
     const size_t space = entry.find(' ');
     OptionMap options;
@@ -48,7 +59,10 @@ inline RenderSettings algorithm_settings(const std::string& entry) {
             begin = end + 1;
         }
     }
-    return resolve_render_settings(entry.substr(0, space), options, SceneSettings{});
+    RenderSettings settings =
+        resolve_render_settings(entry.substr(0, space), options, SceneSettings{});
+    beams_from_every_path(settings, options);
+    return settings;
 }
 
 }  // namespace render::testing

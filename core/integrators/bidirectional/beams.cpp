@@ -76,11 +76,11 @@ std::optional<Aabb> Iteration::gather_reach(bool points, bool beams) const {
     return Aabb{box.lo - margin, box.hi + margin};
 }
 
-Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng,
-                           RenderStats& stats) const {
+Rgb Iteration::query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                           TracedPieces* traced) const {
     Rgb sum(0.0f);
     if (medium_positions_.empty()) return sum;
-    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(true, false),
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(true, false), traced,
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   query_beams_in_piece(ray, state, medium, piece, t_end, before,
@@ -139,7 +139,7 @@ void Iteration::query_beams_in_piece(const Ray& ray, const SubpathState& state,
 template <typename Visit>
 void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
                                           RenderStats& stats, const std::optional<Aabb>& reach,
-                                          Visit&& visit) const {
+                                          TracedPieces* traced, Visit&& visit) const {
     SegmentDensityBuilder before(state.in_medium);
     Rgb transmittance(1.0f);
     const Medium* medium = state.medium;
@@ -150,6 +150,7 @@ void Iteration::for_each_eye_medium_piece(const Ray& ray, const SubpathState& st
         SurfaceInteraction si;
         ++stats.rays;
         const bool hit = scene_.intersect(piece, si);
+        if (traced) traced->record(crossing, hit, si);
         const float t_end = hit ? si.t : kInfinity;
         if (medium) {
             visit(medium, piece, t_end, before, transmittance);
@@ -359,11 +360,11 @@ void Iteration::build_photon_beams() {
     storage_.photon_beam_lookup->build(lines, r);
 }
 
-Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
-                            RenderStats& stats) const {
+Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                            TracedPieces* traced) const {
     Rgb sum(0.0f);
     if (storage_.photon_beams.empty()) return sum;
-    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(false, true),
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(false, true), traced,
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   photon_beams_in_piece(ray, state, medium, piece, t_end, before,
@@ -373,11 +374,11 @@ Rgb Iteration::photon_beams(const Ray& ray, const SubpathState& state, Rng& rng,
 }
 
 void Iteration::both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
-                           Rgb& query_sum, Rgb& photon_sum) const {
+                           Rgb& query_sum, Rgb& photon_sum, TracedPieces* traced) const {
     query_sum = photon_sum = Rgb(0.0f);
     const bool points = !medium_positions_.empty(), beams = !storage_.photon_beams.empty();
     if (!points && !beams) return;
-    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(points, beams),
+    for_each_eye_medium_piece(ray, state, rng, stats, gather_reach(points, beams), traced,
                               [&](const Medium* medium, const Ray& piece, float t_end,
                                   const SegmentDensityBuilder& before, const Rgb& transmittance) {
                                   if (points)

@@ -54,14 +54,15 @@ struct UpbpSettings {
     double photon_beam_eta = 0.5;
     // The fraction of the iteration's light paths, the first ones, whose segments become photon
     // beams (SmallUPBP's photon beam path count): B-B1D's normalisation and MIS constant count
-    // those K paths instead of all N (iteration_plan.cpp).
-    double photon_beam_paths = 1;
+    // those K paths instead of all N (iteration_plan.cpp). 0.01: the fraction the measured sweep
+    // `scripts/bench --only upbp-defaults` chose (docs/data/upbp/defaults.json).
+    double photon_beam_paths = 0.01;
     // The same for the photon points that query beams gather (SmallUPBP's per-estimator light
     // path counts): P-B2D's normalisation and MIS constant count those paths. Fewer photons make
     // each query cheaper and give P-B2D less of the paths other techniques sample better (a
     // merge's density counts every light path as an independent sample, though all of them share
-    // the one eye subpath: docs/design/media.md).
-    double query_beam_paths = 1;
+    // the one eye subpath: docs/design/media.md). 0.01 as above.
+    double query_beam_paths = 0.01;
     double volume_radius_factor = 0;
     double volume_alpha = 1;
 };

@@ -27,23 +27,28 @@ Rgb Iteration::trace_eye_path(uint64_t pixel, RenderStats& stats, const LayerSin
             rays_end = ray_ends_[path];
         }
     }
+    // The gathers' closest hits along the segment about to be sampled (next_vertex reuses them).
+    TracedPieces traced;
     for (;; ++state.path_length) {
         if (plan_.joint && state.path_length < plan_.max_length)
             joint_connections(ray, state, light_first, light_end, rays_first, rays_end, rng, stats,
                               [&](int s, const Rgb& c) { add(Technique::Connection, s, c); });
+        traced.count = 0;
         if (plan_.query_beams && plan_.photon_beams && state.path_length < plan_.max_length) {
             Rgb query_sum, photon_sum;
-            both_beams(ray, state, rng, stats, query_sum, photon_sum);
+            both_beams(ray, state, rng, stats, query_sum, photon_sum, &traced);
             add(Technique::Merging, 0, state.throughput * query_sum);
             add(Technique::Merging, 0, state.throughput * photon_sum);
         } else if (plan_.query_beams && state.path_length < plan_.max_length) {
-            add(Technique::Merging, 0, state.throughput * query_beams(ray, state, rng, stats));
+            add(Technique::Merging, 0,
+                state.throughput * query_beams(ray, state, rng, stats, &traced));
         } else if (plan_.photon_beams && state.path_length < plan_.max_length) {
-            add(Technique::Merging, 0, state.throughput * photon_beams(ray, state, rng, stats));
+            add(Technique::Merging, 0,
+                state.throughput * photon_beams(ray, state, rng, stats, &traced));
         }
         SampledSegment seg;
         std::optional<SubpathVertex> v =
-            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg);
+            next_vertex(ray, TransportMode::Radiance, rng, state, stats, seg, &traced);
         if (!v) {
             if (seg.end == SegmentEnd::Escaped && !state.throughput.is_black())
                 escaped_emission(state, ray, seg,

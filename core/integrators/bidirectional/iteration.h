@@ -136,10 +136,12 @@ class Iteration {
     void escaped_emission(SubpathState& state, const Ray& ray, const SampledSegment& seg,
                           FunctionRef<void(const Rgb&)> add) const;
     // Traces the next segment of a subpath and, unless it left the scene, builds the vertex
-    // it ends at and completes the MIS quantities' conversion (`arrive`).
+    // it ends at and completes the MIS quantities' conversion (`arrive`). `traced`: closest
+    // hits along `ray` a gather's walk found already (sample_segment reuses them).
     std::optional<SubpathVertex> next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
                                              SubpathState& state, RenderStats& stats,
-                                             SampledSegment& segment) const;
+                                             SampledSegment& segment,
+                                             const TracedPieces* traced = nullptr) const;
     bool sample_scattering(const SubpathVertex& v, const Vec3& wo, Rng& rng, SubpathState& state,
                            Ray& ray) const;
     // The emission `le` the eye subpath found on `light` (at `hit_point` for a finite light),
@@ -303,7 +305,9 @@ class Iteration {
     // Query beams (P-B2D): the photon points within the beam radius of the eye segment about
     // to be traced along `ray`, over every piece in a medium up to the first surface that is
     // not a null boundary (the long query), each gathered at its projection on the segment.
-    Rgb query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    // The walk's closest hits go to `traced` (when given) for the segment's sampling.
+    Rgb query_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                    TracedPieces* traced = nullptr) const;
     // The pieces of an eye segment along `ray`, walked as sample_segment does without sampling
     // a distance, up to the first surface that is not a null boundary: visit(medium, piece,
     // t_end, before, transmittance) for each piece in a medium, with the MIS densities and the
@@ -311,7 +315,7 @@ class Iteration {
     template <typename Visit>
     void for_each_eye_medium_piece(const Ray& ray, const SubpathState& state, Rng& rng,
                                    RenderStats& stats, const std::optional<Aabb>& reach,
-                                   Visit&& visit) const;
+                                   TracedPieces* traced, Visit&& visit) const;
     // Photon beams (B-B1D). Light subpaths: the beams of the segment just sampled along `ray`
     // from the subpath `from` (its state before the segment), appended to the thread's staging
     // buffer; `piece` counts the path's pieces so far.
@@ -323,12 +327,13 @@ class Iteration {
     // Eye subpaths: the photon beams within the beam radius of the eye segment about to be
     // traced along `ray` (its pieces in media up to the first surface that is not a null
     // boundary: the long query), each gathered at its closest approach.
-    Rgb photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats) const;
+    Rgb photon_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
+                     TracedPieces* traced = nullptr) const;
     // Both gathers over one walk of the eye segment's pieces (each normalised as the two
     // functions above normalise it): one closest hit and one transmittance per piece instead
     // of two. The sums are those of query_beams and photon_beams, in the same order.
     void both_beams(const Ray& ray, const SubpathState& state, Rng& rng, RenderStats& stats,
-                    Rgb& query_sum, Rgb& photon_sum) const;
+                    Rgb& query_sum, Rgb& photon_sum, TracedPieces* traced = nullptr) const;
     // Where the walk of an eye segment can gather a photon point (points) or a photon beam
     // (beams): the lookups' boxes, grown by the drift of the pieces' origins over the walk's
     // null-boundary crossings. The walk stops at a piece whose line misses it (saving the closest

@@ -8,7 +8,8 @@ namespace render::bidirectional {
 
 std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMode mode, Rng& rng,
                                                     SubpathState& state, RenderStats& stats,
-                                                    SampledSegment& seg) const {
+                                                    SampledSegment& seg,
+                                                    const TracedPieces* traced) const {
     if (!state.medium && !scene_.has_media()) {
         // Surface-only scenes: one closest hit, every distance density 1 (as sample_segment
         // would return, without its bookkeeping).
@@ -18,7 +19,7 @@ std::optional<SubpathVertex> Iteration::next_vertex(const Ray& ray, TransportMod
         seg.position = seg.si.p;
         seg.distance = seg.si.t;
     } else {
-        seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats);
+        seg = sample_segment(scene_, ray, state.medium, state.in_medium, rng, stats, traced);
         if (plan_.camera_medium_rule && arrives_against_declaration(seg, ray)) {
             // The region just crossed is in another medium for camera paths than this subpath
             // gave it (docs/design/media.md, "Which medium a path is in"). A light subpath's

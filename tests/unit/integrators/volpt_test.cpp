@@ -15,6 +15,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/algorithms.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/statistics.h"
 #include "tests/support/test_scenes.h"
@@ -35,6 +36,7 @@ RenderSettings settings_for(const std::string& algorithm, bool equiangular, int 
     settings.jis = jis;                // volpt
     settings.joint_connections = jis;  // bpt
     if (radius_factor > 0) settings.radius_factor = radius_factor;
+    testing::beams_from_every_path(settings);  // upbp: every path's beams and photons
     if (adjust) adjust(settings);
     return settings;
 }
@@ -520,6 +522,7 @@ TEST(HardCases, QueryBeamsAtExtremeThicknessStayFinite) {
                                     {{"resx", "16"}, {"resy", "16"}, {"sigma_t", sigma_t}});
             RenderSettings settings = resolve_render_settings("upbp", {}, scene->settings);
             settings.seed = 1234;
+            testing::beams_from_every_path(settings);
             adjust(settings);
             const IterationResult r = render_iterations(*scene, settings, 0, IterationRange{1, 9});
             EXPECT_EQ(r.stats.non_finite, 0u) << sigma_t;

@@ -18,6 +18,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/algorithms.h"
 #include "tests/support/iteration_contract.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/statistics.h"
@@ -74,6 +75,7 @@ std::string grid_medium(const std::string& path, const std::string& scale,
 RenderSettings upbp(void (*adjust)(RenderSettings&), double radius_factor = 0.02) {
     RenderSettings s = resolve_render_settings("upbp", {}, SceneSettings{});
     s.seed = 1234;
+    testing::beams_from_every_path(s);
     s.radius_factor = radius_factor;
     if (adjust) adjust(s);
     return s;

@@ -117,6 +117,7 @@ RenderSettings settings_for(const std::string& algorithm, uint64_t seed, int max
     s.algorithm = algorithm;
     s.seed = seed;
     s.max_depth = max_depth;
+    testing::beams_from_every_path(s);  // upbp: every path's beams and photons
     return s;
 }
 

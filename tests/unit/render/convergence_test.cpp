@@ -17,6 +17,7 @@
 #include "core/render/render_iterations.h"
 #include "core/render/render_options.h"
 #include "core/scene/loader/scene_loader.h"
+#include "tests/support/algorithms.h"
 #include "tests/support/block_estimate.h"
 #include "tests/support/pixel_statistics.h"
 #include "tests/support/statistics.h"
@@ -37,6 +38,7 @@ BlockEstimate render_blocks(const Scene& scene, const std::string& algorithm,
                             void (*adjust)(RenderSettings&) = nullptr) {
     RenderSettings settings = resolve_render_settings(algorithm, options, scene.settings);
     settings.seed = 1234;
+    testing::beams_from_every_path(settings, options);
     if (adjust) adjust(settings);
     // r1 = 1 % of the scene radius (about a pixel at 32 x 32) instead of SmallVCM's 0.3 %: at
     // this resolution the default radius is a tenth of a pixel and photon mapping would need
@@ -371,6 +373,7 @@ TEST(Convergence, UpbpMatchesBptOnTheVolumetricCaustic) {
     auto blocks = [&](const std::string& algorithm, int iterations, const OptionMap& options) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
+        testing::beams_from_every_path(settings, options);
         settings.radius_factor = 0.01;
         return testing::render_block_estimate(*scene, settings, kBatches, iterations, 4);
     };
@@ -456,6 +459,7 @@ TEST(Convergence, QueryBeamsBiasShrinksWithTheRadius) {
     auto image_mean = [&](const std::string& algorithm, const OptionMap& options) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
+        testing::beams_from_every_path(settings, options);
         settings.max_depth = 6;
         return accumulate(batch_image_means(*scene, settings, 16, 16));
     };
@@ -560,6 +564,7 @@ TEST(Convergence, PhotonBeamsBiasShrinksWithTheRadius) {
     auto batch_means = [&](const std::string& algorithm, const OptionMap& options) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
+        testing::beams_from_every_path(settings, options);
         return batch_image_means(*scene, settings, kBatches, kBatchIterations);
     };
     const std::vector<double> reference_batches = batch_means("bpt", {});
@@ -684,6 +689,7 @@ TEST(Convergence, JointMergeWeightsMatchBptOnSingleScatteringInTheFogBox) {
     auto blocks = [&](const std::string& algorithm, const OptionMap& options) {
         RenderSettings settings = resolve_render_settings(algorithm, options, scene->settings);
         settings.seed = 1234;
+        testing::beams_from_every_path(settings, options);
         settings.max_depth = 2;
         settings.radius_factor = 0.05;
         return testing::render_block_estimate(*scene, settings, kBatches, 4, kBlocksPerSide);
