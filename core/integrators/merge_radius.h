@@ -8,6 +8,9 @@
 
 namespace render {
 
+class PerspectiveCamera;
+struct SceneSphere;
+
 // r_i = r1 * i^((alpha - 1) / 2) for the 1-based iteration i (the radius reduction of
 // Knaus and Zwicker 2011, as the VCM paper uses it). alpha in (0, 1]: 1 keeps the radius fixed.
 // The result never falls below min_merge_radius(), so 1 / (pi r^2 N) stays finite in float.
@@ -21,5 +24,19 @@ double merge_radius_in(double r1, double alpha, uint64_t iteration, int dimensio
 // Floor of the schedule, 1e-18: pi r^2 stays above float's smallest normal number (1e-38), so
 // the merging normalisation 1 / (pi r^2 N) is finite for any light-path count N >= 1.
 double min_merge_radius();
+
+// The side of one pixel's footprint at the scene: the pixel's side on the image plane at
+// distance 1 (sqrt(image plane area / pixels)) times the distance from the camera to the
+// bounding sphere's centre, or the sphere's radius when the camera is inside it (its first hits
+// then lie about that far away). Independent of the scene's scale and of the resolution's
+// aspect (docs/reference/algorithms.md, "Merging radius").
+double pixel_footprint(const PerspectiveCamera& camera, const SceneSphere& sphere);
+
+// r_1 in world units: radius_factor x the bounding sphere's radius when radius_factor > 0
+// (the scene-relative rule), else radius_pixels x pixel_footprint (the default: the kernel
+// covers the same share of a pixel, and with one light path per pixel holds the same number of
+// photons, at every resolution and scene scale).
+double initial_merge_radius(double radius_factor, double radius_pixels,
+                            const PerspectiveCamera& camera, const SceneSphere& sphere);
 
 }  // namespace render

@@ -27,7 +27,8 @@ BidirectionalConfig bidirectional_config(BidirectionalAlgorithm algorithm,
                        .rr_depth = s.rr_depth,
                        .light_path_count = s.light_path_count,
                        .roulette = s.roulette};
-    config.merging = {.radius_factor = s.radius_factor, .alpha = s.alpha};
+    config.merging = {
+        .radius_factor = s.radius_factor, .radius_pixels = s.radius_pixels, .alpha = s.alpha};
     config.mis_power = s.mis_power;
     return config;
 }
@@ -52,8 +53,9 @@ ManyLightConfig many_light_config(ManyLightEstimator estimator, const RenderSett
 // The options of the bidirectional family; merging ones only where merging happens.
 const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "roulette", "light_paths",
                                               "mis"};
-const std::vector<std::string> kMerging = {"max_depth", "rr_depth",      "roulette", "light_paths",
-                                           "mis",       "radius_factor", "alpha"};
+const std::vector<std::string> kMerging = {"max_depth",     "rr_depth", "roulette",
+                                           "light_paths",   "mis",      "radius_factor",
+                                           "radius_pixels", "alpha"};
 
 // The working memory of the bidirectional family's rows: its stored light paths.
 template <bool merges, bool volume_estimators = false>
@@ -172,7 +174,7 @@ std::vector<Algorithm>& table() {
                         "media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
-                     "alpha", "joint_connections"},
+                     "radius_pixels", "alpha", "joint_connections"},
          .variants = {{{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              // J2's factors in the merge weights are not derived (docs/design/media.md).
@@ -194,10 +196,10 @@ std::vector<Algorithm>& table() {
              "segments in media gathered by camera segments)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
-                     "alpha", "vertex_connections", "surface_merging", "photon_points",
-                     "query_beams", "photon_beams", "photon_beam_length", "photon_beam_eta",
-                     "photon_beam_paths", "query_beam_paths", "volume_radius_factor",
-                     "volume_alpha"},
+                     "radius_pixels", "alpha", "vertex_connections", "surface_merging",
+                     "photon_points", "query_beams", "photon_beams", "photon_beam_length",
+                     "photon_beam_eta", "photon_beam_paths", "query_beam_paths",
+                     "volume_radius_factor", "volume_alpha"},
          // Query and photon beams beside connections only; query beams, then photon beams (long,
          // with the other eta_1), as the only estimator in media.
          .variants = {{{"surface_merging", "off"}, {"photon_points", "off"}},

@@ -22,10 +22,12 @@ struct RenderSettings {
     int threads = 0;    // 0 = all cores; never changes the image
 
     // Bidirectional family (lt, bpt, ppm, bpm, vcm).
-    // Initial merging radius as a fraction of the scene's bounding-sphere radius, and the
-    // radius reduction exponent: the defaults of the VCM reference implementation (SmallVCM),
-    // with which the reference Cornell boxes were rendered.
-    double radius_factor = 0.003;
+    // Initial merging radius: a fraction of the scene's bounding-sphere radius when
+    // radius_factor > 0 (SmallVCM's rule; it used 0.003), else (the default) radius_pixels
+    // pixel footprints (merge_radius.h); and the radius reduction exponent. The defaults were
+    // chosen by equal-time error (docs/reference/algorithms.md, "Merging radius").
+    double radius_factor = 0;
+    double radius_pixels = 1;
     double alpha = 0.75;
     // Light paths per iteration; 0 = one per pixel (SmallVCM's choice: every eye path then has
     // a light path of its own to connect to).

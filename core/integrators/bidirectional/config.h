@@ -29,10 +29,12 @@ struct SubpathSettings {
     RoulettePolicy roulette = RoulettePolicy::Throughput;  // core/integrators/roulette.h
 };
 
-// The merging radius of iteration i: r_i = radius_factor x the scene's bounding-sphere radius x
-// i^((alpha - 1) / 2) (merge_radius.h).
+// The merging radius of iteration i: r_i = r_1 i^((alpha - 1) / 2), r_1 = radius_factor x the
+// scene's bounding-sphere radius when radius_factor > 0, else radius_pixels x the camera's pixel
+// footprint at the scene (merge_radius.h; the defaults: docs/reference/algorithms.md).
 struct MergeSchedule {
-    double radius_factor = 0.003;
+    double radius_factor = 0;
+    double radius_pixels = 1;
     double alpha = 0.75;
 };
 

@@ -48,8 +48,10 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
     p.joint2 = p.joint && config.joint.j2 && a == A::Bpt;
 
     const double scene_radius = scene.bounding_sphere().radius;
-    p.radius =
-        merge_radius(config.merging.radius_factor * scene_radius, config.merging.alpha, iteration);
+    const double r1 =
+        initial_merge_radius(config.merging.radius_factor, config.merging.radius_pixels,
+                             scene.camera(), scene.bounding_sphere());
+    p.radius = merge_radius(r1, config.merging.alpha, iteration);
     // UPBP's volume estimators have their own schedule, reduced as their kernels' dimensions
     // ask (3 for photon points, 2 for query beams); without one, photon points merge with the
     // surfaces' radius, and query beams share it too (a disc, like a surface merge).
@@ -62,9 +64,9 @@ IterationPlan plan_iteration(const BidirectionalConfig& config, const Scene& sce
                                     : p.radius;
     // Photon beams: a 1-D kernel, r_i = r_1 i^(alpha - 1) (merge_radius_in at dimension 1) on
     // the volume schedule, else on the surfaces' factor and alpha.
-    p.photon_beam_radius = merge_radius_in(
-        (volume_schedule ? upbp.volume_radius_factor : config.merging.radius_factor) * scene_radius,
-        volume_schedule ? upbp.volume_alpha : config.merging.alpha, iteration, 1);
+    p.photon_beam_radius =
+        merge_radius_in(volume_schedule ? upbp.volume_radius_factor * scene_radius : r1,
+                        volume_schedule ? upbp.volume_alpha : config.merging.alpha, iteration, 1);
     const double n_light = double(p.light_path_count);
     const double eta_vcm = kPi * p.radius * p.radius * n_light;
     // Photon points in media: the kernel is a ball, eta = 4/3 pi r^3 N_light.

@@ -208,9 +208,9 @@ TEST_F(ManagerTest, OptionsAreCheckedAndStoredComplete) {
     const auto& stored = job.settings().options();
     EXPECT_EQ(stored.at("alpha"), "0.5");
     EXPECT_EQ(stored.at("mis"), "balance");
-    EXPECT_EQ(stored.at("radius_factor"), "0.003");  // the default, made explicit
-    EXPECT_EQ(stored.count("equiangular"), 0u);      // vcm does not read it
-    EXPECT_EQ(job.settings().alpha(), 0.0);          // folded into the map
+    EXPECT_EQ(stored.at("radius_pixels"), "1");  // the default, made explicit
+    EXPECT_EQ(stored.count("equiangular"), 0u);  // vcm does not read it
+    EXPECT_EQ(job.settings().alpha(), 0.0);      // folded into the map
     r = good;
     r.mutable_settings()->set_algorithm("path");  // an alias is stored by its name
     ASSERT_TRUE(m.submit(r, &job).ok());
