@@ -268,6 +268,7 @@ async function loadMap(kind, jobId, width) {
   img.hidden = false;
   img.nextElementSibling.hidden = false;
   img.width = width;
+  img.nextElementSibling.style.width = `${width}px`;  // the ramp under the map, as wide
   img.dataset.job = jobId;
   const low = Number(response.headers.get("X-Map-Low"));
   const high = Number(response.headers.get("X-Map-High"));
