@@ -208,17 +208,8 @@ HttpServer::HttpServer(JobManager& manager, const Auth& auth, bool dashboard)
         out << "]}\n";
         res.set_content(out.str(), "application/json");
     });
-    http.Get(std::string(kJob) + "/preview.png", [this, authorized](const httplib::Request& req,
-                                                                    httplib::Response& res) {
-        if (!authorized(req, res)) return;
-        uint32_t frame = 0;
-        if (!frame_param(req, &frame))
-            return send_error(
-                res, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "frame must be a number"));
-        Image image;
-        if (grpc::Status st = manager_.preview_image(req.matches[1], frame, &image); !st.ok())
-            return send_error(res, st);
-        // The PNG writer is the image plugin's, which writes files: a temporary one.
+    // A PNG of `image` through the image plugin, which writes files: a temporary one.
+    auto send_png = [this](httplib::Response& res, const Image& image) {
         const fs::path file =
             manager_.assets().tmp_dir() / ("dashboard-" + random_suffix() + ".png");
         std::string bytes;
@@ -235,7 +226,53 @@ HttpServer::HttpServer(JobManager& manager, const Auth& auth, bool dashboard)
         fs::remove(file, ec);
         res.set_header("Cache-Control", "no-store");
         res.set_content(bytes, "image/png");
-    });
+    };
+    http.Get(std::string(kJob) + "/preview.png",
+             [this, authorized, send_png](const httplib::Request& req, httplib::Response& res) {
+                 if (!authorized(req, res)) return;
+                 uint32_t frame = 0;
+                 if (!frame_param(req, &frame))
+                     return send_error(res, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                                         "frame must be a number"));
+                 Image image;
+                 if (grpc::Status st = manager_.preview_image(req.matches[1], frame, &image);
+                     !st.ok())
+                     return send_error(res, st);
+                 send_png(res, image);
+             });
+    // The maps beside the preview (core/render/adaptive_maps.h): false colour, with the legend in
+    // headers (X-Map-Low and X-Map-High: the values at the ramp's ends, X-Map-Scale: log or
+    // linear, X-Map-Source: where the variance comes from).
+    for (const bool variance : {true, false}) {
+        http.Get(std::string(kJob) + (variance ? "/variance.png" : "/samples.png"),
+                 [this, authorized, send_png, variance](const httplib::Request& req,
+                                                        httplib::Response& res) {
+                     if (!authorized(req, res)) return;
+                     uint32_t frame = 0;
+                     if (!frame_param(req, &frame))
+                         return send_error(res, grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                                             "frame must be a number"));
+                     PixelMaps maps;
+                     if (grpc::Status st = manager_.pixel_maps(req.matches[1], frame, &maps);
+                         !st.ok())
+                         return send_error(res, st);
+                     if (variance && maps.variance.empty())
+                         return send_error(
+                             res, grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
+                                               "no per-pixel variance: the frame is done and its "
+                                               "EXR has no variance layer (--layers variance)"));
+                     const HeatMap map = heat_map(variance ? maps.variance : maps.samples,
+                                                  maps.width, maps.height, variance);
+                     char text[64];
+                     std::snprintf(text, sizeof text, "%.6g", map.low);
+                     res.set_header("X-Map-Low", text);
+                     std::snprintf(text, sizeof text, "%.6g", map.high);
+                     res.set_header("X-Map-High", text);
+                     res.set_header("X-Map-Scale", variance ? "log" : "linear");
+                     if (variance) res.set_header("X-Map-Source", maps.variance_source);
+                     send_png(res, map.image);
+                 });
+    }
     http.Post(std::string(kJob) + "/cancel",
               [this, authorized](const httplib::Request& req, httplib::Response& res) {
                   if (!authorized(req, res)) return;

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "core/render/adaptive_maps.h"
 #include "render.pb.h"
 #include "server/accumulator.h"
 #include "server/asset_store.h"
@@ -128,6 +129,10 @@ class JobManager {
     // The current mean image of a frame (the result once it is done), for the dashboard's
     // preview; FAILED_PRECONDITION while nothing has merged.
     grpc::Status preview_image(const std::string& job_id, uint32_t frame, Image* image);
+    // The frame's per-pixel variance and sample counts, for the dashboard's maps beside the
+    // preview (core/render/adaptive_maps.h; job_manager_maps.cpp): from the merged sums while the
+    // frame renders, from the result EXR's layers once it is done.
+    grpc::Status pixel_maps(const std::string& job_id, uint32_t frame, PixelMaps* maps);
     // A frame's estimated relative error after each merged report, against its render time.
     using ErrorPoint = server::ErrorPoint;
     grpc::Status error_history(const std::string& job_id, uint32_t frame,

@@ -177,6 +177,43 @@ void write_exr(const std::filesystem::path& file, const Image& image,
     }
 }
 
+std::optional<Image> read_exr_layer(const std::filesystem::path& file, const std::string& layer) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(file, ec)) throw ImageFileError(file, "no such file");
+    if (!has_exr_magic(file)) throw ImageFileError(file, "not an OpenEXR file");
+    try {
+        Imf::InputFile in(file.c_str());
+        const Imf::Header& header = in.header();
+        const char* components[3] = {"R", "G", "B"};
+        for (const char* c : components) {
+            const Imf::Channel* channel = header.channels().findChannel(layer + "." + c);
+            if (!channel) return std::nullopt;
+            if (channel->type == Imf::UINT || channel->xSampling != 1 || channel->ySampling != 1)
+                throw ImageFileError(file, "layer " + layer + " is not a float RGB layer");
+        }
+        const Imath::Box2i window = header.dataWindow();
+        const int width = window.max.x - window.min.x + 1;
+        const int height = window.max.y - window.min.y + 1;
+        if (width <= 0 || height <= 0) throw ImageFileError(file, "the image has no pixels");
+        charge_scene_memory(pixel_bytes(width, height, 3),
+                            file.string() + ": " + pixels_name(width, height));
+        Image image(width, height);
+        Imf::FrameBuffer frame;
+        const size_t x_stride = 3 * sizeof(float);
+        for (int c = 0; c < 3; ++c)
+            frame.insert(layer + "." + components[c],
+                         Imf::Slice::Make(Imf::FLOAT, image.data() + c, window, x_stride,
+                                          x_stride * size_t(width)));
+        in.setFrameBuffer(frame);
+        in.readPixels(window.min.y, window.max.y);
+        return image;
+    } catch (const ImageFileError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw ImageFileError(file, e.what());
+    }
+}
+
 ImageFileData read_image_file(const std::filesystem::path& file) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(file, ec)) throw ImageFileError(file, "no such file");

@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -59,6 +60,11 @@ ImageFileData read_image_file(const std::filesystem::path& file);
 // file's names (capDate for an EXR's date). Throws std::runtime_error naming the file.
 Image read_image(const std::filesystem::path& file,
                  std::map<std::string, std::string>* metadata = nullptr);
+
+// The layer NAME (channels NAME.R, NAME.G, NAME.B, as write_exr writes them) of an OpenEXR
+// file, or nullopt when the file has no such layer. Throws ImageFileError when the file cannot
+// be read.
+std::optional<Image> read_exr_layer(const std::filesystem::path& file, const std::string& layer);
 
 // 8-bit sRGB PNG preview: exposure scale, then clamp and the sRGB curve (written by the image
 // plugin, in the format the extension names).

@@ -31,6 +31,19 @@ class Integrator {
     virtual void render_iteration(const Scene& scene, const IterationKey& key,
                                   AccumulationBuffer& target, TechniqueLayers* layers,
                                   RenderStats& stats) const = 0;
+
+    // Adaptive sampling (docs/reference/adaptive-sampling.md): whether the next iterations can
+    // estimate only the pixels whose entry of set_active_pixels is 1, leaving every other pixel
+    // 0 and every active pixel's value that of an iteration without the mask.
+    virtual bool takes_active_pixels() const { return false; }
+    // One entry per pixel (the caller keeps it alive); nullptr: every pixel.
+    void set_active_pixels(const uint8_t* active) { active_ = active; }
+
+  protected:
+    const uint8_t* active_pixels() const { return active_; }
+
+  private:
+    const uint8_t* active_ = nullptr;
 };
 
 // Integrators that estimate each pixel independently from one camera ray (PT, eyelight).
@@ -39,20 +52,14 @@ class PixelIntegrator : public Integrator {
   public:
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           TechniqueLayers* layers, RenderStats& stats) const override;
-
-    // Adaptive sampling (docs/reference/adaptive-sampling.md): the next iterations estimate only
-    // the pixels whose entry is 1 (one entry per pixel; the caller keeps it alive); nullptr,
-    // every pixel.
-    void set_active_pixels(const uint8_t* active) { active_ = active; }
+    // Each pixel is its own stream's estimate: skipping one changes no other.
+    bool takes_active_pixels() const override { return true; }
 
   protected:
     // Radiance arriving along `ray` (a camera ray). Counts the rays it traces in stats and
     // reports each technique's contribution to `sink`.
     virtual Rgb Li(const Scene& scene, const Ray& ray, Rng& rng, RenderStats& stats,
                    const LayerSink& sink) const = 0;
-
-  private:
-    const uint8_t* active_ = nullptr;
 };
 
 }  // namespace render

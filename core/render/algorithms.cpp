@@ -51,11 +51,18 @@ ManyLightConfig many_light_config(ManyLightEstimator estimator, const RenderSett
 }
 
 // The options of the bidirectional family; merging ones only where merging happens.
-const std::vector<std::string> kConnecting = {"max_depth", "rr_depth", "roulette", "light_paths",
-                                              "mis"};
-const std::vector<std::string> kMerging = {"max_depth",     "rr_depth", "roulette",
-                                           "light_paths",   "mis",      "radius_factor",
-                                           "radius_pixels", "alpha"};
+const std::vector<std::string> kConnecting = {"max_depth",
+                                              "rr_depth",
+                                              "roulette",
+                                              "light_paths",
+                                              "mis",
+                                              "adaptive",
+                                              "adaptive_min_iterations",
+                                              "adaptive_round"};
+const std::vector<std::string> kMerging = {
+    "max_depth",     "rr_depth",      "roulette", "light_paths", "mis",
+    "radius_factor", "radius_pixels", "alpha",    "adaptive",    "adaptive_min_iterations",
+    "adaptive_round"};
 
 // The working memory of the bidirectional family's rows: its stored light paths.
 template <bool merges, bool volume_estimators = false>
@@ -128,7 +135,8 @@ std::vector<Algorithm>& table() {
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "connections",
                      "joint_connections", "ic_light_paths", "connection_samples",
-                     "ic_record_density", "ic_heuristic"},
+                     "ic_record_density", "ic_heuristic", "adaptive", "adaptive_min_iterations",
+                     "adaptive_round"},
          .variants = {{{"connections", "ic"}},
                       {{"joint_connections", "on"}},
                       {{"joint_connections", "all"}}},
@@ -174,7 +182,8 @@ std::vector<Algorithm>& table() {
                         "media in closed shapes)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
          .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
-                     "radius_pixels", "alpha", "joint_connections"},
+                     "radius_pixels", "alpha", "joint_connections", "adaptive",
+                     "adaptive_min_iterations", "adaptive_round"},
          .variants = {{{"joint_connections", "on"}}},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              // J2's factors in the merge weights are not derived (docs/design/media.md).
@@ -195,11 +204,28 @@ std::vector<Algorithm>& table() {
              "gathered along whole camera segments in media) and photon beams (light-path "
              "segments in media gathered by camera segments)",
          .support = {.homogeneous_media = true, .grid_media = true, .bounded_emissive_media = true},
-         .options = {"max_depth", "rr_depth", "roulette", "light_paths", "mis", "radius_factor",
-                     "radius_pixels", "alpha", "vertex_connections", "surface_merging",
-                     "photon_points", "query_beams", "photon_beams", "photon_beam_length",
-                     "photon_beam_eta", "photon_beam_paths", "query_beam_paths",
-                     "volume_radius_factor", "volume_alpha"},
+         .options = {"max_depth",
+                     "rr_depth",
+                     "roulette",
+                     "light_paths",
+                     "mis",
+                     "radius_factor",
+                     "radius_pixels",
+                     "alpha",
+                     "vertex_connections",
+                     "surface_merging",
+                     "photon_points",
+                     "query_beams",
+                     "photon_beams",
+                     "photon_beam_length",
+                     "photon_beam_eta",
+                     "photon_beam_paths",
+                     "query_beam_paths",
+                     "volume_radius_factor",
+                     "volume_alpha",
+                     "adaptive",
+                     "adaptive_min_iterations",
+                     "adaptive_round"},
          // Query and photon beams beside connections only; query beams, then photon beams (long,
          // with the other eta_1), as the only estimator in media.
          .variants = {{{"surface_merging", "off"}, {"photon_points", "off"}},
@@ -234,7 +260,8 @@ std::vector<Algorithm>& table() {
          .description = "many-light rendering: virtual point lights from light paths (surfaces "
                         "only; no caustics through delta vertices)",
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
-                     "vpl_distribution", "importance_records", "vpl_min_probability"},
+                     "vpl_distribution", "importance_records", "vpl_min_probability", "adaptive",
+                     "adaptive_min_iterations", "adaptive_round"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              ManyLightConfig config = many_light_config(ManyLightEstimator::Vpl, s);
              config.importance = {.enabled = s.vpl_importance,
@@ -254,7 +281,7 @@ std::vector<Algorithm>& table() {
                         "only; no caustics through delta vertices)",
          .options = {"max_depth", "rr_depth", "vpl_paths", "vpl_clamp", "vpl_clamp_schedule",
                      "ic_record_density", "ic_samples", "ic_heuristic", "ic_optimise",
-                     "ic_distributions"},
+                     "ic_distributions", "adaptive", "adaptive_min_iterations", "adaptive_round"},
          .create = [](const RenderSettings& s) -> std::unique_ptr<Integrator> {
              ManyLightConfig config = many_light_config(ManyLightEstimator::Ic, s);
              config.cache = {.record_density = s.ic_record_density,

@@ -43,9 +43,9 @@ struct IterationRenderer::State {
     // The invalid rays of this render's threads alone (not the scene's count, which other
     // renders of the scene in the process add to).
     ArenaInvalidRayTally invalid_rays;
-    // Adaptive sampling: the pixel integrator that takes the masks, the rounds, and for
+    // Adaptive sampling: whether the integrator takes the masks, the rounds, and for
     // add_adaptive the mask of round `mask_round` (none yet: the largest value).
-    PixelIntegrator* pixel_integrator = nullptr;
+    bool takes_masks = false;
     AdaptiveRounds rounds;
     uint64_t mask_round = std::numeric_limits<uint64_t>::max();
     std::vector<uint8_t> mask;
@@ -66,13 +66,13 @@ IterationRenderer::IterationRenderer(const Scene& scene, const RenderSettings& s
     : state_(std::make_unique<State>(scene, settings, frame)) {
     check_algorithm_supports_scene(settings, scene);
     if (settings.adaptive > 0) {
-        // Only an eye pass of independent pixels can skip a pixel without changing the others
-        // (docs/reference/adaptive-sampling.md, "Algorithms").
-        state_->pixel_integrator = dynamic_cast<PixelIntegrator*>(state_->integrator.get());
-        if (!state_->pixel_integrator)
+        // Only an integrator that can skip a pixel without changing the others' values takes
+        // a mask (docs/reference/adaptive-sampling.md, "Algorithms").
+        state_->takes_masks = state_->integrator->takes_active_pixels();
+        if (!state_->takes_masks)
             throw std::invalid_argument(
-                "adaptive sampling (--adaptive) is supported by the pixel algorithms pt and "
-                "volpt, not by " +
+                "adaptive sampling (--adaptive) is supported by pt, volpt and the bidirectional "
+                "and many-light families, not by " +
                 settings.algorithm);
         if (settings.layers != LayerMode::None)
             throw std::invalid_argument(
@@ -120,8 +120,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result,
     } else if (!active.empty()) {
         throw std::invalid_argument("an active-pixel mask for a job that is not adaptive");
     }
-    if (s.pixel_integrator)
-        s.pixel_integrator->set_active_pixels(active.empty() ? nullptr : active.data());
+    if (s.takes_masks) s.integrator->set_active_pixels(active.empty() ? nullptr : active.data());
     const uint64_t invalid_rays_before = s.invalid_rays.count();
     AccumulationBuffer& image = s.iteration_image;
     s.arena.execute([&] {
@@ -155,7 +154,7 @@ void IterationRenderer::add(IterationRange range, IterationResult& result,
             ++result.count;
         }
     });
-    if (s.pixel_integrator) s.pixel_integrator->set_active_pixels(nullptr);
+    if (s.takes_masks) s.integrator->set_active_pixels(nullptr);
     result.stats.invalid_rays += s.invalid_rays.count() - invalid_rays_before;
 }
 

@@ -534,8 +534,8 @@ const std::vector<RenderOption>& table() {
          .effective_with = {{"connections", "ic"}},
          .apply = [](RenderSettings& s, const std::string& v) { s.connection_samples = to_int(v); },
          .format = [](const RenderSettings& s) { return std::to_string(s.connection_samples); }},
-        // Adaptive sampling (docs/reference/adaptive-sampling.md): read by the pixel algorithms
-        // only, whose eye pass can skip a pixel (core/integrators/pixel_loop.h).
+        // Adaptive sampling (docs/reference/adaptive-sampling.md): read by the algorithms whose
+        // eye pass can skip a pixel (Integrator::takes_active_pixels).
         {.name = "adaptive",
          .flag = "--adaptive",
          .metavar = "T",

@@ -1,7 +1,7 @@
 """Adaptive against uniform sampling at equal cost (`scripts/bench --only adaptive`).
 
 For each scene of SCENES (pt or volpt; three with uneven noise, a caustic or glossy region beside
-diffuse walls, and one with even noise):
+diffuse walls, and one with even noise) and of BIDIRECTIONAL_SCENES (bpt):
 
 1. a reference: REFERENCE_ITERATIONS uniform iterations with `--layers variance`, whose variance
    layer gives the reference's own remaining error (mean over pixels and channels of the variance
@@ -20,7 +20,8 @@ render's MSE falls as 1 / iterations), and the ratio of RMSEs at equal cost is
 sqrt(MSE_uniform_scaled / MSE_adaptive). The same ratio at equal camera samples is given beside
 it. Each arm is rendered with SEEDS seeds and its MSEs averaged.
 
-Writes docs/data/adaptive/benchmark.json; docs/results/adaptive-sampling.md is generated from it.
+Writes docs/data/adaptive/benchmark.json (SCENES) and bidirectional.json (BIDIRECTIONAL_SCENES);
+docs/results/adaptive-sampling.md is generated from them.
 """
 
 import math
@@ -61,6 +62,13 @@ SCENES = [
     Scene("glasssph", "scenes/smallupbp/glasssph.xml", "volpt", 64, "uneven"),
     # Two diffuse rooms lit through a door: the noise is spread over the whole image.
     Scene("two-rooms", "scenes/tests/two-rooms.xml", "pt", 64, "even"),
+]
+# The bidirectional family (docs/reference/adaptive-sampling.md, "The bidirectional family"):
+# eye subpaths from the active pixels only, the light pass whole, so an iteration's cost falls
+# less than its active fraction. Their own data file and table (bidirectional.json).
+BIDIRECTIONAL_SCENES = [
+    Scene("glm_c-bpt", "scenes/smallvcm/1-glm_c.xml", "bpt", 64, "uneven"),
+    Scene("cornell-box-bpt", "scenes/bitterli/cornell-box/scene_v3.xml", "bpt", 64, "uneven"),
 ]
 THRESHOLD = 0.05
 MIN_ITERATIONS = 16
@@ -186,35 +194,20 @@ def verdict(row):
     return "held" if r >= 1 / 1.05 else "not held"
 
 
-def run(build_dir: Path, docs_dir: Path, quick: bool, command: str, only=None) -> None:
-    binary = common.render_binary(build_dir)
-    cfg = dict(QUICK) if quick else {"adaptive_iterations": ADAPTIVE_ITERATIONS,
-                                     "reference_iterations": REFERENCE_ITERATIONS,
-                                     "seeds": SEEDS}
-    scenes = [s for s in SCENES if not only or s.name in only]
-    load = datafile.load()
-    t0 = time.monotonic()
-    rows = []
-    with tempfile.TemporaryDirectory(prefix="render-adaptive-") as tmp:
-        for scene in scenes:
-            row = measure_scene(binary, scene, cfg, Path(tmp))
-            print(f"adaptive: {scene.name}: RMSE ratio uniform/adaptive {row['ratio_time']:.3f} "
-                  f"at equal CPU time, {row['ratio_samples']:.3f} at equal samples", flush=True)
-            rows.append(row)
+def write_data(path: Path, rows, cfg, command: str, load, minutes: float) -> None:
     table = [[r["scene"].name, r["scene"].algo, f"{r['resolution'][0]}x{r['resolution'][1]}",
               r["scene"].noise, r["samples_per_pixel_a"], r["iterations_u"], r["cpu_a"],
               r["cpu_u"], math.sqrt(max(r["mse_a"], 0)), math.sqrt(max(r["mse_u"], 0)),
               math.sqrt(r["mse_ref"]), r["best_ratio"], r["ratio_samples"], r["ratio_time"],
               r["rel_ratio"], verdict(r)]
              for r in rows]
-    path = Path(docs_dir) / "data" / "adaptive" / "benchmark.json"
     datafile.write(path, {
         "stamp": datafile.stamp(command, load_before=load),
         "measured": True,
         "values": {"threshold": THRESHOLD, "min_iterations": MIN_ITERATIONS, "round": ROUND,
                    "adaptive_iterations": cfg["adaptive_iterations"],
                    "reference_iterations": cfg["reference_iterations"], "seeds": cfg["seeds"],
-                   "threads": THREADS, "minutes": round((time.monotonic() - t0) / 60, 1)},
+                   "threads": THREADS, "minutes": minutes},
         "blocks": {"commands": ["```"] + [" ".join(r["adaptive_cmd"]) for r in rows]
                    + [" ".join(r["uniform_cmd"]) for r in rows] + ["```"]},
         "tables": {"equal_cost": {
@@ -234,4 +227,31 @@ def run(build_dir: Path, docs_dir: Path, quick: bool, command: str, only=None) -
                       r["mean_difference_a"] / r["reference_mean"],
                       r["mean_difference_u"] / r["reference_mean"]] for r in rows]}}})
     print(f"adaptive: wrote {path}", flush=True)
+
+
+def run(build_dir: Path, docs_dir: Path, quick: bool, command: str, only=None) -> None:
+    """Renders the scenes of SCENES and BIDIRECTIONAL_SCENES (those named in `only`, if given)
+    and writes each list's data file that had a scene rendered: benchmark.json,
+    bidirectional.json."""
+    binary = common.render_binary(build_dir)
+    cfg = dict(QUICK) if quick else {"adaptive_iterations": ADAPTIVE_ITERATIONS,
+                                     "reference_iterations": REFERENCE_ITERATIONS,
+                                     "seeds": SEEDS}
+    load = datafile.load()
+    t0 = time.monotonic()
+    for scene_list, name in ((SCENES, "benchmark.json"),
+                             (BIDIRECTIONAL_SCENES, "bidirectional.json")):
+        scenes = [s for s in scene_list if not only or s.name in only]
+        if not scenes:
+            continue
+        rows = []
+        with tempfile.TemporaryDirectory(prefix="render-adaptive-") as tmp:
+            for scene in scenes:
+                row = measure_scene(binary, scene, cfg, Path(tmp))
+                print(f"adaptive: {scene.name}: RMSE ratio uniform/adaptive "
+                      f"{row['ratio_time']:.3f} at equal CPU time, {row['ratio_samples']:.3f} "
+                      f"at equal samples", flush=True)
+                rows.append(row)
+        write_data(Path(docs_dir) / "data" / "adaptive" / name, rows, cfg, command, load,
+                   round((time.monotonic() - t0) / 60, 1))
     pages.write(["adaptive-sampling"], Path(docs_dir))

@@ -1,6 +1,7 @@
 // The render service's dashboard: polls the server's JSON API (/api/, the same reads as the
 // gRPC API, with the same bearer token), draws the job and worker tables, the selected job's
-// live preview and its error-against-time plot. Plain JavaScript, no build step, no library.
+// live preview beside its per-pixel variance and sample-count maps, and its error-against-time
+// plot. Plain JavaScript, no build step, no library.
 "use strict";
 
 const REFRESH_MS = 1000;
@@ -234,10 +235,53 @@ async function drawDetail(jobs) {
     img.dataset.done = String(frame.done);
     document.getElementById("preview-caption").textContent =
       `${frame.iterations_done} iterations, tone-mapped preview (clamp, sRGB)`;
+    await Promise.all([loadMap("variance", job.id, img.width),
+                       loadMap("samples", job.id, img.width)]);
     previewKey = key;
   }
   const history = await (await api(`/api/jobs/${job.id}/history?frame=${selectedFrame}`)).json();
   drawPlot(history.points);
+}
+
+// One of the maps beside the preview (the server's /variance.png and /samples.png): a false-colour
+// PNG whose ramp ends the headers give; a map the server cannot make (a finished frame without a
+// variance layer) is hidden and its caption says why.
+const mapUrls = {};
+async function loadMap(kind, jobId, width) {
+  const img = document.getElementById(`${kind}-map`);
+  const caption = document.getElementById(`${kind}-caption`);
+  const response = await fetch(`/api/jobs/${jobId}/${kind}.png?frame=${selectedFrame}`,
+                               { headers: headers() });
+  if (!response.ok) {
+    let message = response.statusText;
+    try { message = (await response.json()).error || message; } catch (e) { /* not JSON */ }
+    img.hidden = true;
+    img.nextElementSibling.hidden = true;
+    img.dataset.job = jobId;
+    caption.textContent = `${kind === "variance" ? "variance" : "samples"}: ${message}`;
+    return;
+  }
+  const url = URL.createObjectURL(await response.blob());
+  await new Promise((resolve) => { img.onload = resolve; img.onerror = resolve; img.src = url; });
+  if (mapUrls[kind]) URL.revokeObjectURL(mapUrls[kind]);
+  mapUrls[kind] = url;
+  img.hidden = false;
+  img.nextElementSibling.hidden = false;
+  img.width = width;
+  img.nextElementSibling.style.width = `${width}px`;  // the ramp under the map, as wide
+  img.dataset.job = jobId;
+  const low = Number(response.headers.get("X-Map-Low"));
+  const high = Number(response.headers.get("X-Map-High"));
+  img.dataset.low = String(low);
+  img.dataset.high = String(high);
+  if (kind === "variance") {
+    const source = response.headers.get("X-Map-Source");
+    caption.textContent = `variance of each pixel's estimate (${source}), log scale: ` +
+      `${low.toPrecision(3)} to ${high.toPrecision(3)}; grey: unknown`;
+  } else {
+    caption.textContent = low === high ? `samples per pixel: ${low} everywhere`
+                                       : `samples per pixel: ${low} to ${high}`;
+  }
 }
 
 // Estimated relative error against render time, log-scale y, drawn by hand on a canvas.

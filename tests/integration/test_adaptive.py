@@ -4,7 +4,8 @@ the current round, takes the next round's mask from the merged exact sums with t
 `render` uses, and the workers render only the mask's pixels. The cluster's EXR (the image and
 its `samples` layer) must equal `render --adaptive`'s bit for bit, with its iteration count:
   * with 1, 2 and 3 workers (short leases: each round is split among them), submitted through
-    the API (options map) and with `client submit --adaptive ...`;
+    the API (options map) and with `client submit --adaptive ...`; and bpt (the bidirectional
+    family) with 2 workers;
   * with a worker killed with SIGKILL while it holds a lease of a round after the first: its
     range is leased again, with the same mask, once the lease expires;
   * with the server killed with SIGKILL after a checkpoint in a round after the first and
@@ -37,6 +38,8 @@ ITERATIONS = 160
 # so that the job ends because no pixel is left.
 CONVERGING = {"adaptive": "0.5", "adaptive_min_iterations": "8", "adaptive_round": "4"}
 CONVERGING_ITERATIONS = 400
+# bpt: a threshold that stops part of the box after a few rounds.
+BPT_OPTIONS = {"adaptive": "0.08", "adaptive_min_iterations": "8", "adaptive_round": "4"}
 
 
 def option_flags(options):
@@ -47,8 +50,9 @@ def option_flags(options):
 
 
 class Adaptive(cluster.ClusterTestCase):
-    def render(self, c, scene, out, iterations=ITERATIONS, res=RES, options=OPTIONS):
-        args = [cluster.binary("render"), scene, "--algo", "pt", "--iterations",
+    def render(self, c, scene, out, iterations=ITERATIONS, res=RES, options=OPTIONS,
+               algorithm="pt"):
+        args = [cluster.binary("render"), scene, "--algo", algorithm, "--iterations",
                 str(iterations), "--resolution", f"{res[0]}x{res[1]}", "--seed", str(SEED),
                 "--threads", "2", "--out", out] + option_flags(options)
         r = subprocess.run(args, capture_output=True, text=True, timeout=300,
@@ -84,7 +88,8 @@ class Adaptive(cluster.ClusterTestCase):
         rounds = c.server.log_text().count("event=adaptive_round ") if c.server else 0
         return msg + f", {rounds} rounds taken by the server"
 
-    def run_workers(self, workers, through_client, options=OPTIONS, iterations=ITERATIONS):
+    def run_workers(self, workers, through_client, options=OPTIONS, iterations=ITERATIONS,
+                    algorithm="pt"):
         # Short leases: every round is cut into ranges shared by the workers.
         c = self.new_cluster(server_args=["--lease-seconds", "0.02", "--max-lease-seconds",
                                           "0.05"])
@@ -95,7 +100,7 @@ class Adaptive(cluster.ClusterTestCase):
         out = c.path("service.exr")
         if through_client:
             args = [cluster.binary("client"), "--server", c.address, "submit", scene, "--algo",
-                    "pt", "--iterations", str(iterations), "--resolution", f"{RES[0]}x{RES[1]}",
+                    algorithm, "--iterations", str(iterations), "--resolution", f"{RES[0]}x{RES[1]}",
                     "--seed", str(SEED), "--out", out] + option_flags(options)
             env = {k: v for k, v in os.environ.items()
                    if k not in ("RENDER_TOKEN", "RENDER_SERVER")}
@@ -103,8 +108,9 @@ class Adaptive(cluster.ClusterTestCase):
                                stdin=subprocess.DEVNULL, start_new_session=True)
             self.assertEqual(r.returncode, 0, f"{' '.join(args)}:\n{r.stdout}\n{r.stderr}")
         else:
-            job = c.api.submit(scene, algorithm="pt", iterations=iterations, resolution=RES,
-                               seed=SEED, name=f"adaptive-{workers}", options=options)
+            job = c.api.submit(scene, algorithm=algorithm, iterations=iterations,
+                               resolution=RES, seed=SEED, name=f"adaptive-{workers}",
+                               options=options)
             done = c.api.wait_job(job.id, timeout=180, procs=[c.server] + c.workers)
             self.assertTrue(done.frames[0].done, str(done))
             c.api.fetch_to(job.id, out)
@@ -113,8 +119,8 @@ class Adaptive(cluster.ClusterTestCase):
         self.assertTrue(all(n > 0 for n in reports), f"a worker merged nothing: {reports}")
         self.assertGreater(sum(masks), 0, "no worker fetched a round's mask")
         ref = c.path("render.exr")
-        self.render(c, scene, ref, iterations, RES, options)
-        print(f"{workers} worker(s) (reports {reports}, masks fetched {masks}):",
+        self.render(c, scene, ref, iterations, RES, options, algorithm)
+        print(f"{algorithm}, {workers} worker(s) (reports {reports}, masks fetched {masks}):",
               self.assertSameExr(out, ref, c))
         return cluster.read_exr_channels(out)[2]
 
@@ -129,6 +135,12 @@ class Adaptive(cluster.ClusterTestCase):
                                   iterations=CONVERGING_ITERATIONS)
         self.assertLess(int(header["render:iterations"]), CONVERGING_ITERATIONS,
                         "the job was to stop when no pixel was left, before the cap")
+
+    def test_bpt_two_workers_through_the_api(self):
+        # The bidirectional family: eye subpaths from the round's active pixels, the light pass
+        # whole, its splats into inactive pixels dropped (docs/reference/adaptive-sampling.md,
+        # "The bidirectional family"); the same image as render's.
+        self.run_workers(2, through_client=False, options=BPT_OPTIONS, algorithm="bpt")
 
     def long_job(self, c, name):
         """A job of many rounds of long leases (128 x 128 pixels), submitted through the API."""
@@ -232,7 +244,7 @@ class Adaptive(cluster.ClusterTestCase):
         scene = cluster.cornell_box()
         import grpc
         for algorithm, options, expected in (
-                ("bpt", {"adaptive": "0.05"}, "not read by algorithm bpt (read by pt, volpt)"),
+                ("eyelight", {"adaptive": "0.05"}, "not read by algorithm eyelight (read by pt"),
                 ("pt", {"adaptive": "0.05", "layers": "variance"}, "--layers is not supported"),
                 ("pt", {"adaptive": "0.05", "adaptive_min_iterations": "1"},
                  "adaptive_min_iterations")):

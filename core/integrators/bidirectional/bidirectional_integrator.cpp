@@ -18,7 +18,7 @@ void BidirectionalIntegrator::render_iteration(const Scene& scene, const Iterati
                                                RenderStats& stats) const {
     bidirectional::run_iteration(
         bidirectional::plan_iteration(config_, scene, key.iteration), scene, key, *kept_, target,
-        layers, stats,
+        layers, stats, active_pixels(),
         [](Iteration& iteration, RenderStats& s) {
             if (iteration.plan().uses_importance_caches()) iteration.build_importance_cache(s);
         },

@@ -37,6 +37,10 @@ class BidirectionalIntegrator final : public Integrator {
 
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           TechniqueLayers* layers, RenderStats& stats) const override;
+    // Eye subpaths from the active pixels only, the light pass whole: the light tracer's splats
+    // into inactive pixels are dropped (docs/reference/adaptive-sampling.md, "The bidirectional
+    // family").
+    bool takes_active_pixels() const override { return true; }
 
     const BidirectionalConfig& config() const { return config_; }
 

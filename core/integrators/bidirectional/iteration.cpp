@@ -64,9 +64,11 @@ void Iteration::escaped_emission(SubpathState& state, const Ray& ray, const Samp
                                         seg.medium));
 }
 
-SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats) {
-    return [&target, layers, &stats](std::span<const Splat> splats) {
+SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats,
+                      const uint8_t* active) {
+    return [&target, layers, &stats, active](std::span<const Splat> splats) {
         for (const Splat& splat : splats) {
+            if (active && !active[splat.pixel]) continue;
             if (!splat.value.is_finite()) {
                 ++stats.non_finite;
                 continue;

@@ -90,17 +90,24 @@ inline constexpr int kLightChunksInFlightPerThread = 4;
 
 // The light tracer's splats (t = 1) added to the image and its layers (non-finite ones counted
 // and dropped). The light pass hands them over in chunk order and before the eye pass's
-// estimates, so that each pixel's sum is the same whatever the number of threads.
-SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats);
+// estimates, so that each pixel's sum is the same whatever the number of threads. With `active`
+// (adaptive sampling), a splat into an inactive pixel is dropped: that pixel takes no part in
+// the iteration, so its sum and its count stay those of its active iterations
+// (docs/reference/adaptive-sampling.md, "The bidirectional family").
+SplatSink splats_into(AccumulationBuffer& target, TechniqueLayers* layers, RenderStats& stats,
+                      const uint8_t* active = nullptr);
 
 // One iteration as the integrators run it, on `kept`'s buffers: the light pass (skipped in a
 // scene without lights), its splats into target and layers; prepare(iteration, stats), what the
 // integrator builds over the stored light vertices (importance caches, the VPL selection); then
-// eye_path(iteration, pixel, stats, sink) for every pixel.
+// eye_path(iteration, pixel, stats, sink) for every pixel, or with `active` (one entry per
+// pixel) for the active pixels only. The light pass and prepare do not depend on `active`:
+// an active pixel's value is the one it has without the mask.
 template <class Prepare, class EyePath>
 void run_iteration(const IterationPlan& plan, const Scene& scene, const IterationKey& key,
                    KeptStorage& kept, AccumulationBuffer& target, TechniqueLayers* layers,
-                   RenderStats& stats, Prepare&& prepare, EyePath&& eye_path);
+                   RenderStats& stats, const uint8_t* active, Prepare&& prepare,
+                   EyePath&& eye_path);
 
 // Where a pass hands a contribution: s light vertices (the eye's count is the caller's).
 using ContributionSink = FunctionRef<void(int s, const Rgb& contribution)>;
@@ -442,15 +449,16 @@ class Iteration {
 template <class Prepare, class EyePath>
 void run_iteration(const IterationPlan& plan, const Scene& scene, const IterationKey& key,
                    KeptStorage& kept, AccumulationBuffer& target, TechniqueLayers* layers,
-                   RenderStats& stats, Prepare&& prepare, EyePath&& eye_path) {
+                   RenderStats& stats, const uint8_t* active, Prepare&& prepare,
+                   EyePath&& eye_path) {
     std::lock_guard lock(kept.mutex);
     Iteration iteration(plan, scene, key, kept.storage);
     if (!scene.lights().empty() || !scene.volume_lights().empty()) {
-        iteration.trace_light_paths(stats, splats_into(target, layers, stats));
+        iteration.trace_light_paths(stats, splats_into(target, layers, stats, active));
         prepare(iteration, stats);
     }
     for_each_pixel(
-        scene.camera().width(), scene.camera().height(), target, stats,
+        scene.camera().width(), scene.camera().height(), target, stats, active,
         [&](uint64_t pixel, RenderStats& local) {
             return eye_path(std::as_const(iteration), pixel, local, LayerSink{layers, pixel});
         });

@@ -19,7 +19,7 @@ void ManyLightIntegrator::render_iteration(const Scene& scene, const IterationKe
     // The light pass's vertices are the VPLs (no splats: nothing connects to the camera).
     bidirectional::run_iteration(
         bidirectional::plan_iteration(config_, scene, key.iteration), scene, key, *kept_, target,
-        layers, stats,
+        layers, stats, active_pixels(),
         [&](Iteration& iteration, RenderStats& s) {
             if (iteration.plan().vpl && config_.importance.enabled) iteration.select_vpls(s);
             if (iteration.plan().ic) iteration.build_importance_cache(s);

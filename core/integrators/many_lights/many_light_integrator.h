@@ -22,6 +22,9 @@ class ManyLightIntegrator final : public Integrator {
 
     void render_iteration(const Scene& scene, const IterationKey& key, AccumulationBuffer& target,
                           TechniqueLayers* layers, RenderStats& stats) const override;
+    // Eye paths from the active pixels only; the VPLs, records and caches are built whole
+    // (docs/reference/adaptive-sampling.md, "The bidirectional family").
+    bool takes_active_pixels() const override { return true; }
 
     const ManyLightConfig& config() const { return config_; }
 
