@@ -408,8 +408,7 @@ TEST_P(JobStoreTest, ClearJobLeasesVoidsOneJobsLeases) {
 TEST_P(JobStoreTest, DeleteLeasesRemovesTheNamedRowsInOneBatch) {
     auto store = open();
     store->insert_job(job_row("j", 1), 1);
-    for (const char* id : {"A", "B", "C\\\"D", "E"})
-        store->insert_lease(id, "w", "j", 0, {1, 2});
+    for (const char* id : {"A", "B", "C\\\"D", "E"}) store->insert_lease(id, "w", "j", 0, {1, 2});
     store->delete_leases({});
     EXPECT_EQ(store->load_leases().size(), 4u);
     store->delete_leases({"A", "C\\\"D", "gone"});
