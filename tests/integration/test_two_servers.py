@@ -358,8 +358,13 @@ class TwoServers(PostgresClusterTestCase):
         merged = to_b.report(lease.lease_id, first, end, sum_, odd)
         self.assertTrue(merged, "a report sent to the server that did not grant its lease was "
                         "not merged by the holder")
-        # A second copy: the lease is no longer outstanding (A deleted its row when it merged
-        # the first), so B drops it without forwarding.
+        # A second copy: the lease is no longer outstanding (A deletes the rows of the leases
+        # it merged at its next tick, docs/design/job-store.md, "Connections"), so B drops it
+        # without forwarding. (Sent before that tick, B would forward it and A drop it as a
+        # duplicate: merged once either way.)
+        lease_rows = f"SELECT count(*) FROM leases WHERE lease_id = '{lease.lease_id}'"
+        cluster.wait_until(lambda: self.pg.psql(lease_rows) == ["0"], timeout=30,
+                           what="A to delete the merged lease's row")
         garbage = np.full(W * H * 3, 1000.0)
         self.assertFalse(to_b.report(lease.lease_id, first, end, garbage, garbage),
                          "a second copy of a forwarded report was merged")
