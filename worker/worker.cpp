@@ -198,6 +198,10 @@ int Worker::run() {
         }
         backoff.reset();
         if (!reply.granted() || !reply.has_lease()) {
+            // Idle with a report on its way: its lease is heartbeaten, or it expires while the
+            // server receives or merges the report (nothing else of this worker heartbeats).
+            if (!report_in_flight_.wait_for(0) && in_flight_link_ == link_)
+                heartbeat(in_flight_lease_, nullptr);
             nap(idle.next());
             continue;
         }
@@ -554,6 +558,8 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
         .kv("lease", lease.lease_id())
         .kv("bytes", bytes)
         .kv("waited_s", seconds_since(wait_start));
+    in_flight_lease_ = lease.lease_id();
+    in_flight_link_ = link_;
     report_in_flight_.start(bytes, [this, link = link_, lease, result = std::move(result)] {
         try {
             report(*link, lease, result);
