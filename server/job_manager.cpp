@@ -91,6 +91,17 @@ void JobManager::restore() {
         Log("info", "shared_store")
             .kv("server", server_id_)
             .kv("address", options_.advertise_address);
+        // A dead server's leases are queued again when its hold has run out and another
+        // server's next sync (a quarter of the hold, checked every tick) takes the job: within
+        // the lease timeout only if the hold is short enough (docs/design/job-store.md, "How
+        // long a lease stays lost").
+        if (options_.hold_seconds * 1.25 + kTickSeconds > options_.lease_timeout_seconds)
+            Log("warn", "hold_longer_than_lease_timeout")
+                .kv("hold_seconds", options_.hold_seconds)
+                .kv("lease_timeout", options_.lease_timeout_seconds)
+                .kv("hint",
+                    "a dead server's leases stay lost past the lease timeout: keep "
+                    "--hold-seconds * 1.25 + 0.25 within --lease-timeout");
         sync_shared(true);
         return;
     }

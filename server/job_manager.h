@@ -41,6 +41,10 @@
 
 namespace render::server {
 
+// How often the server's thread calls JobManager::tick() (its housekeeping, the expiry sweep
+// and, on a shared store, the sync's check): the pause between two ticks.
+inline constexpr double kTickSeconds = 0.25;
+
 namespace v1 = ::render::v1;
 
 struct ServerOptions {
@@ -202,6 +206,8 @@ class JobManager {
     // Writes the checkpoint of every frame that merged since its last one and saves the render
     // time of unfinished frames (SIGTERM).
     void checkpoint_all();
+    // Deletes the rows of the leases reported since the last call, in one batch.
+    void delete_reported_leases();
 
     AssetStore& assets() { return assets_; }
     // Clients' UploadAsset and FetchResult streams; workers' FetchAsset streams (apart, so
@@ -294,10 +300,10 @@ class JobManager {
     // Whether this server may lease, merge and write the job (always on an unshared store;
     // mu_ held).
     bool holds(const JobData& job) const { return !shared_ || job.held; }
-    // Renews the holds, records this server's workers and reads the farm's, takes over a job
-    // nobody holds (one per call, when this server has live workers and no other server with
-    // workers holds fewer jobs), and refreshes the jobs other servers hold from the store.
-    // tick()'s thread, every hold_seconds / 4.
+    // Renews the holds, records this server's workers and reads the farm's, takes over the
+    // jobs nobody holds (when this server has live workers, while no other server with workers
+    // holds fewer jobs: all that rule allows in one call), and refreshes the jobs other
+    // servers hold from the store. tick()'s thread, every hold_seconds / 4.
     void sync_shared(bool force);
     // This server's live workers recorded in the store, every server's read back into
     // farm_workers_ (outside mu_).
@@ -353,6 +359,13 @@ class JobManager {
     bool shared_ = false;
     std::string server_id_;
     std::optional<TimePoint> last_sync_;  // tick()'s thread only
+    // The rows of reported leases, deleted in one batch by tick() (delete_reported_leases):
+    // a Report merges with its job's report slot held, and a round trip to the database
+    // there made every other report of the job wait for it (docs/design/job-store.md,
+    // "Connections"). A row left a while longer changes nothing: its range is merged, never
+    // leased again by this holder, and a new holder voids every row of the job first.
+    std::mutex reported_mu_;
+    std::vector<std::string> reported_leases_;
     // Every server's workers as the store recorded them at the last sync (under mu_): the
     // dashboard of any server lists the whole farm (docs/design/job-store.md).
     std::vector<FarmWorkerRow> farm_workers_;

@@ -95,6 +95,7 @@ void JobManager::checkpoint_all() {
             }
         }
     }
+    delete_reported_leases();
     // Written: another server may take the jobs over from these checkpoints at once.
     release_holds();
     Log("info", "checkpointed");

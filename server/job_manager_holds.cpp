@@ -199,10 +199,12 @@ void JobManager::sync_shared(bool force) {
         }
     }
 
-    // 3. Take over one job nobody holds, if this server has workers to render it and no
-    // other server with workers holds fewer jobs: the jobs spread over the servers that have
-    // workers, a server holding none included (docs/design/job-store.md, "Spreading the
-    // jobs": a server's workers lease only the jobs it holds).
+    // 3. Take over the jobs nobody holds, the highest priority first, while this server has
+    // workers to render them and no other server with workers holds fewer: the jobs spread
+    // over the servers that have workers, a server holding none included
+    // (docs/design/job-store.md, "Spreading the jobs": a server's workers lease only the jobs
+    // it holds). A dead server's jobs are taken together once their holds run out, not one
+    // per sync.
     std::map<std::string, int> holding;
     {
         std::lock_guard lock(mu_);
@@ -210,28 +212,40 @@ void JobManager::sync_shared(bool force) {
             return;
         for (const FarmWorkerRow& w : farm_workers_) holding[w.server];  // has workers: 0 held
     }
-    const JobRow* candidate = nullptr;
+    std::vector<const JobRow*> unheld;
     for (const JobRow& row : rows) {
         if (is_terminal(JobState(row.state))) continue;
-        if (row.owner.live) {
+        if (row.owner.live)
             ++holding[row.owner.server];
-            continue;
+        else
+            unheld.push_back(&row);
+    }
+    std::stable_sort(unheld.begin(), unheld.end(),
+                     [](const JobRow* a, const JobRow* b) { return a->priority > b->priority; });
+    // At most one job never held (or released) per sync: servers starting together record
+    // their workers at their own first syncs, and one that took every new job at once would
+    // leave the others' workers idle (jobs held are not handed over). A dead server's jobs
+    // (a hold that ran out) are taken together.
+    bool took_new = false;
+    for (const JobRow* candidate : unheld) {
+        const bool is_new = candidate->owner.server.empty();
+        if (is_new && took_new) continue;
+        const int mine = holding[server_id_];
+        for (const auto& [server, count] : holding)
+            if (server != server_id_ && count < mine) return;
+        std::optional<int64_t> epoch;
+        try {
+            epoch = store_.take_job(candidate->id, server_id_, options_.advertise_address,
+                                    hold_ms(options_));
+        } catch (const std::exception& e) {
+            Log("error", "store_failed").kv("job", candidate->id).kv("error", e.what());
+            return;
         }
-        if (!candidate || row.priority > candidate->priority) candidate = &row;
+        if (!epoch) continue;  // another server took it first
+        took_new = took_new || is_new;
+        ++holding[server_id_];
+        take_over(candidate->id, *epoch, candidate->owner.server);
     }
-    if (!candidate) return;
-    const int mine = holding[server_id_];
-    for (const auto& [server, count] : holding)
-        if (server != server_id_ && count < mine) return;
-    std::optional<int64_t> epoch;
-    try {
-        epoch = store_.take_job(candidate->id, server_id_, options_.advertise_address,
-                                hold_ms(options_));
-    } catch (const std::exception& e) {
-        Log("error", "store_failed").kv("job", candidate->id).kv("error", e.what());
-        return;
-    }
-    if (epoch) take_over(candidate->id, *epoch, candidate->owner.server);
 }
 
 void JobManager::sync_farm_workers() {

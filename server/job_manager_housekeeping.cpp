@@ -18,10 +18,23 @@ using namespace detail;
 
 void JobManager::tick() {
     if (shared_) sync_shared(false);
+    delete_reported_leases();
     advance();
     flush_checkpoints(false);
     apply_retention();
     collect_unreferenced_assets();
+}
+
+void JobManager::delete_reported_leases() {
+    std::vector<std::string> ids;
+    {
+        std::lock_guard lock(reported_mu_);
+        ids.swap(reported_leases_);
+    }
+    if (ids.empty()) return;
+    // On failure (the database away) the rows stay: harmless (reported_leases_ above) and
+    // voided with the job's others by its next holder, or at the next start of one server.
+    store_or_log("leases", std::to_string(ids.size()), [&] { store_.delete_leases(ids); });
 }
 
 Status JobManager::delete_job(const std::string& job_id, v1::DeleteJobReply* reply,

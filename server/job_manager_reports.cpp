@@ -75,7 +75,11 @@ Status JobManager::report(const v1::ReportHeader& header, ReportValues&& values,
         if (decision == MergeDecision::Accept) job = find(grant.job_id);
         if (job) epoch = holds(*job) ? job->hold_epoch : -2;
     }
-    store_or_log("lease", header.lease_id(), [&] { store_.delete_lease(header.lease_id()); });
+    {
+        // Deleted in a batch by tick(), not here: this runs in the job's report slot.
+        std::lock_guard lock(reported_mu_);
+        reported_leases_.push_back(header.lease_id());
+    }
     if (decision != MergeDecision::Accept || !job) {
         metrics_.report_dropped(decision == MergeDecision::Accept ? "job_inactive"
                                                                   : to_string(decision));

@@ -36,13 +36,30 @@ Status JobManager::lease(const v1::LeaseRequest& request, v1::LeaseReply* reply)
         return invalid("worker_id is empty or malformed; call RegisterWorker first");
     std::optional<LeaseGrant> grant;
     {
-        std::lock_guard lock(mu_);
+        std::unique_lock lock(mu_);
         workers_.touch(request.worker_id(), unix_ms());
         grant = scheduler_.lease(request.worker_id(), [&](const std::string& job_id) {
             auto job = find(job_id);
             // On a shared store only the server that holds a job leases it.
             return job && (!holds(*job) || lacks_memory_for(*job, request.worker_id()));
         });
+        // Leases that expired just now (the scheduler expires them on every call) are counted
+        // here, not at the next tick: on a shared store their rows must go before this grant
+        // is claimed, or claim_lease refuses the expired range handed out again, and the
+        // worker waits an idle pause with the range queued.
+        std::vector<std::string> expired;
+        for (const LeaseGrant& lost : scheduler_.take_expired()) {
+            lease_lost(lost);
+            expired.push_back(lost.lease_id);
+        }
+        if (shared_ && !expired.empty()) {
+            lock.unlock();  // a round trip: not with every other call waiting
+            for (const std::string& id : expired)
+                store_or_log("lease", id, [&] { store_.delete_lease(id); });
+            lock.lock();
+        }
+        // A loss just counted may have failed the grant's job (its leases are void then).
+        if (grant && is_terminal(scheduler_.state(grant->job_id))) grant.reset();
         if (!grant) {
             reply->set_granted(false);
             return Status::OK;

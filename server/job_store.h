@@ -148,6 +148,9 @@ class JobStore {
     // one database never hold the same iterations. False when it overlaps (nothing written).
     virtual bool claim_lease(const LeaseRow& lease) = 0;
     virtual void delete_lease(const std::string& lease_id) = 0;
+    // The rows of reported leases, many at once (one statement on PostgreSQL, one transaction
+    // on SQLite): the server deletes them in batches off the Report path (JobManager::tick).
+    virtual void delete_leases(const std::vector<std::string>& lease_ids) = 0;
     virtual std::vector<LeaseRow> load_leases() = 0;
     // One outstanding lease by its id (a report that reached a server which did not grant it
     // is forwarded to the job's holder: docs/design/job-store.md).

@@ -546,7 +546,7 @@ int main(int argc, char** argv) {
             } catch (const std::exception& e) {
                 Log("error", "tick_failed").kv("error", e.what());
             }
-            std::this_thread::sleep_for(std::chrono::milliseconds(250));
+            std::this_thread::sleep_for(std::chrono::duration<double>(kTickSeconds));
         }
     });
 

@@ -7,6 +7,8 @@
 // waits for the previous one first, so the worker holds at most one report's buffers besides
 // the lease it renders (charged to the memory budget, Worker::process).
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <thread>
 #include <utility>
@@ -26,12 +28,28 @@ class BackgroundReport {
     void start(uint64_t bytes, Send&& send) {
         wait();
         bytes_ = bytes;
-        thread_ = std::thread(std::forward<Send>(send));
+        finished_ = false;
+        thread_ = std::thread([this, send = std::forward<Send>(send)]() mutable {
+            send();
+            finished_ = true;
+        });
     }
     // Returns once no report is in flight.
     void wait() {
         if (thread_.joinable()) thread_.join();
         bytes_ = 0;
+    }
+    // Waits up to `seconds` for the report in flight; true when none is in flight any more
+    // (then as wait()). The caller heartbeats its finished lease between calls, so that a
+    // report slow to deliver does not let the next lease expire (Worker::process).
+    bool wait_for(double seconds) {
+        const auto until =
+            std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+        while (thread_.joinable() && !finished_.load() && std::chrono::steady_clock::now() < until)
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        if (thread_.joinable() && !finished_.load()) return false;
+        wait();
+        return true;
     }
     // The buffers the report in flight holds (0 when none is, or it has not been waited for
     // since it ended: an upper bound either way).
@@ -39,6 +57,7 @@ class BackgroundReport {
 
   private:
     std::thread thread_;
+    std::atomic<bool> finished_{false};
     uint64_t bytes_ = 0;
 };
 

@@ -198,6 +198,10 @@ int Worker::run() {
         }
         backoff.reset();
         if (!reply.granted() || !reply.has_lease()) {
+            // Idle with a report on its way: its lease is heartbeaten, or it expires while the
+            // server receives or merges the report (nothing else of this worker heartbeats).
+            if (!report_in_flight_.wait_for(0) && in_flight_link_ == link_)
+                heartbeat(in_flight_lease_, nullptr);
             nap(idle.next());
             continue;
         }
@@ -540,12 +544,22 @@ Worker::Outcome Worker::process(const v1::Lease& lease) {
     const uint64_t bytes = film_memory_bytes(uint64_t(result.width), uint64_t(result.height),
                                              2 + result.layers.size());
     const auto wait_start = Clock::now();
-    report_in_flight_.wait();  // one in flight: the render threads idle here only if sending
-                               // is slower than rendering
+    // One in flight: the render threads idle here only if sending is slower than rendering.
+    // This lease is heartbeaten meanwhile: a report slow to deliver (a large one, or one
+    // retried while its server is away) must not let it expire, or the range is lost and the
+    // loss counts against the job (server/failure_policy.h).
+    while (!report_in_flight_.wait_for(heartbeat_seconds_)) {
+        if (!heartbeat(lease.lease_id(), nullptr)) {
+            log_info("lease_cancelled").kv("lease", lease.lease_id()).kv("job", lease.job_id());
+            return Outcome::Cancelled;
+        }
+    }
     log_info("report_queued")
         .kv("lease", lease.lease_id())
         .kv("bytes", bytes)
         .kv("waited_s", seconds_since(wait_start));
+    in_flight_lease_ = lease.lease_id();
+    in_flight_link_ = link_;
     report_in_flight_.start(bytes, [this, link = link_, lease, result = std::move(result)] {
         try {
             report(*link, lease, result);
@@ -616,12 +630,27 @@ Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
     const double patience = std::max(10.0, lease.expires_in_seconds());
     auto t0 = Clock::now();
     Backoff backoff;
+    // The servers to send it to: the one that granted the lease first, then, after a failure
+    // to reach it, each other server of the list in turn. Any server of a farm answers a
+    // report of a lease another granted: it forwards it to the job's holder, or says at once
+    // that nobody will merge it (docs/design/job-store.md, "Reports reaching a non-holder").
+    // Retrying only a server that died held this report, and the next lease's behind it,
+    // until the patience ran out.
+    std::vector<const ServerLink*> targets = {&link};
+    std::vector<std::shared_ptr<ServerLink>> others;
+    for (size_t i = 0; i < options_.servers.size(); ++i)
+        if (options_.servers[i] != link.address) {
+            others.push_back(link_to(i));
+            targets.push_back(others.back().get());
+        }
+    size_t attempt = 0;
     for (;;) {
+        const ServerLink& to = *targets[attempt++ % targets.size()];
         grpc::ClientContext context;
         prepare_context(context, options_.token, 120.0);
         v1::ReportReply reply;
         std::unique_ptr<grpc::ClientWriter<v1::ReportChunk>> writer =
-            link.stub->Report(&context, &reply);
+            to.stub->Report(&context, &reply);
         v1::ReportChunk chunk;
         v1::ReportHeader* header = chunk.mutable_header();
         header->set_lease_id(lease.lease_id());
@@ -670,12 +699,15 @@ Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
         if (ok) writer->WritesDone();
         grpc::Status status = writer->Finish();
         if (status.ok()) {
-            log_info(reply.merged() ? "reported" : "report_dropped")
-                .kv("lease", lease.lease_id())
-                .kv("merged", reply.merged() ? "true" : "false");
+            Log line = log_info(reply.merged() ? "reported" : "report_dropped");
+            line.kv("lease", lease.lease_id()).kv("merged", reply.merged() ? "true" : "false");
+            if (&to != &link) line.kv("through", to.address);
             return reply.merged() ? Outcome::Reported : Outcome::Dropped;
         }
-        log_warn("report_failed").kv("lease", lease.lease_id()).kv("status", describe(status));
+        log_warn("report_failed")
+            .kv("lease", lease.lease_id())
+            .kv("server", to.address)
+            .kv("status", describe(status));
         if (!is_transient(status.error_code()) || seconds_since(t0) > patience ||
             g_stop_requests.load() >= 2) {
             // Said to the server (best effort) so that it re-leases the range now: otherwise
@@ -686,8 +718,10 @@ Worker::Outcome Worker::report(const ServerLink& link, const v1::Lease& lease,
                            /*report_undelivered=*/true);
             return Outcome::Failed;
         }
-        // Plain sleep: a first SIGTERM must not cut short the delivery of finished work.
-        std::this_thread::sleep_for(std::chrono::duration<double>(backoff.next()));
+        // Plain sleep: a first SIGTERM must not cut short the delivery of finished work. Every
+        // server of the list is tried once before the first pause.
+        if (attempt % targets.size() == 0)
+            std::this_thread::sleep_for(std::chrono::duration<double>(backoff.next()));
     }
 }
 

@@ -114,6 +114,11 @@ class Worker {
     std::string mask_key_;
     std::vector<uint8_t> mask_;
 
+    // The lease of the report in flight and the server that granted it (main thread only):
+    // heartbeaten while the worker idles (Worker::run).
+    std::string in_flight_lease_;
+    std::shared_ptr<ServerLink> in_flight_link_;
+
     // Last: destroyed first, waiting for the report in flight while the stub is alive.
     BackgroundReport report_in_flight_;
 };

@@ -385,6 +385,14 @@ void PostgresJobStore::delete_lease(const std::string& lease_id) {
     w.commit();
 }
 
+void PostgresJobStore::delete_leases(const std::vector<std::string>& lease_ids) {
+    if (lease_ids.empty()) return;
+    auto c = pool_.borrow();
+    pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips
+    w.exec_params("DELETE FROM leases WHERE lease_id = ANY($1::TEXT[])", text_array(lease_ids));
+    w.commit();
+}
+
 std::vector<LeaseRow> PostgresJobStore::load_leases() {
     auto c = pool_.borrow();
     pqxx::nontransaction w(*c);  // one statement: no BEGIN/COMMIT round trips

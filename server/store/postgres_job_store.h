@@ -53,6 +53,7 @@ class PostgresJobStore final : public JobStore {
                       const std::string& job_id, uint32_t frame, Range range) override;
     bool claim_lease(const LeaseRow& lease) override;
     void delete_lease(const std::string& lease_id) override;
+    void delete_leases(const std::vector<std::string>& lease_ids) override;
     std::vector<LeaseRow> load_leases() override;
     std::optional<LeaseRow> find_lease(const std::string& lease_id) override;
     int clear_leases() override;

@@ -457,6 +457,23 @@ void SqliteJobStore::delete_lease(const std::string& lease_id) {
     s.run();
 }
 
+void SqliteJobStore::delete_leases(const std::vector<std::string>& lease_ids) {
+    if (lease_ids.empty()) return;
+    std::lock_guard lock(mu_);
+    exec("BEGIN IMMEDIATE");
+    try {
+        for (const std::string& id : lease_ids) {
+            Statement s(db_, delete_lease_);
+            s.text(1, id);
+            s.run();
+        }
+        exec("COMMIT");
+    } catch (...) {
+        exec("ROLLBACK");
+        throw;
+    }
+}
+
 bool SqliteJobStore::claim_lease(const LeaseRow& lease) {
     std::lock_guard lock(mu_);
     // BEGIN IMMEDIATE takes the database's write lock: no other connection writes between the

@@ -402,6 +402,21 @@ TEST_P(JobStoreTest, ClearJobLeasesVoidsOneJobsLeases) {
     EXPECT_TRUE(store->claim_lease(lease("C", "j", 0, {1, 3})));  // the range is free again
 }
 
+// The rows of reported leases go in one batch (JobManager::delete_reported_leases): the named
+// ones only, ids of rows already gone are passed over, and an id with a quote or a backslash
+// is one id (PostgreSQL receives them as one array literal).
+TEST_P(JobStoreTest, DeleteLeasesRemovesTheNamedRowsInOneBatch) {
+    auto store = open();
+    store->insert_job(job_row("j", 1), 1);
+    for (const char* id : {"A", "B", "C\\\"D", "E"}) store->insert_lease(id, "w", "j", 0, {1, 2});
+    store->delete_leases({});
+    EXPECT_EQ(store->load_leases().size(), 4u);
+    store->delete_leases({"A", "C\\\"D", "gone"});
+    std::set<std::string> ids;
+    for (const LeaseRow& l : store->load_leases()) ids.insert(l.lease_id);
+    EXPECT_EQ(ids, (std::set<std::string>{"B", "E"}));
+}
+
 // The database restarting under a running server (a failover, an upgrade): the operation that
 // finds the connection broken fails (the server logs it, as any failed write), and the next
 // ones reconnect, the Lease path's prepared statements included. PostgreSQL only: SQLite has

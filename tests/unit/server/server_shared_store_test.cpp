@@ -295,6 +295,46 @@ TEST_F(SharedStoreTest, ADeadHoldersJobIsTakenOverFromItsLastCheckpoint) {
     expect_same_pixels(result(b, job.id()), expected);
 }
 
+// A dead server's jobs are all taken in the one sync that finds their holds run out, not one
+// per sync: each sync waits a quarter of the hold, so with one job a sync their leases would
+// stay lost a quarter of a hold longer for every job the dead server held
+// (docs/design/job-store.md, "What each server does").
+TEST_F(SharedStoreTest, ADeadServersJobsAreAllTakenInOneSync) {
+    auto a = std::make_unique<JobManager>(options(dir_ / "data", 0));
+    register_worker(*a);
+    v1::Job first, second;
+    ASSERT_TRUE(a->submit(request(*a, 4), &first).ok());
+    ASSERT_TRUE(a->submit(request(*a, 4), &second).ok());
+    // New jobs are taken one per sync (servers starting together spread them).
+    ASSERT_TRUE(wait_until_held(*a, first.id()));
+    ASSERT_TRUE(wait_until_held(*a, second.id()));
+    ASSERT_EQ(a->held_jobs().size(), 2u);
+    a.reset();  // dies holding both (no release)
+
+    JobManager b(options(dir_ / "data", 0));
+    register_worker(b);
+    ASSERT_TRUE(wait_until_held(b, first.id()));
+    EXPECT_EQ(b.held_jobs().size(), 2u) << "the second job was left for a later sync";
+}
+
+// A lease that expired is handed out again at the next ask: the Lease that expires it deletes
+// its row before claiming the range again (the store would refuse the claim over the expired
+// lease's row, and the worker would wait an idle pause with the range queued).
+TEST_F(SharedStoreTest, AnExpiredRangeIsLeasedAgainAtTheNextAsk) {
+    TestClock clock;
+    JobManager a(options(dir_ / "data", 0), clock.fn());
+    const std::string w1 = register_worker(a), w2 = register_worker(a);
+    v1::Job job;
+    ASSERT_TRUE(a.submit(request(a, 8), &job).ok());
+    ASSERT_TRUE(wait_until_held(a, job.id()));
+    const v1::LeaseReply first = lease(a, w1);
+    ASSERT_TRUE(first.granted());
+    clock.offset_s->fetch_add(60);  // past the lease timeout (30 s): w1 never heartbeated
+    const v1::LeaseReply again = lease(a, w2);
+    ASSERT_TRUE(again.granted()) << "the store refused the expired range";
+    EXPECT_EQ(again.lease().first_iteration(), first.lease().first_iteration());
+}
+
 // A holder that stopped renewing (stalled, cut off from the database) finds its hold taken:
 // it drops the job, its workers' leases are cancelled and their reports are not merged.
 TEST_F(SharedStoreTest, AServerWhoseHoldWasTakenStopsMergingTheJob) {
