@@ -37,7 +37,7 @@ mean seconds) over its runs (whole process); the ratio's standard error is the j
 the rounds (leave one round, both programs' runs of it, out), which also carries the
 correlation of a run's error and time and the load shared by a round's two runs. The images'
 means against the converged image's, per side, check that the two programs render the same
-thing. `scripts/bench --only reference` writes the run to docs/data/reference/ with the commit,
+thing. `scripts/bench --only reference` writes the run to docs/data/performance/reference.json with the commit,
 the machine and the load. SmallVCM writes its image as PFM (the local driver's `.pfm` output:
 raw little-endian float RGB, top row first). The timing needs only the standard library; the
 error needs numpy and OpenImageIO (scripts/setup installs them).
@@ -77,6 +77,9 @@ FIXED_COST_SEED = 1000
 # in config.hxx: the local build adds it; performance-notes.md, "How the reference binary was
 # built"). Without it the reference's runs would repeat one image, which run() refuses.
 REFERENCE_SEED_FLAG = "-seed"
+# Our merging algorithms default to a radius of one pixel footprint; SmallVCM fixes 0.003 x the
+# scene radius, which the comparison passes to ours.
+MERGING_ALGORITHMS = ("vcm", "ppm", "bpm")
 THREADS = 2  # wall timing; CPU timing runs one thread per program
 # The converged image of each box (docs/references/README.md): name of its EXR.
 REFERENCE_IMAGES = {"0-gbs_s": "gbs_s", "1-glm_c": "glm_c", "2-gbs_p": "gbs_p", "3-gbs_b": "gbs_b"}
@@ -383,6 +386,10 @@ def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None
                             "--algo", algo, "--iterations", str(n),
                             "--threads", str(threads), "--out", str(out_ours),
                             "--seed", str(seed)]
+                # SmallVCM's radius rule (0.003 x scene radius), not our pixel-footprint default:
+                # the two programs compute the same estimator.
+                if algo in MERGING_ALGORITHMS:
+                    ours_cmd += ["--radius-factor", "0.003"]
                 ref_cmd = [str(reference), "-s", str(SCENE_IDS[scene]), "-a", algo,
                            "-i", str(n), "-o", str(out_ref), REFERENCE_SEED_FLAG, str(seed)]
                 return [("ours", ours_cmd), ("reference", ref_cmd)]
@@ -449,7 +456,8 @@ def run(bin_dir, reference, quick, work, log=print, scenes=None, algorithms=None
             "cpus": sorted(cpus), "policy": policy, "nice": os.nice(0),
             "ours_binary": str((Path(bin_dir) / "render").resolve()),
             "ours_cmd": "build/bin/render scenes/smallvcm/SCENE.xml --algo ALGO --iterations "
-                        f"{iterations} --threads {threads} --out OUT.exr --seed RUN",
+                        f"{iterations} --threads {threads} --out OUT.exr --seed RUN"
+                        " (vcm: --radius-factor 0.003)",
             "reference_cmd": (f"OMP_NUM_THREADS={threads} " if timing == "cpu" else "")
                              + f"SMALLVCM -s ID -a ALGO -i {iterations} -o OUT.pfm "
                              f"{REFERENCE_SEED_FLAG} RUN"}
