@@ -24,7 +24,8 @@ namespace render::bench {
 [[gnu::noinline]] float trace_closest_ours(const Scene& s, const std::vector<Ray>& rays) {
     float sum = 0;
     for (const Ray& ray : rays) {
-        SurfaceInteraction si;
+        // As the integrators' loops declare it: read only after a hit (interaction.h).
+        SurfaceInteraction si(kUnfilled);
         if (s.intersect(ray, si)) sum += si.t + si.shading.n.x;
     }
     return sum;

@@ -19,27 +19,61 @@ class Shape;
 // "Closest hits through Scene::intersect").
 enum class HitDetail { kShading, kWithUv };
 
+// The tag of SurfaceInteraction's constructor that leaves the hit's fields unset.
+struct UnfilledTag {};
+inline constexpr UnfilledTag kUnfilled{};
+
 // A ray's hit on a surface, in world space.
+//
+// Scene::intersect writes every field on a hit (every shape's fill ends in
+// Shape::finish_interaction; hit_bsdf is reset or set by the scene). So a caller that reads the
+// interaction only after a hit constructs it with kUnfilled, which stores nothing but the empty
+// hit_bsdf: the zeros and identity frame of the default constructor were a sixth of the cost of
+// a closest hit over bare Embree, stored before rtcIntersect1 and overwritten by every hit
+// (docs/results/performance-notes.md, "Closest hits through Scene::intersect"). The value fields
+// sit in anonymous unions only so that this constructor may leave them unset (Vec3's members have
+// default initialisers); they read and copy as plain members. An interaction built by hand, or
+// read after a miss, takes the default constructor: every field zero, the frame the identity.
 struct SurfaceInteraction {
-    Vec3 p;                 // hit point
-    Vec3 geometric_normal;  // unit; the side the shape's winding/orientation calls "outside"
-    Frame shading;          // shading frame; shading.n is the interpolated (or geometric) normal
-    // uv, dp/du and dp/dv are zero unless the material varies or HitDetail::kWithUv was asked for.
-    Vec2 uv;
-    // dp/du and dp/dv of the shape's uv parametrisation (world space, not normalised; zero
-    // where the shape has none): orient tangent-space normal maps and give bump maps their
+    SurfaceInteraction()
+        : p(),
+          geometric_normal(),
+          shading(),
+          uv(),
+          dpdu(),
+          dpdv(),
+          t(0),
+          prim_id(0),
+          prim_uv(),
+          shape(nullptr),
+          bsdf(nullptr),
+          emitter(nullptr) {}
+    explicit SurfaceInteraction(UnfilledTag) {}
+
+    // clang-format off
+    union { Vec3 p; };  // hit point
+    // Unit; the side the shape's winding/orientation calls "outside".
+    union { Vec3 geometric_normal; };
+    // Shading frame; shading.n is the interpolated (or geometric) normal.
+    union { Frame shading; };
+    // uv, dp/du and dp/dv are zero unless the material varies or HitDetail::kWithUv was asked
+    // for. dp/du and dp/dv of the shape's uv parametrisation (world space, not normalised; zero
+    // where the shape has none) orient tangent-space normal maps and give bump maps their
     // surface.
-    Vec3 dpdu;
-    Vec3 dpdv;
-    float t = 0;  // ray distance
+    union { Vec2 uv; };
+    union { Vec3 dpdu; };
+    union { Vec3 dpdv; };
+    union { float t; };  // ray distance
     // The shape's primitive that was hit and the ray tracer's parameters on it (a triangle's
     // barycentrics b1, b2; a bilinear patch's (u, v)): what Shape::pdf_area and
     // Shape::uv_at_hit read, so an emitter hit needs no search for its point.
-    unsigned prim_id = 0;
-    Vec2 prim_uv;
-    const Shape* shape = nullptr;
-    const Bsdf* bsdf = nullptr;      // never null for a hit (absorbing black if the file had none)
-    const Light* emitter = nullptr;  // area light attached to the shape, if any
+    union { unsigned prim_id; };
+    union { Vec2 prim_uv; };
+    union { const Shape* shape; };
+    // Never null for a hit (absorbing black if the file had none).
+    union { const Bsdf* bsdf; };
+    union { const Light* emitter; };  // area light attached to the shape, if any
+    // clang-format on
     // Owns `bsdf` when it was built for this hit: a textured material resolved at uv
     // (Scene::intersect). Null for plain materials, which the scene owns.
     std::shared_ptr<const Bsdf> hit_bsdf;

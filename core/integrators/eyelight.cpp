@@ -4,7 +4,7 @@ namespace render {
 
 Rgb EyeLight::Li(const Scene& scene, const Ray& ray, Rng&, RenderStats& stats,
                  const LayerSink&) const {
-    SurfaceInteraction si;
+    SurfaceInteraction si(kUnfilled);
     ++stats.rays;
     if (!scene.intersect(ray, si)) return Rgb(0.0f);
     return Rgb(abs_dot(si.shading.n, ray.direction));

@@ -20,7 +20,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
     const bool has_lights = !scene.lights().empty();
 
     for (int depth = 1;; ++depth) {  // depth = segments of the path including `ray`
-        SurfaceInteraction si;
+        SurfaceInteraction si(kUnfilled);  // read only after a hit
         ++stats.rays;
         if (!scene.intersect(ray, si)) {
             for (const Light* light : scene.background_lights()) {

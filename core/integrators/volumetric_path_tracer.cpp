@@ -251,7 +251,7 @@ class Tracer {
         // The ray from c ends at its first surface (null boundaries included), as the segment
         // that distance sampling from c would cover.
         const Ray ray_cb(c, w_cb);
-        SurfaceInteraction si;
+        SurfaceInteraction si(kUnfilled);
         ++stats_.rays;
         if (!scene_.intersect(ray_cb, si)) return Rgb(0.0f);
         const EquiAngularSampler toward_light(c, w_cb, a, 0.0f, si.t);

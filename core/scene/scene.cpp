@@ -107,8 +107,10 @@ void Scene::commit() {
             also_for_occlusion(id);
         if (id >= geometry_to_shape_.size()) geometry_to_shape_.resize(id + 1, nullptr);
         geometry_to_shape_[id] = shape.get();
-        if (id >= geometry_to_mesh_.size()) geometry_to_mesh_.resize(id + 1, nullptr);
-        geometry_to_mesh_[id] = dynamic_cast<const TriangleMesh*>(shape.get());
+        if (id >= plain_meshes_.size()) plain_meshes_.resize(id + 1, nullptr);
+        const auto* mesh = dynamic_cast<const TriangleMesh*>(shape.get());
+        if (mesh && mesh->has_hit_records() && mesh->bsdf && !mesh->bsdf->varies())
+            plain_meshes_[id] = mesh;
         bounds_.expand(shape->bounds());
         has_media_ = has_media_ || shape->interior || shape->exterior;
     }
@@ -180,7 +182,8 @@ bool Scene::fill_other_hit(const Ray& ray, const RTCRayHit& rh, HitDetail detail
     else
         geometry_to_shape_[rh.hit.geomID]->fill_interaction(ray, rh.ray.tfar, rh.hit.primID,
                                                             rh.hit.u, rh.hit.v, detail, si);
-    resolve_material(si);
+    if (si.bsdf->varies() || si.hit_bsdf) [[unlikely]]
+        resolve_material(si);
     return true;
 }
 

@@ -84,8 +84,10 @@ class Scene {
     void commit();
 
     // --- queries (thread-safe after commit) ---
-    // Closest hit in (ray.t_min, ray.t_max). Fills `si` and returns true on a hit; its uv and
-    // dp/du only where the material varies or with HitDetail::kWithUv (interaction.h). Inline
+    // Closest hit in (ray.t_min, ray.t_max). Fills every field of `si` and returns true on a
+    // hit (so `si` may be constructed with kUnfilled, interaction.h); leaves it as it was on a
+    // miss. Its uv and dp/du are zero unless the material varies or with HitDetail::kWithUv.
+    // Inline
     // (below the class) for the common case, a triangle mesh with a plain material, so that the
     // caller's SurfaceInteraction is filled without a call frame and the stores of its
     // constructor that the fill overwrites are dropped (docs/results/performance-notes.md,
@@ -161,8 +163,9 @@ class Scene {
 
   private:
     [[gnu::cold]] void count_invalid_ray() const;
-    // intersect() out of line: a hit on an instance or an analytic shape (through the shape's
-    // virtual fill), then resolve_material.
+    // intersect() out of line: a hit on an instance, an analytic shape or a mesh that is not
+    // plain (plain_meshes_), or one that wants uv (through the shape's virtual fill), then
+    // resolve_material where the material varies or `si` holds a previous hit's BSDF.
     [[gnu::noinline]] bool fill_other_hit(const Ray& ray, const RTCRayHit& rh, HitDetail detail,
                                           SurfaceInteraction& si) const;
     // A material that varies over the surface resolved at the hit (its shading frame and its
@@ -186,9 +189,11 @@ class Scene {
     std::vector<std::shared_ptr<const Bsdf>> bsdfs_;
     std::vector<std::unique_ptr<Shape>> shapes_;
     std::vector<const Shape*> geometry_to_shape_;  // Embree geometry id -> shape
-    // Embree geometry id -> the shape if it is a triangle mesh, else null: intersect() fills
-    // mesh hits inline (TriangleMesh::fill_hit) instead of through the virtual call.
-    std::vector<const TriangleMesh*> geometry_to_mesh_;
+    // Embree geometry id -> the shape if it is a plain triangle mesh, else null: one with hit
+    // records (TriangleMesh::has_hit_records) whose material does not vary, set at commit().
+    // intersect() fills its hits inline (TriangleMesh::fill_plain_hit), with no test of the
+    // mesh's normals or the material, instead of through the virtual call.
+    std::vector<const TriangleMesh*> plain_meshes_;
     std::vector<std::unique_ptr<Instance>> instances_;
     std::vector<const Instance*> geometry_to_instance_;  // Embree geometry id -> instance
     std::vector<std::unique_ptr<Light>> lights_;
@@ -223,12 +228,12 @@ inline bool Scene::intersect(const Ray& ray, SurfaceInteraction& si, HitDetail d
     rtcIntersect1(rtc_scene_, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     const TriangleMesh* mesh =
-        rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? geometry_to_mesh_[rh.hit.geomID] : nullptr;
-    if (!mesh) [[unlikely]]
+        rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? plain_meshes_[rh.hit.geomID] : nullptr;
+    if (!mesh || detail == HitDetail::kWithUv) [[unlikely]]
         return fill_other_hit(ray, rh, detail, si);
-    mesh->fill_hit(ray, rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, detail, si);
-    if (si.bsdf->varies() || si.hit_bsdf) [[unlikely]]
-        resolve_material(si);
+    mesh->fill_plain_hit(rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v, si);
+    if (si.hit_bsdf) [[unlikely]]
+        resolve_material(si);  // an interaction reused from a textured hit
     return true;
 }
 

@@ -8,6 +8,7 @@
 #include "core/sampling/warp.h"
 #include "core/shapes/alpha_cutout.h"
 #include "core/shapes/triangle_mesh_hit.h"
+#include "core/shapes/uv_wanted.h"
 
 namespace render {
 namespace {
@@ -161,7 +162,13 @@ unsigned TriangleMesh::attach(RTCDevice device, RTCScene scene) const {
 
 void TriangleMesh::fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                                     HitDetail detail, SurfaceInteraction& si) const {
-    fill_hit(ray, t, prim_id, u, v, detail, si);
+    if (frames_per_triangle_)
+        fill_from_record(t, prim_id, u, v, si);
+    else
+        fill_hit_interpolated(ray, t, prim_id, u, v, si);
+    const bool with_uv = uv_wanted(*this, detail);
+    if (with_uv) fill_uv(prim_id, u, v, si);
+    finish_interaction(prim_id, u, v, with_uv, si);
 }
 
 void TriangleMesh::fill_hit_interpolated(const Ray& ray, float t, unsigned prim_id, float u,

@@ -32,10 +32,14 @@ class TriangleMesh final : public Shape {
     unsigned attach(RTCDevice device, RTCScene scene) const override;
     void fill_interaction(const Ray& ray, float t, unsigned prim_id, float u, float v,
                           HitDetail detail, SurfaceInteraction& si) const override;
-    // What fill_interaction does, without the virtual call: defined inline in
-    // core/shapes/triangle_mesh_hit.h for Scene::intersect.
-    void fill_hit(const Ray& ray, float t, unsigned prim_id, float u, float v, HitDetail detail,
-                  SurfaceInteraction& si) const;
+    // What fill_interaction does for a hit that needs no uv, on a mesh with hit records (below),
+    // without the virtual call and without a test: defined inline in
+    // core/shapes/triangle_mesh_hit.h for Scene::intersect, which calls it only for meshes
+    // with has_hit_records() whose material does not vary.
+    void fill_plain_hit(float t, unsigned prim_id, float u, float v, SurfaceInteraction& si) const;
+    // Every triangle has a hit record (a flat-shaded mesh without degenerate triangles, within
+    // kMaxHitRecordTriangles).
+    bool has_hit_records() const { return frames_per_triangle_; }
     Aabb bounds() const override;
     float surface_area() const override { return area_; }
     ShapeSample sample_area(Vec2 u) const override;
@@ -62,11 +66,14 @@ class TriangleMesh final : public Shape {
     static constexpr size_t kHitRecordBytesPerTriangle = 96;
 
   private:
-    // fill_hit's p, t, geometric normal and shading frame where the mesh has no frame per
-    // triangle (interpolated vertex normals) or has degenerate triangles.
+    // p, t, geometric normal and shading frame from the triangle's hit record.
+    void fill_from_record(float t, unsigned prim_id, float u, float v,
+                          SurfaceInteraction& si) const;
+    // p, t, geometric normal and shading frame where the mesh has no frame per triangle
+    // (interpolated vertex normals) or has degenerate triangles.
     [[gnu::noinline]] void fill_hit_interpolated(const Ray& ray, float t, unsigned prim_id, float u,
                                                  float v, SurfaceInteraction& si) const;
-    // fill_hit's uv, dp/du and dp/dv.
+    // The hit's uv, dp/du and dp/dv.
     [[gnu::noinline]] void fill_uv(unsigned prim_id, float u, float v,
                                    SurfaceInteraction& si) const;
     // dp/du and dp/dv of triangle `tri` (constant over it; zero for degenerate uv).
@@ -97,9 +104,9 @@ class TriangleMesh final : public Shape {
     // Empty otherwise.
     std::vector<Frame> flat_frames_;
     // flat_frames_ holds every triangle's frame and no triangle is degenerate: a hit copies
-    // its frame and face normal (fill_hit's inline path) from hit_records_.
+    // its frame and face normal (fill_from_record) from hit_records_.
     bool frames_per_triangle_ = false;
-    // What fill_hit's inline path reads of a triangle, in one place: its three vertices, each
+    // What fill_from_record reads of a triangle, in one place: its three vertices, each
     // padded to 16 bytes so that the hit point is interpolated with one SIMD load per vertex
     // and no index lookup (the same products and sums, in the same order, as the scalar
     // p0 b0 + p1 u + p2 v), then the face normal and frame in SurfaceInteraction's order (one
