@@ -51,14 +51,15 @@ class MemoryLimit(cluster.ClusterTestCase):
         self.assertTrue(worker.alive() and other.alive(), "a worker died")
 
         # A 64x64 film (480 KiB) fits, but vcm's light vertices do not: 4096 light paths x up to
-        # 9 stored vertices (the scene's max_depth 65 bounded by rr_depth 5 + 4) x 244 B, 8.6 MiB.
+        # 9 stored vertices (the scene's max_depth 65 bounded by rr_depth 5 + 4) x 188 B (a
+        # 128-B light vertex and its 60-B merge index), 6.6 MiB.
         light_paths = c.api.submit(scene, algorithm="vcm", iterations=4, resolution=(64, 64),
                                    seed=2, name="vcm-too-big")
         failed = c.api.wait_job(light_paths.id, states={P.JOB_STATE_FAILED}, timeout=60,
                                 procs=[c.server, worker, other])
         print(f"job error: {failed.error}")
         self.assertIn("vcm's working memory per iteration (estimated ", failed.error)
-        self.assertIn("4096 light paths x up to 9 stored vertices x 244 B", failed.error)
+        self.assertIn("4096 light paths x up to 9 stored vertices x 188 B", failed.error)
         self.assertIn("more than the 4.0 MiB limit (worker --max-memory 4.0 MiB)", failed.error)
         self.assertTrue(worker.alive(), "the worker died")
 

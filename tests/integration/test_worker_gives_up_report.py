@@ -44,7 +44,33 @@ SHA = hashlib.sha256(SCENE).hexdigest()
 FIRST, END = 1, 3  # the range both leases carry
 
 
-class FakeServer:
+class FakeJob:
+    """What every fake WorkerService of these tests serves of its one job: a pt lease of the
+    range [FIRST, END) over SCENE, the scene's bytes and no adaptive mask."""
+
+    @staticmethod
+    def granted(lease_id):
+        P = cluster.pb()
+        settings = P.RenderSettings(algorithm="pt", iterations=END - 1, width=8, height=6,
+                                    seed=1)
+        bundle = P.SceneBundle(scene_path="scene.xml", files=[
+            P.BundleFile(path="scene.xml", sha256=SHA, size=len(SCENE))])
+        return P.LeaseReply(granted=True, lease=P.Lease(
+            lease_id=lease_id, job_id="job-fake", frame=0, first_iteration=FIRST,
+            end_iteration=END, settings=settings, bundle=bundle, expires_in_seconds=600))
+
+    def FetchAsset(self, request, context):
+        if request.sha256 != SHA:
+            context.abort(grpc.StatusCode.NOT_FOUND, "no such asset")
+        yield cluster.pb().AssetChunk(sha256=SHA, size=len(SCENE), data=SCENE)
+
+    def FetchMask(self, request, context):
+        # The fake job is not adaptive: its leases carry no mask to fetch.
+        context.abort(grpc.StatusCode.NOT_FOUND, "the fake job has no adaptive mask")
+        yield cluster.pb().MaskChunk()
+
+
+class FakeServer(FakeJob):
     """WorkerService: one job of one range; the report of the first lease is rejected."""
 
     def __init__(self):
@@ -78,23 +104,7 @@ class FakeServer:
             self.leases.append(lease_id)
             self.events.append(("lease", lease_id, ""))
             self.changed.notify_all()
-        settings = P.RenderSettings(algorithm="pt", iterations=END - 1, width=8, height=6,
-                                    seed=1)
-        bundle = P.SceneBundle(scene_path="scene.xml", files=[
-            P.BundleFile(path="scene.xml", sha256=SHA, size=len(SCENE))])
-        return P.LeaseReply(granted=True, lease=P.Lease(
-            lease_id=lease_id, job_id="job-fake", frame=0, first_iteration=FIRST,
-            end_iteration=END, settings=settings, bundle=bundle, expires_in_seconds=600))
-
-    def FetchAsset(self, request, context):
-        if request.sha256 != SHA:
-            context.abort(grpc.StatusCode.NOT_FOUND, "no such asset")
-        yield cluster.pb().AssetChunk(sha256=SHA, size=len(SCENE), data=SCENE)
-
-    def FetchMask(self, request, context):
-        # The fake job is not adaptive: its leases carry no mask to fetch.
-        context.abort(grpc.StatusCode.NOT_FOUND, "the fake job has no adaptive mask")
-        yield cluster.pb().MaskChunk()
+        return self.granted(lease_id)
 
     def Heartbeat(self, request, context):
         for f in request.failed_leases:

@@ -22,12 +22,9 @@ import grpc
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 import cluster  # noqa: E402
-from test_worker_gives_up_report import SCENE, SHA  # noqa: E402
+from test_worker_gives_up_report import FakeJob  # noqa: E402
 
-FIRST, END = 1, 3
-
-
-class FakeServer:
+class FakeServer(FakeJob):
     """WorkerService granting the leases named in `grants`, one per Lease call, in order."""
 
     def __init__(self, name, grants, report):
@@ -58,22 +55,7 @@ class FakeServer:
             lease_id = self.grants.pop(0)
             self.events.append(("lease", lease_id))
             self.changed.notify_all()
-        settings = P.RenderSettings(algorithm="pt", iterations=END - 1, width=8, height=6,
-                                    seed=1)
-        bundle = P.SceneBundle(scene_path="scene.xml", files=[
-            P.BundleFile(path="scene.xml", sha256=SHA, size=len(SCENE))])
-        return P.LeaseReply(granted=True, lease=P.Lease(
-            lease_id=lease_id, job_id="job-fake", frame=0, first_iteration=FIRST,
-            end_iteration=END, settings=settings, bundle=bundle, expires_in_seconds=600))
-
-    def FetchAsset(self, request, context):
-        if request.sha256 != SHA:
-            context.abort(grpc.StatusCode.NOT_FOUND, "no such asset")
-        yield cluster.pb().AssetChunk(sha256=SHA, size=len(SCENE), data=SCENE)
-
-    def FetchMask(self, request, context):
-        context.abort(grpc.StatusCode.NOT_FOUND, "the fake job has no adaptive mask")
-        yield cluster.pb().MaskChunk()
+        return self.granted(lease_id)
 
     def Heartbeat(self, request, context):
         for lease_id in request.lease_ids:

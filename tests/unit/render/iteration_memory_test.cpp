@@ -41,8 +41,8 @@ TEST(IterationMemory, StoredLightPathsGrowWithThePixelsOrTheLightPathCount) {
     const uint64_t small = estimate_iteration_memory(vcm, 256, 256, 2).bytes;
     const uint64_t large = estimate_iteration_memory(vcm, 512, 512, 2).bytes;
     // 3 x 65536 more light paths, each of up to 9 vertices of the stored vertex's bound plus
-    // its 52-B merge index, and its 4-B end.
-    EXPECT_EQ(large - small, 3u * 65536u * (9u * (kLightVertexBytesBound + 52u) + 4u));
+    // its 60-B merge index (with the 8-B arrival medium of a scene with media), and its 4-B end.
+    EXPECT_EQ(large - small, 3u * 65536u * (9u * (kLightVertexBytesBound + 60u) + 4u));
     RenderSettings fixed = vcm;
     fixed.light_path_count = 1000;
     EXPECT_EQ(estimate_iteration_memory(fixed, 256, 256, 2).bytes,
@@ -135,7 +135,7 @@ TEST(IterationMemory, TheMessageNamesTheAlgorithmTheEstimateAndWhatLowersIt) {
               std::string::npos)
         << e.what;
     EXPECT_NE(e.what.find("4096 light paths x up to 9 stored vertices x " +
-                          std::to_string(kLightVertexBytesBound + 52) + " B"),
+                          std::to_string(kLightVertexBytesBound + 60) + " B"),
               std::string::npos)
         << e.what;
     EXPECT_NE(e.what.find("--light-paths"), std::string::npos) << e.what;
