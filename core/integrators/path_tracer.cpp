@@ -19,7 +19,7 @@ Rgb PathTracer::Li(const Scene& scene, const Ray& camera_ray, Rng& rng, RenderSt
     bool prev_delta = true;
     const bool has_lights = !scene.lights().empty();
 
-    for (int depth = 1;; ++depth) {  // depth = segments of the path including `ray`
+    for (int depth = 1;; ++depth) {        // depth = segments of the path including `ray`
         SurfaceInteraction si(kUnfilled);  // read only after a hit
         ++stats.rays;
         if (!scene.intersect(ray, si)) {
