@@ -51,6 +51,27 @@ bool has_exr_magic(const std::filesystem::path& file) {
     return in && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
 }
 
+// The named float channels of the first part's data window, interleaved in `names`' order
+// (charged to the scene memory budget).
+void read_float_channels(Imf::InputFile& in, const std::filesystem::path& file,
+                         const std::vector<std::string>& names, int& width, int& height,
+                         std::vector<float>& pixels) {
+    const Imath::Box2i window = in.header().dataWindow();
+    width = window.max.x - window.min.x + 1;
+    height = window.max.y - window.min.y + 1;
+    if (width <= 0 || height <= 0) throw ImageFileError(file, "the image has no pixels");
+    charge_scene_memory(pixel_bytes(width, height, names.size()),
+                        file.string() + ": " + pixels_name(width, height));
+    pixels.assign(size_t(width) * size_t(height) * names.size(), 0.0f);
+    Imf::FrameBuffer frame;
+    const size_t x_stride = sizeof(float) * names.size();
+    for (size_t c = 0; c < names.size(); ++c)
+        frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, pixels.data() + c, window, x_stride,
+                                                x_stride * size_t(width)));
+    in.setFrameBuffer(frame);
+    in.readPixels(window.min.y, window.max.y);
+}
+
 // The EXR through OpenEXR, or nullopt when it has channels this does not cover (the plugin
 // reads those as OpenImageIO always did).
 std::optional<ImageFileData> read_exr_file(const std::filesystem::path& file) {
@@ -73,22 +94,9 @@ std::optional<ImageFileData> read_exr_file(const std::filesystem::path& file) {
         if (channel.type == Imf::UINT || channel.xSampling != 1 || channel.ySampling != 1)
             return std::nullopt;
     }
-    const Imath::Box2i window = header.dataWindow();
     ImageFileData data;
-    data.width = window.max.x - window.min.x + 1;
-    data.height = window.max.y - window.min.y + 1;
     data.channels = int(names.size());
-    if (data.width <= 0 || data.height <= 0) throw ImageFileError(file, "the image has no pixels");
-    charge_scene_memory(pixel_bytes(data.width, data.height, names.size()),
-                        file.string() + ": " + pixels_name(data.width, data.height));
-    data.pixels.assign(size_t(data.width) * size_t(data.height) * names.size(), 0.0f);
-    Imf::FrameBuffer frame;
-    const size_t x_stride = sizeof(float) * names.size();
-    for (size_t c = 0; c < names.size(); ++c)
-        frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, data.pixels.data() + c, window,
-                                                x_stride, x_stride * size_t(data.width)));
-    in.setFrameBuffer(frame);
-    in.readPixels(window.min.y, window.max.y);
+    read_float_channels(in, file, names, data.width, data.height, data.pixels);
     for (auto it = header.begin(); it != header.end(); ++it)
         if (auto text = dynamic_cast<const Imf::StringAttribute*>(&it.attribute()))
             data.metadata[it.name()] = text->value();
@@ -183,29 +191,18 @@ std::optional<Image> read_exr_layer(const std::filesystem::path& file, const std
     if (!has_exr_magic(file)) throw ImageFileError(file, "not an OpenEXR file");
     try {
         Imf::InputFile in(file.c_str());
-        const Imf::Header& header = in.header();
-        const char* components[3] = {"R", "G", "B"};
-        for (const char* c : components) {
-            const Imf::Channel* channel = header.channels().findChannel(layer + "." + c);
+        const std::vector<std::string> names = {layer + ".R", layer + ".G", layer + ".B"};
+        for (const std::string& name : names) {
+            const Imf::Channel* channel = in.header().channels().findChannel(name);
             if (!channel) return std::nullopt;
             if (channel->type == Imf::UINT || channel->xSampling != 1 || channel->ySampling != 1)
                 throw ImageFileError(file, "layer " + layer + " is not a float RGB layer");
         }
-        const Imath::Box2i window = header.dataWindow();
-        const int width = window.max.x - window.min.x + 1;
-        const int height = window.max.y - window.min.y + 1;
-        if (width <= 0 || height <= 0) throw ImageFileError(file, "the image has no pixels");
-        charge_scene_memory(pixel_bytes(width, height, 3),
-                            file.string() + ": " + pixels_name(width, height));
+        int width = 0, height = 0;
+        std::vector<float> pixels;
+        read_float_channels(in, file, names, width, height, pixels);
         Image image(width, height);
-        Imf::FrameBuffer frame;
-        const size_t x_stride = 3 * sizeof(float);
-        for (int c = 0; c < 3; ++c)
-            frame.insert(layer + "." + components[c],
-                         Imf::Slice::Make(Imf::FLOAT, image.data() + c, window, x_stride,
-                                          x_stride * size_t(width)));
-        in.setFrameBuffer(frame);
-        in.readPixels(window.min.y, window.max.y);
+        std::copy(pixels.begin(), pixels.end(), image.data());
         return image;
     } catch (const ImageFileError&) {
         throw;
