@@ -241,6 +241,9 @@ class JobManager {
     // --- jobs (job_manager.cpp) ---
     void restore();
     std::shared_ptr<JobData> find(const std::string& job_id);
+    // The job holding frame `index`, or the status naming what is missing (takes mu_).
+    grpc::Status find_frame(const std::string& job_id, uint32_t index,
+                            std::shared_ptr<JobData>& job);
     bool known(const std::string& job_id);                                   // find under mu_
     void set_state(JobData& job, JobState state, const std::string& error);  // mu_ held
     // The wall clock, in Unix milliseconds, as the injected clock advances (a test's clock

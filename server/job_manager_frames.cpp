@@ -246,15 +246,19 @@ Status JobManager::preview_image(const std::string& job_id, uint32_t index, Imag
                                                        job_id + " has no iterations yet");
 }
 
+Status JobManager::find_frame(const std::string& job_id, uint32_t index,
+                              std::shared_ptr<JobData>& job) {
+    std::lock_guard lock(mu_);
+    job = find(job_id);
+    if (!job) return job_not_found(job_id);
+    if (index >= job->frames.size()) return frame_not_found(job_id, index, job->frames.size());
+    return Status::OK;
+}
+
 Status JobManager::error_history(const std::string& job_id, uint32_t index,
                                  std::vector<ErrorPoint>* points) {
     std::shared_ptr<JobData> job;
-    {
-        std::lock_guard lock(mu_);
-        job = find(job_id);
-        if (!job) return job_not_found(job_id);
-        if (index >= job->frames.size()) return frame_not_found(job_id, index, job->frames.size());
-    }
+    if (Status status = find_frame(job_id, index, job); !status.ok()) return status;
     FrameData& frame = *job->frames[index];
     std::lock_guard lock(frame.mu);
     *points = frame.history;

@@ -13,12 +13,7 @@ using namespace detail;
 
 Status JobManager::pixel_maps(const std::string& job_id, uint32_t index, PixelMaps* maps) {
     std::shared_ptr<JobData> job;
-    {
-        std::lock_guard lock(mu_);
-        job = find(job_id);
-        if (!job) return job_not_found(job_id);
-        if (index >= job->frames.size()) return frame_not_found(job_id, index, job->frames.size());
-    }
+    if (Status status = find_frame(job_id, index, job); !status.ok()) return status;
     FrameData& frame = *job->frames[index];
     {
         std::lock_guard lock(frame.mu);
